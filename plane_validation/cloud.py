@@ -1,0 +1,322 @@
+"""sensor_msgs/PointCloud2 <-> numpy, for rclpy and rosbags messages alike (numpy only).
+
+Nothing from ROS is imported here: messages are duck-typed on their attributes (``header``,
+``height``, ``width``, ``fields[name, offset, datatype, count]``, ``is_bigendian``,
+``point_step``, ``row_step``, ``data``, ``is_dense``), and :func:`create_cloud` is told which
+message classes to build through ``types`` (e.g. the module ``sensor_msgs.msg`` or
+``rosbags_types(typestore)``).
+
+What is copied:
+
+* :func:`structured_array` is a zero-copy view of ``msg.data`` when ``row_step ==
+  width * point_step`` or ``height == 1`` (the view is writable iff ``msg.data`` is, e.g. an
+  rclpy ``array.array``; while it lives, that ``array.array`` cannot be resized). With row
+  padding on an organized cloud the (height*width,) result must be a compact copy of the points.
+* :func:`xyz_array` always returns a new C-contiguous (N, 3) array (one strided pass per call).
+* :func:`create_cloud` writes the columns once into a fresh buffer; an rclpy message's ``data``
+  setter then copies that ``array.array`` once more unless ``ROS_PYTHON_CHECK_FIELDS=1``.
+"""
+from __future__ import annotations
+
+import array
+import dataclasses
+from collections.abc import Mapping
+from typing import Any, Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = [
+    'DATATYPES', 'CloudTypes', 'RosbagsTypes', 'structured_array', 'xyz_array', 'create_cloud',
+    'rosbags_types', 'pack_rgb', 'unpack_rgb',
+]
+
+#: PointField datatype code -> numpy scalar type (sensor_msgs/PointField constants).
+DATATYPES: dict[int, type[np.generic]] = {
+    1: np.int8, 2: np.uint8, 3: np.int16, 4: np.uint16,
+    5: np.int32, 6: np.uint32, 7: np.float32, 8: np.float64,
+}
+_DATATYPE_NAMES = {1: 'INT8', 2: 'UINT8', 3: 'INT16', 4: 'UINT16',
+                   5: 'INT32', 6: 'UINT32', 7: 'FLOAT32', 8: 'FLOAT64'}
+_CODES: dict[np.dtype, int] = {np.dtype(t): code for code, t in DATATYPES.items()}
+_XYZ = ('x', 'y', 'z')
+# Field names some writers use for explicit padding; they carry no data and may repeat.
+_PADDING_NAMES = frozenset({'', '_'})
+
+
+class CloudTypes(Protocol):
+    """Anything exposing the two message classes :func:`create_cloud` needs."""
+
+    PointCloud2: Any
+    PointField: Any
+
+
+@dataclasses.dataclass(frozen=True)
+class RosbagsTypes:
+    """Message classes of a rosbags typestore (see :func:`rosbags_types`)."""
+
+    PointCloud2: Any
+    PointField: Any
+    Header: Any
+    Time: Any
+
+
+def rosbags_types(typestore: Any) -> RosbagsTypes:
+    """Expose PointCloud2/PointField (plus Header/Time) of a rosbags typestore for create_cloud."""
+    t = typestore.types
+    return RosbagsTypes(
+        PointCloud2=t['sensor_msgs/msg/PointCloud2'],
+        PointField=t['sensor_msgs/msg/PointField'],
+        Header=t['std_msgs/msg/Header'],
+        Time=t['builtin_interfaces/msg/Time'],
+    )
+
+
+def _uint(msg: Any, name: str) -> int:
+    """msg.<name> as a non-negative Python int, or ValueError."""
+    value = getattr(msg, name)
+    try:
+        as_int = int(value)
+    except (TypeError, ValueError):
+        raise ValueError(f'PointCloud2.{name} must be an integer, got {value!r}') from None
+    if as_int != value or as_int < 0:
+        raise ValueError(f'PointCloud2.{name} must be a non-negative integer, got {value!r}')
+    return as_int
+
+
+def _data_bytes(data: Any) -> np.ndarray:
+    """msg.data as a flat uint8 array, sharing memory whenever data exposes a buffer."""
+    if isinstance(data, np.ndarray):
+        if data.dtype != np.uint8:
+            raise ValueError(f'PointCloud2.data must hold uint8, got an array of {data.dtype}')
+        return data.reshape(-1)  # view when contiguous (the normal case), copy otherwise
+    try:
+        return np.frombuffer(data, dtype=np.uint8)  # array.array, bytes, bytearray, memoryview
+    except (TypeError, ValueError, BufferError):
+        try:
+            return np.asarray(data, dtype=np.uint8).reshape(-1)  # e.g. a list of ints: copied
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise ValueError(f'PointCloud2.data is not a byte sequence: {exc}') from None
+
+
+def _field_layout(msg: Any) -> tuple[np.dtype, int]:
+    """Validate msg.fields; return (dtype with unpadded itemsize, bytes the fields need)."""
+    order = '>' if msg.is_bigendian else '<'
+    names: list[str] = []
+    formats: list[Any] = []
+    offsets: list[int] = []
+    end = 0
+    for field in msg.fields:
+        name = str(field.name)
+        code, offset, count = field.datatype, field.offset, field.count
+        if code not in DATATYPES:
+            raise ValueError(f'field {name!r} has unsupported datatype code {code!r} '
+                             f'(expected 1..8: {", ".join(_DATATYPE_NAMES.values())})')
+        if not isinstance(offset, (int, np.integer)) or offset < 0:
+            raise ValueError(f'field {name!r} has invalid offset {offset!r}')
+        if not isinstance(count, (int, np.integer)) or count < 0:
+            raise ValueError(f'field {name!r} has invalid count {count!r}')
+        if name in _PADDING_NAMES:
+            continue
+        if name in names:
+            raise ValueError(f'field {name!r} appears more than once in PointCloud2.fields')
+        base = np.dtype(DATATYPES[code]).newbyteorder(order)
+        names.append(name)
+        formats.append(base if count == 1 else (base, (int(count),)))
+        offsets.append(int(offset))
+        end = max(end, int(offset) + base.itemsize * int(count))
+    dtype = np.dtype({'names': names, 'formats': formats, 'offsets': offsets, 'itemsize': end})
+    return dtype, end
+
+
+def _grid(msg: Any) -> np.ndarray:
+    """Validated (height, width) structured view of msg.data (zero-copy); may be empty."""
+    height, width = _uint(msg, 'height'), _uint(msg, 'width')
+    point_step, row_step = _uint(msg, 'point_step'), _uint(msg, 'row_step')
+    packed, needed = _field_layout(msg)
+    if height == 0 or width == 0:
+        itemsize = max(point_step, needed)
+        return np.empty((height, width), _with_itemsize(packed, itemsize))
+    if point_step == 0:
+        raise ValueError(f'PointCloud2.point_step is 0 but width is {width}')
+    if needed > point_step:
+        worst = max(packed.names, key=lambda n: packed.fields[n][1] + packed.fields[n][0].itemsize)
+        offset = packed.fields[worst][1]
+        raise ValueError(
+            f'point_step {point_step} is smaller than the fields need ({needed} bytes): field '
+            f'{worst!r} at offset {offset} ({packed.fields[worst][0].itemsize} bytes) extends '
+            f'beyond point_step')
+    if row_step < width * point_step:
+        raise ValueError(f'row_step {row_step} is smaller than width*point_step = '
+                         f'{width}*{point_step} = {width * point_step}')
+    buf = _data_bytes(msg.data)
+    expected = height * row_step
+    if buf.size < expected:
+        raise ValueError(f'PointCloud2.data is too short: expected height*row_step = '
+                         f'{height}*{row_step} = {expected} bytes, got {buf.size}')
+    rows = buf[:expected].reshape(height, row_step)[:, :width * point_step]
+    return rows.view(_with_itemsize(packed, point_step))  # last axis is contiguous bytes
+
+
+def _with_itemsize(dtype: np.dtype, itemsize: int) -> np.dtype:
+    """Same fields and offsets, record size `itemsize`."""
+    return np.dtype({'names': list(dtype.names), 'formats': [dtype.fields[n][0] for n in dtype.names],
+                     'offsets': [dtype.fields[n][1] for n in dtype.names], 'itemsize': itemsize})
+
+
+def structured_array(msg: Any) -> np.ndarray:
+    """All fields as a (height*width,) structured array in row-major order.
+
+    Zero-copy view of msg.data (itemsize point_step, byte order from is_bigendian) unless an
+    organized cloud has row padding (row_step > width*point_step): then the points are copied
+    into a compact array. Fields named '' or '_' are treated as padding and left out.
+    Raises ValueError for malformed layouts (bad datatype, point_step, row_step, short data).
+    """
+    grid = _grid(msg)
+    return grid.reshape(-1)  # view if rows are back to back (or a single row), else a copy
+
+
+def _xyz_dtype(msg: Any) -> None:
+    """Check that x, y, z exist once each with count 1 and a float datatype."""
+    by_name = {str(f.name): f for f in msg.fields}
+    missing = [n for n in _XYZ if n not in by_name]
+    if missing:
+        have = [str(f.name) for f in msg.fields]
+        raise ValueError(f'PointCloud2 is missing field(s) {", ".join(missing)} (has {have})')
+    spans = []
+    for name in _XYZ:
+        field = by_name[name]
+        if field.count != 1:
+            raise ValueError(f'field {name!r} has count {field.count}; x, y and z need count 1')
+        if field.datatype not in (7, 8):
+            kind = _DATATYPE_NAMES.get(field.datatype, repr(field.datatype))
+            if field.datatype not in DATATYPES:
+                raise ValueError(f'field {name!r} has unsupported datatype code {field.datatype!r}')
+            raise ValueError(f'field {name!r} has datatype {kind}; xyz must be FLOAT32 or FLOAT64')
+        size = 4 if field.datatype == 7 else 8
+        spans.append((int(field.offset), int(field.offset) + size, name))
+    spans.sort()
+    for (_, end_a, a), (start_b, _, b) in zip(spans, spans[1:]):
+        if start_b < end_a:
+            raise ValueError(f'fields {a!r} and {b!r} overlap')
+
+
+def xyz_array(msg: Any, *, dtype: npt.DTypeLike = np.float64) -> np.ndarray:
+    """(height*width, 3) x, y, z as a new array, row-major; NaN holes stay as NaN rows.
+
+    x/y/z may be FLOAT32 or FLOAT64 (any byte order); an empty cloud (height or width 0)
+    gives an empty (0, 3) array without further checks.
+    """
+    out_dtype = np.dtype(dtype)
+    if out_dtype.kind != 'f':
+        raise ValueError(f'xyz_array needs a floating dtype, got {out_dtype}')
+    if _uint(msg, 'height') == 0 or _uint(msg, 'width') == 0:
+        return np.empty((0, 3), out_dtype)
+    _xyz_dtype(msg)
+    grid = _grid(msg)
+    out = np.empty(grid.shape + (3,), out_dtype)
+    x_type, x_off = grid.dtype.fields['x']
+    if all(grid.dtype.fields[n] == (x_type, x_off + i * x_type.itemsize)
+           for i, n in enumerate(_XYZ)):
+        # x, y, z back to back with one type: read them as one (3,) subarray in a single pass.
+        triple = np.dtype({'names': ['xyz'], 'formats': [(x_type, (3,))], 'offsets': [x_off],
+                           'itemsize': grid.dtype.itemsize})
+        out[...] = grid.view(triple)['xyz']
+    else:
+        for i, name in enumerate(_XYZ):
+            out[..., i] = grid[name]
+    return out.reshape(-1, 3)
+
+
+def _is_rosbags(cls: Any) -> bool:
+    """True for rosbags message classes (dataclasses carrying __msgtype__)."""
+    return dataclasses.is_dataclass(cls) and hasattr(cls, '__msgtype__')
+
+
+def create_cloud(header: Any, columns: Mapping[str, npt.ArrayLike], *,
+                 types: CloudTypes) -> Any:
+    """Unorganized (height=1), little-endian, packed PointCloud2 from equal-length 1-D columns.
+
+    Column dtypes must be float32/float64/int8/uint8/int16/uint16/int32/uint32 (cast int64 or
+    bool yourself); fields follow the mapping's order. ``header`` is stored as is; ``types``
+    supplies PointCloud2/PointField (``sensor_msgs.msg`` or :func:`rosbags_types`). is_dense is
+    True iff x, y and z (those present) contain no NaN.
+    """
+    if not columns:
+        raise ValueError('create_cloud needs at least one column')
+    arrays: dict[str, np.ndarray] = {}
+    for name, values in columns.items():
+        col = np.asarray(values)
+        if col.ndim != 1:
+            raise ValueError(f'column {name!r} must be 1-D, got shape {col.shape}')
+        if col.dtype.newbyteorder('=') not in _CODES:
+            raise ValueError(f'column {name!r} has unsupported dtype {col.dtype}; use one of '
+                             'float32, float64, int8, uint8, int16, uint16, int32, uint32')
+        if not name or name in arrays:
+            raise ValueError(f'invalid or duplicate column name {name!r}')
+        arrays[name] = col
+    lengths = {name: len(col) for name, col in arrays.items()}
+    if len(set(lengths.values())) != 1:
+        raise ValueError(f'columns must have equal length, got {lengths}')
+    n = next(iter(lengths.values()))
+
+    offsets: list[int] = []
+    formats: list[np.dtype] = []
+    step = 0
+    for col in arrays.values():
+        fmt = col.dtype.newbyteorder('<')
+        offsets.append(step)
+        formats.append(fmt)
+        step += fmt.itemsize
+    layout = np.dtype({'names': list(arrays), 'formats': formats, 'offsets': offsets,
+                       'itemsize': step})
+
+    rosbags = _is_rosbags(types.PointCloud2)
+    if rosbags:
+        data: Any = np.empty(n * step, np.uint8)
+    else:
+        data = array.array('B', bytes(n * step))  # the rclpy uint8[] setter's fast path
+    records = np.frombuffer(data, dtype=layout)
+    for name, col in arrays.items():
+        records[name] = col
+    del records  # release the buffer export so the array.array stays resizable
+
+    dense = all(not (arrays[a].dtype.kind == 'f' and np.isnan(arrays[a]).any())
+                for a in _XYZ if a in arrays)
+    fields = [types.PointField(name=name, offset=int(off), datatype=_CODES[fmt.newbyteorder('=')],
+                               count=1)
+              for name, off, fmt in zip(arrays, offsets, formats)]
+    kwargs = dict(header=header, height=1, width=int(n), fields=fields, is_bigendian=False,
+                  point_step=int(step), row_step=int(n * step), is_dense=bool(dense))
+    if rosbags:
+        return types.PointCloud2(data=data, **kwargs)
+    msg = types.PointCloud2(**kwargs)
+    msg.data = data  # not via the constructor, which would convert element by element
+    return msg
+
+
+def pack_rgb(r: npt.ArrayLike, g: npt.ArrayLike, b: npt.ArrayLike) -> np.ndarray:
+    """float32 whose bits are 0x00RRGGBB (the 'rgb' field RViz expects); inputs broadcast.
+
+    Inputs must be integers in [0, 255]. Compare results via ``.view(np.uint32)``.
+    """
+    parts = []
+    for label, value in (('r', r), ('g', g), ('b', b)):
+        channel = np.asarray(value)
+        if channel.dtype.kind not in 'ui':
+            raise ValueError(f'pack_rgb: {label} must be integers in [0, 255], got {channel.dtype}')
+        if channel.size and (channel.min() < 0 or channel.max() > 255):
+            raise ValueError(f'pack_rgb: {label} has values outside [0, 255]')
+        parts.append(channel.astype(np.uint32))
+    packed = (parts[0] << 16) | (parts[1] << 8) | parts[2]
+    return np.ascontiguousarray(packed, dtype=np.uint32).view(np.float32)
+
+
+def unpack_rgb(rgb: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Inverse of :func:`pack_rgb`: packed float32 (or uint32) -> r, g, b uint8 arrays."""
+    bits = np.ascontiguousarray(rgb)
+    if bits.dtype.itemsize != 4:
+        raise ValueError(f'unpack_rgb expects float32 or uint32, got {bits.dtype}')
+    bits = bits.view(np.uint32)
+    return ((bits >> 16) & 0xFF).astype(np.uint8), ((bits >> 8) & 0xFF).astype(np.uint8), \
+        (bits & 0xFF).astype(np.uint8)

@@ -1,0 +1,201 @@
+"""Synthetic point clouds with known planes, for tests, the demo and benchmarks.
+
+Every generator returns a :class:`Scene`. Noise ``noise`` is uniform in [-noise, +noise] along
+each surface normal (the paper's ``e``), in the scene's own units before ``scale`` is applied;
+``scale`` multiplies all coordinates (and so the noise), e.g. ``scale=0.01`` turns the paper's
+100-unit corner into a 1 m corner. Outliers are uniform in the bounding box and labelled -1.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ['Scene', 'corner', 'cube', 'room', 'stairs', 'table', 'sphere', 'boxes', 'SCENES']
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """points: (N, 3) float64; labels: (N,) int32 true plane index or -1; planes: (k, 4) a, b, c, d."""
+
+    name: str
+    points: np.ndarray
+    labels: np.ndarray
+    planes: np.ndarray
+    noise: float
+
+    @property
+    def n_planes(self) -> int:
+        return len(self.planes)
+
+
+@dataclass(frozen=True)
+class _Rect:
+    """A planar rectangle: origin + s*u + r*v for s in [0, su], r in [0, sv]; u, v orthonormal."""
+
+    origin: tuple[float, float, float]
+    u: tuple[float, float, float]
+    v: tuple[float, float, float]
+    su: float
+    sv: float
+
+    @property
+    def area(self) -> float:
+        return self.su * self.sv
+
+    @property
+    def normal(self) -> np.ndarray:
+        n = np.cross(self.u, self.v)
+        return n / np.linalg.norm(n)
+
+    def sample(self, n: int, noise: float, rng: np.random.Generator) -> np.ndarray:
+        s = rng.uniform(0, self.su, n)[:, None]
+        r = rng.uniform(0, self.sv, n)[:, None]
+        pts = np.asarray(self.origin) + s * np.asarray(self.u) + r * np.asarray(self.v)
+        if noise > 0:
+            pts += rng.uniform(-noise, noise, n)[:, None] * self.normal
+        return pts
+
+
+X, Y, Z = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
+
+
+def _split(n: int, weights: np.ndarray) -> np.ndarray:
+    """Split n points over parts proportionally to weights (largest remainders)."""
+    raw = n * weights / weights.sum()
+    counts = np.floor(raw).astype(int)
+    counts[np.argsort(counts - raw)[: n - counts.sum()]] += 1
+    return counts
+
+
+def _compose(name: str, rects: list[_Rect], n_points: int, noise: float, outlier_fraction: float,
+             scale: float, seed, clutter=None) -> Scene:
+    """Sample the rectangles by area, add clutter (label -1) and outliers, apply scale."""
+    if not 0 <= outlier_fraction < 1:
+        raise ValueError(f'outlier_fraction must be in [0, 1), got {outlier_fraction}')
+    if noise < 0 or scale <= 0 or n_points < 0:
+        raise ValueError('noise must be >= 0, scale > 0 and n_points >= 0')
+    rng = np.random.default_rng(seed)
+    n_out = int(round(n_points * outlier_fraction))
+    n_clutter = 0 if clutter is None else int(round((n_points - n_out) * clutter[1]))
+    counts = _split(n_points - n_out - n_clutter, np.array([r.area for r in rects]))
+    parts = [r.sample(c, noise, rng) for r, c in zip(rects, counts)]
+    labels = [np.full(c, i, dtype=np.int32) for i, c in enumerate(counts)]
+    if n_clutter:
+        parts.append(clutter[0](n_clutter, rng))
+        labels.append(np.full(n_clutter, -1, dtype=np.int32))
+    body = np.concatenate(parts) if parts else np.empty((0, 3))
+    if n_out:
+        lo, hi = body.min(axis=0), body.max(axis=0)
+        parts.append(rng.uniform(lo, hi, size=(n_out, 3)))
+        labels.append(np.full(n_out, -1, dtype=np.int32))
+    points = np.concatenate(parts) if parts else np.empty((0, 3))
+    planes = np.array([np.append(r.normal, -r.normal @ np.asarray(r.origin)) for r in rects]).reshape(-1, 4)
+    planes[:, 3] *= scale
+    return Scene(name=name, points=points * scale, labels=np.concatenate(labels) if labels else
+                 np.empty(0, np.int32), planes=planes, noise=noise * scale)
+
+
+def corner(n_points: int = 3000, noise: float = 0.0, *, side: float = 100.0, outlier_fraction: float = 0.0,
+           scale: float = 1.0, seed=None) -> Scene:
+    """The paper's synthetic data: three mutually perpendicular faces of a cube of ``side`` units
+    meeting at the origin (planes x=0, y=0, z=0)."""
+    rects = [_Rect((0, 0, 0), Y, Z, side, side), _Rect((0, 0, 0), Z, X, side, side),
+             _Rect((0, 0, 0), X, Y, side, side)]
+    return _compose('corner', rects, n_points, noise, outlier_fraction, scale, seed)
+
+
+def _box_faces(lo, hi, *, bottom: bool = True) -> list[_Rect]:
+    """Faces of the axis-aligned box [lo, hi], normals pointing outwards."""
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
+    faces = [
+        _Rect((x0, y0, z0), Z, Y, dz, dy),  # x = x0, normal -x
+        _Rect((x1, y0, z0), Y, Z, dy, dz),  # x = x1, normal +x
+        _Rect((x0, y0, z0), X, Z, dx, dz),  # y = y0, normal -y
+        _Rect((x0, y1, z0), Z, X, dz, dx),  # y = y1, normal +y
+        _Rect((x0, y0, z1), X, Y, dx, dy),  # z = z1, normal +z
+    ]
+    if bottom:
+        faces.append(_Rect((x0, y0, z0), Y, X, dy, dx))  # z = z0, normal -z
+    return faces
+
+
+def cube(n_points: int = 6000, noise: float = 0.0, *, side: float = 100.0, outlier_fraction: float = 0.0,
+         scale: float = 1.0, seed=None) -> Scene:
+    """Surface of the cube [0, side]^3: six faces."""
+    return _compose('cube', _box_faces((0, 0, 0), (side, side, side)), n_points, noise, outlier_fraction,
+                    scale, seed)
+
+
+def room(n_points: int = 20000, noise: float = 0.0, *, size=(5.0, 4.0, 2.5), outlier_fraction: float = 0.0,
+         scale: float = 1.0, seed=None) -> Scene:
+    """Inside of a rectangular room (meters): floor, ceiling and four walls."""
+    return _compose('room', _box_faces((0, 0, 0), size), n_points, noise, outlier_fraction, scale, seed)
+
+
+def stairs(n_points: int = 8000, noise: float = 0.0, *, steps: int = 4, rise: float = 0.17, run: float = 0.28,
+           width: float = 1.0, outlier_fraction: float = 0.0, scale: float = 1.0, seed=None) -> Scene:
+    """A staircase (meters): ``steps`` treads (horizontal, ``rise`` apart) and ``steps`` risers
+    (vertical, ``run`` apart); treads first, then risers."""
+    treads = [_Rect((k * run, 0, (k + 1) * rise), X, Y, run, width) for k in range(steps)]
+    risers = [_Rect((k * run, 0, k * rise), Y, Z, width, rise) for k in range(steps)]
+    return _compose('stairs', treads + risers, n_points, noise, outlier_fraction, scale, seed)
+
+
+def _legs(centres, radius: float, height: float):
+    """Sampler of points on vertical cylinders (table legs): clutter without planes."""
+    centres = np.asarray(centres, dtype=float)
+
+    def sample(n: int, rng: np.random.Generator) -> np.ndarray:
+        which = rng.integers(0, len(centres), n)
+        angle = rng.uniform(0, 2 * np.pi, n)
+        z = rng.uniform(0, height, n)
+        return np.column_stack([centres[which, 0] + radius * np.cos(angle),
+                                centres[which, 1] + radius * np.sin(angle), z])
+    return sample
+
+
+def table(n_points: int = 20000, noise: float = 0.0, *, outlier_fraction: float = 0.0, scale: float = 1.0,
+          seed=None) -> Scene:
+    """A table (meters) on a floor with two boxes on it: floor, table top, and the top and four
+    sides of each box (12 planes); cylindrical legs are non-planar clutter (label -1)."""
+    top_z = 0.75
+    rects = [_Rect((-0.4, -0.6, 0.0), X, Y, 2.0, 2.0),          # floor
+             _Rect((0.0, 0.0, top_z), X, Y, 1.2, 0.8)]           # table top
+    rects += _box_faces((0.10, 0.10, top_z), (0.50, 0.40, top_z + 0.25), bottom=False)
+    rects += _box_faces((0.70, 0.35, top_z), (1.00, 0.65, top_z + 0.20), bottom=False)
+    legs = _legs([(0.05, 0.05), (1.15, 0.05), (0.05, 0.75), (1.15, 0.75)], 0.025, top_z)
+    return _compose('table', rects, n_points, noise, outlier_fraction, scale, seed, clutter=(legs, 0.03))
+
+
+def boxes(n_points: int = 307200, noise: float = 0.005, *, outlier_fraction: float = 0.05, scale: float = 1.0,
+          seed=None) -> Scene:
+    """Benchmark scene (meters): floor, two walls and the top and front of a crate: 5 planes."""
+    rects = [_Rect((0, 0, 0), X, Y, 4.0, 3.0),            # floor z = 0
+             _Rect((0, 3.0, 0), Z, X, 2.5, 4.0),          # back wall y = 3
+             _Rect((0, 0, 0), Y, Z, 3.0, 2.5),            # side wall x = 0
+             _Rect((1.5, 1.0, 0.8), X, Y, 1.0, 0.8),      # crate top z = 0.8
+             _Rect((1.5, 1.0, 0.0), Z, X, 0.8, 1.0)]      # crate front y = 1
+    return _compose('boxes', rects, n_points, noise, outlier_fraction, scale, seed)
+
+
+def sphere(n_points: int = 5000, noise: float = 0.0, *, radius: float = 1.0, outlier_fraction: float = 0.0,
+           scale: float = 1.0, seed=None) -> Scene:
+    """Points on a sphere (meters): no planes at all. Noise is radial."""
+    if not 0 <= outlier_fraction < 1:
+        raise ValueError(f'outlier_fraction must be in [0, 1), got {outlier_fraction}')
+    rng = np.random.default_rng(seed)
+    n_out = int(round(n_points * outlier_fraction))
+    directions = rng.normal(size=(n_points - n_out, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    r = radius + (rng.uniform(-noise, noise, len(directions)) if noise > 0 else 0.0)
+    pts = directions * np.asarray(r).reshape(-1, 1)
+    outliers = rng.uniform(-radius, radius, size=(n_out, 3))
+    return Scene(name='sphere', points=np.concatenate([pts, outliers]) * scale,
+                 labels=np.full(n_points, -1, dtype=np.int32), planes=np.empty((0, 4)), noise=noise * scale)
+
+
+#: Scene generators by name, for the CLI and the bag maker.
+SCENES = {'corner': corner, 'cube': cube, 'room': room, 'stairs': stairs, 'table': table, 'sphere': sphere,
+          'boxes': boxes}

@@ -1,0 +1,56 @@
+"""ament_python package definition; also installable with pip (see README)."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = 'plane_validation'
+
+# ROS 2 Jazzy from PyPI for machines without an apt-installed ROS. On a robot these come from
+# apt through package.xml/rosdep instead, so they are an extra, never a hard requirement.
+ROS_WHEELS = [
+    'ros-jazzy-rclpy[fastrtps]',
+    'ros-jazzy-sensor-msgs',
+    'ros-jazzy-std-msgs',
+    'ros-jazzy-geometry-msgs',
+    'ros-jazzy-diagnostic-msgs',
+    'ros-jazzy-visualization-msgs',
+]
+CORE = [
+    'numpy>=1.24',
+    'scipy>=1.10',
+    'rosbags>=0.10',  # get_typestore(Stores.ROS2_JAZZY)
+    'matplotlib>=3.6',
+    'tqdm>=4.60',
+]
+
+setup(
+    name=PACKAGE,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
+        ('share/' + PACKAGE, ['package.xml']),
+        ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
+        ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
+    ],
+    # ament convention: runtime dependencies are declared in package.xml and resolved by
+    # rosdep; pip users take them from the extras below.
+    install_requires=['setuptools'],
+    extras_require={
+        'core': CORE,
+        'ros': CORE + ROS_WHEELS,
+        'test': ['pytest>=7', 'hypothesis>=6', 'scikit-learn>=1.2'],
+    },
+    zip_safe=True,
+    maintainer='plane_validation developers',
+    maintainer_email='dev@plane-validation.invalid',
+    description='Self-validating sequential RANSAC plane detection for ROS 2 point clouds.',
+    license='BSD-3-Clause',
+    tests_require=['pytest'],
+    entry_points={
+        'console_scripts': [
+            'plane_validation_node = plane_validation.node:main',
+            'plane-validation = plane_validation.cli:main',
+        ],
+    },
+)
