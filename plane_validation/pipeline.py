@@ -1,0 +1,254 @@
+"""The per-frame pipeline shared by the ROS node and bag replay (no ROS import).
+
+``FramePipeline.process(points, stamp)`` takes one cloud, (re)tunes the tolerance when due,
+detects planes, scores them and returns a :class:`FrameResult` that says what to publish,
+including the diagnostic level and key-values. The only state is the current tolerance and
+when it was tuned; everything else comes from :class:`PipelineConfig`.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .indices import ValidityIndices, validity_indices
+from .ransac import Segmentation, as_points, detect_planes
+from .tuning import CRITERIA, TuningResult, judge, noise_from_segmentation, tune_tolerance
+
+__all__ = ['PipelineConfig', 'FrameResult', 'FramePipeline', 'voxel_downsample', 'OK', 'WARN', 'ERROR']
+
+OK, WARN, ERROR = 0, 1, 2
+LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR'}
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """Every tunable of the pipeline; the node's ROS parameters map one to one onto these fields."""
+
+    tolerance: float = 0.02              # m, used when auto_tune is off and before the first tune
+    auto_tune: bool = True
+    tune_min: float = 0.0                # m; 0 = derive the candidate range from the cloud
+    tune_max: float = 0.0                # m; 0 = derive
+    tune_count: int = 12                 # candidates, geometrically spaced
+    tune_points: int = 20000             # subsample the sweep runs on
+    criterion: str = 'gs_planes'
+    retune_period: float = 0.0           # s; 0 = tune on the first frame only
+    max_planes: int = 10
+    min_inliers: float = 0.02            # count, or fraction of valid points when < 1
+    probability: float = 0.99
+    max_iterations: int = 1000
+    index_sample_size: int = 2000        # points for the sampled silhouettes
+    voxel_size: float = 0.0              # m; 0 = off
+    seed: int = 0                        # < 0 = fresh entropy every frame
+
+    def validate(self) -> 'PipelineConfig':
+        """Return self, or raise ValueError naming the first invalid field and why."""
+        checks = [
+            (np.isfinite(self.tolerance) and self.tolerance > 0, 'tolerance must be > 0 m'),
+            (self.tune_min >= 0 and self.tune_max >= 0, 'tune_min and tune_max must be >= 0 (0 = derive)'),
+            (self.tune_max == 0 or self.tune_min == 0 or self.tune_max > self.tune_min,
+             'tune_max must be greater than tune_min'),
+            (self.tune_count >= 2, 'tune_count must be >= 2'),
+            (self.tune_points >= 100, 'tune_points must be >= 100'),
+            (self.criterion in CRITERIA, f'criterion must be one of {sorted(CRITERIA)}'),
+            (self.retune_period >= 0, 'retune_period must be >= 0 s'),
+            (self.max_planes >= 1, 'max_planes must be >= 1'),
+            (self.min_inliers >= 0, 'min_inliers must be >= 0'),
+            (0 < self.probability < 1, 'probability must be in (0, 1)'),
+            (self.max_iterations >= 1, 'max_iterations must be >= 1'),
+            (self.index_sample_size >= 10, 'index_sample_size must be >= 10'),
+            (self.voxel_size >= 0, 'voxel_size must be >= 0 m (0 = off)'),
+        ]
+        for ok, why in checks:
+            if not ok:
+                raise ValueError(why)
+        return self
+
+    def candidates(self) -> np.ndarray | None:
+        """Tuning candidates in meters, or None to derive them from the cloud."""
+        if self.tune_min > 0 and self.tune_max > 0:
+            return np.geomspace(self.tune_min, self.tune_max, self.tune_count)
+        return None
+
+
+@dataclass(frozen=True, eq=False)
+class FrameResult:
+    """What one frame produced. points: (n, 3) valid points (after voxelization when on),
+    labels: (n,) int32 for them. level: OK/WARN/ERROR. values: diagnostic key-values."""
+
+    points: np.ndarray
+    labels: np.ndarray
+    segmentation: Segmentation | None
+    indices: ValidityIndices | None
+    tolerance: float
+    tolerance_source: str
+    level: int
+    message: str
+    values: tuple[tuple[str, str], ...]
+    seconds: float
+    tuning: TuningResult | None = None
+
+    @property
+    def n_planes(self) -> int:
+        return 0 if self.segmentation is None else self.segmentation.n_planes
+
+
+def voxel_downsample(points: np.ndarray, voxel_size: float) -> tuple[np.ndarray, np.ndarray]:
+    """Centroid of the points in each voxel of ``voxel_size`` meters.
+
+    Returns (centroids (m, 3), inverse (n,)) with ``inverse[i]`` the voxel of point i.
+    """
+    keys = np.floor(points / voxel_size).astype(np.int64)
+    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(-1)
+    sums = np.zeros((len(counts), 3))
+    np.add.at(sums, inverse, points)
+    return sums / counts[:, None], inverse
+
+
+def frame_seed(seed: int, stamp_ns: int) -> int | None:
+    """Per-frame RANSAC seed from the node seed and the header stamp, so a frame gives the same
+    planes live and offline whatever frames were dropped before it; None when seed < 0."""
+    if seed < 0:
+        return None
+    return int(np.random.SeedSequence([seed, stamp_ns & (2**63 - 1)]).generate_state(1)[0])
+
+
+@dataclass
+class FramePipeline:
+    """Holds the tolerance in use between frames. Thread-safe: a retune may run in another thread."""
+
+    config: PipelineConfig = field(default_factory=PipelineConfig)
+    tolerance: float | None = None       # tuned tolerance; None until the first tune
+    tuned_at: float | None = None        # stamp (s) of the frame the tolerance was tuned on
+    last_tuning: TuningResult | None = None
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def __post_init__(self) -> None:
+        self.config.validate()
+
+    def reconfigure(self, config: PipelineConfig) -> None:
+        """Swap the configuration (validated first); retune when the tuning setup changed."""
+        config.validate()
+        with self._lock:
+            tuning_fields = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'criterion', 'max_planes',
+                             'min_inliers', 'voxel_size')
+            if any(getattr(config, f) != getattr(self.config, f) for f in tuning_fields):
+                self.tolerance, self.tuned_at = None, None
+            self.config = config
+
+    def current_tolerance(self) -> tuple[float, str]:
+        """(tolerance in meters, where it came from)."""
+        with self._lock:
+            if self.config.auto_tune and self.tolerance is not None:
+                return self.tolerance, f'tuned at t={self.tuned_at:.3f}s'
+            return self.config.tolerance, 'fixed' if not self.config.auto_tune else 'parameter (not tuned yet)'
+
+    def retune_due(self, stamp: float) -> bool:
+        """Whether a frame stamped ``stamp`` seconds should trigger a retune."""
+        with self._lock:
+            cfg = self.config
+            if not cfg.auto_tune:
+                return False
+            if self.tolerance is None:
+                return True
+            return cfg.retune_period > 0 and stamp - self.tuned_at >= cfg.retune_period
+
+    def retune(self, points: np.ndarray, stamp: float, stamp_ns: int = 0) -> TuningResult:
+        """Run a tolerance sweep on ``points`` (valid rows, meters) and adopt its choice."""
+        cfg = self.config
+        if cfg.voxel_size > 0:
+            points = voxel_downsample(points, cfg.voxel_size)[0]
+        result = tune_tolerance(points, cfg.candidates(), cfg.criterion, max_planes=cfg.max_planes,
+                                min_inliers=_min_inliers(cfg.min_inliers), probability=cfg.probability,
+                                max_iterations=cfg.max_iterations, sample_size=cfg.index_sample_size,
+                                tune_points=cfg.tune_points, seed=frame_seed(cfg.seed, stamp_ns))
+        with self._lock:
+            self.tolerance, self.tuned_at, self.last_tuning = result.tolerance, stamp, result
+        return result
+
+    def reject(self, message: str, level: int = ERROR) -> FrameResult:
+        """Result for a frame that could not even be read (e.g. a malformed message)."""
+        return _failed(level, message, self.config, time.perf_counter(), self.current_tolerance())
+
+    def process(self, points: np.ndarray, stamp_ns: int = 0, *, tune_inline: bool = True) -> FrameResult:
+        """Run one frame. points: (N, 3) meters, NaN rows allowed; stamp_ns: header stamp.
+
+        Bad input never raises: it gives an ERROR (malformed array) or WARN (too few points,
+        degenerate geometry) result. With ``tune_inline`` a due retune runs before detection;
+        the node passes False and runs :meth:`retune` in a background thread instead.
+        """
+        start = time.perf_counter()
+        stamp = stamp_ns * 1e-9
+        cfg = self.config
+        try:
+            pts = as_points(points)
+        except ValueError as exc:
+            return _failed(ERROR, f'bad input: {exc}', cfg, start, self.current_tolerance())
+        valid = pts[np.isfinite(pts).all(axis=1)]
+        n_input = len(pts)
+        if len(valid) < 3:
+            return _failed(WARN, f'too few valid points: {len(valid)} of {n_input} (need 3)', cfg, start,
+                           self.current_tolerance(), n_input=n_input, n_valid=len(valid))
+        tuning = None
+        if tune_inline and self.retune_due(stamp):
+            try:
+                tuning = self.retune(valid, stamp, stamp_ns)
+            except ValueError as exc:
+                return _failed(WARN, f'cannot tune: {exc}', cfg, start, self.current_tolerance(),
+                               n_input=n_input, n_valid=len(valid))
+        work, inverse = (voxel_downsample(valid, cfg.voxel_size) if cfg.voxel_size > 0 else (valid, None))
+        tolerance, source = self.current_tolerance()
+        seg = detect_planes(work, tolerance, max_planes=cfg.max_planes, min_inliers=_min_inliers(cfg.min_inliers),
+                            probability=cfg.probability, max_iterations=cfg.max_iterations,
+                            seed=frame_seed(cfg.seed, stamp_ns))
+        scores = validity_indices(work, seg.labels, sample_size=cfg.index_sample_size,
+                                  seed=frame_seed(cfg.seed, stamp_ns))
+        labels = seg.labels if inverse is None else seg.labels[inverse]
+        reliable, verdict = judge(seg, scores)
+        level, message = (OK, verdict) if reliable else (WARN, f'no reliable planes: {verdict}')
+        noise = self.last_tuning.noise_estimate if (cfg.auto_tune and self.last_tuning) else \
+            noise_from_segmentation(seg)
+        values = _values(cfg, tolerance, source, n_input, len(valid), int(np.sum(labels < 0)), seg, scores, noise)
+        seconds = time.perf_counter() - start
+        values += (('processing_ms', f'{1000 * seconds:.1f}'),)
+        return FrameResult(points=valid, labels=labels, segmentation=seg, indices=scores, tolerance=tolerance,
+                           tolerance_source=source, level=level, message=message, values=values, seconds=seconds,
+                           tuning=tuning)
+
+
+def _min_inliers(value: float) -> int | float:
+    """ROS parameters are doubles: 0.02 is a fraction, 150.0 a count."""
+    return value if value < 1 else int(value)
+
+
+def _fmt(x: float) -> str:
+    return 'nan' if x is None or not np.isfinite(x) else f'{x:.6g}'
+
+
+def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_valid: int, n_unassigned: int,
+            seg: Segmentation, scores: ValidityIndices, noise: float) -> tuple[tuple[str, str], ...]:
+    values = [('tolerance', _fmt(tolerance)), ('tolerance_source', source), ('criterion', cfg.criterion),
+              ('planes', str(seg.n_planes)), ('input_points', str(n_input)), ('valid_points', str(n_valid)),
+              ('unassigned_points', str(n_unassigned)),
+              ('dunn', _fmt(scores.dunn)), ('davies_bouldin', _fmt(scores.davies_bouldin)),
+              ('gs', _fmt(scores.gs)), ('gs_se', _fmt(scores.gs_se)),
+              ('gs_planes', _fmt(scores.gs_planes)), ('gs_planes_se', _fmt(scores.gs_planes_se)),
+              ('silhouette', _fmt(scores.silhouette)), ('silhouette_se', _fmt(scores.silhouette_se)),
+              ('index_sample_size', str(scores.sample_size)), ('noise_estimate', _fmt(noise)),
+              ('stop_reason', seg.reason)]
+    for k, plane in enumerate(seg.planes):
+        values += [(f'plane_{k}_inliers', str(len(plane.inliers))), (f'plane_{k}_rms', _fmt(plane.rms))]
+    return tuple(values)
+
+
+def _failed(level: int, message: str, cfg: PipelineConfig, start: float, tol: tuple[float, str], *,
+            n_input: int = 0, n_valid: int = 0) -> FrameResult:
+    values = (('tolerance', _fmt(tol[0])), ('tolerance_source', tol[1]), ('planes', '0'),
+              ('input_points', str(n_input)), ('valid_points', str(n_valid)))
+    seconds = time.perf_counter() - start
+    return FrameResult(points=np.empty((0, 3)), labels=np.empty(0, np.int32), segmentation=None, indices=None,
+                       tolerance=tol[0], tolerance_source=tol[1], level=level, message=message,
+                       values=values + (('processing_ms', f'{1000 * seconds:.1f}'),), seconds=seconds)
