@@ -207,7 +207,7 @@ class FramePipeline:
         scores = validity_indices(work, seg.labels, sample_size=cfg.index_sample_size,
                                   seed=frame_seed(cfg.seed, stamp_ns))
         labels = seg.labels if inverse is None else seg.labels[inverse]
-        reliable, verdict = judge(seg, scores)
+        reliable, verdict = judge(work, seg, scores)
         level, message = (OK, verdict) if reliable else (WARN, f'no reliable planes: {verdict}')
         noise = self.last_tuning.noise_estimate if (cfg.auto_tune and self.last_tuning) else \
             noise_from_segmentation(seg)

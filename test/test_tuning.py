@@ -1,0 +1,128 @@
+"""Tolerance tuning and plane-count selection: the paper's experiments on synthetic scenes."""
+import numpy as np
+import pytest
+
+import plane_validation as pv
+from plane_validation import scenes
+from plane_validation.tuning import CRITERIA, default_tolerances
+
+
+@pytest.fixture(scope='module')
+def corner0():
+    scene = scenes.corner(3000, 0.0, seed=1)
+    return scene, pv.tune_tolerance(scene.points, seed=0)
+
+
+def test_noise_free_corner_peaks_near_zero_and_counts_three(corner0):
+    scene, result = corner0
+    # GSplanes is flat over the small candidates (identical segmentations) and the smallest wins.
+    assert result.tolerance == result.tolerances[0]
+    assert result.tolerance < 0.001 * 100 * 1.5  # close to 0 on a 100-unit corner
+    assert result.segmentation.n_planes == 3
+    assert result.reliable
+    assert result.noise_estimate < 1e-6
+    counts = pv.select_plane_count(scene.points, result.tolerance, max_planes=5, seed=0)
+    assert counts.n_planes == 3
+    picks = {c: counts.best_by(c) for c in ('gs', 'davies_bouldin', 'dunn', 'gs_planes')}
+    print('plane count picked by each index on the noise-free corner:', picks)
+    assert all(1 <= k <= 3 for k in picks.values())
+
+
+@pytest.mark.parametrize('noise', [2.5, 7.5])
+@pytest.mark.parametrize('seed', [1, 2])
+def test_noisy_corner_tuned_t_and_noise_estimate(noise, seed):
+    scene = scenes.corner(3000, noise, seed=seed)
+    result = pv.tune_tolerance(scene.points, seed=seed)
+    assert noise <= result.tolerance <= 3 * noise
+    assert result.segmentation.n_planes == 3
+    assert noise / 2 <= result.noise_estimate <= 2 * noise
+    assert result.reliable
+    assert pv.select_plane_count(scene.points, result.tolerance, max_planes=6, seed=seed).n_planes == 3
+
+
+@pytest.mark.parametrize('noise', [0.0, 2.5])
+def test_cube_gs_planes_selects_six(noise):
+    scene = scenes.cube(6000, noise, seed=3)
+    t = max(2 * noise, 0.1)
+    counts = pv.select_plane_count(scene.points, t, max_planes=8, seed=0)
+    assert counts.n_planes == 6
+    assert len(counts.indices) == counts.segmentation.n_planes == 6
+
+
+def test_plain_gs_planes_argmax_prefers_fewer_planes():
+    """Why select_plane_count does not take the plain argmax of GSplanes: it is biased to k = 2."""
+    scene = scenes.cube(6000, 0.0, seed=3)
+    counts = pv.select_plane_count(scene.points, 0.1, max_planes=8, seed=0)
+    gs_planes = [x.gs_planes for x in counts.indices]
+    assert counts.best_by('gs_planes') == 2
+    assert all(a > b for a, b in zip(gs_planes[1:], gs_planes[2:]))
+
+
+@pytest.mark.parametrize('scene', [scenes.sphere(5000, seed=1), scenes.sphere(20000, 0.02, seed=2)],
+                         ids=['sphere', 'noisy-sphere'])
+def test_plane_free_cloud_is_not_reliable(scene):
+    result = pv.tune_tolerance(scene.points, seed=0)
+    assert not result.reliable
+    assert 'slab' in result.verdict or 'GSplanes' in result.verdict or 'no plane' in result.verdict
+    # the indices stay low, as the paper reports for the bunny
+    assert result.indices.gs < 0.15
+
+
+def test_table_has_every_index_per_tolerance():
+    scene = scenes.corner(2000, 2.5, seed=4)
+    result = pv.tune_tolerance(scene.points, tolerances=[1.0, 2.5, 5.0, 10.0], seed=0)
+    assert list(result.tolerances) == [1.0, 2.5, 5.0, 10.0]
+    for row in result.rows:
+        assert row.n_planes == len(row.inlier_counts)
+        assert row.seconds > 0
+        for name in CRITERIA:
+            assert np.isfinite(getattr(row.indices, name)) or name == 'davies_bouldin'
+    assert 't ' in result.table().splitlines()[0] or 't' in result.table()
+    assert len(result.table().splitlines()) == 5
+
+
+def test_davies_bouldin_criterion_minimises():
+    scene = scenes.corner(2000, 2.5, seed=4)
+    result = pv.tune_tolerance(scene.points, tolerances=[0.5, 2.5, 5.0, 20.0], criterion='davies_bouldin', seed=0)
+    scores = result.scores('davies_bouldin')
+    assert scores[result.best] == np.min(scores)
+
+
+def test_subsampled_sweep_gives_full_resolution_segmentation():
+    scene = scenes.corner(30000, 2.5, seed=5)
+    points = scene.points.copy()
+    points[::50] = np.nan
+    result = pv.tune_tolerance(points, tune_points=4000, seed=0)
+    assert result.segmentation.labels.shape == (len(points),)
+    assert np.all(result.segmentation.labels[::50] == -1)
+    assert result.segmentation.n_valid == len(points) - len(points[::50])
+    assert result.indices.n_points == result.segmentation.n_valid
+    assert 2.5 <= result.tolerance <= 7.5
+
+
+def test_default_tolerances_follow_the_cloud():
+    small = default_tolerances(scenes.corner(3000, seed=0, scale=0.01).points)
+    big = default_tolerances(scenes.corner(3000, seed=0).points)
+    np.testing.assert_allclose(big / small, 100, rtol=1e-6)
+    assert np.all(np.diff(small) > 0)
+
+
+def test_seeded_tuning_is_reproducible():
+    scene = scenes.cube(3000, 2.5, seed=6)
+    a = pv.tune_tolerance(scene.points, seed=11)
+    b = pv.tune_tolerance(scene.points, seed=11)
+    assert a.tolerance == b.tolerance
+    np.testing.assert_array_equal(a.segmentation.labels, b.segmentation.labels)
+    np.testing.assert_array_equal(a.scores(), b.scores())
+
+
+@pytest.mark.parametrize('kwargs', [{'criterion': 'entropy'}, {'tolerances': [0.0, 1.0]},
+                                    {'tolerances': [np.nan]}, {'tolerances': []}])
+def test_bad_tuning_arguments_raise(kwargs):
+    with pytest.raises(ValueError):
+        pv.tune_tolerance(scenes.corner(500, seed=0).points, **kwargs)
+
+
+def test_too_few_points_raise_clearly():
+    with pytest.raises(ValueError, match='at least 3'):
+        pv.tune_tolerance(np.full((10, 3), np.nan))
