@@ -1,0 +1,7 @@
+"""Test-wide set-up: every DDS participant of this test run stays on this machine, on a domain of
+its own, so parallel runs (or a robot on the same network) never see our topics."""
+import os
+
+os.environ['ROS_DOMAIN_ID'] = str(100 + os.getpid() % 100)
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '1')

@@ -1,0 +1,225 @@
+"""The ROS 2 node over real DDS (rclpy, Fast DDS, isolated domain): outputs, bad input, parameters, load."""
+from __future__ import annotations
+
+import array
+import gc
+import time
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+from rclpy.parameter import Parameter  # noqa: E402
+from sensor_msgs.msg import PointCloud2, PointField  # noqa: E402
+
+from plane_validation import scenes  # noqa: E402
+from plane_validation.cloud import structured_array, xyz_array  # noqa: E402
+from plane_validation.node import PlaneValidationNode  # noqa: E402
+from plane_validation.pipeline import FramePipeline, PipelineConfig  # noqa: E402
+from ros_harness import Harness, diag_values, make_header, xyz_cloud  # noqa: E402
+
+FIXED = {'auto_tune': False, 'tolerance': 0.01, 'seed': 7}
+
+
+@pytest.fixture(scope='module')
+def ros():
+    rclpy.init()
+    yield
+    rclpy.try_shutdown()
+
+
+@pytest.fixture
+def harness(ros):
+    node = PlaneValidationNode(parameter_overrides=[Parameter(k, value=v) for k, v in FIXED.items()])
+    h = Harness(node)
+    yield h
+    h.close()
+
+
+def corner_points(noise: float = 0.0, seed: int = 1, n: int = 3000) -> np.ndarray:
+    return scenes.corner(n, noise, scale=0.01, seed=seed).points  # a 1 m corner in meters; noise in cm
+
+
+def test_corner_frame_publishes_every_output_matching_the_core(harness):
+    points = corner_points(0.002)
+    stamp = 1_000_000_000_123
+    out = harness.send(xyz_cloud(points, stamp), outputs=('diagnostics', 'segmented', 'planes', 'plane_poses'))
+    # The same pipeline run in-process, same config, cloud and stamp: the node must agree exactly.
+    expected = FramePipeline(PipelineConfig(**FIXED)).process(xyz_array(xyz_cloud(points, stamp)), stamp)
+    assert expected.n_planes == 3
+
+    seg = structured_array(out['segmented'])
+    assert out['segmented'].header.frame_id == 'sensor'
+    assert out['segmented'].header.stamp.sec == stamp // 10**9
+    np.testing.assert_array_equal(seg['plane_id'], expected.labels)
+    assert set(np.unique(seg['plane_id'])) <= {-1, 0, 1, 2}
+    assert [f.name for f in out['segmented'].fields] == ['x', 'y', 'z', 'plane_id', 'rgb']
+
+    values = diag_values(out['diagnostics'])
+    status = out['diagnostics'].status[0]
+    assert status.level == b'\x00', status.message
+    assert values['planes'] == '3'
+    assert values['tolerance_source'] == 'fixed'
+    for key in ('dunn', 'davies_bouldin', 'gs', 'gs_planes', 'silhouette', 'silhouette_se', 'noise_estimate',
+                'processing_ms', 'frames_dropped', 'valid_points', 'unassigned_points', 'plane_0_inliers',
+                'plane_2_rms'):
+        assert key in values, key
+    for key in ('dunn', 'davies_bouldin', 'gs', 'gs_planes', 'silhouette'):
+        assert float(values[key]) == pytest.approx(getattr(expected.indices, key), rel=1e-5, abs=1e-12)
+
+    markers = out['planes'].markers
+    assert markers[0].action == markers[0].DELETEALL
+    assert len(markers) == 1 + 3 * 3
+    assert {m.type for m in markers[1:]} == {markers[0].TRIANGLE_LIST, markers[0].ARROW,
+                                               markers[0].TEXT_VIEW_FACING}
+    poses = out['plane_poses'].poses
+    assert len(poses) == 3
+    for pose, plane in zip(poses, expected.segmentation.planes):
+        q = np.array([pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w])
+        x, y, z, w = q
+        z_axis = np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+        np.testing.assert_allclose(z_axis, plane.normal, atol=1e-6)
+        centroid = np.array([pose.position.x, pose.position.y, pose.position.z])
+        assert abs(centroid @ plane.normal + plane.offset) < 1e-3
+
+    coeffs = list(harness.received['plane_coefficients'].values())[-1]
+    assert [d.label for d in coeffs.layout.dim] == ['planes', 'coefficients']
+    assert coeffs.layout.dim[0].size == 3
+    np.testing.assert_allclose(np.reshape(coeffs.data, (3, 4)), expected.segmentation.coefficients)
+
+
+def _custom_cloud(points: np.ndarray, stamp: int, *, height: int = 1, dtype=np.float32, bigendian: bool = False,
+                  pad: int = 0, row_pad: int = 0) -> PointCloud2:
+    """Cloud with x, y, z of ``dtype``, an intensity field, ``pad`` bytes per point, ``row_pad`` per row."""
+    n = len(points)
+    width = n // height
+    item = np.dtype(dtype).itemsize
+    order = '>' if bigendian else '<'
+    fmt = np.dtype(dtype).newbyteorder(order)
+    layout = np.dtype({'names': ['intensity', 'x', 'y', 'z'],
+                       'formats': [np.dtype('f4').newbyteorder(order), fmt, fmt, fmt],
+                       'offsets': [0, 4, 4 + item, 4 + 2 * item], 'itemsize': 4 + 3 * item + pad})
+    records = np.zeros(n, layout)
+    records['x'], records['y'], records['z'] = points.T
+    records['intensity'] = np.arange(n)
+    row_step = width * layout.itemsize + row_pad
+    rows = records.tobytes()
+    data = b''.join(rows[r * width * layout.itemsize:(r + 1) * width * layout.itemsize] + b'\xab' * row_pad
+                    for r in range(height))
+    code = PointField.FLOAT64 if item == 8 else PointField.FLOAT32
+    msg = PointCloud2(header=make_header(stamp), height=height, width=width, is_bigendian=bigendian,
+                      point_step=layout.itemsize, row_step=row_step, is_dense=not np.isnan(points).any(),
+                      fields=[PointField(name='intensity', offset=0, datatype=PointField.FLOAT32, count=1)] +
+                      [PointField(name=a, offset=4 + i * item, datatype=code, count=1) for i, a in enumerate('xyz')])
+    msg.data = array.array('B', data)
+    return msg
+
+
+def test_layout_variants_give_the_same_planes(harness):
+    points = corner_points(0.002, seed=3, n=2400)
+    holes = points.copy()
+    holes[np.random.default_rng(0).choice(len(points), 300, replace=False)] = np.nan
+    stamp = 2_000_000_000_000
+    plain = harness.send(xyz_cloud(holes, stamp), outputs=('diagnostics', 'segmented'))
+    ref_labels = structured_array(plain['segmented'])['plane_id']
+    variants = [dict(height=40), dict(dtype=np.float64), dict(bigendian=True), dict(pad=6, row_pad=10, height=20),
+                dict(height=30, dtype=np.float64, bigendian=True, pad=3)]
+    for variant in variants:
+        out = harness.send(_custom_cloud(holes, stamp, **variant), outputs=('diagnostics',))
+        # same stamp, same valid points in the same order: identical planes and labels
+        values = diag_values(out['diagnostics'])
+        assert values['planes'] == '3', variant
+        assert values['valid_points'] == str(len(points) - 300), variant
+        assert out['diagnostics'].status[0].level == b'\x00', variant
+        latest = structured_array(harness.received['segmented'][stamp])
+        np.testing.assert_array_equal(latest['plane_id'], ref_labels, err_msg=str(variant))
+
+
+def _bad_clouds(stamp: int):
+    no_z = xyz_cloud(corner_points(), stamp)
+    no_z.fields = list(no_z.fields)[:2]
+    short = xyz_cloud(corner_points(), stamp)
+    short.data = array.array('B', bytes(short.data)[:-5])
+    wrong_type = xyz_cloud(corner_points(), stamp)
+    wrong_type.fields[2].datatype = 42
+    return [('missing z', no_z, b'\x02', 'z'), ('data too short', short, b'\x02', 'bytes'),
+            ('bad datatype', wrong_type, b'\x02', 'datatype'),
+            ('empty', xyz_cloud(np.empty((0, 3)), stamp), b'\x01', 'too few'),
+            ('all NaN', xyz_cloud(np.full((100, 3), np.nan), stamp), b'\x01', 'too few'),
+            ('two points', xyz_cloud(np.array([[0, 0, 0], [1, 1, 1.0]]), stamp), b'\x01', 'too few'),
+            ('collinear', xyz_cloud(np.outer(np.linspace(0, 1, 200), [1, 2, 3]), stamp), b'\x01', 'collinear'),
+            ('identical', xyz_cloud(np.ones((200, 3)), stamp), b'\x01', 'identical')]
+
+
+def test_bad_input_is_reported_and_the_next_frame_works(harness):
+    stamp = 3_000_000_000_000
+    for i, (what, msg, level, word) in enumerate(_bad_clouds(stamp)):
+        msg.header = make_header(stamp + 2 * i)
+        out = harness.send(msg)
+        status = out['diagnostics'].status[0]
+        assert status.level == level, (what, status.message)
+        assert word in status.message, (what, status.message)
+        good = harness.send(xyz_cloud(corner_points(), stamp + 2 * i + 1))
+        assert diag_values(good['diagnostics'])['planes'] == '3', what
+
+
+def test_parameter_change_applies_to_next_frame_and_invalid_is_rejected(harness):
+    node = harness.node
+    results = node.set_parameters([Parameter('tolerance', value=0.004)])
+    assert results[0].successful
+    out = harness.send(xyz_cloud(corner_points(0.001), 4_000_000_000_000))
+    assert float(diag_values(out['diagnostics'])['tolerance']) == pytest.approx(0.004)
+
+    for bad, why in [(Parameter('tolerance', value=-1.0), ''), (Parameter('criterion', value='entropy'), 'criterion'),
+                     (Parameter('probability', value=1.5), ''), (Parameter('max_planes', value=0), ''),
+                     (Parameter('tune_max', value=0.001), 'tune_max')]:
+        if bad.name == 'tune_max':
+            assert node.set_parameters([Parameter('tune_min', value=0.01)])[0].successful
+        result = node.set_parameters([bad])[0]
+        assert not result.successful, bad.name
+        assert result.reason, bad.name
+        assert why in result.reason
+    assert node.get_parameter('tolerance').value == 0.004
+    assert node.get_parameter('criterion').value == 'gs_planes'
+    assert node.pipeline.config.tolerance == 0.004
+    out = harness.send(xyz_cloud(corner_points(0.001), 4_000_000_000_001))
+    assert float(diag_values(out['diagnostics'])['tolerance']) == pytest.approx(0.004)
+
+    # switching auto-tuning on at run time retunes on the next frame
+    assert node.set_parameters([Parameter('auto_tune', value=True), Parameter('tune_min', value=0.0)])[0].successful
+    out = harness.send(xyz_cloud(corner_points(1.0), 4_000_000_000_002))  # e = 1 cm
+    values = diag_values(out['diagnostics'])
+    assert values['tolerance_source'].startswith('tuned at')
+    assert 0.01 <= float(values['tolerance']) <= 0.03
+
+
+def _rss_mb() -> float:
+    with open('/proc/self/statm') as f:
+        return int(f.read().split()[1]) * 4096 / 2**20
+
+
+def test_flood_drops_old_frames_keeps_memory_flat_and_stays_responsive(harness):
+    big = scenes.boxes(8_000, seed=2).points.astype(np.float32)
+    msgs = [xyz_cloud(big, 5_000_000_000_000 + i) for i in range(250)]
+    for m in msgs[:50]:  # ~500 Hz: far faster than the node can process, slow enough for DDS to deliver
+        harness.pub.publish(m)
+        time.sleep(0.002)
+    time.sleep(2.0)
+    gc.collect()
+    before = _rss_mb()
+    for m in msgs[50:]:
+        harness.pub.publish(m)
+        time.sleep(0.002)
+    time.sleep(2.0)
+    gc.collect()
+    after = _rss_mb()
+    # still responsive: a fresh frame is processed promptly after the flood
+    out = harness.send(xyz_cloud(corner_points(), 5_100_000_000_000), timeout=30)
+    values = diag_values(out['diagnostics'])
+    assert values['planes'] == '3'
+    dropped = int(values["frames_dropped"])
+    processed = int(values['frames_processed'])
+    assert dropped > 0
+    # (DDS itself may also discard frames for the best-effort subscription, so no lower bound on the sum)
+    assert processed + dropped <= 251
+    assert after - before < 60, f'RSS grew from {before:.0f} MB to {after:.0f} MB'
