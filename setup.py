@@ -21,6 +21,7 @@ CORE = [
     'rosbags>=0.10',  # get_typestore(Stores.ROS2_JAZZY)
     'matplotlib>=3.6',
     'tqdm>=4.60',
+    'pypcd4>=1.0',  # optional .pcd reading in the CLI; pip only (no rosdep key)
 ]
 
 setup(

@@ -26,7 +26,6 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
-from .cloud import xyz_array
 from .messages import frame_messages
 from .pipeline import ERROR, LEVEL_NAMES, OK, FramePipeline, PipelineConfig
 
@@ -119,15 +118,10 @@ class PlaneValidationNode(Node):
     # -- one frame -------------------------------------------------------------------------------
     def process(self, msg: PointCloud2) -> None:
         """Convert, run the shared pipeline, publish every output stamped with the input header."""
+        result = self.pipeline.process_cloud(msg, tune_inline=self.pipeline.tolerance is None)
         stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        try:
-            points = xyz_array(msg)
-        except ValueError as exc:
-            result = self.pipeline.reject(f'malformed PointCloud2: {exc}', ERROR)
-        else:
-            result = self.pipeline.process(points, stamp_ns, tune_inline=self.pipeline.tolerance is None)
-            if self.pipeline.retune_due(stamp_ns * 1e-9):
-                self._start_retune(result.points, stamp_ns)
+        if result.segmentation is not None and self.pipeline.retune_due(stamp_ns * 1e-9):
+            self._start_retune(result.points, stamp_ns)  # frames go on with the current t meanwhile
         self.frames_processed += 1
         extra = (('frames_processed', str(self.frames_processed)), ('frames_dropped', str(self.frames_dropped)),
                  ('retune_running', str(self._retuner is not None and self._retuner.is_alive()).lower()))

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .cloud import xyz_array
 from .indices import ValidityIndices, validity_indices
 from .ransac import Segmentation, as_points, detect_planes
 from .tuning import CRITERIA, TuningResult, judge, noise_from_segmentation, tune_tolerance
@@ -168,6 +169,16 @@ class FramePipeline:
         with self._lock:
             self.tolerance, self.tuned_at, self.last_tuning = result.tolerance, stamp, result
         return result
+
+    def process_cloud(self, msg, *, tune_inline: bool = True) -> FrameResult:
+        """One sensor_msgs/PointCloud2 (rclpy or rosbags) through :meth:`process`; a malformed
+        message gives an ERROR result. This is the per-frame step the node and replay share."""
+        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        try:
+            points = xyz_array(msg)
+        except ValueError as exc:
+            return self.reject(f'malformed PointCloud2: {exc}', ERROR)
+        return self.process(points, stamp_ns, tune_inline=tune_inline)
 
     def reject(self, message: str, level: int = ERROR) -> FrameResult:
         """Result for a frame that could not even be read (e.g. a malformed message)."""
