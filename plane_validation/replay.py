@@ -88,8 +88,8 @@ class ReplaySummary:
 def _open(bag: Path) -> AnyReader:
     if not bag.exists():
         raise ReplayError(f'bag not found: {bag}')
-    reader = AnyReader([bag], default_typestore=_TYPESTORE)
     try:
+        reader = AnyReader([bag], default_typestore=_TYPESTORE)
         reader.open()
     except (AnyReaderError, OSError, ValueError, KeyError) as exc:
         raise ReplayError(f'cannot open bag {bag}: {exc}') from exc

@@ -1,0 +1,183 @@
+"""Replay of the bundled bags (rosbags, offline and live over DDS) and bad bags."""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+
+from plane_validation import scenes
+from plane_validation.cloud import create_cloud, rosbags_types, structured_array
+from plane_validation.cli import main as cli_main
+from plane_validation.replay import ReplayError, output_topics, replay_live, replay_offline
+
+ROOT = Path(__file__).resolve().parents[1]
+BAGS = ROOT / 'bags'
+TRUTH = json.loads((BAGS / 'truth.json').read_text())['bags']
+TS2 = get_typestore(Stores.ROS2_JAZZY)
+TS1 = get_typestore(Stores.ROS1_NOETIC)
+
+
+def _read_output(path: Path) -> dict[str, list]:
+    """topic -> list of (timestamp, message) of an output bag, re-opened with rosbags."""
+    out: dict[str, list] = {}
+    with AnyReader([path], default_typestore=TS2) as reader:
+        for conn, ts, raw in reader.messages():
+            out.setdefault(conn.topic, []).append((ts, reader.deserialize(raw, conn.msgtype)))
+    return out
+
+
+@pytest.mark.parametrize('name', sorted(TRUTH))
+def test_every_bundled_bag_replays_offline_as_documented(name, tmp_path):
+    truth = TRUTH[name]
+    out = tmp_path / 'out'
+    summary = replay_offline(BAGS / name, out=out, echo=None)
+    assert len(summary.frames) == truth['frames']
+    counts = [f.n_planes for f in summary.frames]
+    e = truth['noise']
+    tolerance = summary.frames[-1].tolerance
+    if truth['n_planes'] == 0:
+        assert all(f.level == 1 for f in summary.frames), [f.message for f in summary.frames]
+        assert all('no reliable planes' in f.message for f in summary.frames)
+    else:
+        allowed = {truth['n_planes'], truth['n_planes'] + 1} if truth['scene'] == 'table' else {truth['n_planes']}
+        assert set(counts) <= allowed, counts
+        if e > 0:
+            assert e <= tolerance <= 4 * e, tolerance
+        else:
+            assert tolerance < 0.005
+        if truth['scene'] in ('corner', 'cube', 'room'):
+            assert all(f.level == 0 for f in summary.frames), [f.message for f in summary.frames]
+
+    recorded = _read_output(out)
+    expected_topics = {truth['topic'], *output_topics().values()}
+    assert set(recorded) == expected_topics
+    in_stamps = [ts for ts, _ in recorded[truth['topic']]]
+    assert in_stamps == [f['timestamp_ns'] for f in truth['per_frame']]
+    for topic in expected_topics:
+        assert [ts for ts, _ in recorded[topic]] == in_stamps, topic  # one per frame, at the input's time
+    last = recorded[output_topics()['segmented']][-1][1]
+    assert last.header.frame_id == truth['frame_id']
+    labels = structured_array(last)['plane_id']
+    assert labels.max() + 1 == counts[-1]
+    diag = recorded['/diagnostics'][-1][1].status[0]
+    assert {kv.key for kv in diag.values} >= {'gs_planes', 'dunn', 'davies_bouldin', 'tolerance', 'planes'}
+
+
+def test_live_replay_matches_offline_for_the_same_seed(tmp_path):
+    bag = BAGS / 'corner_e025'
+    offline = replay_offline(bag, out=tmp_path / 'offline', echo=None)
+    live = replay_live(bag, out=tmp_path / 'live', rate=0.5, echo=None)
+    assert live.frames, 'the node answered no frame'
+    by_stamp = {f.timestamp: f for f in offline.frames}
+    for frame in live.frames:  # frames the node dropped under load have no answer
+        ref = by_stamp[frame.timestamp]
+        assert frame.n_planes == ref.n_planes
+        assert frame.tolerance == pytest.approx(ref.tolerance, rel=1e-5)
+        assert frame.gs_planes == pytest.approx(ref.gs_planes, rel=1e-5)
+    off_seg = {ts: structured_array(m)['plane_id'] for ts, m in _read_output(tmp_path / 'offline')[
+        output_topics()['segmented']]}
+    live_seg = _read_output(tmp_path / 'live')[output_topics()['segmented']]
+    assert live_seg
+    for ts, msg in live_seg:
+        np.testing.assert_array_equal(structured_array(msg)['plane_id'], off_seg[ts])
+
+
+def _cloud_msg(ts, points, stamp_ns, family_types):
+    header_cls, time_cls = ts.types['std_msgs/msg/Header'], ts.types['builtin_interfaces/msg/Time']
+    stamp = time_cls(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+    fields = {name: f.default for name, f in header_cls.__dataclass_fields__.items()
+              if name not in ('stamp', 'frame_id') and not name.startswith('__')}
+    header = header_cls(stamp=stamp, frame_id='sensor', **{k: 0 for k in fields})
+    pts = points.astype(np.float32)
+    return create_cloud(header, {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2]}, types=family_types)
+
+
+def test_compressed_and_ros1_bags_replay(tmp_path):
+    points = scenes.corner(1500, 1.0, scale=0.01, seed=3).points
+    # rosbag2 with per-file zstd compression
+    comp = tmp_path / 'compressed'
+    writer = Writer(comp, version=9, storage_plugin=StoragePlugin.SQLITE3)
+    writer.set_compression(CompressionMode.FILE, CompressionFormat.ZSTD)
+    with writer:
+        conn = writer.add_connection('/cam/points', 'sensor_msgs/msg/PointCloud2', typestore=TS2)
+        for k in range(2):
+            msg = _cloud_msg(TS2, points, 10**18 + k * 10**8, rosbags_types(TS2))
+            writer.write(conn, 10**18 + k * 10**8, TS2.serialize_cdr(msg, 'sensor_msgs/msg/PointCloud2'))
+    summary = replay_offline(comp, out=tmp_path / 'comp_out', echo=None)
+    assert [f.n_planes for f in summary.frames] == [3, 3]
+    # ROS 1 bag
+    bag1 = tmp_path / 'old.bag'
+    with Writer1(bag1) as writer:
+        conn = writer.add_connection('/points', 'sensor_msgs/msg/PointCloud2', typestore=TS1)
+        for k in range(2):
+            msg = _cloud_msg(TS1, points, 10**18 + k * 10**8, rosbags_types(TS1))
+            writer.write(conn, 10**18 + k * 10**8, TS1.serialize_ros1(msg, 'sensor_msgs/msg/PointCloud2'))
+    summary = replay_offline(bag1, out=tmp_path / 'ros1_out', echo=None)
+    assert [f.n_planes for f in summary.frames] == [3, 3]
+    assert set(_read_output(tmp_path / 'ros1_out')) >= {'/points', '/diagnostics'}
+
+
+def _copy(name: str, tmp_path: Path) -> Path:
+    dst = tmp_path / name
+    shutil.copytree(BAGS / name, dst)
+    return dst
+
+
+def _bad_bags(tmp_path: Path) -> list[tuple[str, Path, dict, str]]:
+    corrupt = _copy('corner_e025', tmp_path / 'c')  # sqlite3
+    db = next(corrupt.glob('*.db3'))
+    db.write_bytes(b'this is not a sqlite database' * 100)
+    truncated = _copy('corner_e0', tmp_path / 't')  # mcap
+    mcap = next(truncated.glob('*.mcap'))
+    mcap.write_bytes(mcap.read_bytes()[: mcap.stat().st_size // 3])
+    no_meta = _copy('cube', tmp_path / 'm')
+    (no_meta / 'metadata.yaml').unlink()
+    empty = tmp_path / 'empty'
+    with Writer(empty, version=9) as writer:
+        writer.add_connection('/points', 'sensor_msgs/msg/PointCloud2', typestore=TS2)
+    wrong = tmp_path / 'wrong'
+    with Writer(wrong, version=9) as writer:
+        conn = writer.add_connection('/chatter', 'std_msgs/msg/String', typestore=TS2)
+        writer.write(conn, 1, TS2.serialize_cdr(TS2.types['std_msgs/msg/String'](data='hi'), 'std_msgs/msg/String'))
+    return [('missing', tmp_path / 'nope', {}, 'not found'),
+            ('corrupt', corrupt, {}, str(corrupt)),
+            ('truncated', truncated, {}, str(truncated)),
+            ('no metadata', no_meta, {}, str(no_meta)),
+            ('empty', empty, {}, 'no messages'),
+            ('wrong type', wrong, {'topic': '/chatter'}, 'not sensor_msgs/msg/PointCloud2'),
+            ('no cloud topic', wrong, {}, 'PointCloud2 topics: none'),
+            ('missing topic', BAGS / 'cube', {'topic': '/other'}, "no topic '/other'")]
+
+
+def test_bad_bags_fail_clearly_without_output(tmp_path):
+    for what, bag, kwargs, needle in _bad_bags(tmp_path):
+        out = tmp_path / f'out_{what.replace(" ", "_")}'
+        with pytest.raises(ReplayError) as info:
+            replay_offline(bag, out=out, echo=None, **kwargs)
+        assert needle in str(info.value), (what, str(info.value))
+        assert not out.exists(), what
+        assert not out.with_name(out.name + '.partial').exists(), what
+
+
+def test_existing_output_is_not_overwritten(tmp_path):
+    out = tmp_path / 'out'
+    out.mkdir()
+    with pytest.raises(ReplayError, match='already exists'):
+        replay_offline(BAGS / 'cube', out=out, echo=None)
+
+
+def test_cli_replay_prints_frames_and_summary(tmp_path, capsys):
+    assert cli_main(['replay', str(BAGS / 'cube'), '--out', str(tmp_path / 'o'), '--fixed', '--tolerance', '0.03']) == 0
+    text = capsys.readouterr().out
+    assert text.count('frame ') >= 5
+    assert 'planes  6' in text
+    assert '5 frames from' in text
+    assert cli_main(['replay', str(tmp_path / 'missing')]) == 1
+    assert 'bag not found' in capsys.readouterr().err
