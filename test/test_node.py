@@ -223,3 +223,47 @@ def test_flood_drops_old_frames_keeps_memory_flat_and_stays_responsive(harness):
     # (DDS itself may also discard frames for the best-effort subscription, so no lower bound on the sum)
     assert processed + dropped <= 251
     assert after - before < 60, f'RSS grew from {before:.0f} MB to {after:.0f} MB'
+
+
+def test_periodic_retune_runs_in_the_background_while_frames_flow(ros):
+    params = {'auto_tune': True, 'retune_period': 0.5, 'seed': 3, 'tune_count': 30, 'tune_points': 30000}
+    node = PlaneValidationNode(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
+    h = Harness(node)
+    try:
+        cloud = scenes.corner(30000, 1.0, scale=0.01, seed=4).points  # e = 1 cm
+        first = h.send(xyz_cloud(cloud, 6_000_000_000_000), timeout=60)  # tuned inline on the first frame
+        assert diag_values(first['diagnostics'])['tolerance_source'] == 'tuned at t=6000.000s'
+        seen_running = []
+        for k in range(1, 40):  # header time advances 0.1 s per frame: a retune is due after 0.5 s
+            out = h.send(xyz_cloud(cloud, 6_000_000_000_000 + k * 100_000_000), timeout=60)
+            values = diag_values(out['diagnostics'])
+            assert values['planes'] == '3'
+            seen_running.append(values['retune_running'] == 'true')
+            if values['tolerance_source'] != 'tuned at t=6000.000s':
+                break
+        assert any(seen_running), 'no frame was processed while a retune was running'
+        assert values['tolerance_source'].startswith('tuned at t=600')
+        assert values['tolerance_source'] != 'tuned at t=6000.000s', 'the periodic retune never landed'
+    finally:
+        h.close()
+
+
+@pytest.mark.parametrize('sig', ['SIGINT', 'SIGTERM'])
+def test_node_process_stops_cleanly_on_signal(sig):
+    import os
+    import signal
+    import subprocess
+    import sys
+    proc = subprocess.Popen([sys.executable, '-m', 'plane_validation.node'], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=dict(os.environ), start_new_session=True)
+    try:
+        time.sleep(3.0)
+        assert proc.poll() is None, proc.communicate()
+        proc.send_signal(getattr(signal, sig))
+        out, err = proc.communicate(timeout=15)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 0, (proc.returncode, err)
+    assert 'Traceback' not in err + out
