@@ -29,7 +29,8 @@ def main() -> None:
         seg = pv.detect_planes(pts32, args.tolerance, seed=i)
         times.append(time.perf_counter() - start)
         found.append(seg.n_planes)
-    print(f'scene: boxes, {len(pts32)} points (float32), 5 true planes, noise 5 mm, 5 % outliers, t = {args.tolerance} m')
+    print(f'scene: boxes, {len(pts32)} points (float32), 5 true planes, noise 5 mm, 5 % outliers, '
+          f't = {args.tolerance} m')
     print(f'detect_planes: median {1000 * statistics.median(times):.1f} ms, '
           f'min {1000 * min(times):.1f} ms, max {1000 * max(times):.1f} ms over {args.repeat} seeds; '
           f'planes found per run: {found}')

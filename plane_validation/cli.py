@@ -152,7 +152,8 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser('demo', help='the main job: replay a bundled bag through the node over DDS')
     demo.add_argument('--bag', default=DEMO_BAG)
     demo.add_argument('--out', default=DEMO_OUT, help='directory for the output bag and PNG')
-    demo.add_argument('--rate', type=float, default=0.25, help='playback speed (slow enough that the node answers every frame)')
+    demo.add_argument('--rate', type=float, default=0.25,
+                      help='playback speed (slow enough that the node answers every frame)')
     demo.set_defaults(func=cmd_demo)
 
     replay = sub.add_parser('replay', help='replay a bag through the per-frame pipeline')

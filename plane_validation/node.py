@@ -76,7 +76,8 @@ class PlaneValidationNode(Node):
         self.pipeline = FramePipeline(PipelineConfig(**config))
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
-        qos = QoSProfile(depth=1, history=qos_profile_sensor_data.history, durability=qos_profile_sensor_data.durability,
+        qos = QoSProfile(depth=1, history=qos_profile_sensor_data.history,
+                         durability=qos_profile_sensor_data.durability,
                          reliability=ReliabilityPolicy.RELIABLE if reliability == 'reliable'
                          else ReliabilityPolicy.BEST_EFFORT)
         self.create_subscription(PointCloud2, 'cloud', self._on_cloud, qos)
