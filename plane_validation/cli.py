@@ -68,13 +68,20 @@ def _config(args: argparse.Namespace) -> PipelineConfig:
     return dataclasses.replace(PipelineConfig(), **changes).validate()
 
 
-def _add_config_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('--tolerance', type=float, help='RANSAC tolerance t in meters (with --fixed, or before tuning)')
-    parser.add_argument('--fixed', action='store_true', help='use --tolerance as is, no auto-tuning')
+def _min_inliers(cfg: PipelineConfig) -> int | float:
+    return cfg.min_inliers if cfg.min_inliers < 1 else int(cfg.min_inliers)
+
+
+def _add_config_options(parser: argparse.ArgumentParser, *, pipeline: bool) -> None:
+    """Options shared by the commands; ``pipeline`` adds those only the node's pipeline has."""
+    parser.add_argument('--tolerance', type=float, help='RANSAC tolerance t in meters' +
+                        (' (with --fixed, or before tuning)' if pipeline else ' (default: auto-tuned)'))
     parser.add_argument('--seed', type=int, help='random seed (default 0)')
     parser.add_argument('--max-planes', dest='max_planes', type=int)
     parser.add_argument('--min-inliers', dest='min_inliers', type=float, help='count, or fraction when < 1')
-    parser.add_argument('--voxel-size', dest='voxel_size', type=float, help='voxel grid in meters (0 = off)')
+    if pipeline:
+        parser.add_argument('--fixed', action='store_true', help='use --tolerance as is, no auto-tuning')
+        parser.add_argument('--voxel-size', dest='voxel_size', type=float, help='voxel grid in meters (0 = off)')
 
 
 def cmd_detect(args: argparse.Namespace) -> int:
@@ -83,13 +90,13 @@ def cmd_detect(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     if args.tune or args.tolerance is None:
         from .tuning import tune_tolerance
-        result = tune_tolerance(points, seed=cfg.seed, max_planes=cfg.max_planes, min_inliers=cfg.min_inliers)
+        result = tune_tolerance(points, seed=cfg.seed, max_planes=cfg.max_planes, min_inliers=_min_inliers(cfg))
         seg = result.segmentation
         print(f'tuned tolerance {result.tolerance:.4g} m, noise estimate {result.noise_estimate:.3g} m; '
               f'{"reliable" if result.reliable else "NOT reliable"}: {result.verdict}')
     else:
         seg = detect_planes(points, args.tolerance, seed=cfg.seed, max_planes=cfg.max_planes,
-                            min_inliers=cfg.min_inliers)
+                            min_inliers=_min_inliers(cfg))
     print(f'{args.file}: {len(points)} points, {seg.n_valid} valid')
     print(format_planes(seg))
     print(f'took {1000 * (time.perf_counter() - start):.0f} ms')
@@ -163,14 +170,14 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument('--live', action='store_true', help='publish on ROS topics at the recorded timing')
     replay.add_argument('--rate', type=float, default=1.0, help='playback speed factor for --live')
     replay.add_argument('--no-node', action='store_true', help='with --live: do not start the node in-process')
-    _add_config_options(replay)
+    _add_config_options(replay, pipeline=True)
     replay.set_defaults(func=cmd_replay)
 
     detect = sub.add_parser('detect', help='detect planes in a point file (.pcd, .npy, .xyz, .txt, .csv)')
     detect.add_argument('file')
     detect.add_argument('--tune', action='store_true', help='auto-tune t (the default without --tolerance)')
     detect.add_argument('--png', help='write a picture of the planes here')
-    _add_config_options(detect)
+    _add_config_options(detect, pipeline=False)
     detect.set_defaults(func=cmd_detect)
 
     tune = sub.add_parser('tune', help='print the tolerance sweep table for a point file')

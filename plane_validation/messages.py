@@ -36,7 +36,7 @@ def plane_colors(count: int) -> np.ndarray:
 def segmented_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
     """x, y, z (float32), plane_id (int32, -1 unassigned) and packed rgb of the valid points."""
     labels = result.labels.astype(np.int32)
-    palette = np.vstack([plane_colors(max(result.n_planes, 0)), np.array([UNASSIGNED_RGB], np.uint8)])
+    palette = np.vstack([plane_colors(result.n_planes), np.array([UNASSIGNED_RGB], np.uint8)])
     colors = palette[np.where(labels >= 0, labels, len(palette) - 1)]
     pts = result.points.astype(np.float32)
     return create_cloud(header, {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2], 'plane_id': labels,
@@ -120,7 +120,7 @@ def plane_markers(header, result: FrameResult, ns: str = 'planes') -> MarkerArra
                               pose=Pose(position=Point(x=float(text_at[0]), y=float(text_at[1]), z=float(text_at[2])),
                                         orientation=Quaternion(w=1.0)),
                               scale=Vector3(z=max(0.05 * extent, 1e-3)), color=ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0),
-                              text=f'plane {k}: {len(plane.inliers)} pts, rms {plane.rms:.3g} m'))
+                              text=f'plane {k}: {result.plane_counts[k]} pts, rms {plane.rms:.3g} m'))
     return MarkerArray(markers=markers)
 
 

@@ -27,7 +27,7 @@ from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
 from .messages import frame_messages
-from .pipeline import ERROR, LEVEL_NAMES, OK, FramePipeline, PipelineConfig
+from .pipeline import ERROR, LEVEL_NAMES, OK, FramePipeline, PipelineConfig, header_stamp_ns
 
 #: name -> (description, (min, max) or None). Defaults come from PipelineConfig.
 PARAMETERS = {
@@ -120,7 +120,7 @@ class PlaneValidationNode(Node):
     def process(self, msg: PointCloud2) -> None:
         """Convert, run the shared pipeline, publish every output stamped with the input header."""
         result = self.pipeline.process_cloud(msg, tune_inline=self.pipeline.tolerance is None)
-        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        stamp_ns = header_stamp_ns(msg.header)
         if result.segmentation is not None and self.pipeline.retune_due(stamp_ns * 1e-9):
             self._start_retune(result.points, stamp_ns)  # frames go on with the current t meanwhile
         self.frames_processed += 1
@@ -160,12 +160,19 @@ class PlaneValidationNode(Node):
             self._stopping = True
             self._wake.notify_all()
         self._worker.join(timeout=10)
+        if self._retuner is not None:
+            self._retuner.join(timeout=30)  # a sweep cannot be interrupted; it ends within seconds
         super().destroy_node()
 
 
 def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
-    node = PlaneValidationNode()
+    try:
+        node = PlaneValidationNode()
+    except Exception as exc:  # invalid parameters (range, type, consistency): say which and exit
+        print(f'plane_validation_node: cannot start: {exc}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -18,7 +18,8 @@ from .indices import ValidityIndices, validity_indices
 from .ransac import Segmentation, as_points, detect_planes
 from .tuning import CRITERIA, TuningResult, judge, noise_from_segmentation, tune_tolerance
 
-__all__ = ['PipelineConfig', 'FrameResult', 'FramePipeline', 'voxel_downsample', 'OK', 'WARN', 'ERROR']
+__all__ = ['PipelineConfig', 'FrameResult', 'FramePipeline', 'voxel_downsample', 'header_stamp_ns', 'frame_seed',
+           'OK', 'WARN', 'ERROR']
 
 OK, WARN, ERROR = 0, 1, 2
 LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR'}
@@ -49,7 +50,7 @@ class PipelineConfig:
         checks = [
             (np.isfinite(self.tolerance) and self.tolerance > 0, 'tolerance must be > 0 m'),
             (self.tune_min >= 0 and self.tune_max >= 0, 'tune_min and tune_max must be >= 0 (0 = derive)'),
-            (self.tune_max == 0 or self.tune_min == 0 or self.tune_max > self.tune_min,
+            (self.tune_max == 0 or self.tune_max > self.tune_min,
              'tune_max must be greater than tune_min'),
             (self.tune_count >= 2, 'tune_count must be >= 2'),
             (self.tune_points >= 100, 'tune_points must be >= 100'),
@@ -67,11 +68,6 @@ class PipelineConfig:
                 raise ValueError(why)
         return self
 
-    def candidates(self) -> np.ndarray | None:
-        """Tuning candidates in meters, or None to derive them from the cloud."""
-        if self.tune_min > 0 and self.tune_max > 0:
-            return np.geomspace(self.tune_min, self.tune_max, self.tune_count)
-        return None
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,7 +85,7 @@ class FrameResult:
     message: str
     values: tuple[tuple[str, str], ...]
     seconds: float
-    tuning: TuningResult | None = None
+    plane_counts: tuple[int, ...] = ()  # labelled points per plane (input points, also with voxels)
 
     @property
     def n_planes(self) -> int:
@@ -102,11 +98,21 @@ def voxel_downsample(points: np.ndarray, voxel_size: float) -> tuple[np.ndarray,
     Returns (centroids (m, 3), inverse (n,)) with ``inverse[i]`` the voxel of point i.
     """
     keys = np.floor(points / voxel_size).astype(np.int64)
-    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    keys -= keys.min(axis=0)
+    dims = keys.max(axis=0) + 1
+    if np.prod(dims.astype(float)) < 2**62:  # one integer key per voxel: a 1-D unique is much faster
+        _, inverse = np.unique(np.ravel_multi_index(keys.T, dims), return_inverse=True)
+    else:
+        _, inverse = np.unique(keys, axis=0, return_inverse=True)
     inverse = inverse.reshape(-1)
-    sums = np.zeros((len(counts), 3))
-    np.add.at(sums, inverse, points)
+    counts = np.bincount(inverse)
+    sums = np.column_stack([np.bincount(inverse, weights=points[:, i], minlength=len(counts)) for i in range(3)])
     return sums / counts[:, None], inverse
+
+
+def header_stamp_ns(header) -> int:
+    """A std_msgs/Header stamp in nanoseconds (rclpy or rosbags message)."""
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
 
 def frame_seed(seed: int, stamp_ns: int) -> int | None:
@@ -126,6 +132,7 @@ class FramePipeline:
     tuned_at: float | None = None        # stamp (s) of the frame the tolerance was tuned on
     last_tuning: TuningResult | None = None
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+    _generation: int = field(default=0, repr=False)  # bumped when the tuning set-up changes
 
     def __post_init__(self) -> None:
         self.config.validate()
@@ -134,10 +141,11 @@ class FramePipeline:
         """Swap the configuration (validated first); retune when the tuning setup changed."""
         config.validate()
         with self._lock:
-            tuning_fields = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'criterion', 'max_planes',
-                             'min_inliers', 'voxel_size')
+            tuning_fields = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points', 'criterion',
+                             'max_planes', 'min_inliers', 'voxel_size')
             if any(getattr(config, f) != getattr(self.config, f) for f in tuning_fields):
-                self.tolerance, self.tuned_at = None, None
+                self.tolerance, self.tuned_at, self.last_tuning = None, None, None
+                self._generation += 1
             self.config = config
 
     def current_tolerance(self) -> tuple[float, str]:
@@ -158,22 +166,26 @@ class FramePipeline:
             return cfg.retune_period > 0 and stamp - self.tuned_at >= cfg.retune_period
 
     def retune(self, points: np.ndarray, stamp: float, stamp_ns: int = 0) -> TuningResult:
-        """Run a tolerance sweep on ``points`` (valid rows, meters) and adopt its choice."""
-        cfg = self.config
+        """Run a tolerance sweep on ``points`` (valid rows, meters) and adopt its choice, unless
+        the tuning set-up changed while it ran. Raises ValueError when no sweep is possible."""
+        with self._lock:
+            cfg, generation = self.config, self._generation
         if cfg.voxel_size > 0:
             points = voxel_downsample(points, cfg.voxel_size)[0]
-        result = tune_tolerance(points, cfg.candidates(), cfg.criterion, max_planes=cfg.max_planes,
+        result = tune_tolerance(points, None, cfg.criterion, max_planes=cfg.max_planes,
                                 min_inliers=_min_inliers(cfg.min_inliers), probability=cfg.probability,
                                 max_iterations=cfg.max_iterations, sample_size=cfg.index_sample_size,
-                                tune_points=cfg.tune_points, seed=frame_seed(cfg.seed, stamp_ns))
+                                tune_points=cfg.tune_points, t_min=cfg.tune_min or None, t_max=cfg.tune_max or None,
+                                count=cfg.tune_count, seed=frame_seed(cfg.seed, stamp_ns))
         with self._lock:
-            self.tolerance, self.tuned_at, self.last_tuning = result.tolerance, stamp, result
+            if generation == self._generation:  # a parameter change during the sweep voids it
+                self.tolerance, self.tuned_at, self.last_tuning = result.tolerance, stamp, result
         return result
 
     def process_cloud(self, msg, *, tune_inline: bool = True) -> FrameResult:
         """One sensor_msgs/PointCloud2 (rclpy or rosbags) through :meth:`process`; a malformed
         message gives an ERROR result. This is the per-frame step the node and replay share."""
-        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        stamp_ns = header_stamp_ns(msg.header)
         try:
             points = xyz_array(msg)
         except ValueError as exc:
@@ -203,31 +215,35 @@ class FramePipeline:
         if len(valid) < 3:
             return _failed(WARN, f'too few valid points: {len(valid)} of {n_input} (need 3)', cfg, start,
                            self.current_tolerance(), n_input=n_input, n_valid=len(valid))
-        tuning = None
         if tune_inline and self.retune_due(stamp):
             try:
-                tuning = self.retune(valid, stamp, stamp_ns)
-            except ValueError as exc:
+                self.retune(valid, stamp, stamp_ns)
+            except (ValueError, np.linalg.LinAlgError) as exc:
                 return _failed(WARN, f'cannot tune: {exc}', cfg, start, self.current_tolerance(),
                                n_input=n_input, n_valid=len(valid))
-        work, inverse = (voxel_downsample(valid, cfg.voxel_size) if cfg.voxel_size > 0 else (valid, None))
         tolerance, source = self.current_tolerance()
-        seg = detect_planes(work, tolerance, max_planes=cfg.max_planes, min_inliers=_min_inliers(cfg.min_inliers),
-                            probability=cfg.probability, max_iterations=cfg.max_iterations,
-                            seed=frame_seed(cfg.seed, stamp_ns))
-        scores = validity_indices(work, seg.labels, sample_size=cfg.index_sample_size,
-                                  seed=frame_seed(cfg.seed, stamp_ns))
+        try:
+            with np.errstate(over='ignore', invalid='ignore'):
+                work, inverse = (voxel_downsample(valid, cfg.voxel_size) if cfg.voxel_size > 0 else (valid, None))
+                seed = frame_seed(cfg.seed, stamp_ns)
+                seg = detect_planes(work, tolerance, max_planes=cfg.max_planes,
+                                    min_inliers=_min_inliers(cfg.min_inliers), probability=cfg.probability,
+                                    max_iterations=cfg.max_iterations, seed=seed)
+                scores = validity_indices(work, seg.labels, sample_size=cfg.index_sample_size, seed=seed)
+                reliable, verdict = judge(work, seg, scores)
+        except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
+            return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', cfg, start,
+                           (tolerance, source), n_input=n_input, n_valid=len(valid))
         labels = seg.labels if inverse is None else seg.labels[inverse]
-        reliable, verdict = judge(work, seg, scores)
         level, message = (OK, verdict) if reliable else (WARN, f'no reliable planes: {verdict}')
-        noise = self.last_tuning.noise_estimate if (cfg.auto_tune and self.last_tuning) else \
-            noise_from_segmentation(seg)
-        values = _values(cfg, tolerance, source, n_input, len(valid), int(np.sum(labels < 0)), seg, scores, noise)
+        counts = np.bincount(labels[labels >= 0], minlength=seg.n_planes)
+        values = _values(cfg, tolerance, source, n_input, len(valid), int(np.sum(labels < 0)), seg, counts, scores,
+                         noise_from_segmentation(seg))
         seconds = time.perf_counter() - start
         values += (('processing_ms', f'{1000 * seconds:.1f}'),)
         return FrameResult(points=valid, labels=labels, segmentation=seg, indices=scores, tolerance=tolerance,
                            tolerance_source=source, level=level, message=message, values=values, seconds=seconds,
-                           tuning=tuning)
+                           plane_counts=tuple(int(c) for c in counts))
 
 
 def _min_inliers(value: float) -> int | float:
@@ -240,7 +256,8 @@ def _fmt(x: float) -> str:
 
 
 def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_valid: int, n_unassigned: int,
-            seg: Segmentation, scores: ValidityIndices, noise: float) -> tuple[tuple[str, str], ...]:
+            seg: Segmentation, counts: np.ndarray, scores: ValidityIndices,
+            noise: float) -> tuple[tuple[str, str], ...]:
     values = [('tolerance', _fmt(tolerance)), ('tolerance_source', source), ('criterion', cfg.criterion),
               ('planes', str(seg.n_planes)), ('input_points', str(n_input)), ('valid_points', str(n_valid)),
               ('unassigned_points', str(n_unassigned)),
@@ -251,7 +268,7 @@ def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_
               ('index_sample_size', str(scores.sample_size)), ('noise_estimate', _fmt(noise)),
               ('stop_reason', seg.reason)]
     for k, plane in enumerate(seg.planes):
-        values += [(f'plane_{k}_inliers', str(len(plane.inliers))), (f'plane_{k}_rms', _fmt(plane.rms))]
+        values += [(f'plane_{k}_inliers', str(int(counts[k]))), (f'plane_{k}_rms', _fmt(plane.rms))]
     return tuple(values)
 
 

@@ -106,13 +106,23 @@ def _canonical(normal: np.ndarray, offset: float) -> tuple[np.ndarray, float]:
 
 
 def _degeneracy(points: np.ndarray) -> str | None:
-    """Reason why no plane can be fitted to (n, 3) points, or None."""
+    """Reason why no plane can be fitted to (n, 3) points, or None.
+
+    The spread is judged on the points nearest the median (98 %), so that one far outlier (a
+    driver's FLT_MAX instead of NaN) cannot make a planar cloud look collinear.
+    """
     if len(points) < 3:
         return f'fewer than 3 points left ({len(points)})'
-    centered = points - points.mean(axis=0)
+    if np.all(points == points[0]):
+        return 'all remaining points are identical'
+    core = points
+    if len(points) >= 50:
+        dist = np.abs(points - np.median(points, axis=0)).max(axis=1)
+        core = points[dist <= np.quantile(dist, 0.98)]
+    centered = core - core.mean(axis=0)
     eig = np.linalg.eigvalsh(centered.T @ centered)  # ascending
     if eig[2] <= 0:
-        return 'all remaining points are identical'
+        return 'almost all remaining points are identical'
     if eig[1] <= MIN_SINE ** 2 * eig[2]:
         return 'all remaining points are collinear'
     return None

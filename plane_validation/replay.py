@@ -20,7 +20,7 @@ from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from .pipeline import FramePipeline, FrameResult, PipelineConfig
+from .pipeline import FramePipeline, FrameResult, PipelineConfig, header_stamp_ns
 
 __all__ = ['ReplayError', 'FrameSummary', 'ReplaySummary', 'read_clouds', 'replay_offline', 'replay_live',
            'output_topics', 'POINTCLOUD2']
@@ -169,12 +169,17 @@ class BagRecorder:
         self.partial = path.with_name(path.name + '.partial')
         if self.partial.exists():
             shutil.rmtree(self.partial)
-        self.writer = Writer(self.partial, version=9, storage_plugin=storage)
-        self.writer.open()
-        self.connections = {'input': self.writer.add_connection(input_topic, POINTCLOUD2, typestore=_TYPESTORE)}
-        for key, topic in output_topics(node_name).items():
-            msgtype = OUTPUT_TYPES.get(key, 'diagnostic_msgs/msg/DiagnosticArray')
-            self.connections[key] = self.writer.add_connection(topic, msgtype, typestore=_TYPESTORE)
+        try:
+            self.writer = Writer(self.partial, version=9, storage_plugin=storage)
+            self.writer.open()
+            self.connections = {'input': self.writer.add_connection(input_topic, POINTCLOUD2,
+                                                                    typestore=_TYPESTORE)}
+            for key, topic in output_topics(node_name).items():
+                msgtype = OUTPUT_TYPES.get(key, 'diagnostic_msgs/msg/DiagnosticArray')
+                self.connections[key] = self.writer.add_connection(topic, msgtype, typestore=_TYPESTORE)
+        except Exception as exc:
+            shutil.rmtree(self.partial, ignore_errors=True)
+            raise ReplayError(f'cannot write output bag {path}: {exc}') from exc
 
     def write(self, key: str, timestamp: int, msg) -> None:
         from rclpy.serialization import serialize_message
@@ -235,9 +240,10 @@ def replay_offline(bag: str | Path, *, topic: str | None = None, out: str | Path
     pipeline = FramePipeline(config or PipelineConfig())
     summary = ReplaySummary(bag=bag, topic=conns[0].topic, output=out_path)
     status_name = f'{node_name}: plane detection'
-    recorder = BagRecorder(out_path, conns[0].topic, node_name)
     bar = _progress(total, progress)
+    recorder = None
     try:
+        recorder = BagRecorder(out_path, conns[0].topic, node_name)
         for index, (_, timestamp, cloud) in enumerate(read_clouds(bag, conns[0].topic)):
             msg = to_rclpy_cloud(cloud)
             result = pipeline.process_cloud(msg)
@@ -253,7 +259,8 @@ def replay_offline(bag: str | Path, *, topic: str | None = None, out: str | Path
             if echo is not None:
                 bar.write(frame.line(), file=sys.stdout) if not bar.disable else echo(frame.line())
     except BaseException:
-        recorder.abort()
+        if recorder is not None:
+            recorder.abort()
         raise
     finally:
         bar.close()
@@ -310,8 +317,8 @@ def replay_live(bag: str | Path, *, topic: str | None = None, out: str | Path | 
     if not frames:
         raise ReplayError(f'{bag}: no PointCloud2 messages to play')
     cloud_topic = frames[0][0]
-    bag_time = {_stamp(msg.header): ts for _, ts, msg in frames}
-    order = {_stamp(msg.header): i for i, (_, _, msg) in enumerate(frames)}
+    bag_time = {header_stamp_ns(msg.header): ts for _, ts, msg in frames}
+    order = {header_stamp_ns(msg.header): i for i, (_, _, msg) in enumerate(frames)}
     summary = ReplaySummary(bag=bag, topic=cloud_topic, output=out_path)
     lock = threading.Lock()
     pending: list[tuple[str, int, object]] = []  # written by the main thread: sqlite3 is single-threaded
@@ -341,7 +348,7 @@ def replay_live(bag: str | Path, *, topic: str | None = None, out: str | Path | 
             def record(msg) -> None:
                 header = msg.markers[0].header if key == 'planes' and msg.markers else getattr(msg, 'header', None)
                 with lock:
-                    stamp = _stamp(header) if header is not None else last_stamp['value']
+                    stamp = header_stamp_ns(header) if header is not None else last_stamp['value']
                     if stamp not in bag_time:
                         return  # not one of ours (another publisher on /diagnostics)
                     if key == 'diagnostics' and not any(s.name.startswith(f'{node_name}:') for s in msg.status):
@@ -385,7 +392,7 @@ def replay_live(bag: str | Path, *, topic: str | None = None, out: str | Path | 
                 time.sleep(delay)
             recorder.write('input', ts, msg)
             pub.publish(msg)
-        last = _stamp(frames[-1][2].header)
+        last = header_stamp_ns(frames[-1][2].header)
         _wait_for(lambda: any(f.timestamp == bag_time[last] for f in summary.frames), drain_timeout,
                   'the node to answer the last frame')
         time.sleep(0.2)  # let the other outputs of the last frame arrive
@@ -397,14 +404,14 @@ def replay_live(bag: str | Path, *, topic: str | None = None, out: str | Path | 
         for n in nodes:
             n.destroy_node()
         rclpy.try_shutdown(context=context)
-    drain()
-    recorder.close()
+    try:
+        drain()
+        recorder.close()
+    except BaseException:
+        recorder.abort()
+        raise
     summary.frames.sort(key=lambda f: f.index)
     return summary
-
-
-def _stamp(header) -> int:
-    return header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
 
 
 def _wait_for(condition: Callable[[], bool], timeout: float, what: str) -> None:

@@ -33,6 +33,11 @@ MAX_THICKNESS = 0.2
 MIN_PLANE_SILHOUETTE = 0.05
 #: A tuning candidate is eligible when its planes cover at least this share of the best coverage.
 MIN_RELATIVE_COVERAGE = 0.5
+#: Silhouette-type scores closer than this to the best count as ties (the smallest t wins).
+SILHOUETTE_TIE = 0.01
+#: A lone plane this thin (see plane_thickness) is a plane; a thicker one may be a slab cut
+#: through stairs or a curved surface (a noisy 2 m floor with e = 1 cm is 0.01, a stair slope 0.14).
+SINGLE_PLANE_THICKNESS = 0.05
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +49,7 @@ class TuningRow:
     inlier_counts: tuple[int, ...]
     indices: ValidityIndices
     seconds: float
+    max_thickness: float = 0.0   # largest plane_thickness among the planes (0 without planes)
 
     def score(self, criterion: str) -> float:
         return float(getattr(self.indices, criterion))
@@ -109,24 +115,34 @@ def _finite(points: np.ndarray) -> np.ndarray:
     return points[np.isfinite(points).all(axis=1)]
 
 
-def default_tolerances(points: np.ndarray, count: int = 16, *, seed=None) -> np.ndarray:
-    """Candidate tolerances (meters) derived from the cloud itself, geometrically spaced from a
-    twentieth of the median nearest-neighbour spacing up to 1/8 of the bounding-box diagonal."""
+def default_tolerances(points: np.ndarray, count: int = 16, *, lo: float | None = None, hi: float | None = None,
+                       seed=None) -> np.ndarray:
+    """``count`` candidate tolerances (meters), geometrically spaced from ``lo`` to ``hi``.
+
+    Bounds not given are derived from the cloud: ``hi`` is 1/8 of the bounding-box diagonal and
+    ``lo`` a twentieth of the median nearest-neighbour spacing (at most hi / 100).
+    """
+    if count < 2:
+        raise ValueError(f'need at least 2 candidates, got {count}')
     pts = _finite(as_points(points))
-    if len(pts) < 3:
-        raise ValueError(f'need at least 3 finite points to derive tolerances, got {len(pts)}')
-    rng = np.random.default_rng(seed)
-    probe = pts if len(pts) <= 20000 else pts[rng.choice(len(pts), 20000, replace=False)]
-    spacing, _ = cKDTree(probe).query(probe, k=2)
-    spacing = spacing[:, 1]
-    spacing = float(np.median(spacing[spacing > 0])) if np.any(spacing > 0) else 0.0
-    # The probe is sparser than the whole cloud: surfaces are 2-D, spacing ~ 1/sqrt(density).
-    spacing *= np.sqrt(len(probe) / len(pts))
-    diagonal = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
-    if diagonal <= 0:
-        raise ValueError('all points are identical: no tolerance can be derived')
-    hi = diagonal / 8
-    lo = min(spacing / 20, hi / 100) if spacing > 0 else hi / 1000
+    if lo is None or hi is None:
+        if len(pts) < 3:
+            raise ValueError(f'need at least 3 finite points to derive tolerances, got {len(pts)}')
+        diagonal = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+        if diagonal <= 0:
+            raise ValueError('all points are identical: no tolerance can be derived')
+        hi = diagonal / 8 if hi is None else hi
+    if lo is None:
+        rng = np.random.default_rng(seed)
+        probe = pts if len(pts) <= 20000 else pts[rng.choice(len(pts), 20000, replace=False)]
+        spacing, _ = cKDTree(probe).query(probe, k=2)
+        spacing = spacing[:, 1]
+        spacing = float(np.median(spacing[spacing > 0])) if np.any(spacing > 0) else 0.0
+        # The probe is sparser than the whole cloud: surfaces are 2-D, spacing ~ 1/sqrt(density).
+        spacing *= np.sqrt(len(probe) / len(pts))
+        lo = min(spacing / 20, hi / 100) if spacing > 0 else hi / 1000
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
+        raise ValueError(f'tolerance range must satisfy 0 < lo < hi, got lo={lo}, hi={hi}')
     return np.geomspace(lo, hi, count)
 
 
@@ -153,17 +169,19 @@ def noise_from_segmentation(seg: Segmentation) -> float:
 def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_planes', *,
                    max_planes: int = 10, min_inliers: int | float = 0.02, probability: float = 0.99,
                    max_iterations: int = 1000, sample_size: int | None = 2000, tune_points: int | None = 20000,
+                   t_min: float | None = None, t_max: float | None = None, count: int = 16,
                    seed: int | None = None) -> TuningResult:
     """Sweep the RANSAC tolerance and pick the best by ``criterion``.
 
-    points: (N, 3) meters. tolerances: candidate ``t`` values in meters, or None to derive them
-    from the cloud (:func:`default_tolerances`). criterion: one of :data:`CRITERIA`.
+    points: (N, 3) meters. tolerances: candidate ``t`` values in meters, or None for ``count``
+    candidates from ``t_min`` to ``t_max``, each derived from the cloud when None
+    (:func:`default_tolerances`). criterion: one of :data:`CRITERIA`.
     tune_points: the sweep runs on a random subsample of this many points (None = all); the
     chosen ``t`` is then applied to the full cloud. sample_size: silhouette sample per score.
     Candidates whose planes cover less than half the best coverage of the sweep are not eligible
-    (GSplanes ignores unassigned points); among the eligible ones whose score is within two
-    standard errors of the best (indistinguishable given the silhouette sampling), the smallest
-    ``t`` wins.
+    (GSplanes ignores unassigned points); among the eligible ones whose score is within
+    max(3 SE, 0.01) of the best (indistinguishable given the silhouette sampling), the smallest
+    ``t`` wins; see :func:`_choose` for the single-plane case.
     """
     _check_criterion(criterion)
     start = time.perf_counter()
@@ -172,7 +190,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_pla
     if len(finite) < 3:
         raise ValueError(f'need at least 3 finite points to tune, got {len(finite)}')
     rng = np.random.default_rng(seed)
-    cand = default_tolerances(finite, seed=rng) if tolerances is None else np.asarray(tolerances, dtype=float)
+    cand = default_tolerances(finite, count, lo=t_min, hi=t_max, seed=rng) if tolerances is None \
+        else np.asarray(tolerances, dtype=float)
     cand = np.unique(cand)
     if cand.size == 0 or not np.all(np.isfinite(cand)) or cand[0] <= 0:
         raise ValueError('tolerances must be finite and > 0')
@@ -192,9 +211,11 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_pla
         else:
             scores = validity_indices(sweep_pts, seg.labels, sample_size=sample_size, seed=int(index_seed))
         previous = (seg.labels, scores)
+        thickness = plane_thickness(sweep_pts, seg)
         rows.append(TuningRow(tolerance=float(t), n_planes=seg.n_planes,
                               inlier_counts=tuple(len(p.inliers) for p in seg.planes), indices=scores,
-                              seconds=time.perf_counter() - t0))
+                              seconds=time.perf_counter() - t0,
+                              max_thickness=float(thickness.max()) if len(thickness) else 0.0))
 
     best = _choose(rows, criterion, len(sweep_pts))
     t_best = rows[best].tolerance
@@ -215,7 +236,11 @@ def _choose(rows: list[TuningRow], criterion: str, n_points: int) -> int:
     Eligible are the candidates whose planes cover at least MIN_RELATIVE_COVERAGE of the best
     coverage in the sweep: GSplanes ignores unassigned points, so at t far below the noise a
     couple of far-apart slivers would otherwise score well. Among the eligible, the smallest
-    tolerance whose score is within 2 SE of the best one wins.
+    tolerance whose score is within max(3 SE, SILHOUETTE_TIE) of the best one wins (the plateau
+    of good tolerances is flat up to sampling noise). The silhouettes are undefined (0) for a
+    single plane, so when no multi-plane candidate reaches RELIABLE_GS_PLANES and some eligible
+    candidate finds exactly one thin plane (thickness ratio <= SINGLE_PLANE_THICKNESS), the cloud
+    is taken as one plane: the smallest t whose plane covers 95 % of the best such coverage.
     """
     coverage = np.array([sum(r.inlier_counts) for r in rows]) / max(n_points, 1)
     eligible = coverage >= MIN_RELATIVE_COVERAGE * coverage.max()
@@ -223,8 +248,12 @@ def _choose(rows: list[TuningRow], criterion: str, n_points: int) -> int:
     sign = 1 if CRITERIA[criterion] else -1
     masked = np.where(eligible, sign * np.nan_to_num(scores, nan=-np.inf * sign), -np.inf)
     best = int(np.argmax(masked))
+    single = eligible & np.array([r.n_planes == 1 and r.max_thickness <= SINGLE_PLANE_THICKNESS for r in rows])
+    if criterion in ('gs_planes', 'gs', 'silhouette') and single.any() and scores[best] < RELIABLE_GS_PLANES:
+        return int(np.flatnonzero(single & (coverage >= 0.95 * coverage[single].max()))[0])
     se_name = {'gs_planes': 'gs_planes_se', 'gs': 'gs_se', 'silhouette': 'silhouette_se'}.get(criterion)
-    margin = 2 * getattr(rows[best].indices, se_name) if se_name else 0.0
+    # The reported SE runs ~1.5x small (shared sample noise), and 0.01 of silhouette is no real difference.
+    margin = max(3 * getattr(rows[best].indices, se_name), SILHOUETTE_TIE) if se_name else 0.0
     return int(np.flatnonzero(masked >= masked[best] - margin)[0])
 
 

@@ -226,7 +226,7 @@ def test_flood_drops_old_frames_keeps_memory_flat_and_stays_responsive(harness):
 
 
 def test_periodic_retune_runs_in_the_background_while_frames_flow(ros):
-    params = {'auto_tune': True, 'retune_period': 0.5, 'seed': 3, 'tune_count': 30, 'tune_points': 30000}
+    params = {'auto_tune': True, 'retune_period': 0.5, 'seed': 3, 'tune_count': 12, 'tune_points': 30000}
     node = PlaneValidationNode(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
     h = Harness(node)
     try:
@@ -234,7 +234,7 @@ def test_periodic_retune_runs_in_the_background_while_frames_flow(ros):
         first = h.send(xyz_cloud(cloud, 6_000_000_000_000), timeout=60)  # tuned inline on the first frame
         assert diag_values(first['diagnostics'])['tolerance_source'] == 'tuned at t=6000.000s'
         seen_running = []
-        for k in range(1, 40):  # header time advances 0.1 s per frame: a retune is due after 0.5 s
+        for k in range(1, 150):  # header time advances 0.1 s per frame: a retune is due after 0.5 s
             out = h.send(xyz_cloud(cloud, 6_000_000_000_000 + k * 100_000_000), timeout=60)
             values = diag_values(out['diagnostics'])
             assert values['planes'] == '3'
@@ -267,3 +267,14 @@ def test_node_process_stops_cleanly_on_signal(sig):
             proc.wait()
     assert proc.returncode == 0, (proc.returncode, err)
     assert 'Traceback' not in err + out
+
+
+def test_node_with_invalid_startup_parameters_exits_with_a_reason():
+    import os
+    import subprocess
+    import sys
+    proc = subprocess.run([sys.executable, '-m', 'plane_validation.node', '--ros-args', '-p', 'tune_min:=0.5',
+                           '-p', 'tune_max:=0.1'], capture_output=True, text=True, timeout=60, env=dict(os.environ))
+    assert proc.returncode == 2
+    assert 'tune_max must be greater than tune_min' in proc.stderr
+    assert 'Traceback' not in proc.stderr

@@ -126,3 +126,13 @@ def test_bad_tuning_arguments_raise(kwargs):
 def test_too_few_points_raise_clearly():
     with pytest.raises(ValueError, match='at least 3'):
         pv.tune_tolerance(np.full((10, 3), np.nan))
+
+
+@pytest.mark.parametrize('seed', [0, 1, 2, 3])
+def test_single_noisy_plane_is_one_reliable_plane(seed):
+    rng = np.random.default_rng(seed)
+    floor = np.column_stack([rng.uniform(0, 2, 5000), rng.uniform(0, 2, 5000), rng.uniform(-0.01, 0.01, 5000)])
+    result = pv.tune_tolerance(floor, seed=seed)
+    assert result.segmentation.n_planes == 1, result.table()
+    assert result.reliable, result.verdict
+    assert 0.005 <= result.noise_estimate <= 0.02

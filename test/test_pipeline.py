@@ -1,0 +1,109 @@
+"""The per-frame pipeline shared by node and replay, without ROS: robustness and tuning set-up."""
+import threading
+
+import numpy as np
+import pytest
+
+from plane_validation import scenes
+from plane_validation.pipeline import ERROR, OK, WARN, FramePipeline, PipelineConfig, voxel_downsample
+
+FIXED = PipelineConfig(auto_tune=False, tolerance=0.01, seed=1)
+
+
+def corner(noise_cm: float = 0.5, n: int = 3000, seed: int = 1) -> np.ndarray:
+    return scenes.corner(n, noise_cm, scale=0.01, seed=seed).points
+
+
+@pytest.mark.parametrize('points, level, words', [
+    (np.full((100, 3), np.nan), WARN, 'too few'),
+    (np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), OK, '1 plane'),  # three points do make a plane
+    (np.array([[0.0, 0, 0], [0, 0, 0], [1, 1, 1]]), WARN, 'collinear'),
+    (np.ones((10, 2)), ERROR, 'bad input'),
+    (np.array([['a', 'b', 'c']]), ERROR, 'bad input'),
+])
+@pytest.mark.parametrize('auto', [False, True])
+def test_bad_frames_give_a_result_not_an_exception(points, level, words, auto):
+    pipe = FramePipeline(PipelineConfig(auto_tune=auto, tolerance=0.01))
+    result = pipe.process(points, 0)
+    assert result.level == level, result.message
+    assert words in result.message
+
+
+def test_huge_coordinates_are_an_error_not_an_exception():
+    result = FramePipeline(FIXED).process(corner() * 1e200, 0)
+    assert result.level == ERROR
+    assert 'numerical failure' in result.message
+
+
+def test_one_far_outlier_does_not_hide_the_planes():
+    pts = corner()
+    pts[0] = np.finfo(np.float32).max  # some drivers write FLT_MAX instead of NaN
+    result = FramePipeline(FIXED).process(pts, 0)
+    assert result.n_planes == 3, result.message
+
+
+def test_integer_input_and_a_single_plane_work():
+    plane = np.column_stack([np.arange(400) % 20, np.arange(400) // 20, np.zeros(400, int)])
+    result = FramePipeline(PipelineConfig(auto_tune=False, tolerance=0.1)).process(plane, 0)
+    assert result.level == OK and result.n_planes == 1
+
+
+def test_voxel_grid_reports_counts_in_input_points():
+    pts = corner(0.2, n=20000)
+    result = FramePipeline(PipelineConfig(auto_tune=False, tolerance=0.01, voxel_size=0.03)).process(pts, 0)
+    assert result.n_planes == 3
+    assert len(result.labels) == len(pts)
+    assert sum(result.plane_counts) == int(np.sum(result.labels >= 0))
+    values = dict(result.values)
+    assert int(values['plane_0_inliers']) == result.plane_counts[0]
+    assert len(result.segmentation.planes[0].inliers) < result.plane_counts[0]  # detection ran on voxels
+
+
+def test_voxel_downsample_centroids():
+    pts = np.array([[0.01, 0.01, 0.01], [0.03, 0.03, 0.03], [0.26, 0.0, 0.0]])
+    centroids, inverse = voxel_downsample(pts, 0.1)
+    assert len(centroids) == 2
+    np.testing.assert_allclose(centroids[inverse[0]], [0.02, 0.02, 0.02])
+    assert inverse[0] == inverse[1] != inverse[2]
+
+
+def test_tune_max_alone_bounds_the_candidates_and_tune_count_is_used():
+    pipe = FramePipeline(PipelineConfig(tune_max=0.005, tune_count=5, seed=2))
+    result = pipe.process(corner(1.0), 0)
+    assert pipe.last_tuning is not None
+    assert len(pipe.last_tuning.rows) == 5
+    assert pipe.last_tuning.tolerances.max() == pytest.approx(0.005)
+    assert result.tolerance <= 0.005
+
+
+def test_parameter_change_during_a_retune_voids_it():
+    pipe = FramePipeline(PipelineConfig(seed=3))
+    started = threading.Event()
+    real = pipe.retune
+
+    def slow_retune(*args, **kwargs):
+        started.set()
+        return real(*args, **kwargs)
+    worker = threading.Thread(target=slow_retune, args=(corner(1.0, n=20000), 1.0, 1_000_000_000))
+    worker.start()
+    started.wait()
+    pipe.reconfigure(PipelineConfig(seed=3, tune_min=0.001, tune_max=0.002, tune_count=3))
+    worker.join()
+    assert pipe.tolerance is None, 'a sweep for the old set-up was adopted after the change'
+    assert pipe.retune_due(2.0)
+
+
+def test_same_frame_same_stamp_same_result_and_stamp_changes_the_seed():
+    pts = corner(1.0)
+    a = FramePipeline(FIXED).process(pts, 5)
+    b = FramePipeline(FIXED).process(pts, 5)
+    np.testing.assert_array_equal(a.labels, b.labels)
+    assert a.indices.gs_planes == b.indices.gs_planes
+
+
+@pytest.mark.parametrize('bad', [dict(tolerance=0.0), dict(criterion='x'), dict(tune_min=0.2, tune_max=0.1),
+                                 dict(probability=1.0), dict(voxel_size=-1.0), dict(tune_count=1)])
+def test_invalid_config_is_rejected_with_a_reason(bad):
+    with pytest.raises(ValueError) as info:
+        PipelineConfig(**bad).validate()
+    assert str(info.value)
