@@ -342,22 +342,37 @@ def replay_live(bag: str | Path, *, topic: str | None = None, out: str | Path | 
         topics = output_topics(node_name)
         classes = {'segmented': PointCloud2, 'planes': MarkerArray, 'plane_poses': PoseArray,
                    'plane_coefficients': Float64MultiArray, 'diagnostics': DiagnosticArray}
-        last_stamp = {'value': None}
+        # Float64MultiArray has no header: the node publishes one coefficients message right before
+        # each frame's diagnostics, and DDS keeps each topic in order, so the n-th coefficients
+        # message belongs to the n-th diagnostics message of the node.
+        coefficients: list = []
+        diag_stamps: list[int] = []
+
+        def pair_coefficients() -> None:
+            while coefficients and diag_stamps:
+                pending.append(('plane_coefficients', bag_time[diag_stamps.pop(0)], coefficients.pop(0)))
 
         def recorder_for(key: str):
             def record(msg) -> None:
-                header = msg.markers[0].header if key == 'planes' and msg.markers else getattr(msg, 'header', None)
                 with lock:
-                    stamp = header_stamp_ns(header) if header is not None else last_stamp['value']
-                    if stamp not in bag_time:
-                        return  # not one of ours (another publisher on /diagnostics)
-                    if key == 'diagnostics' and not any(s.name.startswith(f'{node_name}:') for s in msg.status):
+                    if key == 'plane_coefficients':
+                        coefficients.append(msg)
+                        pair_coefficients()
                         return
+                    header = msg.markers[0].header if key == 'planes' else msg.header
+                    if key == 'planes' and not msg.markers:
+                        return
+                    if key == 'diagnostics' and not any(s.name.startswith(f'{node_name}:') for s in msg.status):
+                        return  # another node's diagnostics
+                    stamp = header_stamp_ns(header)
+                    if stamp not in bag_time:
+                        return  # not a frame of this bag
                     pending.append((key, bag_time[stamp], msg))
                     if key == 'segmented':
                         summary.last_segmented = msg
-                        last_stamp['value'] = stamp
                     if key == 'diagnostics':
+                        diag_stamps.append(stamp)
+                        pair_coefficients()
                         frame = _frame_from_diagnostics(order[stamp], bag_time[stamp], msg)
                         summary.frames.append(frame)
                         values = {kv.key: kv.value for kv in msg.status[0].values}

@@ -87,6 +87,13 @@ def test_live_replay_matches_offline_for_the_same_seed(tmp_path):
     assert live_seg
     for ts, msg in live_seg:
         np.testing.assert_array_equal(structured_array(msg)['plane_id'], off_seg[ts])
+    # coefficients carry no header: they must still be recorded at their own frame's time
+    topic = output_topics()['plane_coefficients']
+    off_coeffs = dict(_read_output(tmp_path / 'offline')[topic])
+    live_coeffs = _read_output(tmp_path / 'live')[topic]
+    assert [ts for ts, _ in live_coeffs] == [ts for ts, _ in live_seg]
+    for ts, msg in live_coeffs:
+        np.testing.assert_allclose(msg.data, off_coeffs[ts].data)
 
 
 def _cloud_msg(ts, points, stamp_ns, family_types):
