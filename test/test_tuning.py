@@ -101,10 +101,16 @@ def test_subsampled_sweep_gives_full_resolution_segmentation():
 
 
 def test_default_tolerances_follow_the_cloud():
-    small = default_tolerances(scenes.corner(3000, seed=0, scale=0.01).points)
-    big = default_tolerances(scenes.corner(3000, seed=0).points)
-    np.testing.assert_allclose(big / small, 100, rtol=1e-6)
+    small = default_tolerances(scenes.corner(3000, seed=0, scale=0.01).points, seed=1)
+    big = default_tolerances(scenes.corner(3000, seed=0).points, seed=1)
+    np.testing.assert_allclose(big / small, 100, rtol=1e-6)  # same cloud in other units
     assert np.all(np.diff(small) > 0)
+    # a dense noisy cloud is not swept up to 1/8 of its size: the cap follows noise and spacing
+    dense = scenes.boxes(50000, noise=0.005, seed=0).points
+    cands = default_tolerances(dense, seed=1)
+    assert 0.02 < cands[-1] < 0.1  # 5 mm noise in a 5 m scene
+    bounded = default_tolerances(dense, 5, hi=0.01, seed=1)
+    assert len(bounded) == 5 and bounded[-1] == pytest.approx(0.01)
 
 
 def test_seeded_tuning_is_reproducible():
