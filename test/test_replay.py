@@ -46,13 +46,12 @@ def test_every_bundled_bag_replays_offline_as_documented(name, tmp_path):
         assert all(f.level == 1 for f in summary.frames), [f.message for f in summary.frames]
         assert all('no reliable planes' in f.message for f in summary.frames)
     else:
-        allowed = {truth['n_planes'], truth['n_planes'] + 1} if truth['scene'] == 'table' else {truth['n_planes']}
-        assert set(counts) <= allowed, counts
+        assert set(counts) == {truth['n_planes']}, counts
         if e > 0:
-            assert e <= tolerance <= 4 * e, tolerance
+            assert e <= tolerance <= 3 * e, tolerance
         else:
             assert tolerance < 0.005
-        if truth['scene'] in ('corner', 'cube', 'room'):
+        if truth['scene'] in ('corner', 'cube', 'room', 'table'):
             assert all(f.level == 0 for f in summary.frames), [f.message for f in summary.frames]
 
     recorded = _read_output(out)
