@@ -115,10 +115,13 @@ def _degeneracy(points: np.ndarray) -> str | None:
         return f'fewer than 3 points left ({len(points)})'
     if np.all(points == points[0]):
         return 'all remaining points are identical'
-    core = points
-    if len(points) >= 50:
-        dist = np.abs(points - np.median(points, axis=0)).max(axis=1)
-        core = points[dist <= np.quantile(dist, 0.98)]
+    # A random subset is plenty for a spread test (not a strided one: in an organized cloud a
+    # stride can pick one image column, which lies on a line). Seeded by n: deterministic.
+    core = points if len(points) <= SUBSET else \
+        points[np.random.default_rng(len(points)).integers(0, len(points), SUBSET)]
+    if len(core) >= 50:
+        dist = np.abs(core - np.median(core, axis=0)).max(axis=1)
+        core = core[dist <= np.quantile(dist, 0.98)]
     centered = core - core.mean(axis=0)
     eig = np.linalg.eigvalsh(centered.T @ centered)  # ascending
     if eig[2] <= 0:
