@@ -27,7 +27,7 @@ from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
 from .messages import frame_messages
-from .pipeline import ERROR, LEVEL_NAMES, OK, FramePipeline, PipelineConfig, header_stamp_ns
+from .pipeline import ERROR, LEVEL_NAMES, OK, WARN, FramePipeline, PipelineConfig, header_stamp_ns
 
 #: name -> (description, (min, max) or None). Defaults come from PipelineConfig.
 PARAMETERS = {
@@ -88,6 +88,7 @@ class PlaneValidationNode(Node):
                       'diagnostics': self.create_publisher(DiagnosticArray, '/diagnostics', 10)}
         self.status_name = f'{self.get_name()}: plane detection'
         self.frames_dropped = 0
+        self._dropped_reported = 0
         self.frames_processed = 0
         self._slot: PointCloud2 | None = None
         self._wake = threading.Condition()
@@ -124,6 +125,12 @@ class PlaneValidationNode(Node):
         if result.segmentation is not None and self.pipeline.retune_due(stamp_ns * 1e-9):
             self._start_retune(result.points, stamp_ns)  # frames go on with the current t meanwhile
         self.frames_processed += 1
+        with self._wake:
+            dropped_now, self._dropped_reported = self.frames_dropped - self._dropped_reported, self.frames_dropped
+        if dropped_now:
+            result = dataclasses.replace(result, level=max(result.level, WARN),
+                                         message=f'{result.message}; {dropped_now} older frame(s) dropped '
+                                                 '(clouds arrive faster than they are processed)')
         extra = (('frames_processed', str(self.frames_processed)), ('frames_dropped', str(self.frames_dropped)),
                  ('retune_running', str(self._retuner is not None and self._retuner.is_alive()).lower()))
         for topic, out in frame_messages(msg.header, result, self.status_name, extra).items():

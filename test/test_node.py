@@ -220,6 +220,11 @@ def test_flood_drops_old_frames_keeps_memory_flat_and_stays_responsive(harness):
     dropped = int(values["frames_dropped"])
     processed = int(values['frames_processed'])
     assert dropped > 0
+    with harness.lock:
+        flood_diags = [d.status[0] for k, d in harness.received['diagnostics'].items() if k < 5_100_000_000_000]
+    warned = [st for st in flood_diags if 'dropped' in st.message]
+    assert warned and all(st.level == b'\x01' for st in warned)
+    assert values['planes'] == '3' and out['diagnostics'].status[0].level == b'\x00'  # nothing dropped since
     # (DDS itself may also discard frames for the best-effort subscription, so no lower bound on the sum)
     assert processed + dropped <= 251
     assert after - before < 60, f'RSS grew from {before:.0f} MB to {after:.0f} MB'
