@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .files import load_points
 from .pipeline import PipelineConfig
 from .ransac import Segmentation, detect_planes
 
@@ -31,32 +32,6 @@ def format_planes(seg: Segmentation) -> str:
         lines.append(f'  plane {k}: {a:+.4f} x {b:+.4f} y {c:+.4f} z {d:+.4f} = 0   '
                      f'inliers {len(plane.inliers):7d}   rms {plane.rms:.4g} m')
     return '\n'.join(lines)
-
-
-def load_points(path: str | Path) -> np.ndarray:
-    """(N, 3) float points from a .pcd (pypcd4), .npy, or whitespace/comma separated text file."""
-    path = Path(path)
-    if not path.exists():
-        raise ValueError(f'no such file: {path}')
-    suffix = path.suffix.lower()
-    if suffix == '.pcd':
-        try:
-            from pypcd4 import PointCloud  # reads ascii, binary and binary_compressed PCD
-        except ImportError as exc:
-            raise ValueError('reading .pcd files needs pypcd4 (pip install pypcd4)') from exc
-        cloud = PointCloud.from_path(path)
-        if not {'x', 'y', 'z'} <= set(cloud.fields):
-            raise ValueError(f'{path}: PCD has no x, y, z fields (fields: {", ".join(cloud.fields)})')
-        return cloud.numpy(('x', 'y', 'z'))
-    if suffix == '.npy':
-        pts = np.load(path)
-    elif suffix in ('.xyz', '.txt', '.csv'):
-        pts = np.loadtxt(path, delimiter=',' if suffix == '.csv' else None, ndmin=2)
-    else:
-        raise ValueError(f'{path}: unsupported file type {suffix!r} (use .pcd, .npy, .xyz, .txt or .csv)')
-    if pts.ndim != 2 or pts.shape[1] < 3:
-        raise ValueError(f'{path}: expected rows of at least x y z, got shape {pts.shape}')
-    return pts[:, :3]
 
 
 def _config(args: argparse.Namespace) -> PipelineConfig:

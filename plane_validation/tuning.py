@@ -16,7 +16,8 @@ from .indices import ValidityIndices, validity_indices
 from .ransac import Segmentation, as_points, detect_planes
 
 __all__ = ['CRITERIA', 'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
-           'select_plane_count', 'noise_from_segmentation', 'local_noise', 'judge', 'plane_thickness', 'RELIABLE_GS_PLANES',
+           'select_plane_count', 'noise_from_segmentation', 'local_noise', 'judge', 'plane_thickness',
+           'RELIABLE_GS_PLANES',
            'MAX_THICKNESS', 'MIN_PLANE_SILHOUETTE']
 
 #: Index name -> True when larger is better.
