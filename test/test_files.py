@@ -38,8 +38,8 @@ def test_text_and_npy(tmp_path):
 
 
 @pytest.mark.parametrize('content, words', [
-    (b'VERSION 0.7\nFIELDS a b c\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n1 2 3\n',
-     'no x, y, z'),
+    (b'VERSION 0.7\nFIELDS a b c\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\n'
+     b'DATA ascii\n1 2 3\n', 'no x, y, z'),
     (b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n', 'no DATA'),
     (b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 10\nHEIGHT 1\nPOINTS 10\nDATA binary\n'
      + bytes(20), 'need'),
