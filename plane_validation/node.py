@@ -147,8 +147,8 @@ class PlaneValidationNode(Node):
             try:
                 result = self.pipeline.retune(points, stamp_ns * 1e-9, stamp_ns)
                 self.get_logger().info(f'retuned: t = {result.tolerance:.4g} m ({result.verdict})')
-            except ValueError as exc:
-                self.get_logger().warning(f'retune failed: {exc}', throttle_duration_sec=5.0)
+            except Exception as exc:  # a failed sweep keeps the current tolerance; the node goes on
+                self.get_logger().warning(f'retune failed, keeping t: {exc!r}', throttle_duration_sec=5.0)
         self._retuner = threading.Thread(target=run, name='plane_validation_retune', daemon=True)
         self._retuner.start()
 
