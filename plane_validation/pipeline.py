@@ -163,7 +163,8 @@ class FramePipeline:
                 return False
             if self.tolerance is None:
                 return True
-            return cfg.retune_period > 0 and stamp - self.tuned_at >= cfg.retune_period
+            # header time running backwards (a looping bag, a restarted sensor) also retunes
+            return cfg.retune_period > 0 and (stamp - self.tuned_at >= cfg.retune_period or stamp < self.tuned_at)
 
     def retune(self, points: np.ndarray, stamp: float, stamp_ns: int = 0) -> TuningResult:
         """Run a tolerance sweep on ``points`` (valid rows, meters) and adopt its choice, unless

@@ -107,3 +107,15 @@ def test_invalid_config_is_rejected_with_a_reason(bad):
     with pytest.raises(ValueError) as info:
         PipelineConfig(**bad).validate()
     assert str(info.value)
+
+
+def test_retune_is_due_after_the_period_and_when_header_time_runs_backwards():
+    pipe = FramePipeline(PipelineConfig(retune_period=1.0, seed=4))
+    assert pipe.retune_due(10.0)  # nothing tuned yet
+    pipe.process(corner(1.0), 10_000_000_000)
+    assert not pipe.retune_due(10.5)
+    assert pipe.retune_due(11.0)
+    assert pipe.retune_due(3.0)  # a looping bag starts over
+    fixed = FramePipeline(PipelineConfig(retune_period=0.0, seed=4))
+    fixed.process(corner(1.0), 10_000_000_000)
+    assert not fixed.retune_due(1e6) and not fixed.retune_due(0.0)
