@@ -371,17 +371,22 @@ def davies_bouldin_classic(points: np.ndarray, labels: np.ndarray) -> float:
 # Silhouettes
 
 
-def _silhouettes(cl: _Clusters) -> np.ndarray:
-    """(n,) exact silhouette of each (sorted) row among the rows of ``cl``.
+def _silhouettes(cl: _Clusters) -> tuple[np.ndarray, np.ndarray]:
+    """Exact silhouettes of each (sorted) row among the rows of ``cl``: (s (n,), s_planes (n,)).
 
     s_i = (b_i - a_i) / max(a_i, b_i); a_i mean distance to the other members of its cluster,
     b_i the smallest mean distance to another cluster; 0 for singleton clusters and for a = b = 0.
-    Rows are processed in blocks of at most ``CHUNK_FLOATS`` distances.
+    s_planes is the same for the planes alone (the unassigned cluster is no candidate for b_i;
+    NaN on its own rows): both come from one pass over the distances. Rows are processed in
+    blocks of at most ``CHUNK_FLOATS`` distances.
     """
     n, k = cl.n, cl.k
-    s = np.zeros(n)
+    s, s_planes = np.zeros(n), np.zeros(n)
+    has_rest = k > 0 and cl.ids[0] < 0
+    if has_rest:
+        s_planes[:cl.sizes[0]] = np.nan
     if k < 2:
-        return s
+        return s, s_planes
     onehot = np.zeros((n, k))
     onehot[np.arange(n), cl.codes] = 1.0
     step = max(1, CHUNK_FLOATS // n)
@@ -392,12 +397,25 @@ def _silhouettes(cl: _Clusters) -> np.ndarray:
         a = sums[np.arange(len(rows)), own] / np.maximum(cl.sizes[own] - 1, 1)
         means = sums / cl.sizes
         means[np.arange(len(rows)), own] = np.inf
-        b = means.min(axis=1)
-        top = np.maximum(a, b)
-        with np.errstate(divide='ignore', invalid='ignore'):
-            s[rows] = np.where(top > 0, (b - a) / top, 0.0)
-    s[cl.sizes[cl.codes] == 1] = 0.0
-    return s
+        s[rows] = _ratio(a, means.min(axis=1))
+        if has_rest and k >= 3:  # planes only: drop the unassigned column as a candidate
+            plane_rows = own > 0
+            b_planes = means[plane_rows, 1:].min(axis=1)
+            s_planes[rows[plane_rows]] = _ratio(a[plane_rows], b_planes)
+    if not has_rest:
+        s_planes[:] = s
+    elif k < 3:
+        s_planes[cl.sizes[0]:] = 0.0  # a single plane has no silhouette
+    single = cl.sizes[cl.codes] == 1
+    s[single] = 0.0
+    s_planes[single & ~np.isnan(s_planes)] = 0.0
+    return s, s_planes
+
+
+def _ratio(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    top = np.maximum(a, b)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        return np.where(top > 0, (b - a) / top, 0.0)
 
 
 def silhouette_samples(points: np.ndarray, labels: np.ndarray) -> np.ndarray:
@@ -410,7 +428,7 @@ def silhouette_samples(points: np.ndarray, labels: np.ndarray) -> np.ndarray:
     pts, _ = _check(points, labels)
     cl = _clusters(points, labels)
     out = np.full(len(pts), np.nan)
-    out[cl.order] = _silhouettes(cl)
+    out[cl.order] = _silhouettes(cl)[0]
     return out
 
 
@@ -422,7 +440,7 @@ def silhouette_score(points: np.ndarray, labels: np.ndarray) -> float:
     """Exact mean silhouette over all finite points (equals ``sklearn.metrics.silhouette_score``);
     label -1 points form one cluster; 0.0 for fewer than two clusters."""
     cl = _clusters(points, labels)
-    return float(_silhouettes(cl).mean()) if cl.k >= 2 else 0.0
+    return float(_silhouettes(cl)[0].mean()) if cl.k >= 2 else 0.0
 
 
 def global_silhouette(points: np.ndarray, labels: np.ndarray, *, planes_only: bool = False) -> float:
@@ -435,7 +453,7 @@ def global_silhouette(points: np.ndarray, labels: np.ndarray, *, planes_only: bo
     cl = _clusters(points, labels)
     if planes_only:
         cl = cl.planes_only()
-    return float(_cluster_means(cl, _silhouettes(cl)).mean()) if cl.k >= 2 else 0.0
+    return float(_cluster_means(cl, _silhouettes(cl)[0]).mean()) if cl.k >= 2 else 0.0
 
 
 # --------------------------------------------------------------------------------------------
@@ -478,28 +496,34 @@ class _Estimate:
     cluster_means: tuple[float, ...]
 
 
-def _estimate(cl: _Clusters, sample_size: int | None, rng: np.random.Generator) -> _Estimate:
-    """Silhouette (mean of s_i) and GS of ``cl`` with standard errors: exact (SE 0) when
-    sample_size is None or >= n, else from a stratified sample whose silhouettes are computed
-    against the sample itself (stratified SE with finite-population correction)."""
-    if cl.k < 2:
-        return _Estimate(0.0, 0.0, 0.0, 0.0, cl.n, (0.0,) * cl.k)
-    if sample_size is None or cl.n <= sample_size:
-        s = _silhouettes(cl)
-        means = _cluster_means(cl, s)
-        return _Estimate(float(s.mean()), float(means.mean()), 0.0, 0.0, cl.n, tuple(map(float, means)))
-    sub = _stratified(cl, sample_size, rng)
-    s = _silhouettes(sub)
-    n_h, big_n = sub.sizes.astype(np.float64), cl.sizes.astype(np.float64)
+def _summarize(population: _Clusters, sub: _Clusters, s: np.ndarray, exact: bool) -> _Estimate:
+    """Silhouette (mean of s_i) and GS of ``population`` from the silhouettes ``s`` of its rows
+    ``sub``: exact (SE 0), or a stratified sample (stratified SE with finite-population correction)."""
+    if population.k < 2:
+        return _Estimate(0.0, 0.0, 0.0, 0.0, population.n, (0.0,) * population.k)
     mean_h = _cluster_means(sub, s)
+    if exact:
+        return _Estimate(float(s.mean()), float(mean_h.mean()), 0.0, 0.0, sub.n, tuple(map(float, mean_h)))
+    n_h, big_n = sub.sizes.astype(np.float64), population.sizes.astype(np.float64)
     dev = s - mean_h[sub.codes]
     var_h = np.add.reduceat(dev * dev, sub.starts) / np.maximum(n_h - 1, 1)
     var_mean_h = (1.0 - n_h / big_n) * var_h / n_h  # variance of each cluster's sample mean
     w = big_n / big_n.sum()
     return _Estimate(silhouette=float(w @ mean_h), gs=float(mean_h.mean()),
                      silhouette_se=float(np.sqrt(w ** 2 @ var_mean_h)),
-                     gs_se=float(np.sqrt(var_mean_h.sum()) / cl.k), size=sub.n,
+                     gs_se=float(np.sqrt(var_mean_h.sum()) / population.k), size=sub.n,
                      cluster_means=tuple(map(float, mean_h)))
+
+
+def _estimates(cl: _Clusters, sample_size: int | None, rng: np.random.Generator) -> tuple[_Estimate, _Estimate]:
+    """(all clusters, planes only) silhouette estimates from one pass over one set of rows: all
+    rows when sample_size is None or >= n, else a stratified sample whose silhouettes are computed
+    against the sample itself; the planes-only estimate uses the sample's plane rows."""
+    exact = sample_size is None or cl.n <= sample_size
+    sub = cl if exact or cl.k < 2 else _stratified(cl, sample_size, rng)
+    s, s_planes = _silhouettes(sub)
+    cut = int(sub.sizes[0]) if sub.k and sub.ids[0] < 0 else 0
+    return _summarize(cl, sub, s, exact), _summarize(cl.planes_only(), sub.planes_only(), s_planes[cut:], exact)
 
 
 # --------------------------------------------------------------------------------------------
@@ -556,7 +580,8 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     ``sample_size`` is None or N <= sample_size; otherwise they are estimated from a stratified
     sample of about ``sample_size`` points (every cluster keeps at least min(its size,
     max(2, sample_size // (4k))) points, the rest is shared proportionally), each sampled point's
-    silhouette computed against the sample; GS_planes uses its own sample of the plane points.
+    silhouette computed against the sample; GS_planes uses the plane rows of the same sample (b_i
+    then ranges over the planes only), so one pass over the distances serves both.
     The *_se fields give the stratified standard errors (with finite-population correction) of
     these estimates; they treat each sampled s_i as fixed, so they ignore the shared noise of
     estimating a_i and b_i from the same sample and run ~1.1-2x too small (measured on noisy
@@ -585,8 +610,7 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     else:
         dunn, db = 0.0, np.inf
     size = None if sample_size is None else int(sample_size)
-    full = _estimate(cl, size, rng)
-    planes = _estimate(cl.planes_only(), size, rng)
+    full, planes = _estimates(cl, size, rng)
     return ValidityIndices(
         dunn=float(dunn), davies_bouldin=float(db), davies_bouldin_classic=_db_classic(cl),
         silhouette=full.silhouette, gs=full.gs, gs_planes=planes.gs,
