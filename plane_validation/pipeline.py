@@ -195,7 +195,7 @@ class FramePipeline:
 
     def reject(self, message: str, level: int = ERROR) -> FrameResult:
         """Result for a frame that could not even be read (e.g. a malformed message)."""
-        return _failed(level, message, self.config, time.perf_counter(), self.current_tolerance())
+        return _failed(level, message, time.perf_counter(), self.current_tolerance())
 
     def process(self, points: np.ndarray, stamp_ns: int = 0, *, tune_inline: bool = True) -> FrameResult:
         """Run one frame. points: (N, 3) meters, NaN rows allowed; stamp_ns: header stamp.
@@ -210,17 +210,17 @@ class FramePipeline:
         try:
             pts = as_points(points)
         except ValueError as exc:
-            return _failed(ERROR, f'bad input: {exc}', cfg, start, self.current_tolerance())
+            return _failed(ERROR, f'bad input: {exc}', start, self.current_tolerance())
         valid = pts[np.isfinite(pts).all(axis=1)]
         n_input = len(pts)
         if len(valid) < 3:
-            return _failed(WARN, f'too few valid points: {len(valid)} of {n_input} (need 3)', cfg, start,
+            return _failed(WARN, f'too few valid points: {len(valid)} of {n_input} (need 3)', start,
                            self.current_tolerance(), n_input=n_input, n_valid=len(valid))
         if tune_inline and self.retune_due(stamp):
             try:
                 self.retune(valid, stamp, stamp_ns)
             except (ValueError, np.linalg.LinAlgError) as exc:
-                return _failed(WARN, f'cannot tune: {exc}', cfg, start, self.current_tolerance(),
+                return _failed(WARN, f'cannot tune: {exc}', start, self.current_tolerance(),
                                n_input=n_input, n_valid=len(valid))
         tolerance, source = self.current_tolerance()
         try:
@@ -233,7 +233,7 @@ class FramePipeline:
                 scores = validity_indices(work, seg.labels, sample_size=cfg.index_sample_size, seed=seed)
                 reliable, verdict = judge(work, seg, scores)
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
-            return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', cfg, start,
+            return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
                            (tolerance, source), n_input=n_input, n_valid=len(valid))
         labels = seg.labels if inverse is None else seg.labels[inverse]
         level, message = (OK, verdict) if reliable else (WARN, f'no reliable planes: {verdict}')
@@ -273,7 +273,7 @@ def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_
     return tuple(values)
 
 
-def _failed(level: int, message: str, cfg: PipelineConfig, start: float, tol: tuple[float, str], *,
+def _failed(level: int, message: str, start: float, tol: tuple[float, str], *,
             n_input: int = 0, n_valid: int = 0) -> FrameResult:
     values = (('tolerance', _fmt(tol[0])), ('tolerance_source', tol[1]), ('planes', '0'),
               ('input_points', str(n_input)), ('valid_points', str(n_valid)))
