@@ -2,6 +2,11 @@
 
 Pure numpy: no ROS import. Coordinates are in meters (or any consistent unit); the
 tolerance ``t`` is an absolute point-to-plane distance in the same unit.
+
+Internally the points are held as a (3, n) array centred on their mean: distances to k planes
+are then one (k, 3) @ (3, n) product (a (n, 3) @ (3, k) product is ~20x slower in numpy for
+small k), columns are selected with ``np.compress``, and plane fits can use raw second moments
+without losing precision to large absolute coordinates.
 """
 from __future__ import annotations
 
@@ -15,8 +20,11 @@ __all__ = ['Plane', 'Segmentation', 'detect_planes', 'fit_plane', 'as_points', '
 BATCH = 128
 #: Points a hypothesis is scored on before the best few are confirmed on all points.
 SUBSET = 4096
-#: Best subset hypotheses confirmed on the full remaining cloud.
+#: Best subset hypotheses confirmed on all points of the RANSAC sample.
 CONFIRM = 4
+#: Default for ``detect_planes(ransac_points=...)``: larger clouds are searched on a random
+#: sample of this many points; every point is then labelled against the planes found.
+RANSAC_POINTS = 65536
 #: A sample triple whose sine of the angle at its first point is below this is degenerate.
 MIN_SINE = 1e-6
 
@@ -90,11 +98,19 @@ def resolve_min_inliers(min_inliers: int | float, n_valid: int) -> int:
 
 def fit_plane(points: np.ndarray) -> tuple[np.ndarray, float]:
     """Least-squares plane through (n, 3) points (PCA): returns (unit normal (3,), offset)."""
-    centroid = points.mean(axis=0)
-    centered = points - centroid
-    # Eigenvector of the smallest eigenvalue of the scatter matrix: 3x3, cheaper than an SVD of n x 3.
-    _, vecs = np.linalg.eigh(centered.T @ centered)
-    normal = vecs[:, 0]
+    pts = np.asarray(points, dtype=np.float64)
+    centroid = pts.mean(axis=0)
+    normal, offset = _fit_columns(np.ascontiguousarray((pts - centroid).T))
+    return normal, offset - float(normal @ centroid)
+
+
+def _fit_columns(cols: np.ndarray) -> tuple[np.ndarray, float]:
+    """Least-squares plane through the columns of ``cols`` (3, n), which must be centred near
+    the origin (raw second moments lose precision on far-away points)."""
+    centroid = cols.mean(axis=1)
+    scatter = (cols @ cols.T) / cols.shape[1] - np.outer(centroid, centroid)
+    # Eigenvector of the smallest eigenvalue of the 3x3 scatter matrix.
+    normal = np.linalg.eigh(scatter)[1][:, 0]
     return normal, float(-normal @ centroid)
 
 
@@ -105,20 +121,20 @@ def _canonical(normal: np.ndarray, offset: float) -> tuple[np.ndarray, float]:
     return normal, offset
 
 
-def _degeneracy(points: np.ndarray) -> str | None:
-    """Reason why no plane can be fitted to (n, 3) points, or None.
+def _degeneracy(cols: np.ndarray) -> str | None:
+    """Reason why no plane can be fitted to the points ``cols`` (3, n), or None.
 
     The spread is judged on the points nearest the median (98 %), so that one far outlier (a
     driver's FLT_MAX instead of NaN) cannot make a planar cloud look collinear.
     """
-    if len(points) < 3:
-        return f'fewer than 3 points left ({len(points)})'
-    if np.all(points == points[0]):
-        return 'all remaining points are identical'
+    n = cols.shape[1]
+    if n < 3:
+        return f'fewer than 3 points left ({n})'
     # A random subset is plenty for a spread test (not a strided one: in an organized cloud a
     # stride can pick one image column, which lies on a line). Seeded by n: deterministic.
-    core = points if len(points) <= SUBSET else \
-        points[np.random.default_rng(len(points)).integers(0, len(points), SUBSET)]
+    core = cols.T if n <= SUBSET else cols[:, np.random.default_rng(n).integers(0, n, SUBSET)].T
+    if np.all(core == core[0]) and np.all(cols == cols[:, :1]):
+        return 'all remaining points are identical'
     if len(core) >= 50:
         dist = np.abs(core - np.median(core, axis=0)).max(axis=1)
         core = core[dist <= np.quantile(dist, 0.98)]
@@ -131,10 +147,11 @@ def _degeneracy(points: np.ndarray) -> str | None:
     return None
 
 
-def _hypotheses(points: np.ndarray, rng: np.random.Generator, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """Planes through ``count`` random triples; degenerate triples dropped. Returns (normals (h,3), offsets (h,))."""
-    idx = rng.integers(0, len(points), size=(count, 3))
-    p0, p1, p2 = points[idx[:, 0]], points[idx[:, 1]], points[idx[:, 2]]
+def _hypotheses(cols: np.ndarray, rng: np.random.Generator, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Planes through ``count`` random triples of the columns of ``cols`` (3, n); degenerate
+    triples dropped. Returns (normals (h, 3), offsets (h,))."""
+    idx = rng.integers(0, cols.shape[1], size=(count, 3))
+    p0, p1, p2 = cols[:, idx[:, 0]].T, cols[:, idx[:, 1]].T, cols[:, idx[:, 2]].T
     u, v = p1 - p0, p2 - p0
     normals = np.cross(u, v)
     norm = np.linalg.norm(normals, axis=1)
@@ -155,11 +172,24 @@ def _required_iterations(inlier_ratio: float, probability: float) -> float:
     return np.log(1 - probability) / np.log(1 - w3)
 
 
-def _best_plane(points: np.ndarray, tolerance: float, probability: float, max_iterations: int,
+def _distances(cols: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """(k, n) absolute distances of the points ``cols`` (3, n) to k planes (in place, one buffer)."""
+    dist = normals @ cols
+    dist += offsets[:, None]
+    return np.abs(dist, out=dist)
+
+
+def _within(cols: np.ndarray, normal: np.ndarray, offset: float, tolerance: float) -> np.ndarray:
+    """(n,) bool: points ``cols`` (3, n) within ``tolerance`` of the plane."""
+    return _distances(cols, normal[None, :], np.array([offset]))[0] <= tolerance
+
+
+def _best_plane(cols: np.ndarray, tolerance: float, probability: float, max_iterations: int,
                 rng: np.random.Generator) -> tuple[np.ndarray, float, np.ndarray] | None:
-    """One RANSAC run on (m, 3) points: (normal, offset, inlier mask) after refinement, or None."""
-    m = len(points)
-    subset = points if m <= SUBSET else points[rng.choice(m, SUBSET, replace=False)]
+    """One RANSAC run on the points ``cols`` (3, m): (normal, offset, inlier mask) after
+    refinement, or None when every sampled triple was degenerate."""
+    m = cols.shape[1]
+    subset = cols if m <= SUBSET else cols[:, rng.choice(m, SUBSET, replace=False)]
     best_normals = np.empty((0, 3))
     best_offsets = np.empty(0)
     best_counts = np.empty(0, dtype=np.int64)
@@ -167,31 +197,35 @@ def _best_plane(points: np.ndarray, tolerance: float, probability: float, max_it
     needed = float(max_iterations)
     while iterations < min(needed, max_iterations):
         batch = int(min(BATCH, max_iterations - iterations))
-        normals, offsets = _hypotheses(points, rng, batch)
+        normals, offsets = _hypotheses(cols, rng, batch)
         iterations += batch
         if len(normals) == 0:
             continue
-        counts = (np.abs(subset @ normals.T + offsets) <= tolerance).sum(axis=0)
+        counts = np.count_nonzero(_distances(subset, normals, offsets) <= tolerance, axis=1)
         # Keep the CONFIRM best hypotheses seen so far for confirmation on all points.
         best_normals = np.concatenate([best_normals, normals])
         best_offsets = np.concatenate([best_offsets, offsets])
         best_counts = np.concatenate([best_counts, counts])
         keep = np.argsort(-best_counts, kind='stable')[:CONFIRM]
         best_normals, best_offsets, best_counts = best_normals[keep], best_offsets[keep], best_counts[keep]
-        needed = _required_iterations(best_counts[0] / len(subset), probability)
+        needed = _required_iterations(best_counts[0] / subset.shape[1], probability)
     if len(best_counts) == 0:
         return None
-    full_counts = (np.abs(points @ best_normals.T + best_offsets) <= tolerance).sum(axis=0)
-    winner = int(np.argmax(full_counts))
+    # MSAC: the truncated squared distance prefers, of two planes with similar support, the one
+    # its inliers hug (a plane tilted across a small face and its neighbours' edges loses).
+    dist = _distances(cols, best_normals, best_offsets)
+    np.minimum(dist, tolerance, out=dist)
+    winner = int(np.argmin(np.einsum('ij,ij->i', dist, dist)))
     normal, offset = best_normals[winner], best_offsets[winner]
-    inliers = np.abs(points @ normal + offset) <= tolerance
+    inliers = _within(cols, normal, offset, tolerance)
     # Least-squares refinement on the inliers; repeat while the inlier set changes (at most 3 times).
     for _ in range(3):
-        if inliers.sum() < 3:
+        count = int(np.count_nonzero(inliers))
+        if count < 3:
             break
-        new_normal, new_offset = fit_plane(points[inliers])
-        new_inliers = np.abs(points @ new_normal + new_offset) <= tolerance
-        if new_inliers.sum() < inliers.sum():
+        new_normal, new_offset = _fit_columns(np.compress(inliers, cols, axis=1))
+        new_inliers = _within(cols, new_normal, new_offset, tolerance)
+        if np.count_nonzero(new_inliers) < count:
             break  # the fit drifted away from the consensus set: keep the RANSAC plane
         normal, offset = new_normal, new_offset
         if np.array_equal(new_inliers, inliers):
@@ -202,7 +236,8 @@ def _best_plane(points: np.ndarray, tolerance: float, probability: float, max_it
 
 def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
                   min_inliers: int | float = 0.02, probability: float = 0.99,
-                  max_iterations: int = 1000, seed: int | np.random.Generator | None = None) -> Segmentation:
+                  max_iterations: int = 1000, seed: int | np.random.Generator | None = None,
+                  ransac_points: int | None = RANSAC_POINTS) -> Segmentation:
     """Find planes one by one with RANSAC, removing each plane's inliers before the next search.
 
     points: (N, 3) float array, meters; rows with NaN/inf are ignored (label -1).
@@ -213,9 +248,13 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     probability: RANSAC success probability used to adapt the iteration count.
     max_iterations: cap on the hypotheses drawn per plane.
     seed: int, Generator, or None for fresh entropy.
+    ransac_points: when there are more valid points, the sequential search runs on a random
+        sample of this many (min_inliers scaled to the sample); None = always on all points.
 
-    After extraction, each plane point within ``tolerance`` of several planes goes to the nearest,
-    so the first plane does not keep the band of its neighbours along shared edges.
+    The planes found are then refined on every valid point: each point is labelled with the
+    nearest plane within ``tolerance`` (ties to the earlier plane, -1 when none), every plane is
+    refitted by least squares on its points, and the points are labelled once more. So a point
+    within ``t`` of two planes along a shared edge goes to the nearer, not to the first found.
     """
     pts = as_points(points)
     tolerance = float(tolerance)
@@ -227,64 +266,95 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
         raise ValueError(f'probability must be in (0, 1), got {probability!r}')
     if int(max_iterations) != max_iterations or max_iterations < 1:
         raise ValueError(f'max_iterations must be an integer >= 1, got {max_iterations!r}')
+    if ransac_points is not None and (int(ransac_points) != ransac_points or ransac_points < 3):
+        raise ValueError(f'ransac_points must be None or an integer >= 3, got {ransac_points!r}')
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
 
-    labels = np.full(len(pts), -1, dtype=np.int32)
-    valid_idx = np.flatnonzero(np.isfinite(pts).all(axis=1))
+    cols = np.ascontiguousarray(pts.T)
+    finite = np.isfinite(cols).all(axis=0)
+    valid_idx = np.flatnonzero(finite)
     n_valid = len(valid_idx)
     min_count = resolve_min_inliers(min_inliers, n_valid)
-    remaining = valid_idx
+    valid = np.compress(finite, cols, axis=1)
+    # Centre on a median (robust to a stray FLT_MAX point), from a strided subset: it only has
+    # to be near the points for the raw-moment fits to keep their precision.
+    center = np.median(valid[:, ::max(1, n_valid // 1024)], axis=1) if n_valid else np.zeros(3)
+    valid -= center[:, None]
+
+    search = valid
+    if ransac_points is not None and n_valid > ransac_points:
+        search = valid[:, np.sort(rng.choice(n_valid, int(ransac_points), replace=False))]
+        min_count = max(3, int(np.ceil(min_count * ransac_points / n_valid)))
+    found, reason = _sequential(search, tolerance, max_planes, min_count, probability, int(max_iterations), rng,
+                                n_total=n_valid)
+    labels = np.full(len(pts), -1, dtype=np.int32)
+    planes = _label_all(valid, valid_idx, center, labels, found, tolerance)
+    return Segmentation(labels=labels, planes=planes, tolerance=tolerance, n_valid=n_valid, reason=reason)
+
+
+def _sequential(cols: np.ndarray, tolerance: float, max_planes: int, min_count: int, probability: float,
+                max_iterations: int, rng: np.random.Generator, n_total: int) -> tuple[list, str]:
+    """Sequential RANSAC on the points ``cols`` (3, n): the planes [(normal, offset)] in
+    extraction order and why the search stopped."""
+    n = cols.shape[1]
+    rest = cols
     found: list[tuple[np.ndarray, float]] = []
     reason = f'reached max_planes={max_planes}'
     while len(found) < max_planes:
-        rest = pts[remaining]
         why = _degeneracy(rest)
         if why is not None:
-            reason = why if len(remaining) < n_valid or n_valid < 3 else f'no plane: {why}'
+            reason = why if rest.shape[1] < n or n_total < 3 else f'no plane: {why}'
             break
-        best = _best_plane(rest, tolerance, probability, int(max_iterations), rng)
+        best = _best_plane(rest, tolerance, probability, max_iterations, rng)
         if best is None:
             reason = 'every sampled triple was degenerate (nearly collinear or duplicate points)'
             break
         normal, offset, inliers = best
-        if inliers.sum() < min_count:
-            reason = f'best remaining plane has {int(inliers.sum())} < min_inliers={min_count} points'
+        count = int(np.count_nonzero(inliers))
+        if count < min_count:
+            reason = f'best remaining plane has {count} < min_inliers={min_count} points' + \
+                ('' if n == n_total else f' (in a sample of {n} of {n_total} points)')
             break
-        found.append(_canonical(normal, offset))
-        labels[remaining[inliers]] = len(found) - 1
-        remaining = remaining[~inliers]
-
-    planes = _assign_nearest(pts, labels, found, tolerance)
-    return Segmentation(labels=labels, planes=planes, tolerance=tolerance, n_valid=n_valid, reason=reason)
+        found.append((normal, offset))
+        rest = np.compress(~inliers, rest, axis=1)
+    return found, reason
 
 
-def _assign_nearest(pts: np.ndarray, labels: np.ndarray, found: list[tuple[np.ndarray, float]],
-                    tolerance: float, rounds: int = 2) -> tuple[Plane, ...]:
-    """Give each labelled point within ``tolerance`` of several planes to the nearest; between
-    ``rounds`` of this, refit each plane on its cleaned inliers. Updates ``labels`` in place."""
+def _nearest(cols: np.ndarray, found: list[tuple[np.ndarray, float]], tolerance: float
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Label each point of ``cols`` (3, n) with the nearest plane within ``tolerance`` (ties to
+    the earlier plane; -1 when none). Returns (labels (n,) int32, distance to that plane (n,))."""
+    dist = _distances(cols, np.array([n for n, _ in found]), np.array([d for _, d in found]))
+    best = dist[0].copy()
+    labels = np.zeros(cols.shape[1], dtype=np.int32)
+    for j in range(1, len(found)):
+        closer = dist[j] < best
+        labels[closer] = j
+        np.minimum(best, dist[j], out=best)
+    labels[best > tolerance] = -1
+    return labels, best
+
+
+def _label_all(valid: np.ndarray, valid_idx: np.ndarray, center: np.ndarray, labels: np.ndarray,
+               found: list[tuple[np.ndarray, float]], tolerance: float) -> tuple[Plane, ...]:
+    """Label every valid point (``valid`` (3, n), centred on ``center``), refit each plane on its
+    points, label again; fills ``labels`` (N,) at ``valid_idx`` and returns the planes in the
+    caller's coordinates."""
     if not found:
         return ()
-    assigned = np.flatnonzero(labels >= 0)
-    rows = np.arange(len(assigned))
-    for round_ in range(rounds if len(found) > 1 else 0):
-        normals = np.array([n for n, _ in found])
-        offsets = np.array([d for _, d in found])
-        dist = np.abs(pts[assigned] @ normals.T + offsets)  # (m, k)
-        # A point keeps its own plane unless another is strictly nearer and within tolerance.
-        own = labels[assigned]
-        masked = np.where(dist <= tolerance, dist, np.inf)
-        nearest = np.argmin(masked, axis=1)
-        move = masked[rows, nearest] < dist[rows, own]
-        labels[assigned[move]] = nearest[move]
-        if round_ == rounds - 1:
-            break  # end on an assignment, so labels are consistent with the final planes
-        # The first fit saw the edge bands of its neighbours; refit on the cleaned inliers.
-        found = [_canonical(*fit_plane(pts[labels == k])) if np.sum(labels == k) >= 3 else plane
-                 for k, plane in enumerate(found)]
+    own, _ = _nearest(valid, found, tolerance)
+    # The search saw only part of the cloud (or the edge bands of its neighbours): refit on all.
+    found = [_fit_columns(np.compress(own == j, valid, axis=1)) if np.count_nonzero(own == j) >= 3 else plane
+             for j, plane in enumerate(found)]
+    own, dist = _nearest(valid, found, tolerance)
+    labels[valid_idx] = own
+    assigned = own >= 0
+    k = len(found)
+    sizes = np.bincount(own[assigned], minlength=k)
+    mean_sq = np.bincount(own[assigned], weights=dist[assigned] ** 2, minlength=k) / np.maximum(sizes, 1)
     planes = []
-    for k, (normal, offset) in enumerate(found):
-        inliers = np.flatnonzero(labels == k)
-        d = pts[inliers] @ normal + offset
-        rms = float(np.sqrt(np.mean(d ** 2))) if len(d) else 0.0
-        planes.append(Plane(normal=normal, offset=offset, inliers=inliers, rms=rms))
+    for j, (normal, offset) in enumerate(found):
+        normal, offset = _canonical(normal, offset - float(normal @ center))
+        planes.append(Plane(normal=normal, offset=offset, inliers=valid_idx[own == j],
+                            rms=float(np.sqrt(mean_sq[j]))))
     return tuple(planes)
