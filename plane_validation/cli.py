@@ -1,9 +1,15 @@
 """Command line: ``plane-validation <command>`` (also ``python -m plane_validation.cli``).
 
-    plane-validation demo                     # the main job: a bundled bag through the node over DDS
-    plane-validation replay BAG [--live] ...  # replay a bag offline (default) or live
-    plane-validation detect FILE [--tolerance T | --tune]   # .pcd, .npy, .xyz/.txt/.csv
-    plane-validation tune FILE               # the tolerance sweep table
+    plane-validation demo                      # the main job: a bundled bag through the node over DDS
+    plane-validation replay BAG [--live] ...   # replay a bag offline (default) or live
+    plane-validation detect CLOUD [--tolerance T | --auto] [--json] [--out LABELED.ply]
+    plane-validation sweep CLOUD [--tolerances A:B:N] [--plot PNG] [--csv CSV] [--json]   # alias: tune
+    plane-validation planes CLOUD [--tolerance T] [--max-planes K] [--plot PNG] [--json]
+    plane-validation scene NAME [--noise E] [--out FILE]
+    plane-validation paper [--out DIR]         # the paper's synthetic experiments: PNGs + summary.md
+
+CLOUD is a .pcd, .ply, .npy, .xyz/.txt/.csv file or ``BAG[:TOPIC[:INDEX]]``. Exit status: 0 on
+success, 2 for bad usage or input (one line on stderr), 130 when interrupted.
 """
 from __future__ import annotations
 
@@ -11,27 +17,215 @@ import argparse
 import dataclasses
 import sys
 import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 from .files import load_points
 from .pipeline import PipelineConfig
-from .ransac import Segmentation, detect_planes
+from .report import format_planes
+
+__all__ = ['main', 'build_parser', 'format_planes', 'parse_tolerances']
 
 #: The bag the demo replays and where its outputs go (relative to the repository / current directory).
 DEMO_BAG = 'bags/room'
 DEMO_OUT = 'out/demo'
+#: Where ``paper`` writes by default (the README's figures were made with ``--out docs/paper``).
+PAPER_OUT = 'out/paper'
+#: Exit status for bad usage or input (argparse uses it too).
+EXIT_USAGE = 2
+
+CLOUD_HELP = ('point cloud: .pcd (ascii/binary/binary_compressed), .ply, .npy, .xyz/.txt/.csv, or a bag as '
+              'BAG[:TOPIC[:INDEX]] (rosbag2 directory, .mcap, .db3 or ROS 1 .bag; INDEX counts from 0, '
+              'negative from the end)')
 
 
-def format_planes(seg: Segmentation) -> str:
-    """One line per plane: id, coefficients, inliers, rms."""
-    lines = [f'{seg.n_planes} plane(s), tolerance {seg.tolerance:.4g} m; stopped: {seg.reason}']
-    for k, plane in enumerate(seg.planes):
-        a, b, c, d = plane.coefficients
-        lines.append(f'  plane {k}: {a:+.4f} x {b:+.4f} y {c:+.4f} z {d:+.4f} = 0   '
-                     f'inliers {len(plane.inliers):7d}   rms {plane.rms:.4g} m')
-    return '\n'.join(lines)
+def _min_inliers(value: float) -> int | float:
+    """A count when >= 1, else a fraction of the valid points."""
+    return value if value < 1 else int(value)
+
+
+def parse_tolerances(text: str) -> np.ndarray:
+    """``A:B:N`` -> N tolerances evenly spaced from A to B (meters), 0 < A < B, N >= 2."""
+    parts = text.split(':')
+    try:
+        if len(parts) != 3:
+            raise ValueError
+        lo, hi, count = float(parts[0]), float(parts[1]), int(parts[2])
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected A:B:N (e.g. 0.005:0.05:10), got {text!r}') from None
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi and count >= 2):
+        raise argparse.ArgumentTypeError(f'need 0 < A < B and N >= 2, got {text!r}')
+    return np.linspace(lo, hi, count)
+
+
+@contextmanager
+def progress_bar(description: str, *, quiet: bool) -> Iterator[Callable[[int, int], None] | None]:
+    """A tqdm bar on stderr driven by ``callback(done, total)``; None when quiet or not on a terminal."""
+    if quiet or not sys.stderr.isatty():
+        yield None
+        return
+    from tqdm import tqdm
+    bar = tqdm(desc=description, file=sys.stderr, leave=False, unit='step')
+
+    def update(done: int, total: int, *_) -> None:
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    try:
+        yield update
+    finally:
+        bar.close()
+
+
+def _emit_json(document: dict) -> None:
+    from .report import dumps
+    print(dumps(document))
+
+
+# -- commands ------------------------------------------------------------------------------------
+
+
+def cmd_detect(args: argparse.Namespace) -> int:
+    from .detection import detect
+    from .report import detection_document, format_indices
+
+    points = load_points(args.cloud)
+    tolerance = None if args.auto else args.tolerance
+    with progress_bar('tuning t', quiet=args.json) as progress:
+        det = detect(points, tolerance, seed=args.seed, max_planes=args.max_planes,
+                     min_inliers=_min_inliers(args.min_inliers), progress=progress)
+    written = []
+    if args.out:
+        from .files import save_points
+        written.append(save_points(args.out, points, det.segmentation.labels))
+    if args.png:
+        from .plot import plot_planes
+        valid = np.isfinite(points).all(axis=1)
+        written.append(plot_planes(points[valid], det.segmentation.labels[valid], args.png, title=str(args.cloud)))
+    if args.json:
+        _emit_json(detection_document(args.cloud, det, max_planes=args.max_planes,
+                                      min_inliers=_min_inliers(args.min_inliers),
+                                      output=str(args.out) if args.out else None))
+        return 0
+    seg = det.segmentation
+    print(f'{args.cloud}: {len(points)} points, {seg.n_valid} valid')
+    if det.tuning is not None:
+        print(f'tuned tolerance {det.tolerance:.4g} m ({det.tuning.criterion} over {len(det.tuning.rows)} '
+              f'candidates, {det.tuning.rows[0].tolerance:.3g}-{det.tuning.rows[-1].tolerance:.3g} m)')
+    else:
+        print(f'fixed tolerance {det.tolerance:.4g} m')
+    print(format_planes(seg))
+    print('indices:')
+    print(format_indices(det.indices))
+    print(f'noise estimate e = {det.noise_estimate:.3g} m; {"reliable" if det.reliable else "NOT reliable"}: '
+          f'{det.verdict}')
+    print(f'took {1000 * det.seconds:.0f} ms')
+    for path in written:
+        print(f'wrote {path}')
+    return 0
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from .report import sweep_document, write_sweep_csv
+    from .tuning import tune_tolerance
+
+    points = load_points(args.cloud)
+    with progress_bar('sweeping t', quiet=args.json) as progress:
+        result = tune_tolerance(points, tolerances=args.tolerances, criterion=args.criterion, seed=args.seed,
+                                max_planes=args.max_planes, min_inliers=_min_inliers(args.min_inliers),
+                                progress=progress)
+    written = []
+    if args.csv:
+        written.append(write_sweep_csv(args.csv, result))
+    if args.plot:
+        from .plot import plot_sweep
+        written.append(plot_sweep(result, args.plot, title=Path(str(args.cloud)).name))
+    if args.json:
+        _emit_json(sweep_document(args.cloud, points, result, seed=args.seed))
+        return 0
+    print(result.table())
+    print(f'chosen t = {result.tolerance:.4g} m by {result.criterion}; {result.segmentation.n_planes} planes; '
+          f'noise estimate {result.noise_estimate:.3g} m; {"reliable" if result.reliable else "NOT reliable"}: '
+          f'{result.verdict}; {result.seconds:.1f} s')
+    for path in written:
+        print(f'wrote {path}')
+    return 0
+
+
+def cmd_planes(args: argparse.Namespace) -> int:
+    from .report import plane_count_document, plane_count_table
+    from .tuning import select_plane_count, tune_tolerance
+
+    points = load_points(args.cloud)
+    min_inliers = _min_inliers(args.min_inliers)
+    tolerance, source = args.tolerance, 'fixed'
+    if tolerance is None:
+        with progress_bar('tuning t', quiet=args.json) as progress:
+            tolerance = tune_tolerance(points, seed=args.seed, max_planes=args.max_planes, min_inliers=min_inliers,
+                                       progress=progress).tolerance
+        source = 'auto'
+    result = select_plane_count(points, tolerance, args.max_planes, min_inliers=min_inliers, seed=args.seed)
+    written = []
+    if args.plot:
+        from .plot import plot_plane_count
+        written.append(plot_plane_count(result, args.plot, title=Path(str(args.cloud)).name))
+    if args.json:
+        _emit_json(plane_count_document(args.cloud, points, result, tolerance=tolerance, tolerance_source=source,
+                                        seed=args.seed, max_planes=args.max_planes))
+        return 0
+    print(f'{args.cloud}: {len(points)} points; {"tuned" if source == "auto" else "fixed"} tolerance {tolerance:.4g} m; '
+          f'up to {args.max_planes} planes, first k scored for each k')
+    print(plane_count_table(result))
+    if result.counts:
+        others = ', '.join(f'{name} {result.best_by(name)}' for name in ('gs', 'davies_bouldin', 'dunn', 'gs_planes'))
+        print(f'selected k = {result.n_planes} (largest k whose planes all have S_j >= 0.05); '
+              f'each index\'s own optimum: {others}')
+    else:
+        print('no planes found')
+    for path in written:
+        print(f'wrote {path}')
+    return 0
+
+
+def cmd_scene(args: argparse.Namespace) -> int:
+    from . import scenes
+    from .files import save_points
+
+    kwargs = {name: getattr(args, name) for name in ('noise', 'n_points', 'outlier_fraction', 'scale')
+              if getattr(args, name) is not None}
+    try:
+        scene = scenes.SCENES[args.name](**kwargs, seed=args.seed)
+    except TypeError as exc:  # an option the generator does not take (e.g. outliers for the sphere)
+        raise ValueError(f'scene {args.name}: {exc}') from exc
+    out = args.out or f'{args.name}.ply'
+    save_points(out, scene.points, scene.labels)
+    print(f'wrote {out}: {scene.name}, {len(scene.points)} points, noise e = {scene.noise:g}, '
+          f'{scene.n_planes} planes (a x + b y + c z + d = 0):')
+    for k, (a, b, c, d) in enumerate(scene.planes):
+        print(f'  plane {k}: {a:+.4f} {b:+.4f} {c:+.4f} {d:+.4f}')
+    return 0
+
+
+def cmd_paper(args: argparse.Namespace) -> int:
+    from .paper import CASES, linear_grid, run_paper
+
+    start = time.perf_counter()
+    print(f'Running {len(CASES)} experiments into {args.out} ...', flush=True)
+    with progress_bar('experiments', quiet=False) as progress:
+        results = run_paper(args.out, seed=args.seed, points=args.points, grid=linear_grid(steps=args.steps),
+                            progress=progress)
+    for r in results:
+        stable = f'{r.stable[0]:.3g}-{r.stable[1]:.3g}' if r.stable else '-'
+        print(f'{r.case.name:14s} t {r.sweep.tolerance:6.3g} (auto {r.auto.tolerance:6.3g})  planes '
+              f'{r.sweep.segmentation.n_planes}  stable t {stable:>11s}  k {r.counts.n_planes}  '
+              f'{r.seconds:5.1f} s')
+    print(f'wrote {len(results) * 2} figures and {Path(args.out) / "summary.md"} in '
+          f'{time.perf_counter() - start:.1f} s')
+    return 0
 
 
 def _config(args: argparse.Namespace) -> PipelineConfig:
@@ -41,56 +235,6 @@ def _config(args: argparse.Namespace) -> PipelineConfig:
     if getattr(args, 'fixed', False):
         changes['auto_tune'] = False
     return dataclasses.replace(PipelineConfig(), **changes).validate()
-
-
-def _min_inliers(cfg: PipelineConfig) -> int | float:
-    return cfg.min_inliers if cfg.min_inliers < 1 else int(cfg.min_inliers)
-
-
-def _add_config_options(parser: argparse.ArgumentParser, *, pipeline: bool) -> None:
-    """Options shared by the commands; ``pipeline`` adds those only the node's pipeline has."""
-    parser.add_argument('--tolerance', type=float, help='RANSAC tolerance t in meters' +
-                        (' (with --fixed, or before tuning)' if pipeline else ' (default: auto-tuned)'))
-    parser.add_argument('--seed', type=int, help='random seed (default 0)')
-    parser.add_argument('--max-planes', dest='max_planes', type=int)
-    parser.add_argument('--min-inliers', dest='min_inliers', type=float, help='count, or fraction when < 1')
-    if pipeline:
-        parser.add_argument('--fixed', action='store_true', help='use --tolerance as is, no auto-tuning')
-        parser.add_argument('--voxel-size', dest='voxel_size', type=float, help='voxel grid in meters (0 = off)')
-
-
-def cmd_detect(args: argparse.Namespace) -> int:
-    points = load_points(args.file)
-    cfg = _config(args)
-    start = time.perf_counter()
-    if args.tune or args.tolerance is None:
-        from .tuning import tune_tolerance
-        result = tune_tolerance(points, seed=cfg.seed, max_planes=cfg.max_planes, min_inliers=_min_inliers(cfg))
-        seg = result.segmentation
-        print(f'tuned tolerance {result.tolerance:.4g} m, noise estimate {result.noise_estimate:.3g} m; '
-              f'{"reliable" if result.reliable else "NOT reliable"}: {result.verdict}')
-    else:
-        seg = detect_planes(points, args.tolerance, seed=cfg.seed, max_planes=cfg.max_planes,
-                            min_inliers=_min_inliers(cfg))
-    print(f'{args.file}: {len(points)} points, {seg.n_valid} valid')
-    print(format_planes(seg))
-    print(f'took {1000 * (time.perf_counter() - start):.0f} ms')
-    if args.png:
-        from .plot import plot_planes
-        valid = np.isfinite(points).all(axis=1)
-        print(f'wrote {plot_planes(points[valid], seg.labels[valid], args.png, title=str(args.file))}')
-    return 0
-
-
-def cmd_tune(args: argparse.Namespace) -> int:
-    from .tuning import tune_tolerance
-    points = load_points(args.file)
-    result = tune_tolerance(points, criterion=args.criterion, seed=args.seed or 0)
-    print(result.table())
-    print(f'chosen t = {result.tolerance:.4g} m by {result.criterion}; {result.segmentation.n_planes} planes; '
-          f'noise estimate {result.noise_estimate:.3g} m; {"reliable" if result.reliable else "NOT reliable"}: '
-          f'{result.verdict}; {result.seconds:.1f} s')
-    return 0
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
@@ -127,9 +271,73 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- parser --------------------------------------------------------------------------------------
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected an integer, got {text!r}') from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'must be >= 1, got {value}')
+    return value
+
+
+def _at_least_two(text: str) -> int:
+    value = _positive_int(text)
+    if value < 2:
+        raise argparse.ArgumentTypeError(f'must be >= 2, got {value}')
+    return value
+
+
+def _number(text: str, *, allow_zero: bool) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
+    if not (np.isfinite(value) and (value > 0 or (allow_zero and value == 0))):
+        raise argparse.ArgumentTypeError(f'must be a finite number {">=" if allow_zero else ">"} 0, got {text!r}')
+    return value
+
+
+def _positive_float(text: str) -> float:
+    return _number(text, allow_zero=False)
+
+
+def _non_negative_float(text: str) -> float:
+    return _number(text, allow_zero=True)
+
+
+def _add_detection_options(parser: argparse.ArgumentParser, *, max_planes: int = 10) -> None:
+    """--seed, --max-planes, --min-inliers for the file commands."""
+    parser.add_argument('--seed', type=int, default=0, help='random seed; same seed, same result (default 0)')
+    parser.add_argument('--max-planes', dest='max_planes', type=_positive_int, default=max_planes,
+                        help=f'most planes to extract (default {max_planes})')
+    parser.add_argument('--min-inliers', dest='min_inliers', type=_non_negative_float, default=0.02,
+                        help='smallest plane: a point count, or a fraction of the valid points when < 1 '
+                             '(default 0.02)')
+
+
+def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:
+    """Options of the node's pipeline (replay)."""
+    parser.add_argument('--tolerance', type=float, help='RANSAC tolerance t in meters (with --fixed, or before tuning)')
+    parser.add_argument('--seed', type=int, help='random seed (default 0)')
+    parser.add_argument('--max-planes', dest='max_planes', type=int)
+    parser.add_argument('--min-inliers', dest='min_inliers', type=float, help='count, or fraction when < 1')
+    parser.add_argument('--fixed', action='store_true', help='use --tolerance as is, no auto-tuning')
+    parser.add_argument('--voxel-size', dest='voxel_size', type=float, help='voxel grid in meters (0 = off)')
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog='plane-validation', description='Self-validating plane detection.')
-    sub = parser.add_subparsers(dest='command', required=True)
+    from .scenes import SCENES
+    from .tuning import CRITERIA
+
+    parser = argparse.ArgumentParser(
+        prog='plane-validation', description='Self-validating plane detection: sequential RANSAC planes scored by '
+        'cluster validity indices (Dunn, Davies-Bouldin, GS, GSplanes). Coordinates are taken as meters.',
+        epilog='Exit status: 0 success, 2 bad usage or input, 130 interrupted.')
+    sub = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
 
     demo = sub.add_parser('demo', help='the main job: replay a bundled bag through the node over DDS')
     demo.add_argument('--bag', default=DEMO_BAG)
@@ -145,21 +353,72 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument('--live', action='store_true', help='publish on ROS topics at the recorded timing')
     replay.add_argument('--rate', type=float, default=1.0, help='playback speed factor for --live')
     replay.add_argument('--no-node', action='store_true', help='with --live: do not start the node in-process')
-    _add_config_options(replay, pipeline=True)
+    _add_pipeline_options(replay)
     replay.set_defaults(func=cmd_replay)
 
-    detect = sub.add_parser('detect', help='detect planes in a point file (.pcd, .npy, .xyz, .txt, .csv)')
-    detect.add_argument('file')
-    detect.add_argument('--tune', action='store_true', help='auto-tune t (the default without --tolerance)')
-    detect.add_argument('--png', help='write a picture of the planes here')
-    _add_config_options(detect, pipeline=False)
+    detect = sub.add_parser('detect', help='detect planes in a cloud: planes, tolerance, every index, verdict',
+                            description='Detect planes in one cloud and score them. Without --tolerance the '
+                            'tolerance is auto-tuned (GSplanes sweep).')
+    detect.add_argument('cloud', help=CLOUD_HELP)
+    which = detect.add_mutually_exclusive_group()
+    which.add_argument('--tolerance', type=_positive_float, help='fixed RANSAC tolerance t in meters')
+    which.add_argument('--auto', '--tune', dest='auto', action='store_true',
+                       help='auto-tune t by the GSplanes sweep (the default without --tolerance)')
+    _add_detection_options(detect)
+    detect.add_argument('--json', action='store_true', help='print one JSON document (schema in README) and nothing '
+                        'else on stdout')
+    detect.add_argument('--out', help='write the labelled cloud: .ply (plane_id), .pcd (label), .npy (4th column), '
+                        '.xyz/.txt/.csv; -1 = unassigned')
+    detect.add_argument('--png', help='write a 3-D picture of the planes')
     detect.set_defaults(func=cmd_detect)
 
-    tune = sub.add_parser('tune', help='print the tolerance sweep table for a point file')
-    tune.add_argument('file')
-    tune.add_argument('--criterion', default='gs_planes')
-    tune.add_argument('--seed', type=int, default=0)
-    tune.set_defaults(func=cmd_tune)
+    sweep = sub.add_parser('sweep', aliases=['tune'], help='the paper\'s experiment: every index and the number of '
+                           'planes vs t, the chosen t', description='Sweep the RANSAC tolerance t, score every '
+                           'segmentation with all indices and choose t (paper Fig. 1, 3-8).')
+    sweep.add_argument('cloud', help=CLOUD_HELP)
+    sweep.add_argument('--tolerances', type=parse_tolerances, metavar='A:B:N',
+                       help='N tolerances evenly spaced from A to B meters, like the paper\'s axes (default: '
+                       '16 geometric candidates derived from the cloud)')
+    sweep.add_argument('--criterion', default='gs_planes', choices=sorted(CRITERIA),
+                       help='index that chooses t (default gs_planes)')
+    _add_detection_options(sweep)
+    sweep.add_argument('--plot', metavar='PNG', help='write indices and planes vs t, chosen t marked')
+    sweep.add_argument('--csv', metavar='CSV', help='write one row per t: planes and every index')
+    sweep.add_argument('--json', action='store_true', help='print one JSON document and nothing else on stdout')
+    sweep.set_defaults(func=cmd_sweep)
+
+    planes = sub.add_parser('planes', help='indices vs number of planes k and the selected k (paper Fig. 2)',
+                            description='Extract up to K planes at t and score the first k planes for every k.')
+    planes.add_argument('cloud', help=CLOUD_HELP)
+    planes.add_argument('--tolerance', type=_positive_float, help='RANSAC tolerance t in meters (default: auto-tuned)')
+    _add_detection_options(planes)
+    planes.add_argument('--plot', metavar='PNG', help='write indices vs k, selected k marked')
+    planes.add_argument('--json', action='store_true', help='print one JSON document and nothing else on stdout')
+    planes.set_defaults(func=cmd_planes)
+
+    scene = sub.add_parser('scene', help='write a synthetic scene with known planes',
+                           description='Write a synthetic scene (scenes.py) as PLY, PCD, NPY, text or a bag. '
+                           'corner and cube are in the paper\'s units (faces of 100), the others in meters.')
+    scene.add_argument('name', choices=sorted(SCENES))
+    scene.add_argument('--noise', type=_non_negative_float, help='uniform noise half-width e along the normals')
+    scene.add_argument('--points', dest='n_points', type=_positive_int, help='number of points')
+    scene.add_argument('--outliers', dest='outlier_fraction', type=float, help='fraction of uniform outliers')
+    scene.add_argument('--scale', type=_positive_float, help='multiply all coordinates (0.01: paper units -> m)')
+    scene.add_argument('--seed', type=int, default=0, help='random seed (default 0)')
+    scene.add_argument('--out', help='.ply, .pcd, .npy, .xyz/.txt/.csv (with the true plane of each point), or a '
+                       'bag: a new directory, .mcap or .db3 (one PointCloud2 on /points); default NAME.ply')
+    scene.set_defaults(func=cmd_scene)
+
+    paper = sub.add_parser('paper', help='regenerate the paper\'s synthetic experiments: PNGs and summary.md',
+                           description='Corner at e = 0, 2.5, 7.5, cube at e = 0, 1, 2.5, 7.5 and a plane-free '
+                           'sphere: indices vs t, planes vs t, indices vs k, and a Markdown summary table.')
+    paper.add_argument('--out', default=PAPER_OUT, help=f'output directory (default {PAPER_OUT})')
+    paper.add_argument('--seed', type=int, default=0, help='random seed (default 0)')
+    paper.add_argument('--points', type=_positive_int, help='points per corner/sphere, twice for the cube '
+                       '(default 3000, as in the paper; smaller for a quick look)')
+    paper.add_argument('--steps', type=_at_least_two, default=60, help='tolerances per sweep, 0.5 to 30 units '
+                       '(default 60)')
+    paper.set_defaults(func=cmd_paper)
     return parser
 
 
@@ -170,8 +429,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         return 130
     except (ValueError, OSError) as exc:
-        print(f'plane-validation: error: {exc}', file=sys.stderr)
-        return 1
+        message = ' '.join(str(exc).split()) or type(exc).__name__
+        print(f'plane-validation: error: {message}', file=sys.stderr)
+        return EXIT_USAGE
 
 
 if __name__ == '__main__':

@@ -1,37 +1,141 @@
-"""Point files for the command line: PCD (ascii, binary; binary_compressed via pypcd4), .npy, text."""
+"""Point files for the command line: read x, y, z from PCD, PLY, .npy, text or a bag; write labelled clouds.
+
+Readers return an (N, 3) float64 array in the file's unit (meters for real sensors). Rows of
+organized clouds keep their NaN holes, so row i of the result is point i of the file. Every
+problem with a file (missing, unknown extension, corrupt bytes, no x/y/z) raises ``ValueError``
+with a one-line message naming the file.
+
+PCD: ascii and binary are read here (any VERSION; fast, no extra dependency); binary_compressed
+(LZF) through ``pypcd4``. PLY: through ``plyfile`` (GPL-3.0, imported only for .ply files).
+Bags (``BAG[:TOPIC[:INDEX]]``): see :mod:`plane_validation.bagcloud`.
+"""
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ['load_points']
+__all__ = ['load_points', 'save_points', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
+
+#: Extensions of plain point files (bags are recognised separately).
+TEXT_SUFFIXES = ('.xyz', '.txt', '.csv')
+POINT_SUFFIXES = ('.pcd', '.ply', '.npy') + TEXT_SUFFIXES
 
 #: PCD TYPE letter and SIZE -> numpy dtype character.
 _PCD_TYPES = {('F', 4): 'f4', ('F', 8): 'f8', ('I', 1): 'i1', ('I', 2): 'i2', ('I', 4): 'i4', ('I', 8): 'i8',
               ('U', 1): 'u1', ('U', 2): 'u2', ('U', 4): 'u4', ('U', 8): 'u8'}
 
 
-def load_points(path: str | Path) -> np.ndarray:
-    """(N, 3) x, y, z from a .pcd, .npy, or whitespace/comma separated text file (.xyz .txt .csv).
+def load_points(source: str | Path) -> np.ndarray:
+    """(N, 3) float64 x, y, z of a point file or of one cloud in a bag.
 
-    Organized PCD files keep their NaN rows. Raises ValueError naming the problem.
+    source: a .pcd, .ply, .npy or whitespace/comma separated text file (.xyz .txt .csv: the
+    first three columns), or ``BAG[:TOPIC[:INDEX]]`` with BAG a rosbag2 directory, .mcap, .db3
+    or ROS 1 .bag (see :func:`plane_validation.bagcloud.parse_bag_source`).
+    Raises ValueError naming the problem.
+    """
+    from .bagcloud import parse_bag_source, read_bag_points
+
+    bag = parse_bag_source(source)
+    if bag is not None:
+        return read_bag_points(bag)
+    path = Path(source)
+    suffix = path.suffix.lower()
+    if suffix not in POINT_SUFFIXES:
+        if not path.exists():
+            raise ValueError(f'no such file: {path}')
+        raise ValueError(f'{path}: unsupported file type {suffix or "(no extension)"!r} '
+                         f'(use {", ".join(POINT_SUFFIXES)} or a bag)')
+    if not path.is_file():
+        raise ValueError(f'no such file: {path}' if not path.exists() else f'{path} is not a file')
+    reader = {'.pcd': _read_pcd, '.ply': _read_ply, '.npy': _read_npy}.get(suffix, _read_text)
+    points = reader(path)
+    return np.ascontiguousarray(points, dtype=np.float64)
+
+
+def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None = None) -> Path:
+    """Write (N, 3) points and optional (N,) integer labels (-1 unassigned) to ``path``.
+
+    The format follows the extension: .ply (float32 x y z, int32 vertex property ``plane_id``),
+    .pcd (binary, float32 x y z, int32 field ``label``), .npy ((N, 3) or (N, 4) float64 with the
+    label as 4th column), .xyz/.txt/.csv (text columns), or a bag: a path without extension
+    (rosbag2 directory) or ending in .mcap/.db3 (one PointCloud2 on /points, x y z float32).
+    All rows are written, NaN rows included, so that row i stays point i.
     """
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f'no such file: {path}')
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    lab = None if labels is None else np.asarray(labels).astype(np.int32).reshape(-1)
+    if lab is not None and len(lab) != len(pts):
+        raise ValueError(f'{len(lab)} labels for {len(pts)} points')
     suffix = path.suffix.lower()
-    if suffix == '.pcd':
-        return _read_pcd(path)
-    if suffix == '.npy':
-        pts = np.load(path)
-    elif suffix in ('.xyz', '.txt', '.csv'):
-        pts = np.loadtxt(path, delimiter=',' if suffix == '.csv' else None, ndmin=2)
-    else:
-        raise ValueError(f'{path}: unsupported file type {suffix!r} (use .pcd, .npy, .xyz, .txt or .csv)')
-    if pts.ndim != 2 or pts.shape[1] < 3:
-        raise ValueError(f'{path}: expected rows of at least x y z, got shape {pts.shape}')
-    return pts[:, :3]
+    from .bagcloud import BAG_SUFFIXES, write_bag_points
+    if suffix in BAG_SUFFIXES or suffix == '':
+        return write_bag_points(path, pts)
+    writers = {'.ply': _write_ply, '.pcd': _write_pcd, '.npy': _write_npy}
+    if suffix not in writers and suffix not in TEXT_SUFFIXES:
+        raise ValueError(f'{path}: cannot write {suffix!r} files (use .ply, .pcd, .npy, .xyz, .txt, .csv, '
+                         '.mcap, .db3 or a bag directory)')
+    if not path.parent.is_dir():
+        raise ValueError(f'{path}: directory {path.parent} does not exist')
+    writers.get(suffix, _write_text)(path, pts, lab)
+    return path
+
+
+# -- readers -------------------------------------------------------------------------------------
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def _xyz_columns(path: Path, table: np.ndarray) -> np.ndarray:
+    """First three columns of an (N, >=3) numeric table, or a clear error."""
+    if table.dtype.names:
+        if not {'x', 'y', 'z'} <= set(table.dtype.names):
+            raise ValueError(f'{path}: no x, y, z fields (fields: {" ".join(table.dtype.names)})')
+        return np.column_stack([table[a].reshape(-1) for a in 'xyz'])
+    if table.dtype.kind not in 'fiu':
+        raise ValueError(f'{path}: expected numbers, got dtype {table.dtype}')
+    if table.ndim != 2 or table.shape[1] < 3:
+        raise ValueError(f'{path}: expected rows of at least x y z, got shape {table.shape}')
+    return table[:, :3]
+
+
+def _read_npy(path: Path) -> np.ndarray:
+    """(N, >=3) numeric array, or a structured array with x, y, z fields."""
+    try:
+        table = np.load(path, allow_pickle=False)
+    except Exception as exc:  # ValueError for bad magic, EOFError for empty files, ...
+        raise ValueError(f'{path}: not a readable .npy array ({_first_line(exc)})') from exc
+    if not isinstance(table, np.ndarray):
+        raise ValueError(f'{path}: not a .npy array')
+    return _xyz_columns(path, table)
+
+
+def _read_text(path: Path) -> np.ndarray:
+    try:
+        table = np.loadtxt(path, delimiter=',' if path.suffix.lower() == '.csv' else None, ndmin=2)
+    except Exception as exc:  # ValueError on non-numbers, UnicodeDecodeError on binary bytes
+        raise ValueError(f'{path}: not a table of numbers ({_first_line(exc)})') from exc
+    return _xyz_columns(path, table)
+
+
+def _read_ply(path: Path) -> np.ndarray:
+    """Vertex x, y, z of an ascii or binary PLY file."""
+    try:
+        from plyfile import PlyData
+    except ImportError as exc:
+        raise ValueError(f'{path}: reading .ply needs plyfile (pip install plyfile)') from exc
+    try:
+        ply = PlyData.read(str(path))
+    except Exception as exc:  # PlyParseError, and plain ValueErrors/EOFErrors on damaged bodies
+        raise ValueError(f'{path}: not a readable PLY file ({_first_line(exc)})') from exc
+    names = [e.name for e in ply.elements]
+    if 'vertex' not in names:
+        raise ValueError(f'{path}: PLY has no vertex element (elements: {" ".join(names) or "none"})')
+    vertex = ply['vertex'].data
+    return _xyz_columns(path, vertex)
 
 
 def _read_pcd(path: Path) -> np.ndarray:
@@ -64,9 +168,18 @@ def _read_pcd(path: Path) -> np.ndarray:
         raise ValueError(f'{path}: PCD has no x, y, z fields (fields: {" ".join(fields)})')
     if not len(fields) == len(sizes) == len(types) == len(counts):
         raise ValueError(f'{path}: PCD FIELDS, SIZE, TYPE and COUNT disagree in length')
+    if n < 0:
+        raise ValueError(f'{path}: PCD declares {n} points')
     if data == 'ascii':
-        table = np.loadtxt(raw[offset:].decode('ascii', errors='replace').splitlines(), ndmin=2)
+        try:
+            table = np.loadtxt(raw[offset:].decode('ascii', errors='replace').splitlines(), ndmin=2)
+        except ValueError as exc:
+            raise ValueError(f'{path}: bad ascii PCD data ({_first_line(exc)})') from exc
         columns = np.cumsum([0] + counts)
+        if table.size and table.shape[1] < columns[-1]:
+            raise ValueError(f'{path}: ascii PCD rows have {table.shape[1]} values, the fields need {columns[-1]}')
+        if not table.size:
+            return np.empty((0, 3))
         return np.column_stack([table[:, columns[fields.index(a)]] for a in 'xyz']).astype(np.float64)
     if data == 'binary':
         try:
@@ -87,6 +200,57 @@ def _read_pcd(path: Path) -> np.ndarray:
         try:
             return PointCloud.from_path(path).numpy(('x', 'y', 'z')).astype(np.float64)
         except Exception as exc:  # pypcd4 reports problems with many exception types
-            first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise ValueError(f'{path}: cannot read binary_compressed PCD: {first}') from exc
+            raise ValueError(f'{path}: cannot read binary_compressed PCD: {_first_line(exc)}') from exc
     raise ValueError(f'{path}: unknown PCD DATA type {data!r}')
+
+
+# -- writers -------------------------------------------------------------------------------------
+
+
+def _write_pcd(path: Path, points: np.ndarray, labels: np.ndarray | None) -> None:
+    """Binary PCD v0.7, float32 x y z (+ int32 label), unorganized (HEIGHT 1)."""
+    names = ['x', 'y', 'z'] + ([] if labels is None else ['label'])
+    dtype = np.dtype([(name, '<f4') for name in 'xyz'] + ([] if labels is None else [('label', '<i4')]))
+    records = np.empty(len(points), dtype)
+    for i, name in enumerate('xyz'):
+        records[name] = points[:, i]
+    if labels is not None:
+        records['label'] = labels
+    header = ('# .PCD v0.7 - Point Cloud Data file format (written by plane_validation)\n'
+              'VERSION 0.7\n'
+              f'FIELDS {" ".join(names)}\n'
+              f'SIZE {" ".join("4" for _ in names)}\n'
+              f'TYPE {" ".join("I" if n == "label" else "F" for n in names)}\n'
+              f'COUNT {" ".join("1" for _ in names)}\n'
+              f'WIDTH {len(points)}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\n'
+              f'POINTS {len(points)}\nDATA binary\n')
+    path.write_bytes(header.encode('ascii') + records.tobytes())
+
+
+def _write_ply(path: Path, points: np.ndarray, labels: np.ndarray | None) -> None:
+    """Binary little-endian PLY: vertex float32 x y z (+ int32 plane_id)."""
+    try:
+        from plyfile import PlyData, PlyElement
+    except ImportError as exc:
+        raise ValueError(f'{path}: writing .ply needs plyfile (pip install plyfile)') from exc
+    dtype = [('x', '<f4'), ('y', '<f4'), ('z', '<f4')] + ([] if labels is None else [('plane_id', '<i4')])
+    vertex = np.empty(len(points), dtype)
+    for i, name in enumerate('xyz'):
+        vertex[name] = points[:, i]
+    if labels is not None:
+        vertex['plane_id'] = labels
+    element = PlyElement.describe(vertex, 'vertex')
+    PlyData([element], text=False, byte_order='<',
+            comments=['written by plane_validation; plane_id -1 = unassigned']).write(str(path))
+
+
+def _write_npy(path: Path, points: np.ndarray, labels: np.ndarray | None) -> None:
+    np.save(path, points if labels is None else np.column_stack([points, labels.astype(np.float64)]))
+
+
+def _write_text(path: Path, points: np.ndarray, labels: np.ndarray | None) -> None:
+    sep = ',' if path.suffix.lower() == '.csv' else ' '
+    if labels is None:
+        np.savetxt(path, points, fmt='%.9g', delimiter=sep)
+    else:
+        np.savetxt(path, np.column_stack([points, labels]), fmt=['%.9g'] * 3 + ['%d'], delimiter=sep)

@@ -1,4 +1,4 @@
-"""PNG pictures of segmented clouds (matplotlib, headless Agg backend)."""
+"""PNG pictures (matplotlib, headless Agg backend): segmented clouds, and index curves vs t and vs k."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -39,3 +39,175 @@ def plot_cloud_message(msg, path: str | Path, *, title: str = '') -> Path:
     """Plot a ``segmented`` PointCloud2 (x, y, z, plane_id) as published by the node."""
     from .cloud import structured_array, xyz_array
     return plot_planes(xyz_array(msg), np.asarray(structured_array(msg)['plane_id']), path, title=title)
+
+
+# -- index curves (the paper's figures) ------------------------------------------------------------
+
+#: Resolution of the index figures: 800 x 576 px for the sweep, 50-100 KB.
+DPI = 80
+#: Curves with more points than this are drawn without markers.
+MAX_MARKERS = 40
+#: Line style per index, the same in every figure.
+_STYLE = {'gs_planes': dict(color='tab:red', marker='o', label='GSplanes'),
+          'gs': dict(color='tab:blue', marker='s', label='GS'),
+          'silhouette': dict(color='tab:green', marker='^', label='silhouette (mean $s_i$)'),
+          'dunn': dict(color='tab:purple', marker='D', label='Dunn'),
+          'davies_bouldin': dict(color='tab:orange', marker='v', label='Davies–Bouldin (eq. 3)'),
+          'davies_bouldin_classic': dict(color='tab:brown', marker='x', label='Davies–Bouldin (centroids)')}
+
+
+def _figure(rows: int, cols: int, size: tuple[float, float]):
+    """A matplotlib Figure drawn by the Agg canvas (no pyplot, no global backend state)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=size, dpi=DPI, layout='constrained')
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(rows, cols, squeeze=False)
+
+
+def _save_png(fig, path: Path) -> Path:
+    """Save ``fig`` as a 256-colour palette PNG: line plots look the same at a third of the bytes."""
+    import io
+
+    from PIL import Image
+
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format='png')
+    buffer.seek(0)
+    with Image.open(buffer) as image:
+        image.convert('RGB').quantize(colors=256).save(path, format='PNG', optimize=True)
+    return path
+
+
+def _finite(values) -> np.ndarray:
+    """Floats with inf replaced by NaN (matplotlib leaves a gap)."""
+    arr = np.asarray(values, dtype=float)
+    return np.where(np.isfinite(arr), arr, np.nan)
+
+
+def _plot_index(ax, x, values, name: str, *, best: int | None = None, unit_of_best: str = '') -> None:
+    """One index curve; markers only on short curves (dense sweeps read better as lines)."""
+    style = dict(_STYLE[name])
+    if best is not None:
+        style['label'] += f' (best at {unit_of_best.format(best)})'
+    if len(x) > MAX_MARKERS:
+        style.pop('marker')
+    ax.plot(x, _finite(values), markersize=3.5, linewidth=1.4, **style)
+
+
+def _is_geometric(t: np.ndarray) -> bool:
+    if len(t) < 3 or np.any(t <= 0):
+        return False
+    ratios = t[1:] / t[:-1]
+    return bool(np.allclose(ratios, ratios[0], rtol=1e-6) and ratios[0] > 1.05)
+
+
+def plot_sweep(result, path: str | Path, *, title: str = '', unit: str = 'm',
+               true_planes: int | None = None) -> Path:
+    """The paper's Fig. 1/3/4/5/7 (indices vs t) and Fig. 6/8 (planes vs t) as one PNG.
+
+    result: a :class:`~plane_validation.tuning.TuningResult`; four panels over the candidate
+    tolerances t (in ``unit``): silhouette indices, Dunn, Davies-Bouldin, number of planes; the
+    chosen t is a dashed vertical line in each. ``true_planes`` draws the known count.
+    """
+    path = Path(path)
+    t = np.array([r.tolerance for r in result.rows])
+    chosen = result.tolerance
+    fig, axes = _figure(2, 2, (10.0, 7.2))
+    (ax_sil, ax_dunn), (ax_db, ax_count) = axes
+    values = {name: [getattr(r.indices, name) for r in result.rows] for name in _STYLE}
+    for name in ('gs_planes', 'gs', 'silhouette'):
+        _plot_index(ax_sil, t, values[name], name)
+    se = np.array([r.indices.gs_planes_se for r in result.rows])
+    if np.any(se > 0):
+        gsp = _finite(values['gs_planes'])
+        ax_sil.fill_between(t, gsp - 2 * se, gsp + 2 * se, color='tab:red', alpha=0.15, linewidth=0,
+                            label='GSplanes ± 2 SE (sampled)')
+    ax_sil.set_ylabel('silhouette index (higher is better)')
+    ax_sil.set_title('Global silhouettes: GS, GSplanes')
+    _plot_index(ax_dunn, t, values['dunn'], 'dunn')
+    ax_dunn.set_ylabel('Dunn index (higher is better)')
+    ax_dunn.set_title('Dunn index (eq. 2)')
+    for name in ('davies_bouldin', 'davies_bouldin_classic'):
+        _plot_index(ax_db, t, values[name], name)
+    db = _finite(values['davies_bouldin'] + values['davies_bouldin_classic'])
+    if np.nanmax(db, initial=0) > 20 * max(np.nanmin(db[db > 0], initial=1), 1e-12):
+        ax_db.set_yscale('log')
+    ax_db.set_ylabel('Davies–Bouldin index (lower is better)')
+    ax_db.set_title('Davies–Bouldin index (eq. 3)')
+    counts = [r.n_planes for r in result.rows]
+    ax_count.plot(t, counts, color='black', marker='o' if len(t) <= MAX_MARKERS else None, markersize=3.5,
+                  linewidth=1.4, drawstyle='steps-mid', label='planes found')
+    if true_planes is not None:
+        ax_count.axhline(true_planes, color='tab:gray', linestyle=':', linewidth=1.5,
+                         label=f'true number of planes ({true_planes})')
+    ax_count.set_ylabel('number of planes')
+    ax_count.set_title('Planes found by sequential RANSAC')
+    ax_count.yaxis.get_major_locator().set_params(integer=True)
+    geometric = _is_geometric(t)
+    for ax in axes.flat:
+        ax.axvline(chosen, color='crimson', linestyle='--', linewidth=1.3,
+                   label=f'chosen t = {chosen:.3g} {unit} ({result.criterion})')
+        if geometric:
+            ax.set_xscale('log')
+        ax.set_xlabel(f'RANSAC tolerance t [{unit}]')
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7.5, loc='best')
+    verdict = 'reliable' if result.reliable else 'NOT reliable'
+    fig.suptitle(f'{title + ": " if title else ""}validity indices vs tolerance; chosen t = {chosen:.3g} {unit}, '
+                 f'{result.segmentation.n_planes} planes, {verdict}', fontsize=11)
+    return _save_png(fig, path)
+
+
+def plot_plane_count(result, path: str | Path, *, title: str = '', true_planes: int | None = None) -> Path:
+    """The paper's Fig. 2: indices of the first k planes vs k, the selected k marked.
+
+    result: a :class:`~plane_validation.tuning.PlaneCountResult`. Left: GS, GSplanes, silhouette
+    and the smallest per-plane silhouette S_j (the selection rule keeps the largest k with all
+    S_j >= MIN_PLANE_SILHOUETTE); right: Dunn and Davies-Bouldin. Legend entries give each
+    index's own best k.
+    """
+    from .tuning import CRITERIA, MIN_PLANE_SILHOUETTE
+
+    path = Path(path)
+    k = np.array(result.counts)
+    fig, axes = _figure(1, 2, (10.0, 4.4))
+    ax_sil, ax_other = axes[0]
+    if len(k) == 0:
+        for ax in axes.flat:
+            ax.text(0.5, 0.5, 'no planes found', ha='center', va='center', transform=ax.transAxes)
+    values = {name: [getattr(x, name) for x in result.indices] for name in CRITERIA}
+    best = {name: result.best_by(name) for name in CRITERIA} if len(k) else {}
+    for name in ('gs_planes', 'gs', 'silhouette'):
+        _plot_index(ax_sil, k, values[name], name, best=best.get(name), unit_of_best='k = {}')
+    lowest = [min(x.plane_silhouettes, default=np.nan) for x in result.indices]
+    ax_sil.plot(k, _finite(lowest), color='tab:red', linestyle=':', marker='.', label='smallest plane $S_j$')
+    ax_sil.axhline(MIN_PLANE_SILHOUETTE, color='tab:gray', linewidth=1, linestyle='-.',
+                   label=f'$S_j$ threshold {MIN_PLANE_SILHOUETTE}')
+    ax_sil.set_ylabel('silhouette index (higher is better)')
+    ax_sil.set_title('Global silhouettes of the first k planes')
+    _plot_index(ax_other, k, values['dunn'], 'dunn', best=best.get('dunn'), unit_of_best='k = {}')
+    ax_other.set_ylabel('Dunn index (higher is better)')
+    ax_db = ax_other.twinx()
+    _plot_index(ax_db, k, values['davies_bouldin'], 'davies_bouldin', best=best.get('davies_bouldin'),
+                unit_of_best='k = {}')
+    ax_db.set_ylabel('Davies–Bouldin index (lower is better)')
+    ax_other.set_title('Dunn and Davies–Bouldin of the first k planes')
+    for ax in (ax_sil, ax_other):
+        if len(k):
+            ax.axvline(result.n_planes, color='crimson', linestyle='--', linewidth=1.3,
+                       label=f'selected k = {result.n_planes} ({result.criterion} rule)')
+        if true_planes is not None:
+            ax.axvline(true_planes, color='tab:gray', linestyle=':', linewidth=1.5,
+                       label=f'true number of planes ({true_planes})')
+        ax.set_xlabel('number of planes k (first k extracted; the rest unassigned)')
+        ax.xaxis.get_major_locator().set_params(integer=True)
+        ax.grid(True, alpha=0.3)
+    ax_sil.legend(fontsize=7.5, loc='best')
+    handles = ax_other.get_legend_handles_labels()
+    twin = ax_db.get_legend_handles_labels()
+    ax_other.legend(handles[0] + twin[0], handles[1] + twin[1], fontsize=7.5, loc='best')
+    fig.suptitle(f'{title + ": " if title else ""}indices vs number of planes at t = '
+                 f'{result.segmentation.tolerance:.3g}; selected k = {result.n_planes}', fontsize=11)
+    return _save_png(fig, path)

@@ -7,13 +7,14 @@ segmentation for k = 1..K (the paper's Fig. 2). Pure numpy/scipy, no ROS import.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from .indices import ValidityIndices, validity_indices
-from .ransac import Segmentation, as_points, detect_planes
+from .ransac import RANSAC_POINTS, Segmentation, as_points, detect_planes
 
 __all__ = ['CRITERIA', 'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
            'select_plane_count', 'noise_from_segmentation', 'local_noise', 'judge', 'plane_thickness',
@@ -193,7 +194,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_pla
                    max_planes: int = 10, min_inliers: int | float = 0.02, probability: float = 0.99,
                    max_iterations: int = 1000, sample_size: int | None = 2000, tune_points: int | None = 20000,
                    t_min: float | None = None, t_max: float | None = None, count: int = 16,
-                   seed: int | None = None) -> TuningResult:
+                   seed: int | None = None, progress: Callable[[int, int], None] | None = None,
+                   ransac_points: int | None = RANSAC_POINTS, sampled_separation: bool = False) -> TuningResult:
     """Sweep the RANSAC tolerance and pick the best by ``criterion``.
 
     points: (N, 3) meters. tolerances: candidate ``t`` values in meters, or None for ``count``
@@ -205,6 +207,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_pla
     (GSplanes ignores unassigned points); among the eligible ones whose score is within
     max(3 SE, 0.01) of the best (indistinguishable given the silhouette sampling), the smallest
     ``t`` wins; see :func:`_choose` for the single-plane case.
+    progress: called as ``progress(done, total)`` after each candidate (e.g. to drive a progress bar).
+    ransac_points, sampled_separation: passed to :func:`detect_planes` and :func:`validity_indices`.
     """
     _check_criterion(criterion)
     start = time.perf_counter()
@@ -222,7 +226,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_pla
         finite[rng.choice(len(finite), tune_points, replace=False)]
     ransac_seed, index_seed = rng.integers(0, 2**63, size=2)
     opts = dict(max_planes=max_planes, min_inliers=min_inliers, probability=probability,
-                max_iterations=max_iterations)
+                max_iterations=max_iterations, ransac_points=ransac_points)
 
     rows: list[TuningRow] = []
     previous: tuple[np.ndarray, ValidityIndices] | None = None
@@ -232,13 +236,16 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_pla
         if previous is not None and np.array_equal(previous[0], seg.labels):
             scores = previous[1]  # same partition as the last candidate: same indices
         else:
-            scores = validity_indices(sweep_pts, seg.labels, sample_size=sample_size, seed=int(index_seed))
+            scores = validity_indices(sweep_pts, seg.labels, sample_size=sample_size, seed=int(index_seed),
+                                      sampled_separation=sampled_separation)
         previous = (seg.labels, scores)
         thickness = plane_thickness(sweep_pts, seg)
         rows.append(TuningRow(tolerance=float(t), n_planes=seg.n_planes,
                               inlier_counts=tuple(len(p.inliers) for p in seg.planes), indices=scores,
                               seconds=time.perf_counter() - t0,
                               max_thickness=float(thickness.max()) if len(thickness) else 0.0))
+        if progress is not None:
+            progress(len(rows), len(cand))
 
     best = _choose(rows, criterion, len(sweep_pts))
     t_best = rows[best].tolerance
@@ -246,7 +253,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_pla
     if sweep_pts is finite and len(finite) == len(pts):
         final_scores = rows[best].indices  # the sweep already scored this very segmentation
     else:
-        final_scores = validity_indices(pts, final.labels, sample_size=sample_size, seed=int(index_seed))
+        final_scores = validity_indices(pts, final.labels, sample_size=sample_size, seed=int(index_seed),
+                                        sampled_separation=sampled_separation)
     reliable, verdict = judge(pts, final, final_scores)
     return TuningResult(rows=tuple(rows), criterion=criterion, best=best, tolerance=t_best, segmentation=final,
                         indices=final_scores, noise_estimate=noise_from_segmentation(final), reliable=reliable,

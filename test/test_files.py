@@ -59,7 +59,7 @@ def test_detect_command(tmp_path, capsys):
     assert (tmp_path / 'c.png').stat().st_size > 10_000
     assert cli_main(['detect', str(tmp_path / 'corner.npy'), '--tolerance', '0.02']) == 0
     assert '3 plane(s), tolerance 0.02 m' in capsys.readouterr().out
-    assert cli_main(['detect', str(tmp_path / 'missing.pcd')]) == 1
+    assert cli_main(['detect', str(tmp_path / 'missing.pcd')]) == 2
     assert 'no such file' in capsys.readouterr().err
     assert cli_main(['tune', str(tmp_path / 'corner.npy')]) == 0
     assert 'chosen t =' in capsys.readouterr().out

@@ -39,6 +39,8 @@ ROSDEP_KEYS = {
     'rosbags': 'python3-rosbags',
     'matplotlib': 'python3-matplotlib',
     'tqdm': 'python3-tqdm',
+    'PIL': 'python3-pil',
+    'plyfile': 'python3-plyfile',
     'yaml': 'python3-yaml',
     'sklearn': 'python3-sklearn',
     'hypothesis': 'python3-hypothesis',

@@ -185,5 +185,5 @@ def test_cli_replay_prints_frames_and_summary(tmp_path, capsys):
     assert text.count('frame ') >= 5
     assert 'planes  6' in text
     assert '5 frames from' in text
-    assert cli_main(['replay', str(tmp_path / 'missing')]) == 1
+    assert cli_main(['replay', str(tmp_path / 'missing')]) == 2
     assert 'bag not found' in capsys.readouterr().err

@@ -1,0 +1,155 @@
+"""One point cloud from or into a bag, for the command line (``BAG[:TOPIC[:INDEX]]``).
+
+Reading goes through :func:`plane_validation.replay.read_clouds` (rosbags: rosbag2 directories,
+bare .mcap or .db3 files, compressed bags and ROS 1 .bag files); writing makes a rosbag2 bag with
+one ``sensor_msgs/msg/PointCloud2`` (ROS 2 Jazzy types) on ``/points``.
+"""
+from __future__ import annotations
+
+import shutil
+import tempfile
+from collections import deque
+from contextlib import closing
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ['BAG_SUFFIXES', 'BagSource', 'parse_bag_source', 'read_bag_points', 'write_bag_points',
+           'TOPIC', 'STAMP_NS']
+
+#: File extensions read as bags (a directory is always a rosbag2 bag).
+BAG_SUFFIXES = ('.mcap', '.db3', '.bag')
+#: Topic and header stamp (ns) of the cloud :func:`write_bag_points` writes.
+TOPIC = '/points'
+STAMP_NS = 1_700_000_000 * 10**9
+FRAME_ID = 'map'
+_MSGTYPE = 'sensor_msgs/msg/PointCloud2'
+
+
+@dataclass(frozen=True)
+class BagSource:
+    """Cloud number ``index`` (negative: from the end) on ``topic`` (None: the only cloud topic)."""
+
+    path: Path
+    topic: str | None = None
+    index: int = 0
+
+    def __str__(self) -> str:
+        return f'{self.path}:{self.topic or ""}:{self.index}'
+
+
+def _is_bag(path: Path) -> bool:
+    return path.is_dir() or (path.is_file() and path.suffix.lower() in BAG_SUFFIXES)
+
+
+def _index(text: str, source: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise ValueError(f'{source}: message index {text!r} is not an integer (BAG[:TOPIC[:INDEX]])') from None
+
+
+def parse_bag_source(source: str | Path) -> BagSource | None:
+    """``BAG``, ``BAG:TOPIC``, ``BAG:INDEX``, ``BAG:TOPIC:INDEX`` or ``BAG::INDEX`` -> BagSource.
+
+    BAG is a directory or an existing .mcap/.db3/.bag file (a path that does not exist but has a
+    bag extension is returned too, so that reading it reports a missing bag). None when
+    ``source`` names no bag (a point file).
+    """
+    text = str(source)
+    path = Path(text)
+    if path.exists():
+        return BagSource(path) if _is_bag(path) else None
+    parts = text.split(':')
+    for cut in (1, 2):  # BAG:X, then BAG:TOPIC:INDEX
+        if len(parts) <= cut:
+            break
+        head = Path(':'.join(parts[:-cut]))
+        if not _is_bag(head):
+            continue
+        if cut == 1:
+            tail = parts[-1]
+            is_index = tail.lstrip('-').isdigit()
+            return BagSource(head, None if is_index else (tail or None), _index(tail, text) if is_index else 0)
+        return BagSource(head, parts[-2] or None, _index(parts[-1], text) if parts[-1] else 0)
+    if path.suffix.lower() in BAG_SUFFIXES:
+        return BagSource(path)
+    head = Path(parts[0])
+    if len(parts) > 1 and head.suffix.lower() in BAG_SUFFIXES:
+        return BagSource(head)  # a missing bag given with a topic
+    return None
+
+
+def read_bag_points(source: BagSource) -> np.ndarray:
+    """(height*width, 3) float64 x, y, z of one PointCloud2 in a bag (NaN holes kept)."""
+    from .cloud import xyz_array
+    from .replay import read_clouds
+
+    if source.index >= 0:
+        seen = 0
+        with closing(read_clouds(source.path, source.topic)) as clouds:
+            for topic, _, msg in clouds:
+                if seen == source.index:
+                    return _xyz(source, topic, msg, xyz_array)
+                seen += 1
+    else:
+        last: deque = deque(maxlen=-source.index)
+        with closing(read_clouds(source.path, source.topic)) as clouds:
+            for item in clouds:
+                last.append(item)
+        seen = len(last)
+        if seen == -source.index:
+            topic, _, msg = last[0]
+            return _xyz(source, topic, msg, xyz_array)
+    where = f'on {source.topic}' if source.topic else 'on its cloud topic'
+    raise ValueError(f'{source.path}: no cloud number {source.index} {where} '
+                     f'({"only " if seen else ""}{seen} cloud{"s" if seen != 1 else ""})')
+
+
+def _xyz(source: BagSource, topic: str, msg, xyz_array) -> np.ndarray:
+    try:
+        return xyz_array(msg)
+    except ValueError as exc:
+        raise ValueError(f'{source.path} [{topic}]: {exc}') from exc
+
+
+def write_bag_points(path: str | Path, points: np.ndarray, *, topic: str = TOPIC) -> Path:
+    """Write (N, 3) points (meters) as one float32 x y z PointCloud2 into a new rosbag2 bag.
+
+    ``path`` without extension: a bag directory (MCAP storage); ``.mcap`` or ``.db3``: a single
+    storage file (MCAP or SQLite 3), readable without metadata.yaml. Refuses to overwrite.
+    """
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from .cloud import create_cloud, rosbags_types
+
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == '.bag':
+        raise ValueError(f'{path}: writing ROS 1 bags is not supported; use a directory, .mcap or .db3')
+    if suffix not in ('', '.mcap', '.db3'):
+        raise ValueError(f'{path}: not a bag name (use a directory, .mcap or .db3)')
+    if path.exists():
+        raise ValueError(f'{path} already exists; remove it or choose another name')
+    if not path.parent.is_dir():
+        raise ValueError(f'{path}: directory {path.parent} does not exist')
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    types = rosbags_types(typestore)
+    xyz = np.asarray(points, dtype=np.float32).reshape(-1, 3)
+    header = types.Header(stamp=types.Time(sec=STAMP_NS // 10**9, nanosec=STAMP_NS % 10**9), frame_id=FRAME_ID)
+    msg = create_cloud(header, {'x': xyz[:, 0], 'y': xyz[:, 1], 'z': xyz[:, 2]}, types=types)
+    storage = StoragePlugin.SQLITE3 if suffix == '.db3' else StoragePlugin.MCAP
+    with tempfile.TemporaryDirectory(dir=path.parent, prefix=f'.{path.name}.') as tmp:
+        bag_dir = Path(tmp) / (path.stem if suffix else path.name)
+        writer = Writer(bag_dir, version=9, storage_plugin=storage)
+        with writer:
+            conn = writer.add_connection(topic, _MSGTYPE, typestore=typestore)
+            writer.write(conn, STAMP_NS, typestore.serialize_cdr(msg, _MSGTYPE))
+        if suffix:
+            (storage_file,) = bag_dir.glob(f'*{suffix}')
+            shutil.move(storage_file, path)
+        else:
+            shutil.move(bag_dir, path)
+    return path
