@@ -11,11 +11,11 @@ import numpy as np
 import sensor_msgs.msg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, Pose, PoseArray, Quaternion, Vector3
-from scipy.spatial import ConvexHull, QhullError
 from std_msgs.msg import ColorRGBA, Float64MultiArray, MultiArrayDimension
 from visualization_msgs.msg import Marker, MarkerArray
 
 from .cloud import create_cloud, pack_rgb
+from .geometry import PlaneOutline, plane_outlines
 from .pipeline import FrameResult
 
 __all__ = ['plane_colors', 'segmented_cloud', 'plane_markers', 'plane_poses', 'plane_coefficients',
@@ -44,14 +44,6 @@ def segmented_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
                         types=sensor_msgs.msg)
 
 
-def _basis(normal: np.ndarray) -> np.ndarray:
-    """(3, 3) rotation whose columns are x, y in the plane and z = normal."""
-    helper = np.array([1.0, 0, 0]) if abs(normal[0]) < 0.9 else np.array([0, 1.0, 0])
-    u = np.cross(normal, helper)
-    u /= np.linalg.norm(u)
-    return np.column_stack([u, np.cross(normal, u), normal])
-
-
 def _quaternion(rot: np.ndarray) -> Quaternion:
     """Quaternion (x, y, z, w) of a proper rotation matrix."""
     w = np.sqrt(max(0.0, 1 + rot[0, 0] + rot[1, 1] + rot[2, 2])) / 2
@@ -61,64 +53,49 @@ def _quaternion(rot: np.ndarray) -> Quaternion:
     return Quaternion(x=float(x), y=float(y), z=float(z), w=float(w))
 
 
-def _plane_frames(result: FrameResult) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Per plane (centroid (3,), rotation (3, 3), inlier points (m, 3))."""
-    frames = []
+def _outlines(result: FrameResult) -> tuple[PlaneOutline, ...]:
     if result.segmentation is None:
-        return frames
-    for k, plane in enumerate(result.segmentation.planes):
-        pts = result.points[result.labels == k]
-        centroid = pts.mean(axis=0) if len(pts) else -plane.offset * plane.normal
-        frames.append((centroid, _basis(plane.normal), pts))
-    return frames
+        return ()
+    return plane_outlines(result.points, result.labels, result.segmentation)
 
 
-def plane_poses(header, result: FrameResult) -> PoseArray:
+def plane_poses(header, result: FrameResult, outlines: tuple[PlaneOutline, ...] | None = None) -> PoseArray:
     """Per plane the inlier centroid, oriented so that its z axis is the plane normal."""
-    poses = [Pose(position=Point(x=float(c[0]), y=float(c[1]), z=float(c[2])), orientation=_quaternion(rot))
-             for c, rot, _ in _plane_frames(result)]
+    outlines = _outlines(result) if outlines is None else outlines
+    poses = [Pose(position=Point(x=float(o.centroid[0]), y=float(o.centroid[1]), z=float(o.centroid[2])),
+                  orientation=_quaternion(o.rotation)) for o in outlines]
     return PoseArray(header=header, poses=poses)
 
 
-def _hull_polygon(local: np.ndarray) -> np.ndarray:
-    """Indices of the 2-D convex hull of (m, 2) in-plane coordinates, counter-clockwise."""
-    if len(local) < 3:
-        return np.arange(len(local))
-    try:
-        return ConvexHull(local).vertices
-    except (QhullError, ValueError):
-        return np.array([np.argmin(local[:, 0]), np.argmax(local[:, 0])])
+def _point(p: np.ndarray) -> Point:
+    return Point(x=float(p[0]), y=float(p[1]), z=float(p[2]))
 
 
-def plane_markers(header, result: FrameResult, ns: str = 'planes') -> MarkerArray:
+def plane_markers(header, result: FrameResult, ns: str = 'planes',
+                  outlines: tuple[PlaneOutline, ...] | None = None) -> MarkerArray:
     """DELETEALL, then per plane a filled hull patch, a normal arrow and a text label."""
+    outlines = _outlines(result) if outlines is None else outlines
     markers = [Marker(header=header, ns=ns, action=Marker.DELETEALL)]
     colors = plane_colors(result.n_planes) / 255.0
-    for k, (centroid, rot, pts) in enumerate(_plane_frames(result)):
+    for k, outline in enumerate(outlines):
         plane = result.segmentation.planes[k]
-        local = (pts - centroid) @ rot[:, :2]
-        hull = local[_hull_polygon(local)]
+        centroid, corners, extent = outline.centroid, outline.corners, outline.extent
         color = ColorRGBA(r=float(colors[k, 0]), g=float(colors[k, 1]), b=float(colors[k, 2]), a=0.6)
         # Triangle fan around the centroid (the centroid is inside the convex hull).
-        corners = centroid + hull @ rot[:, :2].T
-        tri = []
-        for i in range(len(corners) if len(corners) >= 3 else 0):
-            for p in (centroid, corners[i], corners[(i + 1) % len(corners)]):
-                tri.append(Point(x=float(p[0]), y=float(p[1]), z=float(p[2])))
+        tri = [_point(p) for i in range(len(corners) if len(corners) >= 3 else 0)
+               for p in (centroid, corners[i], corners[(i + 1) % len(corners)])]
         markers.append(Marker(header=header, ns=ns, id=3 * k, type=Marker.TRIANGLE_LIST, action=Marker.ADD,
                               pose=Pose(orientation=Quaternion(w=1.0)), scale=Vector3(x=1.0, y=1.0, z=1.0),
                               color=color, points=tri))
-        extent = float(np.ptp(local, axis=0).max()) if len(local) else 1.0
         tip = centroid + plane.normal * max(0.25 * extent, 1e-3)
         markers.append(Marker(header=header, ns=ns, id=3 * k + 1, type=Marker.ARROW, action=Marker.ADD,
                               pose=Pose(orientation=Quaternion(w=1.0)),
                               scale=Vector3(x=0.02 * extent, y=0.04 * extent, z=0.06 * extent),
                               color=ColorRGBA(r=color.r, g=color.g, b=color.b, a=1.0),
-                              points=[Point(x=float(c), y=float(d), z=float(e)) for c, d, e in (centroid, tip)]))
+                              points=[_point(centroid), _point(tip)]))
         text_at = tip + plane.normal * 0.05 * extent
         markers.append(Marker(header=header, ns=ns, id=3 * k + 2, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD,
-                              pose=Pose(position=Point(x=float(text_at[0]), y=float(text_at[1]), z=float(text_at[2])),
-                                        orientation=Quaternion(w=1.0)),
+                              pose=Pose(position=_point(text_at), orientation=Quaternion(w=1.0)),
                               scale=Vector3(z=max(0.05 * extent, 1e-3)), color=ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0),
                               text=f'plane {k}: {result.plane_counts[k]} pts, rms {plane.rms:.3g} m'))
     return MarkerArray(markers=markers)
@@ -145,6 +122,7 @@ def diagnostics(header, result: FrameResult, name: str, extra: tuple[tuple[str, 
 def frame_messages(header, result: FrameResult, name: str,
                    extra: tuple[tuple[str, str], ...] = ()) -> dict[str, object]:
     """Every output of one frame keyed by its topic suffix."""
-    return {'segmented': segmented_cloud(header, result), 'planes': plane_markers(header, result),
-            'plane_poses': plane_poses(header, result), 'plane_coefficients': plane_coefficients(result),
+    outlines = _outlines(result)  # shared by the markers and the poses
+    return {'segmented': segmented_cloud(header, result), 'planes': plane_markers(header, result, outlines=outlines),
+            'plane_poses': plane_poses(header, result, outlines), 'plane_coefficients': plane_coefficients(result),
             'diagnostics': diagnostics(header, result, name, extra)}

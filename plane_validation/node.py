@@ -45,7 +45,12 @@ PARAMETERS = {
                     'else a count', (0.0, 1e9)),
     'probability': ('RANSAC success probability that sets the iteration count', (1e-6, 0.999999)),
     'max_iterations': ('cap on RANSAC hypotheses per plane', (1, 1_000_000)),
-    'index_sample_size': ('points used for the sampled silhouette indices per frame', (10, 1_000_000)),
+    'index_sample_size': ('points the validity indices are computed on per frame (stratified sample)',
+                          (10, 1_000_000)),
+    'exact_indices': ('compute Dunn and Davies-Bouldin on all points (exact but ~0.2 s on a 300k-point frame) '
+                      'instead of on the index sample', None),
+    'ransac_points': ('RANSAC searches a random sample of this many points, then labels every point; 0 = all',
+                      (0, 100_000_000)),
     'voxel_size': ('voxel grid in meters applied before detection; 0 = off', (0.0, 10.0)),
     'seed': ('random seed; frames are seeded by (seed, header stamp); < 0 = fresh entropy', (-1, 2**31 - 1)),
 }

@@ -15,7 +15,7 @@ import numpy as np
 
 from .cloud import xyz_array
 from .indices import ValidityIndices, validity_indices
-from .ransac import Segmentation, as_points, detect_planes
+from .ransac import Segmentation, as_points, detect_planes, finite_rows
 from .tuning import CRITERIA, TuningResult, judge, noise_from_segmentation, tune_tolerance
 
 __all__ = ['PipelineConfig', 'FrameResult', 'FramePipeline', 'voxel_downsample', 'header_stamp_ns', 'frame_seed',
@@ -41,7 +41,9 @@ class PipelineConfig:
     min_inliers: float = 0.02            # count, or fraction of valid points when < 1
     probability: float = 0.99
     max_iterations: int = 1000
-    index_sample_size: int = 2000        # points for the sampled silhouettes
+    index_sample_size: int = 2000        # points for the sampled indices
+    exact_indices: bool = False          # Dunn/DB on all points (slow on big clouds), not the sample
+    ransac_points: int = 65536           # RANSAC searches a random sample of this many points; 0 = all
     voxel_size: float = 0.0              # m; 0 = off
     seed: int = 0                        # < 0 = fresh entropy every frame
 
@@ -61,6 +63,7 @@ class PipelineConfig:
             (0 < self.probability < 1, 'probability must be in (0, 1)'),
             (self.max_iterations >= 1, 'max_iterations must be >= 1'),
             (self.index_sample_size >= 10, 'index_sample_size must be >= 10'),
+            (self.ransac_points == 0 or self.ransac_points >= 100, 'ransac_points must be 0 (all) or >= 100'),
             (self.voxel_size >= 0, 'voxel_size must be >= 0 m (0 = off)'),
         ]
         for ok, why in checks:
@@ -177,7 +180,8 @@ class FramePipeline:
                                 min_inliers=_min_inliers(cfg.min_inliers), probability=cfg.probability,
                                 max_iterations=cfg.max_iterations, sample_size=cfg.index_sample_size,
                                 tune_points=cfg.tune_points, t_min=cfg.tune_min or None, t_max=cfg.tune_max or None,
-                                count=cfg.tune_count, seed=frame_seed(cfg.seed, stamp_ns))
+                                count=cfg.tune_count, seed=frame_seed(cfg.seed, stamp_ns),
+                                ransac_points=cfg.ransac_points or None, sampled_separation=not cfg.exact_indices)
         with self._lock:
             if generation == self._generation:  # a parameter change during the sweep voids it
                 self.tolerance, self.tuned_at, self.last_tuning = result.tolerance, stamp, result
@@ -211,7 +215,7 @@ class FramePipeline:
             pts = as_points(points)
         except ValueError as exc:
             return _failed(ERROR, f'bad input: {exc}', start, self.current_tolerance())
-        valid = pts[np.isfinite(pts).all(axis=1)]
+        valid = np.compress(finite_rows(pts), pts, axis=0)  # ~4x faster than a boolean index
         n_input = len(pts)
         if len(valid) < 3:
             return _failed(WARN, f'too few valid points: {len(valid)} of {n_input} (need 3)', start,
@@ -229,8 +233,10 @@ class FramePipeline:
                 seed = frame_seed(cfg.seed, stamp_ns)
                 seg = detect_planes(work, tolerance, max_planes=cfg.max_planes,
                                     min_inliers=_min_inliers(cfg.min_inliers), probability=cfg.probability,
-                                    max_iterations=cfg.max_iterations, seed=seed)
-                scores = validity_indices(work, seg.labels, sample_size=cfg.index_sample_size, seed=seed)
+                                    max_iterations=cfg.max_iterations, seed=seed,
+                                    ransac_points=cfg.ransac_points or None)
+                scores = validity_indices(work, seg.labels, sample_size=cfg.index_sample_size, seed=seed,
+                                          sampled_separation=not cfg.exact_indices)
                 reliable, verdict = judge(work, seg, scores)
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
             return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
@@ -266,7 +272,8 @@ def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_
               ('gs', _fmt(scores.gs)), ('gs_se', _fmt(scores.gs_se)),
               ('gs_planes', _fmt(scores.gs_planes)), ('gs_planes_se', _fmt(scores.gs_planes_se)),
               ('silhouette', _fmt(scores.silhouette)), ('silhouette_se', _fmt(scores.silhouette_se)),
-              ('index_sample_size', str(scores.sample_size)), ('noise_estimate', _fmt(noise)),
+              ('index_sample_size', str(scores.sample_size)), ('dunn_db_points', str(scores.separation_size)),
+              ('noise_estimate', _fmt(noise)),
               ('stop_reason', seg.reason)]
     for k, plane in enumerate(seg.planes):
         values += [(f'plane_{k}_inliers', str(int(counts[k]))), (f'plane_{k}_rms', _fmt(plane.rms))]

@@ -34,6 +34,8 @@ MAX_THICKNESS = 0.2
 #: A plane whose own mean silhouette S_j (eq. 5, among the planes) is below this is not a
 #: well-assigned plane; select_plane_count keeps the largest k whose planes all reach it.
 MIN_PLANE_SILHOUETTE = 0.05
+#: plane_thickness looks at a fixed random subset of this many inliers of a larger plane.
+THICKNESS_POINTS = 8192
 #: A tuning candidate is eligible when its planes cover at least this share of the best coverage.
 MIN_RELATIVE_COVERAGE = 0.5
 #: Silhouette-type scores closer than this to the best count as ties (the smallest t wins).
@@ -294,7 +296,10 @@ def plane_thickness(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     ~0.3 for a slab cut out of a sphere."""
     out = []
     for plane in seg.planes:
-        inl = points[plane.inliers]
+        rows = plane.inliers
+        if len(rows) > THICKNESS_POINTS:  # a fixed random subset: the ratio is a robust statistic
+            rows = rows[np.random.default_rng(len(rows)).integers(0, len(rows), THICKNESS_POINTS)]
+        inl = points[rows]
         if len(inl) < 3:
             out.append(np.inf)
             continue

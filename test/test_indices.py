@@ -441,3 +441,40 @@ def test_50k_points_is_fast():
         best = min(best, time.perf_counter() - t0)
     assert r.n_clusters == 7 and r.sampled
     assert best < 1.5
+
+
+# ---------------------------------------------------------------------------------------------
+# Dunn and Davies-Bouldin on the index sample (the node's default)
+
+
+def test_sampled_separation_keeps_gs_and_samples_dunn_db():
+    scene = scenes.cube(20_000, 2.5, seed=4)
+    labels = detect_planes(scene.points, 5.0, seed=0).labels
+    full = pi.validity_indices(scene.points, labels, sample_size=1500, seed=3)
+    fast = pi.validity_indices(scene.points, labels, sample_size=1500, seed=3, sampled_separation=True)
+    # the silhouette estimates come from the very same sample either way
+    assert (fast.gs, fast.gs_planes, fast.silhouette, fast.gs_se) == (full.gs, full.gs_planes, full.silhouette,
+                                                                      full.gs_se)
+    assert full.separation_size == full.n_points == 20_000
+    assert fast.separation_size == fast.sample_size and abs(fast.sample_size - 1500) <= 75
+    # a sample's clusters lie farther apart than the full clusters: Dunn up, paper DB down
+    assert fast.dunn >= full.dunn and fast.davies_bouldin <= full.davies_bouldin
+    assert fast.davies_bouldin_classic == pytest.approx(full.davies_bouldin_classic, rel=0.1)
+
+
+def test_sampled_separation_is_close_on_well_separated_clusters():
+    rng = np.random.default_rng(5)
+    centers = np.array([[0.0, 0, 0], [10, 0, 0], [0, 10, 0], [0, 0, 10]])
+    labels = np.repeat(np.arange(4), 5000)
+    points = centers[labels] + rng.uniform(-1, 1, (20_000, 3))
+    full = pi.validity_indices(points, labels, sample_size=2000, seed=1)
+    fast = pi.validity_indices(points, labels, sample_size=2000, seed=1, sampled_separation=True)
+    assert fast.dunn == pytest.approx(full.dunn, rel=0.1)
+    assert fast.davies_bouldin == pytest.approx(full.davies_bouldin, rel=0.1)
+
+
+def test_sampled_separation_is_exact_when_the_cloud_fits_the_sample():
+    scene = scenes.corner(1500, 2.5, seed=2)
+    labels = detect_planes(scene.points, 5.0, seed=0).labels
+    assert pi.validity_indices(scene.points, labels, sample_size=2000, sampled_separation=True) == \
+        pi.validity_indices(scene.points, labels, sample_size=2000)

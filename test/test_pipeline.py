@@ -102,7 +102,8 @@ def test_same_frame_same_stamp_same_result_and_stamp_changes_the_seed():
 
 
 @pytest.mark.parametrize('bad', [dict(tolerance=0.0), dict(criterion='x'), dict(tune_min=0.2, tune_max=0.1),
-                                 dict(probability=1.0), dict(voxel_size=-1.0), dict(tune_count=1)])
+                                 dict(probability=1.0), dict(voxel_size=-1.0), dict(tune_count=1),
+                                 dict(ransac_points=50)])
 def test_invalid_config_is_rejected_with_a_reason(bad):
     with pytest.raises(ValueError) as info:
         PipelineConfig(**bad).validate()
@@ -119,3 +120,15 @@ def test_retune_is_due_after_the_period_and_when_header_time_runs_backwards():
     fixed = FramePipeline(PipelineConfig(retune_period=0.0, seed=4))
     fixed.process(corner(1.0), 10_000_000_000)
     assert not fixed.retune_due(1e6) and not fixed.retune_due(0.0)
+
+
+def test_large_frames_sample_ransac_and_indices_unless_told_otherwise():
+    pts = scenes.boxes(80_000, seed=2).points
+    fast = FramePipeline(PipelineConfig(auto_tune=False, tolerance=0.02, seed=1)).process(pts, 7)
+    exact = FramePipeline(PipelineConfig(auto_tune=False, tolerance=0.02, seed=1, ransac_points=0,
+                                         exact_indices=True)).process(pts, 7)
+    assert fast.n_planes == exact.n_planes == 5 and fast.level == exact.level == OK
+    values, exact_values = dict(fast.values), dict(exact.values)
+    assert values['dunn_db_points'] == values['index_sample_size'] != '80000'
+    assert exact_values['dunn_db_points'] == '80000'
+    assert sorted(fast.plane_counts) == pytest.approx(sorted(exact.plane_counts), rel=0.01)

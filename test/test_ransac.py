@@ -221,3 +221,50 @@ def test_rigid_transform_moves_planes_and_keeps_labels(seed, quat, shift):
         np.testing.assert_allclose(sign * q.normal, n_expected, atol=1e-6)
         # the moved plane passes through the moved inliers
         assert np.abs(moved[q.inliers] @ q.normal + q.offset).max() <= tol
+
+
+def test_labels_are_the_nearest_plane_within_tolerance():
+    scene = scenes.cube(8000, 2.5, outlier_fraction=0.05, seed=6)
+    t = 5.0
+    seg = pv.detect_planes(scene.points, t, seed=1)
+    dist = np.abs(scene.points @ seg.coefficients[:, :3].T + seg.coefficients[:, 3])  # (n, k)
+    assigned = seg.labels >= 0
+    own = dist[np.flatnonzero(assigned), seg.labels[assigned]]
+    assert np.all(own <= t)
+    np.testing.assert_allclose(own, dist[assigned].min(axis=1))
+    assert np.all(dist[~assigned].min(axis=1) > t)
+    for k, plane in enumerate(seg.planes):
+        np.testing.assert_array_equal(plane.inliers, np.flatnonzero(seg.labels == k))
+        assert plane.rms == pytest.approx(np.sqrt(np.mean(dist[plane.inliers, k] ** 2)))
+
+
+def test_ransac_sample_finds_the_same_planes_as_all_points():
+    scene = scenes.boxes(120_000, seed=3)
+    full = pv.detect_planes(scene.points, 0.02, seed=0, ransac_points=None)
+    sampled = pv.detect_planes(scene.points, 0.02, seed=0, ransac_points=10_000)
+    assert full.n_planes == sampled.n_planes == 5
+    mapping = match_planes(sampled.coefficients, full.coefficients)  # extraction order may differ
+    assert sorted(mapping) == list(range(5))
+    for k in range(5):
+        angle, offset = same_plane(sampled.coefficients[mapping[k]], full.coefficients[k])
+        assert angle < 0.2 and offset < 2e-3
+    relabelled = np.where(sampled.labels >= 0, np.argsort(mapping)[np.maximum(sampled.labels, 0)], -1)
+    assert np.mean(full.labels == relabelled) > 0.995
+    assert label_accuracy(sampled, scene) > 0.97
+
+
+@pytest.mark.parametrize('bad', [0, 2, 2.5, -5])
+def test_bad_ransac_points_raise(bad):
+    with pytest.raises(ValueError, match='ransac_points'):
+        pv.detect_planes(np.random.default_rng(0).random((50, 3)), 0.1, ransac_points=bad)
+
+
+def test_far_away_coordinates_keep_their_precision():
+    scene = scenes.corner(3000, 0.0, seed=2)
+    shift = np.array([4.5e6, 5.2e6, 120.0])  # UTM-like coordinates
+    near = pv.detect_planes(scene.points, 0.05, seed=0)
+    far = pv.detect_planes(scene.points + shift, 0.05, seed=0)
+    np.testing.assert_array_equal(near.labels, far.labels)
+    for a, b in zip(near.planes, far.planes):
+        assert angle_deg(a.normal, b.normal) < 1e-4
+        assert b.rms < 1e-6

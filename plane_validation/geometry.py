@@ -1,0 +1,83 @@
+"""Plane outlines for display: centroid, in-plane frame and convex-hull polygon of each plane.
+
+Pure numpy/scipy (no ROS import); the node's markers and poses are built from these.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from .ransac import Segmentation
+
+__all__ = ['PlaneOutline', 'plane_basis', 'plane_outlines', 'hull_polygon']
+
+#: Largest point set whose hull is computed exactly (see hull_polygon).
+HULL_POINTS = 4096
+#: Unit directions whose extreme points always take part in the hull.
+_DIRECTIONS = np.array([[np.cos(a), np.sin(a)] for a in np.arange(8) * np.pi / 4])
+
+
+@dataclass(frozen=True, eq=False)
+class PlaneOutline:
+    """centroid: (3,) mean of the plane's points, meters; rotation: (3, 3) columns x, y in the
+    plane and z = normal; corners: (h, 3) convex-hull polygon of the points projected into the
+    plane, counter-clockwise about the normal; extent: largest in-plane side of their bounding
+    box, meters."""
+
+    centroid: np.ndarray
+    rotation: np.ndarray
+    corners: np.ndarray
+    extent: float
+
+
+def plane_basis(normal: np.ndarray) -> np.ndarray:
+    """(3, 3) rotation whose columns are x, y in the plane and z = ``normal`` (unit (3,))."""
+    helper = np.array([1.0, 0, 0]) if abs(normal[0]) < 0.9 else np.array([0, 1.0, 0])
+    u = np.cross(normal, helper)
+    u /= np.linalg.norm(u)
+    return np.column_stack([u, np.cross(normal, u), normal])
+
+
+def hull_polygon(local: np.ndarray, max_points: int = HULL_POINTS) -> np.ndarray:
+    """Indices of the convex hull of 2-D points ``local`` (2, m), counter-clockwise; the two
+    extremes along x when the points are collinear, all of them when fewer than 3.
+
+    Above ``max_points`` points the hull is that of the extreme points in 8 directions plus a
+    fixed pseudo-random sample of ``max_points``: for display it is indistinguishable from the
+    exact hull (it lies inside it and touches it at the 8 extremes), at a fraction of the cost.
+    """
+    m = local.shape[1]
+    if m < 3:
+        return np.arange(m)
+    candidates = np.arange(m)
+    if m > max_points:
+        extremes = np.argmax(_DIRECTIONS @ local, axis=1)
+        sample = np.random.default_rng(m).integers(0, m, max_points)
+        candidates = np.concatenate([extremes, sample])  # Qhull merges repeated points
+    try:
+        return candidates[ConvexHull(local[:, candidates].T).vertices]
+    except (QhullError, ValueError):
+        return np.array([int(np.argmin(local[0])), int(np.argmax(local[0]))])
+
+
+def plane_outlines(points: np.ndarray, labels: np.ndarray, seg: Segmentation) -> tuple[PlaneOutline, ...]:
+    """Outline of each plane of ``seg`` from its points: ``points`` (n, 3) meters with plane
+    ``labels`` (n,). A plane without points gets its foot point from the origin as centroid
+    and no corners."""
+    cols = np.ascontiguousarray(np.asarray(points, dtype=np.float64).T)
+    out = []
+    for k, plane in enumerate(seg.planes):
+        members = np.compress(labels == k, cols, axis=1)
+        rotation = plane_basis(plane.normal)
+        if members.shape[1] == 0:
+            out.append(PlaneOutline(-plane.offset * plane.normal, rotation, np.empty((0, 3)), 1.0))
+            continue
+        centroid = members.mean(axis=1)
+        members -= centroid[:, None]
+        local = rotation[:, :2].T @ members  # (2, m) in-plane coordinates
+        polygon = local[:, hull_polygon(local)]
+        extent = float(np.ptp(polygon, axis=1).max())
+        out.append(PlaneOutline(centroid, rotation, centroid + (rotation[:, :2] @ polygon).T, extent))
+    return tuple(out)

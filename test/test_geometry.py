@@ -1,0 +1,55 @@
+"""Plane outlines for the markers: hull polygons and in-plane frames."""
+import numpy as np
+import pytest
+from scipy.spatial import ConvexHull
+
+import plane_validation as pv
+from plane_validation import scenes
+from plane_validation.geometry import hull_polygon, plane_basis, plane_outlines
+
+
+def polygon_area(xy: np.ndarray) -> float:
+    x, y = xy
+    return 0.5 * float(x @ np.roll(y, -1) - y @ np.roll(x, -1))
+
+
+def test_small_sets_get_the_exact_hull_counter_clockwise():
+    pts = np.random.default_rng(1).normal(size=(2, 500))
+    hull = hull_polygon(pts)
+    assert sorted(hull) == sorted(ConvexHull(pts.T).vertices)
+    assert polygon_area(pts[:, hull]) > 0
+
+
+def test_large_sets_get_a_hull_touching_the_extremes():
+    pts = np.random.default_rng(2).random((2, 200_000))
+    hull = hull_polygon(pts)
+    exact = ConvexHull(pts.T)
+    assert polygon_area(pts[:, hull]) >= 0.98 * exact.volume  # 2-D "volume" is the area
+    for axis in range(2):
+        assert pts[axis, hull].max() == pts[axis].max() and pts[axis, hull].min() == pts[axis].min()
+
+
+@pytest.mark.parametrize('pts, expected', [(np.zeros((2, 0)), 0), (np.ones((2, 2)), 2),
+                                           (np.vstack([np.arange(100.0), np.zeros(100)]), 2)])
+def test_degenerate_sets(pts, expected):
+    assert len(hull_polygon(pts)) == expected
+
+
+def test_basis_is_a_rotation_with_the_normal_as_z():
+    for normal in np.random.default_rng(3).normal(size=(20, 3)):
+        normal /= np.linalg.norm(normal)
+        rot = plane_basis(normal)
+        np.testing.assert_allclose(rot.T @ rot, np.eye(3), atol=1e-12)
+        assert np.linalg.det(rot) == pytest.approx(1.0)
+        np.testing.assert_allclose(rot[:, 2], normal)
+
+
+def test_outlines_lie_in_their_planes():
+    scene = scenes.cube(6000, 0.0, seed=1)
+    seg = pv.detect_planes(scene.points, 0.5, seed=0)
+    outlines = plane_outlines(scene.points, seg.labels, seg)
+    assert len(outlines) == seg.n_planes == 6
+    for k, (plane, outline) in enumerate(zip(seg.planes, outlines)):
+        np.testing.assert_allclose(outline.centroid, scene.points[seg.labels == k].mean(axis=0))
+        assert np.abs(outline.corners @ plane.normal + plane.offset).max() < 1e-9
+        assert outline.extent == pytest.approx(100.0, rel=0.05)  # the cube's side
