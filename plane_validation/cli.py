@@ -177,8 +177,9 @@ def cmd_planes(args: argparse.Namespace) -> int:
         _emit_json(plane_count_document(args.cloud, points, result, tolerance=tolerance, tolerance_source=source,
                                         seed=args.seed, max_planes=args.max_planes))
         return 0
-    print(f'{args.cloud}: {len(points)} points; {"tuned" if source == "auto" else "fixed"} tolerance {tolerance:.4g} m; '
-          f'up to {args.max_planes} planes, first k scored for each k')
+    kind = 'tuned' if source == 'auto' else 'fixed'
+    print(f'{args.cloud}: {len(points)} points; {kind} tolerance {tolerance:.4g} m; up to {args.max_planes} planes, '
+          'first k scored for each k')
     print(plane_count_table(result))
     if result.counts:
         others = ', '.join(f'{name} {result.best_by(name)}' for name in ('gs', 'davies_bouldin', 'dunn', 'gs_planes'))

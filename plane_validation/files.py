@@ -104,6 +104,9 @@ def _xyz_columns(path: Path, table: np.ndarray) -> np.ndarray:
 
 def _read_npy(path: Path) -> np.ndarray:
     """(N, >=3) numeric array, or a structured array with x, y, z fields."""
+    with open(path, 'rb') as head:
+        if head.read(6) != b'\x93NUMPY':
+            raise ValueError(f'{path}: not a .npy file (no NUMPY magic bytes)')
     try:
         table = np.load(path, allow_pickle=False)
     except Exception as exc:  # ValueError for bad magic, EOFError for empty files, ...

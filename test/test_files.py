@@ -1,10 +1,12 @@
-"""Point files for the command line: PCD ascii/binary (written here), .npy, text; and the detect command."""
+"""Point files for the command line: PCD, PLY, .npy, text and bags, read and written; the detect command."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from plane_validation import scenes
 from plane_validation.cli import main as cli_main
-from plane_validation.files import load_points
+from plane_validation.files import load_points, save_points
 
 POINTS = scenes.corner(600, 1.0, scale=0.01, seed=2).points
 
@@ -63,3 +65,149 @@ def test_detect_command(tmp_path, capsys):
     assert 'no such file' in capsys.readouterr().err
     assert cli_main(['tune', str(tmp_path / 'corner.npy')]) == 0
     assert 'chosen t =' in capsys.readouterr().out
+
+
+# -- every input format, written by third-party writers where there is one ---------------------------
+
+def test_pcd_binary_compressed_and_ascii_written_by_pypcd4(tmp_path):
+    from pypcd4 import Encoding, PointCloud
+    # pypcd4 falls back to plain binary when LZF cannot shrink the data: use a compressible cloud
+    grid = np.round(scenes.corner(600, 0.0, seed=2).points / 5) * 5
+    cloud = PointCloud.from_xyz_points(grid.astype(np.float32))
+    for encoding in (Encoding.BINARY_COMPRESSED, Encoding.ASCII, Encoding.BINARY):
+        path = tmp_path / f'{encoding.value}.pcd'
+        cloud.save(path, encoding=encoding)
+        assert f'DATA {encoding.value}\n'.encode() in path.read_bytes()[:400]
+        np.testing.assert_array_equal(load_points(path), grid)
+
+
+def test_organized_pcd_keeps_nan_rows_in_place(tmp_path):
+    width, height = 30, 20
+    grid = np.full((width * height, 3), np.nan)
+    holes = np.random.default_rng(0).random(width * height) < 0.2
+    grid[~holes] = POINTS[:(~holes).sum()]
+    records = grid.astype('<f4')
+    header = (f'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {width}\nHEIGHT {height}\n'
+              f'VIEWPOINT 0 0 0 1 0 0 0\nPOINTS {width * height}\nDATA binary\n').encode()
+    path = tmp_path / 'organized.pcd'
+    path.write_bytes(header + records.tobytes())
+    loaded = load_points(path)
+    assert loaded.shape == (width * height, 3)
+    np.testing.assert_array_equal(np.isnan(loaded).any(axis=1), holes)
+    assert cli_main(['detect', str(path), '--tolerance', '0.02']) == 0
+
+
+def test_ply_ascii_by_plyfile_and_binary_by_us(tmp_path):
+    from plyfile import PlyData, PlyElement
+    vertex = np.zeros(len(POINTS), [('x', 'f8'), ('y', 'f8'), ('z', 'f8'), ('red', 'u1')])
+    vertex['x'], vertex['y'], vertex['z'] = POINTS.T
+    ascii_path = tmp_path / 'ascii.ply'
+    PlyData([PlyElement.describe(vertex, 'vertex')], text=True).write(str(ascii_path))
+    assert ascii_path.read_bytes().startswith(b'ply\nformat ascii')
+    np.testing.assert_allclose(load_points(ascii_path), POINTS, atol=1e-9)
+
+    labels = np.arange(len(POINTS)) % 4 - 1
+    binary_path = save_points(tmp_path / 'binary.ply', POINTS, labels)
+    assert binary_path.read_bytes().startswith(b'ply\nformat binary_little_endian')
+    ply = PlyData.read(str(binary_path))
+    np.testing.assert_array_equal(ply['vertex']['plane_id'], labels)
+    assert ply['vertex'].data.dtype['plane_id'] == np.dtype('<i4')
+    np.testing.assert_allclose(load_points(binary_path), POINTS, atol=1e-6)
+
+
+def test_saved_labels_in_every_point_format(tmp_path):
+    from pypcd4 import PointCloud
+    labels = np.where(np.arange(len(POINTS)) % 5 == 0, -1, np.arange(len(POINTS)) % 3)
+    pcd = save_points(tmp_path / 'l.pcd', POINTS, labels)
+    assert PointCloud.from_path(pcd).fields == ('x', 'y', 'z', 'label')
+    np.testing.assert_array_equal(PointCloud.from_path(pcd).numpy(('label',))[:, 0], labels)
+    np.testing.assert_array_equal(np.load(save_points(tmp_path / 'l.npy', POINTS, labels))[:, 3], labels)
+    for name in ('l.xyz', 'l.csv', 'l.txt'):
+        path = save_points(tmp_path / name, POINTS, labels)
+        table = np.loadtxt(path, delimiter=',' if name.endswith('.csv') else None)
+        np.testing.assert_array_equal(table[:, 3], labels)
+        np.testing.assert_allclose(load_points(path), POINTS, atol=1e-8)
+
+
+def test_structured_npy_with_xyz_fields(tmp_path):
+    table = np.zeros(len(POINTS), [('intensity', 'f4'), ('x', 'f8'), ('y', 'f8'), ('z', 'f8')])
+    table['x'], table['y'], table['z'] = POINTS.T
+    np.save(tmp_path / 's.npy', table)
+    np.testing.assert_array_equal(load_points(tmp_path / 's.npy'), POINTS)
+
+
+BAGS = Path(__file__).resolve().parents[1] / 'bags'
+
+
+def test_bag_sources_pick_topic_and_message(tmp_path):
+    from plane_validation.cloud import xyz_array
+    from plane_validation.replay import read_clouds
+    frames = [xyz_array(msg) for _, _, msg in read_clouds(BAGS / 'corner_e025')]
+    assert len(frames) == 5
+    bag = str(BAGS / 'corner_e025')
+    np.testing.assert_array_equal(load_points(bag), frames[0])
+    np.testing.assert_array_equal(load_points(f'{bag}:/points'), frames[0])
+    np.testing.assert_array_equal(load_points(f'{bag}:2'), frames[2])
+    np.testing.assert_array_equal(load_points(f'{bag}:/points:3'), frames[3])
+    np.testing.assert_array_equal(load_points(f'{bag}::-1'), frames[4])
+    np.testing.assert_array_equal(load_points(f'{bag}:/points:-5'), frames[0])
+    db3 = next((BAGS / 'corner_e025').glob('*.db3'))
+    np.testing.assert_array_equal(load_points(f'{db3}:1'), frames[1])
+    mcap = next((BAGS / 'room').glob('*.mcap'))
+    room = load_points(f'{mcap}:-1')
+    assert room.shape == (10800, 3) and np.isnan(room).any()  # organized depth image with holes
+    for source, words in [(f'{bag}:5', r'no cloud number 5 on its cloud topic \(only 5 clouds\)'),
+                          (f'{bag}:-6', 'no cloud number -6'),
+                          (f'{bag}:/other', "no topic '/other'"),
+                          (f'{bag}:/points:x', 'not an integer'),
+                          (str(tmp_path / 'nope.mcap:/points'), 'bag not found')]:
+        with pytest.raises(ValueError, match=words):
+            load_points(source)
+
+
+def test_ros1_bag_source(tmp_path):
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.typesys import Stores, get_typestore
+
+    from plane_validation.cloud import create_cloud, rosbags_types
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    types = rosbags_types(ts)
+    path = tmp_path / 'old.bag'
+    with Writer1(path) as writer:
+        conn = writer.add_connection('/cloud', 'sensor_msgs/msg/PointCloud2', typestore=ts)
+        for k in range(2):
+            header = types.Header(seq=k, stamp=types.Time(sec=k, nanosec=0), frame_id='s')
+            pts = (POINTS + k).astype(np.float32)
+            msg = create_cloud(header, {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2]}, types=types)
+            writer.write(conn, 10**9 * (k + 1), ts.serialize_ros1(msg, 'sensor_msgs/msg/PointCloud2'))
+    np.testing.assert_allclose(load_points(f'{path}:/cloud:1'), POINTS + 1, atol=1e-5)
+
+
+@pytest.mark.parametrize('name', ['one.mcap', 'one.db3', 'one_dir'])
+def test_written_bag_reads_back_and_is_not_overwritten(tmp_path, name):
+    path = save_points(tmp_path / name, POINTS)
+    assert path.is_dir() == (name == 'one_dir')
+    np.testing.assert_allclose(load_points(f'{path}:/points:0'), POINTS, atol=1e-6)
+    assert [p.name for p in tmp_path.iterdir()] == [name]  # no temporary leftovers
+    with pytest.raises(ValueError, match='already exists'):
+        save_points(path, POINTS)
+
+
+@pytest.mark.parametrize('name, content, words', [
+    ('garbage.pcd', bytes(range(256)) * 8, 'PCD header has no DATA line'),
+    ('garbage.ply', bytes(range(256)) * 8, 'not a readable PLY file'),
+    ('garbage.npy', bytes(range(256)) * 8, 'not a .npy file'),
+    ('empty.npy', b'', 'not a .npy file'),
+    ('garbage.xyz', bytes(range(256)) * 8, 'not a table of numbers'),
+    ('two.csv', b'1,2\n3,4\n', 'at least x y z'),
+    ('cloud.las', b'LASF', "unsupported file type '.las'"),
+    ('noxyz.ply', b'ply\nformat ascii 1.0\nelement vertex 1\nproperty float a\nend_header\n1\n', 'no x, y, z'),
+    ('faces.ply', b'ply\nformat ascii 1.0\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n',
+     'no vertex element'),
+])
+def test_bad_point_files_are_one_line_errors(tmp_path, name, content, words):
+    path = tmp_path / name
+    path.write_bytes(content)
+    with pytest.raises(ValueError, match=words) as info:
+        load_points(path)
+    assert str(path) in str(info.value)

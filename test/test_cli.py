@@ -1,0 +1,297 @@
+"""The plane-validation command: every subcommand on small inputs, --json against the Python API,
+labelled and synthetic outputs read back, the paper run, and one-line errors with exit status 2."""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import plane_validation as pv
+from plane_validation import scenes
+from plane_validation.cli import build_parser, main, progress_bar
+from plane_validation.files import load_points
+
+ROOT = Path(__file__).resolve().parents[1]
+BAGS = ROOT / 'bags'
+#: The paper's corner as a 1 m corner, e = 1 cm: 3 planes x = 0, y = 0, z = 0.
+CORNER = scenes.corner(900, 1.0, scale=0.01, seed=4)
+PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
+
+
+def _run(*args: str) -> subprocess.CompletedProcess:
+    """The command in a fresh interpreter, stdout piped (so: no progress bar)."""
+    return subprocess.run([sys.executable, '-m', 'plane_validation.cli', *args], capture_output=True, text=True,
+                          check=False, timeout=120, cwd=ROOT)
+
+
+def _matches(found: np.ndarray, truth: np.ndarray, *, angle: float = 0.999, offset: float) -> bool:
+    """Every true plane (a, b, c, d) has a found plane with the same normal (up to sign) and offset."""
+    for plane in truth:
+        dots = found[:, :3] @ plane[:3]
+        same = (np.abs(dots) > angle) & (np.abs(found[:, 3] * np.sign(dots) - plane[3]) < offset)
+        if not same.any():
+            return False
+    return len(found) == len(truth)
+
+
+def _check_png(path: Path) -> None:
+    import matplotlib.image
+    data = Path(path).read_bytes()
+    assert data.startswith(PNG_MAGIC) and len(data) > 5000
+    image = matplotlib.image.imread(path)
+    assert image.ndim == 3 and image.shape[0] > 300 and image.shape[1] > 500
+
+
+@pytest.fixture(scope='module')
+def corner_npy(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp('cli') / 'corner.npy'
+    np.save(path, CORNER.points)
+    return path
+
+
+def test_every_command_has_help(capsys):
+    for command in ('detect', 'sweep', 'tune', 'planes', 'scene', 'paper', 'replay', 'demo'):
+        with pytest.raises(SystemExit) as info:
+            main([command, '--help'])
+        assert info.value.code == 0
+        assert 'usage: plane-validation' in capsys.readouterr().out
+    top = build_parser().format_help()
+    assert all(name in top for name in ('detect', 'sweep', 'planes', 'scene', 'paper', 'replay', 'demo'))
+    with pytest.raises(SystemExit):
+        main(['sweep', '--help'])
+    assert '--tolerances A:B:N' in capsys.readouterr().out
+
+
+# -- detect ----------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('mode', [['--tolerance', '0.02'], []])
+def test_detect_json_equals_the_python_api(corner_npy, mode):
+    proc = _run('detect', str(corner_npy), '--json', '--seed', '7', '--max-planes', '6', *mode)
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)  # the whole of stdout is one document
+    points = load_points(corner_npy)
+    if mode:
+        seg = pv.detect_planes(points, 0.02, seed=7, max_planes=6, min_inliers=0.02)
+        scores = pv.validity_indices(points, seg.labels, seed=7)
+        tolerance, source = 0.02, 'fixed'
+    else:
+        tuned = pv.tune_tolerance(points, seed=7, max_planes=6, min_inliers=0.02)
+        seg, scores, tolerance, source = tuned.segmentation, tuned.indices, tuned.tolerance, 'auto'
+        assert doc['noise_estimate'] == pytest.approx(tuned.noise_estimate, rel=1e-9)
+        assert doc['reliable'] == tuned.reliable and doc['verdict'] == tuned.verdict
+        assert doc['tuning']['candidates'] == len(tuned.rows)
+    assert doc['tolerance_source'] == source and doc['tolerance'] == pytest.approx(tolerance, rel=1e-12)
+    assert (doc['file'], doc['seed'], doc['n_points'], doc['n_valid']) == (str(corner_npy), 7, 900, 900)
+    assert len(doc['planes']) == seg.n_planes == 3
+    for plane, expected in zip(doc['planes'], seg.planes):
+        np.testing.assert_allclose(plane['coefficients'], expected.coefficients, rtol=0, atol=1e-9)
+        assert plane['inliers'] == len(expected.inliers)
+        assert plane['rms'] == pytest.approx(expected.rms, rel=1e-9)
+    assert doc['unassigned'] == int((seg.labels < 0).sum())
+    for name in ('dunn', 'davies_bouldin', 'davies_bouldin_classic', 'silhouette', 'gs', 'gs_planes', 'gs_planes_se'):
+        assert doc['indices'][name] == pytest.approx(getattr(scores, name), rel=1e-9, abs=1e-12), name
+    assert doc['indices']['plane_silhouettes'] == pytest.approx(list(scores.plane_silhouettes), rel=1e-9)
+    assert proc.stderr == ''  # piped: no progress bar
+
+
+def test_detect_text_and_labelled_outputs(corner_npy, tmp_path, capsys):
+    from plyfile import PlyData
+    ply, pcd = tmp_path / 'labelled.ply', tmp_path / 'labelled.pcd'
+    assert main(['detect', str(corner_npy), '--tolerance', '0.02', '--out', str(ply)]) == 0
+    text = capsys.readouterr().out
+    for words in ('900 points, 900 valid', 'fixed tolerance 0.02 m', '3 plane(s)', 'GSplanes', 'Dunn',
+                  'Davies-Bouldin', 'noise estimate', 'reliable', f'wrote {ply}'):
+        assert words in text, words
+    seg = pv.detect_planes(CORNER.points, 0.02, seed=0)
+    np.testing.assert_array_equal(PlyData.read(str(ply))['vertex']['plane_id'], seg.labels)
+    assert main(['detect', str(corner_npy), '--auto', '--out', str(pcd), '--json']) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc['output'] == str(pcd) and doc['tolerance_source'] == 'auto'
+    from pypcd4 import PointCloud
+    labels = PointCloud.from_path(pcd).numpy(('label',))[:, 0]
+    assert sorted(set(labels[labels >= 0].tolist())) == [0, 1, 2]
+    assert int((labels == -1).sum()) == doc['unassigned'] and len(labels) == 900
+
+
+def test_json_has_null_for_undefined_indices(tmp_path, capsys):
+    """One plane: Davies-Bouldin (eq. 3) is infinite -> null, and the text is strict JSON."""
+    floor = scenes.room(2000, 0.005, seed=1).points
+    floor = floor[floor[:, 2] < 0.01]
+    np.save(tmp_path / 'floor.npy', floor)
+    assert main(['detect', str(tmp_path / 'floor.npy'), '--tolerance', '0.02', '--json']) == 0
+    text = capsys.readouterr().out
+    doc = json.loads(text, parse_constant=lambda name: pytest.fail(f'non-standard JSON constant {name}'))
+    assert len(doc['planes']) == 1
+    assert doc['indices']['davies_bouldin'] is None and doc['indices']['gs_planes'] == 0.0
+
+
+# -- sweep and planes ------------------------------------------------------------------------------
+
+def test_sweep_table_csv_plot_and_json(corner_npy, tmp_path, capsys):
+    csv_path, png = tmp_path / 'sweep.csv', tmp_path / 'sweep.png'
+    assert main(['sweep', str(corner_npy), '--tolerances', '0.002:0.04:8', '--csv', str(csv_path),
+                 '--plot', str(png)]) == 0
+    text = capsys.readouterr().out
+    assert 'chosen t = ' in text and text.count('\n') >= 10 and f'wrote {png}' in text
+    rows = list(csv.DictReader(csv_path.read_text(encoding='utf-8').splitlines()))
+    np.testing.assert_allclose([float(r['tolerance']) for r in rows], np.linspace(0.002, 0.04, 8))
+    assert [r['chosen'] for r in rows].count('1') == 1
+    assert {'n_planes', 'gs_planes', 'davies_bouldin', 'dunn', 'gs', 'silhouette', 'gs_planes_se'} <= set(rows[0])
+    _check_png(png)
+    assert main(['sweep', str(corner_npy), '--tolerances', '0.002:0.04:8', '--json']) == 0
+    doc = json.loads(capsys.readouterr().out)
+    chosen = [row for row in doc['sweep'] if row['chosen']]
+    assert len(doc['sweep']) == 8 and len(chosen) == 1
+    assert chosen[0]['tolerance'] == doc['tolerance'] and chosen[0]['n_planes'] == len(doc['planes']) == 3
+    assert 0.01 <= doc['tolerance'] <= 0.03  # e = 0.01 m: the paper's useful t is e..2e
+    result = pv.tune_tolerance(CORNER.points, tolerances=np.linspace(0.002, 0.04, 8), seed=0)
+    assert [row['n_planes'] for row in doc['sweep']] == [r.n_planes for r in result.rows]
+    assert [row['gs_planes'] for row in doc['sweep']] == pytest.approx(list(result.scores('gs_planes')), rel=1e-9)
+
+
+def test_planes_command(corner_npy, tmp_path, capsys):
+    png = tmp_path / 'planes.png'
+    assert main(['planes', str(corner_npy), '--tolerance', '0.02', '--max-planes', '5', '--plot', str(png)]) == 0
+    text = capsys.readouterr().out
+    assert 'selected k = 3' in text and 'min S_j' in text
+    _check_png(png)
+    assert main(['planes', str(corner_npy), '--max-planes', '5', '--json']) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc['tolerance_source'] == 'auto' and doc['selected'] == 3
+    assert [c['k'] for c in doc['counts']] == list(range(1, len(doc['planes']) + 1))
+    expected = pv.select_plane_count(CORNER.points, doc['tolerance'], 5, seed=0)
+    assert doc['best_by'] == {name: expected.best_by(name) for name in doc['best_by']}
+    assert [c['gs_planes'] for c in doc['counts']] == pytest.approx([x.gs_planes for x in expected.indices])
+
+
+# -- scene, and round trips through every output format --------------------------------------------
+
+@pytest.mark.parametrize('name', ['c.ply', 'c.pcd', 'c.npy', 'c.xyz', 'c.mcap', 'c_bag'])
+def test_scene_file_detect_finds_the_scene_planes(tmp_path, capsys, name):
+    out = tmp_path / name
+    assert main(['scene', 'corner', '--points', '1500', '--noise', '1', '--scale', '0.01', '--seed', '3',
+                 '--out', str(out)]) == 0
+    assert f'wrote {out}: corner, 1500 points' in capsys.readouterr().out
+    truth = scenes.corner(1500, 1.0, scale=0.01, seed=3)
+    source = f'{out}:/points:0' if name in ('c.mcap', 'c_bag') else str(out)
+    assert main(['detect', source, '--tolerance', '0.02', '--json']) == 0
+    doc = json.loads(capsys.readouterr().out)
+    found = np.array([p['coefficients'] for p in doc['planes']])
+    assert _matches(found, truth.planes, offset=0.01), found
+
+
+def test_scene_writes_true_labels_and_other_scenes(tmp_path, capsys):
+    from plyfile import PlyData
+    assert main(['scene', 'cube', '--points', '1200', '--noise', '2', '--out', str(tmp_path / 'cube.ply')]) == 0
+    truth = scenes.cube(1200, 2.0, seed=0)
+    vertex = PlyData.read(str(tmp_path / 'cube.ply'))['vertex']
+    np.testing.assert_array_equal(vertex['plane_id'], truth.labels)
+    assert main(['detect', str(tmp_path / 'cube.ply')]) == 0
+    assert '6 plane(s)' in capsys.readouterr().out
+    assert main(['scene', 'sphere', '--outliers', '0.1', '--out', str(tmp_path / 's.npy')]) == 0
+    assert load_points(tmp_path / 's.npy').shape == (5000, 3)
+
+
+def test_bundled_bag_frames(capsys):
+    assert main(['detect', f'{BAGS / "cube"}:/points:-1', '--tolerance', '0.02', '--json']) == 0
+    doc = json.loads(capsys.readouterr().out)
+    truth = json.loads((BAGS / 'truth.json').read_text())['bags']['cube']
+    assert len(doc['planes']) == truth['n_planes'] == 6
+    found = np.array([p['coefficients'] for p in doc['planes']])
+    assert _matches(found, np.array(truth['per_frame'][-1]['planes']), angle=0.995, offset=0.02)
+
+
+# -- the paper run ---------------------------------------------------------------------------------
+
+def test_paper_quick_run(tmp_path, capsys):
+    from plane_validation.paper import CASES
+    out = tmp_path / 'paper'
+    assert main(['paper', '--out', str(out), '--points', '400', '--steps', '10']) == 0
+    assert 'wrote 16 figures' in capsys.readouterr().out
+    for case in CASES:
+        for kind in ('sweep', 'planes'):
+            _check_png(out / f'{case.name}_{kind}.png')
+    table = [line for line in (out / 'summary.md').read_text().splitlines() if line.startswith('| ')][2:]
+    assert len(table) == len(CASES)
+    for line, case in zip(table, CASES):
+        cells = [c.strip() for c in line.strip('|').split('|')]
+        assert cells[0] == f'{case.scene}, e = {case.noise:g}'
+        if case.true_planes and case.noise < 7.5:  # planes at the chosen t, and k by the GSplanes rule
+            assert (cells[5], cells[8]) == (str(case.true_planes),) * 2, line
+        elif case.true_planes:  # at 400 points a face with e = 7.5 is a sparse 15-unit slab: loose check
+            assert int(cells[5]) >= case.true_planes - 1, line
+        else:
+            assert cells[-1] == 'no'  # the plane-free sphere is not reliable
+
+
+# -- errors and progress ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize('name, content', [
+    ('garbage.pcd', bytes(range(256)) * 4),
+    ('garbage.ply', b'ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\nend_header\n'
+     + bytes(13)),
+    ('garbage.npy', b'\x93NUMPY\x01\x00' + bytes(range(256))),
+    ('notabag', None),
+    ('cloud.las', b'LASF'),
+    ('missing.pcd', 'missing'),
+])
+def test_bad_input_is_one_line_and_status_2(tmp_path, name, content):
+    path = tmp_path / name
+    if content is None:
+        path.mkdir()
+        (path / 'junk.txt').write_text('not a bag')
+    elif content != 'missing':
+        path.write_bytes(content)
+    proc = _run('detect', str(path))
+    assert proc.returncode == 2, proc.stderr
+    assert 'Traceback' not in proc.stderr and proc.stdout == ''
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('plane-validation: error: ') and name in lines[0], proc.stderr
+
+
+def test_usage_errors_and_bad_sources_in_process(corner_npy, tmp_path, capsys):
+    for argv in (['sweep', str(corner_npy), '--tolerances', '0.1:0.01:5'], ['sweep', str(corner_npy),
+                 '--tolerances', '1:2'], ['detect', str(corner_npy), '--tolerance', '-1'],
+                 ['detect', str(corner_npy), '--tolerance', '0.1', '--auto'], ['scene', 'teapot'],
+                 ['paper', '--steps', '1']):
+        with pytest.raises(SystemExit) as info:
+            main(argv)
+        assert info.value.code == 2, argv
+        assert 'usage:' in capsys.readouterr().err
+    np.save(tmp_path / 'two.npy', np.zeros((5, 2)))
+    for argv, words in ((['detect', str(tmp_path / 'two.npy')], 'at least x y z'),
+                        (['detect', f'{BAGS / "cube"}:9'], 'no cloud number 9'),
+                        (['detect', f'{BAGS / "cube"}:/nope'], "no topic '/nope'"),
+                        (['scene', 'corner', '--out', str(tmp_path / 'x.las')], "cannot write '.las'"),
+                        (['scene', 'corner', '--out', str(tmp_path / 'no' / 'x.ply')], 'does not exist'),
+                        (['sweep', str(corner_npy), '--plot', str(tmp_path / 'no' / 'x.png')], 'No such file')):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.startswith('plane-validation: error: ') and words in err and err.count('\n') == 1, err
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_progress_bar_only_on_a_terminal_and_never_with_json(monkeypatch, corner_npy, capsys):
+    with progress_bar('x', quiet=False) as update:  # pytest's captured stderr is no terminal
+        assert update is None
+    terminal = _Terminal()
+    monkeypatch.setattr(sys, 'stderr', terminal)
+    with progress_bar('x', quiet=True) as update:
+        assert update is None
+    assert main(['sweep', str(corner_npy), '--tolerances', '0.005:0.03:4']) == 0
+    assert 'sweeping t' in terminal.getvalue() and '4/4' in terminal.getvalue()
+    capsys.readouterr()
+    monkeypatch.setattr(sys, 'stderr', _Terminal())
+    assert main(['sweep', str(corner_npy), '--tolerances', '0.005:0.03:4', '--json']) == 0
+    assert sys.stderr.getvalue() == ''
+    assert len(json.loads(capsys.readouterr().out)['sweep']) == 4
