@@ -14,7 +14,7 @@ from .ransac import Segmentation
 __all__ = ['PlaneOutline', 'plane_basis', 'plane_outlines', 'hull_polygon']
 
 #: Largest point set whose hull is computed exactly (see hull_polygon).
-HULL_POINTS = 4096
+HULL_POINTS = 2048
 #: Unit directions whose extreme points always take part in the hull.
 _DIRECTIONS = np.array([[np.cos(a), np.sin(a)] for a in np.arange(8) * np.pi / 4])
 

@@ -37,11 +37,11 @@ def segmented_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
     """x, y, z (float32), plane_id (int32, -1 unassigned) and packed rgb of the valid points."""
     labels = result.labels.astype(np.int32)
     palette = np.vstack([plane_colors(result.n_planes), np.array([UNASSIGNED_RGB], np.uint8)])
-    colors = palette[np.where(labels >= 0, labels, len(palette) - 1)]
+    packed = pack_rgb(palette[:, 0], palette[:, 1], palette[:, 2])
     pts = result.points.astype(np.float32)
+    # label -1 indexes the last palette entry, the unassigned grey
     return create_cloud(header, {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2], 'plane_id': labels,
-                                 'rgb': pack_rgb(colors[:, 0], colors[:, 1], colors[:, 2])},
-                        types=sensor_msgs.msg)
+                                 'rgb': packed[labels]}, types=sensor_msgs.msg)
 
 
 def _quaternion(rot: np.ndarray) -> Quaternion:

@@ -253,6 +253,19 @@ class FramePipeline:
                            plane_counts=tuple(int(c) for c in counts))
 
 
+def limit_blas_threads(threads: int = 1) -> None:
+    """Limit BLAS (OpenBLAS, MKL) to ``threads`` threads for the whole process.
+
+    The per-frame matrix products are small ((k, 3) @ (3, n)), so more BLAS threads buy nothing;
+    but when the node's worker and retune threads, or other processes, compete for the cores,
+    OpenBLAS's spinning threads slow everything down several-fold (on this 2-core machine with a
+    second busy process: a Kinect frame 44 -> 165 ms median, a tuning sweep 0.7 -> 9 s). The node
+    and the command line call this at start; library users may call it too.
+    """
+    from threadpoolctl import threadpool_limits
+    threadpool_limits(limits=threads, user_api='blas')
+
+
 def _min_inliers(value: float) -> int | float:
     """ROS parameters are doubles: 0.02 is a fraction, 150.0 a count."""
     return value if value < 1 else int(value)

@@ -25,6 +25,8 @@ CONFIRM = 4
 #: Default for ``detect_planes(ransac_points=...)``: larger clouds are searched on a random
 #: sample of this many points; every point is then labelled against the planes found.
 RANSAC_POINTS = 65536
+#: Random points the degeneracy (spread) test looks at.
+SPREAD_POINTS = 1024
 #: A sample triple whose sine of the angle at its first point is below this is degenerate.
 MIN_SINE = 1e-6
 
@@ -141,7 +143,7 @@ def _degeneracy(cols: np.ndarray) -> str | None:
         return f'fewer than 3 points left ({n})'
     # A random subset is plenty for a spread test (not a strided one: in an organized cloud a
     # stride can pick one image column, which lies on a line). Seeded by n: deterministic.
-    core = cols.T if n <= SUBSET else cols[:, np.random.default_rng(n).integers(0, n, SUBSET)].T
+    core = cols.T if n <= SPREAD_POINTS else cols[:, np.random.default_rng(n).integers(0, n, SPREAD_POINTS)].T
     if np.all(core == core[0]) and np.all(cols == cols[:, :1]):
         return 'all remaining points are identical'
     if len(core) >= 50:

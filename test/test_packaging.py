@@ -41,6 +41,7 @@ ROSDEP_KEYS = {
     'tqdm': 'python3-tqdm',
     'PIL': 'python3-pil',
     'plyfile': 'python3-plyfile',
+    'threadpoolctl': 'python3-threadpoolctl',
     'yaml': 'python3-yaml',
     'sklearn': 'python3-sklearn',
     'hypothesis': 'python3-hypothesis',
