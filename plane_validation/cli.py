@@ -24,7 +24,6 @@ from pathlib import Path
 import numpy as np
 
 from .files import load_points
-from .pipeline import PipelineConfig
 from .report import format_planes
 
 __all__ = ['main', 'build_parser', 'format_planes', 'parse_tolerances']
@@ -229,8 +228,9 @@ def cmd_paper(args: argparse.Namespace) -> int:
     return 0
 
 
-def _config(args: argparse.Namespace) -> PipelineConfig:
+def _config(args: argparse.Namespace):
     """PipelineConfig from the common options (only those given override the defaults)."""
+    from .pipeline import PipelineConfig
     changes = {name: getattr(args, name) for name in ('tolerance', 'seed', 'max_planes', 'min_inliers', 'voxel_size')
                if getattr(args, name, None) is not None}
     if getattr(args, 'fixed', False):
@@ -251,6 +251,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
+    from .pipeline import PipelineConfig
     from .plot import plot_cloud_message
     from .replay import replay_live
     out_dir = Path(args.out)
