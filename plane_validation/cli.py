@@ -426,6 +426,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    from .pipeline import limit_blas_threads
+    limit_blas_threads()  # small matrix products; spinning BLAS threads only slow a busy machine down
     try:
         return args.func(args)
     except KeyboardInterrupt:
