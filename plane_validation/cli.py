@@ -313,10 +313,11 @@ def _non_negative_float(text: str) -> float:
 
 def _add_detection_options(parser: argparse.ArgumentParser, *, max_planes: int = 10) -> None:
     """--seed, --max-planes, --min-inliers for the file commands."""
-    parser.add_argument('--seed', type=int, default=0, help='random seed; same seed, same result (default 0)')
-    parser.add_argument('--max-planes', dest='max_planes', type=_positive_int, default=max_planes,
+    parser.add_argument('--seed', type=int, default=0, metavar='S',
+                        help='random seed; same seed, same result (default 0)')
+    parser.add_argument('--max-planes', dest='max_planes', type=_positive_int, default=max_planes, metavar='K',
                         help=f'most planes to extract (default {max_planes})')
-    parser.add_argument('--min-inliers', dest='min_inliers', type=_non_negative_float, default=0.02,
+    parser.add_argument('--min-inliers', dest='min_inliers', type=_non_negative_float, default=0.02, metavar='M',
                         help='smallest plane: a point count, or a fraction of the valid points when < 1 '
                              '(default 0.02)')
 
@@ -361,23 +362,23 @@ def build_parser() -> argparse.ArgumentParser:
     detect = sub.add_parser('detect', help='detect planes in a cloud: planes, tolerance, every index, verdict',
                             description='Detect planes in one cloud and score them. Without --tolerance the '
                             'tolerance is auto-tuned (GSplanes sweep).')
-    detect.add_argument('cloud', help=CLOUD_HELP)
+    detect.add_argument('cloud', metavar='CLOUD', help=CLOUD_HELP)
     which = detect.add_mutually_exclusive_group()
-    which.add_argument('--tolerance', type=_positive_float, help='fixed RANSAC tolerance t in meters')
+    which.add_argument('--tolerance', type=_positive_float, metavar='T', help='fixed RANSAC tolerance t in meters')
     which.add_argument('--auto', '--tune', dest='auto', action='store_true',
                        help='auto-tune t by the GSplanes sweep (the default without --tolerance)')
     _add_detection_options(detect)
     detect.add_argument('--json', action='store_true', help='print one JSON document (schema in README) and nothing '
                         'else on stdout')
-    detect.add_argument('--out', help='write the labelled cloud: .ply (plane_id), .pcd (label), .npy (4th column), '
-                        '.xyz/.txt/.csv; -1 = unassigned')
-    detect.add_argument('--png', help='write a 3-D picture of the planes')
+    detect.add_argument('--out', metavar='FILE', help='write the labelled cloud: .ply (plane_id), .pcd (label), '
+                        '.npy (4th column), .xyz/.txt/.csv; -1 = unassigned')
+    detect.add_argument('--png', metavar='PNG', help='write a 3-D picture of the planes')
     detect.set_defaults(func=cmd_detect)
 
     sweep = sub.add_parser('sweep', aliases=['tune'], help='the paper\'s experiment: every index and the number of '
                            'planes vs t, the chosen t', description='Sweep the RANSAC tolerance t, score every '
                            'segmentation with all indices and choose t (paper Fig. 1, 3-8).')
-    sweep.add_argument('cloud', help=CLOUD_HELP)
+    sweep.add_argument('cloud', metavar='CLOUD', help=CLOUD_HELP)
     sweep.add_argument('--tolerances', type=parse_tolerances, metavar='A:B:N',
                        help='N tolerances evenly spaced from A to B meters, like the paper\'s axes (default: '
                        '16 geometric candidates derived from the cloud)')
@@ -391,8 +392,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     planes = sub.add_parser('planes', help='indices vs number of planes k and the selected k (paper Fig. 2)',
                             description='Extract up to K planes at t and score the first k planes for every k.')
-    planes.add_argument('cloud', help=CLOUD_HELP)
-    planes.add_argument('--tolerance', type=_positive_float, help='RANSAC tolerance t in meters (default: auto-tuned)')
+    planes.add_argument('cloud', metavar='CLOUD', help=CLOUD_HELP)
+    planes.add_argument('--tolerance', type=_positive_float, metavar='T',
+                        help='RANSAC tolerance t in meters (default: auto-tuned)')
     _add_detection_options(planes)
     planes.add_argument('--plot', metavar='PNG', help='write indices vs k, selected k marked')
     planes.add_argument('--json', action='store_true', help='print one JSON document and nothing else on stdout')
@@ -402,23 +404,27 @@ def build_parser() -> argparse.ArgumentParser:
                            description='Write a synthetic scene (scenes.py) as PLY, PCD, NPY, text or a bag. '
                            'corner and cube are in the paper\'s units (faces of 100), the others in meters.')
     scene.add_argument('name', choices=sorted(SCENES))
-    scene.add_argument('--noise', type=_non_negative_float, help='uniform noise half-width e along the normals')
-    scene.add_argument('--points', dest='n_points', type=_positive_int, help='number of points')
-    scene.add_argument('--outliers', dest='outlier_fraction', type=float, help='fraction of uniform outliers')
-    scene.add_argument('--scale', type=_positive_float, help='multiply all coordinates (0.01: paper units -> m)')
-    scene.add_argument('--seed', type=int, default=0, help='random seed (default 0)')
-    scene.add_argument('--out', help='.ply, .pcd, .npy, .xyz/.txt/.csv (with the true plane of each point), or a '
-                       'bag: a new directory, .mcap or .db3 (one PointCloud2 on /points); default NAME.ply')
+    scene.add_argument('--noise', type=_non_negative_float, metavar='E',
+                       help='uniform noise half-width e along the normals')
+    scene.add_argument('--points', dest='n_points', type=_positive_int, metavar='N', help='number of points')
+    scene.add_argument('--outliers', dest='outlier_fraction', type=float, metavar='F',
+                       help='fraction of uniform outliers')
+    scene.add_argument('--scale', type=_positive_float, metavar='S', help='multiply all coordinates (0.01: paper units -> m)')
+    scene.add_argument('--seed', type=int, default=0, metavar='S', help='random seed (default 0)')
+    scene.add_argument('--out', metavar='FILE', help='.ply, .pcd, .npy, .xyz/.txt/.csv (with the true plane of each '
+                       'point), or a bag: a new directory, .mcap or .db3 (one PointCloud2 on /points); '
+                       'default NAME.ply')
     scene.set_defaults(func=cmd_scene)
 
     paper = sub.add_parser('paper', help='regenerate the paper\'s synthetic experiments: PNGs and summary.md',
                            description='Corner at e = 0, 2.5, 7.5, cube at e = 0, 1, 2.5, 7.5 and a plane-free '
                            'sphere: indices vs t, planes vs t, indices vs k, and a Markdown summary table.')
-    paper.add_argument('--out', default=PAPER_OUT, help=f'output directory (default {PAPER_OUT})')
-    paper.add_argument('--seed', type=int, default=0, help='random seed (default 0)')
-    paper.add_argument('--points', type=_positive_int, help='points per corner/sphere, twice for the cube '
+    paper.add_argument('--out', default=PAPER_OUT, metavar='DIR', help=f'output directory (default {PAPER_OUT})')
+    paper.add_argument('--seed', type=int, default=0, metavar='S', help='random seed (default 0)')
+    paper.add_argument('--points', type=_positive_int, metavar='N', help='points per corner/sphere, twice for the cube '
                        '(default 3000, as in the paper; smaller for a quick look)')
-    paper.add_argument('--steps', type=_at_least_two, default=60, help='tolerances per sweep, 0.5 to 30 units '
+    paper.add_argument('--steps', type=_at_least_two, default=60, metavar='N',
+                       help='tolerances per sweep, 0.5 to 30 units '
                        '(default 60)')
     paper.set_defaults(func=cmd_paper)
     return parser
