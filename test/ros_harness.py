@@ -14,7 +14,7 @@ import rclpy
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseArray
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64MultiArray, Header
@@ -55,7 +55,8 @@ class Harness:
         for name, cls in OUTPUTS.items():
             self.probe.create_subscription(cls, f'/{node_name}/{name}', self._recorder(name), reliable)
         self.probe.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, reliable)
-        self.executor = MultiThreadedExecutor(num_threads=2)
+        # not MultiThreadedExecutor: its spinning starves the node's worker thread of the GIL
+        self.executor = SingleThreadedExecutor()
         self.executor.add_node(node)
         self.executor.add_node(self.probe)
         self.thread = threading.Thread(target=self.executor.spin, daemon=True)
