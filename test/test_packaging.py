@@ -25,7 +25,7 @@ PACKAGE = 'plane_validation'
 #: what a colcon workspace needs of the repository (not .venv, bags/, benchmarks/, test/, ...)
 SOURCES = ['package.xml', 'setup.py', 'setup.cfg', 'resource', PACKAGE, 'config', 'launch']
 EXECUTABLES = ['plane_validation_node', 'plane-validation']
-SHARE_FILES = ['package.xml', 'config/params.yaml', 'launch/plane_validation.launch.py']
+SHARE_FILES = ['package.xml', 'config/params.yaml', 'config/fastdds_large_clouds.xml', 'launch/plane_validation.launch.py']
 BUILD_TIMEOUT = 300.0
 
 EXEC_DEPENDS = ['rclpy', 'sensor_msgs', 'std_msgs', 'geometry_msgs', 'visualization_msgs',
