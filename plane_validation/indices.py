@@ -411,14 +411,34 @@ def davies_bouldin_classic(points: np.ndarray, labels: np.ndarray) -> float:
 # Silhouettes
 
 
-def _silhouettes(cl: _Clusters) -> tuple[np.ndarray, np.ndarray]:
+def _cluster_distance_sums(cl: _Clusters, rows: np.ndarray, onehot: np.ndarray, fast: bool) -> np.ndarray:
+    """(len(rows), K) summed distances from the sorted rows ``rows`` of ``cl`` to each cluster.
+
+    fast: float32 through |a|^2 + |b|^2 - 2 a.b on coordinates centred on the cluster set (about
+    2x faster than cdist, relative error ~1e-6: for sampled estimates only).
+    """
+    if not fast:
+        return cdist(cl.points[rows], cl.points) @ onehot
+    centred = (cl.points - cl.points.mean(axis=0)).astype(np.float32)
+    sq = np.einsum('ij,ij->i', centred, centred)
+    d = centred[rows] @ centred.T
+    d *= -2.0
+    d += sq[rows, None]
+    d += sq[None, :]
+    np.maximum(d, 0.0, out=d)
+    np.sqrt(d, out=d)
+    return (d @ onehot.astype(np.float32)).astype(np.float64)
+
+
+def _silhouettes(cl: _Clusters, fast: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Exact silhouettes of each (sorted) row among the rows of ``cl``: (s (n,), s_planes (n,)).
 
     s_i = (b_i - a_i) / max(a_i, b_i); a_i mean distance to the other members of its cluster,
     b_i the smallest mean distance to another cluster; 0 for singleton clusters and for a = b = 0.
     s_planes is the same for the planes alone (the unassigned cluster is no candidate for b_i;
     NaN on its own rows): both come from one pass over the distances. Rows are processed in
-    blocks of at most ``CHUNK_FLOATS`` distances.
+    blocks of at most ``CHUNK_FLOATS`` distances; ``fast`` (for sampled estimates) computes them in
+    float32 (see _cluster_distance_sums).
     """
     n, k = cl.n, cl.k
     s, s_planes = np.zeros(n), np.zeros(n)
@@ -432,7 +452,7 @@ def _silhouettes(cl: _Clusters) -> tuple[np.ndarray, np.ndarray]:
     step = max(1, CHUNK_FLOATS // n)
     for r0 in range(0, n, step):
         rows = np.arange(r0, min(n, r0 + step))
-        sums = cdist(cl.points[rows], cl.points) @ onehot  # (c, k) summed distances per cluster
+        sums = _cluster_distance_sums(cl, rows, onehot, fast)  # (c, k) summed distances per cluster
         own = cl.codes[rows]
         a = sums[np.arange(len(rows)), own] / np.maximum(cl.sizes[own] - 1, 1)
         means = sums / cl.sizes
@@ -572,7 +592,7 @@ def _estimates(sizes: np.ndarray, ids: np.ndarray, sub: _Clusters, exact: bool) 
     (K,) with labels ``ids`` from one pass over its rows ``sub`` (all of them when ``exact``, else
     a stratified sample whose silhouettes are computed against the sample itself; the
     planes-only estimate uses the sample's plane rows)."""
-    s, s_planes = _silhouettes(sub)
+    s, s_planes = _silhouettes(sub, fast=not exact)
     cut = int(sub.sizes[0]) if sub.k and sub.ids[0] < 0 else 0
     plane_sizes = sizes[1:] if len(ids) and ids[0] < 0 else sizes
     return _summarize(sizes, sub, s, exact), _summarize(plane_sizes, sub.planes_only(), s_planes[cut:], exact)

@@ -201,6 +201,9 @@ def _best_plane(cols: np.ndarray, tolerance: float, probability: float, max_iter
     refinement, or None when every sampled triple was degenerate."""
     m = cols.shape[1]
     subset = cols if m <= SUBSET else cols[:, rng.choice(m, SUBSET, replace=False)]
+    # Scoring only ranks hypotheses: float32 halves its memory traffic, and the rounding (~1e-7 of
+    # the centred coordinates) only matters for points within a hair of t.
+    subset32 = subset.astype(np.float32)
     best_normals = np.empty((0, 3))
     best_offsets = np.empty(0)
     best_counts = np.empty(0, dtype=np.int64)
@@ -212,7 +215,8 @@ def _best_plane(cols: np.ndarray, tolerance: float, probability: float, max_iter
         iterations += batch
         if len(normals) == 0:
             continue
-        counts = np.count_nonzero(_distances(subset, normals, offsets) <= tolerance, axis=1)
+        counts = np.count_nonzero(_distances(subset32, normals.astype(np.float32), offsets.astype(np.float32))
+                                  <= tolerance, axis=1)
         # Keep the CONFIRM best hypotheses seen so far for confirmation on all points.
         best_normals = np.concatenate([best_normals, normals])
         best_offsets = np.concatenate([best_offsets, offsets])
@@ -299,7 +303,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     found, reason = _sequential(search, tolerance, max_planes, min_count, probability, int(max_iterations), rng,
                                 n_total=n_valid)
     labels = np.full(len(pts), -1, dtype=np.int32)
-    planes = _label_all(valid, valid_idx, center, labels, found, tolerance)
+    planes = _label_all(valid, search, valid_idx, center, labels, found, tolerance)
     return Segmentation(labels=labels, planes=planes, tolerance=tolerance, n_valid=n_valid, reason=reason)
 
 
@@ -336,7 +340,7 @@ def _nearest(cols: np.ndarray, found: list[tuple[np.ndarray, float]], tolerance:
     """Label each point of ``cols`` (3, n) with the nearest plane within ``tolerance`` (ties to
     the earlier plane; -1 when none). Returns (labels (n,) int32, distance to that plane (n,))."""
     dist = _distances(cols, np.array([n for n, _ in found]), np.array([d for _, d in found]))
-    best = dist[0].copy()
+    best = dist[0]  # the running minimum, in place (dist is our own buffer)
     labels = np.zeros(cols.shape[1], dtype=np.int32)
     for j in range(1, len(found)):
         closer = dist[j] < best
@@ -346,23 +350,26 @@ def _nearest(cols: np.ndarray, found: list[tuple[np.ndarray, float]], tolerance:
     return labels, best
 
 
-def _label_all(valid: np.ndarray, valid_idx: np.ndarray, center: np.ndarray, labels: np.ndarray,
-               found: list[tuple[np.ndarray, float]], tolerance: float) -> tuple[Plane, ...]:
-    """Label every valid point (``valid`` (3, n), centred on ``center``), refit each plane on its
-    points, label again; fills ``labels`` (N,) at ``valid_idx`` and returns the planes in the
-    caller's coordinates."""
+def _label_all(valid: np.ndarray, search: np.ndarray, valid_idx: np.ndarray, center: np.ndarray,
+               labels: np.ndarray, found: list[tuple[np.ndarray, float]], tolerance: float) -> tuple[Plane, ...]:
+    """Refit each plane on the searched points ``search`` (3, m) nearest to it, then label every
+    valid point (``valid`` (3, n); both centred on ``center``) with its nearest plane within
+    ``tolerance``; fills ``labels`` (N,) at ``valid_idx`` and returns the planes in the caller's
+    coordinates."""
     if not found:
         return ()
-    own, _ = _nearest(valid, found, tolerance)
-    # The search saw only part of the cloud (or the edge bands of its neighbours): refit on all.
-    found = [_fit_columns(np.compress(own == j, valid, axis=1)) if np.count_nonzero(own == j) >= 3 else plane
+    own, _ = _nearest(search, found, tolerance)
+    # Each plane's first fit saw the edge bands of the planes found after it: refit on the points
+    # nearest to it (on the search sample when there is one: as precise, and 4x fewer points).
+    found = [_fit_columns(np.compress(own == j, search, axis=1)) if np.count_nonzero(own == j) >= 3 else plane
              for j, plane in enumerate(found)]
     own, dist = _nearest(valid, found, tolerance)
     labels[valid_idx] = own
-    assigned = own >= 0
     k = len(found)
-    sizes = np.bincount(own[assigned], minlength=k)
-    mean_sq = np.bincount(own[assigned], weights=dist[assigned] ** 2, minlength=k) / np.maximum(sizes, 1)
+    dist *= dist
+    # label -1 counts in bin 0: no boolean selection of the assigned points needed
+    sizes = np.bincount(own + 1, minlength=k + 1)[1:]
+    mean_sq = np.bincount(own + 1, weights=dist, minlength=k + 1)[1:] / np.maximum(sizes, 1)
     planes = []
     for j, (normal, offset) in enumerate(found):
         normal, offset = _canonical(normal, offset - float(normal @ center))

@@ -35,7 +35,7 @@ MAX_THICKNESS = 0.2
 #: well-assigned plane; select_plane_count keeps the largest k whose planes all reach it.
 MIN_PLANE_SILHOUETTE = 0.05
 #: plane_thickness looks at a fixed random subset of this many inliers of a larger plane.
-THICKNESS_POINTS = 8192
+THICKNESS_POINTS = 4096
 #: A tuning candidate is eligible when its planes cover at least this share of the best coverage.
 MIN_RELATIVE_COVERAGE = 0.5
 #: Silhouette-type scores closer than this to the best count as ties (the smallest t wins).
