@@ -85,10 +85,10 @@ class View:
 
 #: The synthetic frames, in table order.
 VIEWS: dict[str, View] = {
-    'room': View('room', {}, eye=(2.0, 1.6, 1.5), target=(5.0, 2.4, 1.0), seed=1),
+    'room': View('room', {}, eye=(1.8, 1.0, 1.2), target=(5.0, 3.0, 1.5), seed=1),
     'table': View('table', {}, eye=(0.55, -0.6, 1.7), target=(0.6, 0.4, 0.8), seed=2),
     'boxes': View('boxes', {'outlier_fraction': 0.0}, eye=(3.0, 0.0, 1.5), target=(1.2, 2.2, 0.5), seed=3),
-    'stairs': View('stairs', {}, eye=(1.6, -0.7, 1.3), target=(0.55, 0.5, 0.35), seed=4),
+    'stairs': View('stairs', {}, eye=(-0.8, 0.5, 1.3), target=(0.6, 0.5, 0.4), seed=4),
 }
 
 

@@ -1,10 +1,16 @@
-"""The node end to end: a real plane_validation_node process fed PointCloud2s over Fast DDS.
+"""The node end to end: a real plane_validation node process fed PointCloud2s over Fast DDS.
 
-The node runs as ``python -m plane_validation.node`` (what ``ros2 run`` starts) with a fixed
-tolerance; this process publishes one organized frame over and over with fresh header stamps at
-a fixed rate (sensor-data QoS, as a camera driver does) and listens to ``/diagnostics``. Both
-processes use config/fastdds_large_clouds.xml (the caller sets FASTRTPS_DEFAULT_PROFILES_FILE
-before rclpy starts). Latency: from ``publish()`` to the arrival of that stamp's diagnostics.
+The node runs as ``python -m plane_validation.node`` (what ``ros2 run`` starts), one fresh
+process per run, on this process's ROS_DOMAIN_ID with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and
+the Fast DDS profile the caller put in FASTRTPS_DEFAULT_PROFILES_FILE (all set before rclpy
+starts). This process publishes organized frames in turn with fresh header stamps at a fixed
+rate (sensor-data QoS, as a camera driver does; stamps advance by 1/rate s, like a camera's) and
+listens to ``/diagnostics`` only.
+
+Per run: latency = arrival of a stamp's diagnostics - the moment just before ``publish()`` (both
+on this process's perf_counter); ``dropped`` = the node's own ``frames_dropped`` count (its
+one-slot mailbox); ``lost`` = frames neither answered nor counted by the node (lost in transport
+or still unanswered when the run ended). RSS: VmRSS / VmHWM of the node process from /proc.
 """
 from __future__ import annotations
 
@@ -15,53 +21,82 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 TOPIC = '/bench/points'
-FIRST_STAMP = 10**12
+FIRST_STAMP = 10**12   # ns; anything older on /diagnostics is not ours
+ANSWER_TIMEOUT = 5.0   # s to wait for the last answers after the last frame
 
 
 @dataclass
 class NodeRun:
-    """One run at one input rate (Hz). latencies_ms: per answered frame; dropped: the node's own
-    count; rss_mb: (frames sent, VmRSS MB) samples; peak_mb: VmHWM at the end."""
+    """One run. rate: input Hz; latencies_ms / processing_ms / retune_running: per answered frame
+    in stamp order; rss_mb: (frames sent, VmRSS MB) samples; peak_mb: VmHWM at the end."""
 
     rate: float
     sent: int
-    answered: int = 0
     dropped: int = 0
     latencies_ms: list[float] = field(default_factory=list)
     processing_ms: list[float] = field(default_factory=list)
+    retune_running: list[bool] = field(default_factory=list)
     rss_mb: list[tuple[int, float]] = field(default_factory=list)
     peak_mb: float = float('nan')
+    startup_rss_mb: float = float('nan')
+
+    @property
+    def answered(self) -> int:
+        return len(self.latencies_ms)
+
+    @property
+    def lost(self) -> int:
+        return self.sent - self.answered - self.dropped
+
+    @property
+    def sustained(self) -> bool:
+        """Every frame answered: nothing dropped by the node, nothing lost on the way."""
+        return self.answered == self.sent
 
 
-def _status_mb(pid: int, key: str) -> float:
-    with open(f'/proc/{pid}/status') as f:
-        for line in f:
-            if line.startswith(key + ':'):
-                return int(line.split()[1]) / 1024.0
+def status_mb(pid: int, key: str) -> float:
+    """A /proc/<pid>/status size (VmRSS, VmHWM) in MB, NaN when the process is gone."""
+    try:
+        with open(f'/proc/{pid}/status') as f:
+            for line in f:
+                if line.startswith(key + ':'):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
     return float('nan')
 
 
-class NodeBench:
-    """A publisher/listener in this process; start() a node process per run."""
+def cloud_message(points: np.ndarray, height: int, width: int):
+    """An rclpy PointCloud2 of (height*width, 3) points: x, y, z float32 and a zero rgb, organized
+    when height > 1 (the layout of a depth camera driver), built by plane_validation's create_cloud."""
+    import sensor_msgs.msg
+    from std_msgs.msg import Header
 
-    def __init__(self, points: np.ndarray, height: int, width: int, tolerance: float = 0.01, planes: int = 5):
+    from plane_validation.cloud import create_cloud, pack_rgb
+    pts = np.asarray(points, dtype=np.float32)
+    zero = np.zeros(len(pts), np.uint8)
+    msg = create_cloud(Header(frame_id='camera'), {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2],
+                                                   'rgb': pack_rgb(zero, zero, zero)}, types=sensor_msgs.msg)
+    msg.height, msg.width, msg.row_step = height, width, width * msg.point_step
+    return msg
+
+
+class NodeBench:
+    """Publisher and /diagnostics listener in this process; :meth:`run` starts one node process."""
+
+    def __init__(self, clouds: list, tolerance: float, planes: int, log_dir: Path) -> None:
         import rclpy
         import sensor_msgs.msg
         from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-        from std_msgs.msg import Header
 
-        from plane_validation.cloud import create_cloud
-
-        self.tolerance, self.planes = tolerance, planes
-        pts = np.asarray(points, dtype=np.float32)
-        self.msg = create_cloud(Header(frame_id='camera'), {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2]},
-                                types=sensor_msgs.msg)
-        self.msg.height, self.msg.width, self.msg.row_step = height, width, width * self.msg.point_step
+        self.clouds, self.tolerance, self.planes, self.log_dir = clouds, tolerance, planes, log_dir
         rclpy.init()
         self._rclpy = rclpy
         self.node = rclpy.create_node('plane_validation_bench')
@@ -69,8 +104,8 @@ class NodeBench:
         self._lock = threading.Lock()
         self._answers: dict[int, tuple[float, dict[str, str]]] = {}
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag,
-                                      QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE))
-        self._executor = rclpy.executors.SingleThreadedExecutor()
+                                      QoSProfile(depth=500, reliability=ReliabilityPolicy.RELIABLE))
+        self._executor = SingleThreadedExecutor()
         self._executor.add_node(self.node)
         self._spinner = threading.Thread(target=self._executor.spin, daemon=True)
         self._spinner.start()
@@ -82,54 +117,89 @@ class NodeBench:
             with self._lock:
                 self._answers[stamp] = (now, {kv.key: kv.value for kv in msg.status[0].values})
 
-    def run(self, rate: float, frames: int, rss_every: int = 0, params: tuple[str, ...] = ('auto_tune:=false',)
-            ) -> NodeRun:
-        """Start a node, send ``frames`` clouds at ``rate`` Hz, wait for the answers, stop it."""
-        proc = subprocess.Popen(
-            [sys.executable, '-m', 'plane_validation.node', '--ros-args', *[a for p in params for a in ('-p', p)],
-             '-p', f'tolerance:={self.tolerance}', '-p', f'max_planes:={self.planes}', '-r', f'cloud:={TOPIC}',
-             '--log-level', 'error'],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-        run = NodeRun(rate=rate, sent=frames)
-        sent: dict[int, float] = {}
+    def _start(self, params: dict[str, str], name: str) -> subprocess.Popen:
+        args = {'auto_tune': 'false', 'tolerance': str(self.tolerance), 'max_planes': str(self.planes), **params}
+        cmd = [sys.executable, '-m', 'plane_validation.node', '--ros-args',
+               *[a for k, v in args.items() for a in ('-p', f'{k}:={v}')], '-r', f'cloud:={TOPIC}']
+        log = open(self.log_dir / f'node_{name}.log', 'w')
+        try:
+            return subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        finally:
+            log.close()
+
+    @staticmethod
+    def _stop(proc: subprocess.Popen) -> None:
+        """SIGINT (a clean rclpy shutdown), then SIGKILL after 15 s."""
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+    def _wait_ready(self, proc: subprocess.Popen) -> None:
+        end = time.monotonic() + 30
+        while self.pub.get_subscription_count() == 0 or self.node.count_publishers('/diagnostics') == 0:
+            if proc.poll() is not None:
+                raise RuntimeError(f'node exited with {proc.returncode} (see {self.log_dir})')
+            if time.monotonic() > end:
+                raise RuntimeError('node not discovered within 30 s')
+            time.sleep(0.05)
+        time.sleep(1.0)  # let the node's /diagnostics writer match our reader too
+
+    def run(self, rate: float, frames: int, *, params: dict[str, str] | None = None, rss_every: int = 0,
+            name: str = 'run') -> NodeRun:
+        """Start a node, send ``frames`` clouds at ``rate`` Hz, collect the answers, stop the node."""
         with self._lock:
             self._answers.clear()
+        proc = self._start(params or {}, name)
+        run = NodeRun(rate=rate, sent=frames)
+        sent: dict[int, float] = {}
         try:
-            end = time.monotonic() + 30
-            while self.pub.get_subscription_count() == 0 and time.monotonic() < end:
-                time.sleep(0.05)
-            time.sleep(1.0)  # let the node's publishers match our listener
+            self._wait_ready(proc)
+            run.startup_rss_mb = status_mb(proc.pid, 'VmRSS')
             start = time.perf_counter()
             for i in range(frames):
                 target = start + i / rate
                 while (now := time.perf_counter()) < target:
                     time.sleep(min(0.002, target - now))
-                stamp = FIRST_STAMP + i * 10**7
-                self.msg.header.stamp.sec, self.msg.header.stamp.nanosec = stamp // 10**9, stamp % 10**9
+                stamp = FIRST_STAMP + round(i * 1e9 / rate)
+                msg = self.clouds[i % len(self.clouds)]
+                msg.header.stamp.sec, msg.header.stamp.nanosec = stamp // 10**9, stamp % 10**9
                 sent[stamp] = time.perf_counter()
-                self.pub.publish(self.msg)
+                self.pub.publish(msg)
                 if rss_every and (i + 1) % rss_every == 0:
-                    run.rss_mb.append((i + 1, _status_mb(proc.pid, 'VmRSS')))
-            time.sleep(1.5)
-            run.peak_mb = _status_mb(proc.pid, 'VmHWM')
+                    run.rss_mb.append((i + 1, status_mb(proc.pid, 'VmRSS')))
+            last = max(sent)
+            end = time.monotonic() + ANSWER_TIMEOUT
+            while time.monotonic() < end:
+                with self._lock:
+                    if last in self._answers:
+                        break
+                time.sleep(0.02)
+            time.sleep(0.2)
+            run.peak_mb = status_mb(proc.pid, 'VmHWM')
         finally:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait()
+            self._stop(proc)
         with self._lock:
             answers = dict(self._answers)
-        for stamp, (arrived, values) in answers.items():
+        for stamp in sorted(answers):
             if stamp in sent:
+                arrived, values = answers[stamp]
                 run.latencies_ms.append(1e3 * (arrived - sent[stamp]))
                 run.processing_ms.append(float(values.get('processing_ms', 'nan')))
+                run.retune_running.append(values.get('retune_running', 'false') == 'true')
                 run.dropped = max(run.dropped, int(values.get('frames_dropped', '0')))
-        run.answered = len(run.latencies_ms)
         return run
 
     def close(self) -> None:
         self._executor.shutdown(timeout_sec=2)
         self.node.destroy_node()
         self._rclpy.try_shutdown()
+
+
+def domain_environment() -> None:
+    """An isolated DDS domain for this process and its node processes (before rclpy starts)."""
+    os.environ.setdefault('ROS_DOMAIN_ID', str(150 + os.getpid() % 50))
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
