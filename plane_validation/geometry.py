@@ -42,7 +42,7 @@ def plane_basis(normal: np.ndarray) -> np.ndarray:
 
 def hull_polygon(local: np.ndarray, max_points: int = HULL_POINTS) -> np.ndarray:
     """Indices of the convex hull of 2-D points ``local`` (2, m), counter-clockwise; the two
-    extremes along x when the points are collinear, all of them when fewer than 3.
+    extremes along the longer side when the points are collinear, all of them when fewer than 3.
 
     Above ``max_points`` points the hull is that of the extreme points in 8 directions plus a
     fixed pseudo-random sample of ``max_points``: for display it is indistinguishable from the
@@ -58,8 +58,9 @@ def hull_polygon(local: np.ndarray, max_points: int = HULL_POINTS) -> np.ndarray
         candidates = np.concatenate([extremes, sample])  # Qhull merges repeated points
     try:
         return candidates[ConvexHull(local[:, candidates].T).vertices]
-    except (QhullError, ValueError):
-        return np.array([int(np.argmin(local[0])), int(np.argmax(local[0]))])
+    except (QhullError, ValueError):  # collinear: the two ends along the longer side
+        axis = int(np.argmax(np.ptp(local, axis=1)))
+        return np.array([int(np.argmin(local[axis])), int(np.argmax(local[axis]))])
 
 
 def plane_outlines(points: np.ndarray, labels: np.ndarray, seg: Segmentation) -> tuple[PlaneOutline, ...]:

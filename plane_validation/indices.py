@@ -411,23 +411,41 @@ def davies_bouldin_classic(points: np.ndarray, labels: np.ndarray) -> float:
 # Silhouettes
 
 
+#: Largest point set whose sampled silhouettes use the float32 distance sums.
+FAST_SILHOUETTE_POINTS = 5000
+#: Coordinates (after centring) beyond this fall back to cdist: float32 squares would overflow.
+FAST_SILHOUETTE_RANGE = 1e15
+
+
 def _cluster_distance_sums(cl: _Clusters, rows: np.ndarray, onehot: np.ndarray, fast: bool) -> np.ndarray:
     """(len(rows), K) summed distances from the sorted rows ``rows`` of ``cl`` to each cluster.
 
-    fast: float32 through |a|^2 + |b|^2 - 2 a.b on coordinates centred on the cluster set (about
-    2x faster than cdist, relative error ~1e-6: for sampled estimates only).
+    fast (for sampled estimates): float32 through |a|^2 + |b|^2 - 2 a.b, with both sides centred
+    on the target cluster's centroid, so the cancellation error stays ~1e-4 of the distances of
+    interest (within a cluster: its spread; between clusters: their separation). About 2x faster
+    than cdist on a 2,000-point sample; cdist when the set is large or has coordinates near the
+    float range (a driver's FLT_MAX rows).
     """
-    if not fast:
-        return cdist(cl.points[rows], cl.points) @ onehot
-    centred = (cl.points - cl.points.mean(axis=0)).astype(np.float32)
-    sq = np.einsum('ij,ij->i', centred, centred)
-    d = centred[rows] @ centred.T
-    d *= -2.0
-    d += sq[rows, None]
-    d += sq[None, :]
-    np.maximum(d, 0.0, out=d)
-    np.sqrt(d, out=d)
-    return (d @ onehot.astype(np.float32)).astype(np.float64)
+    points = cl.points[rows]
+    if fast and cl.n <= FAST_SILHOUETTE_POINTS:
+        sums = np.empty((len(rows), cl.k))
+        for c in range(cl.k):
+            members = cl.members(c)
+            centroid = members.mean(axis=0)
+            a, b = points - centroid, members - centroid
+            if max(np.abs(a).max(), np.abs(b).max()) > FAST_SILHOUETTE_RANGE:
+                break
+            a, b = a.astype(np.float32), b.astype(np.float32)
+            d = a @ b.T
+            d *= -2.0
+            d += np.einsum('ij,ij->i', a, a)[:, None]
+            d += np.einsum('ij,ij->i', b, b)[None, :]
+            np.maximum(d, 0.0, out=d)
+            np.sqrt(d, out=d)
+            sums[:, c] = d.sum(axis=1, dtype=np.float64)
+        else:
+            return sums
+    return cdist(points, cl.points) @ onehot
 
 
 def _silhouettes(cl: _Clusters, fast: bool = False) -> tuple[np.ndarray, np.ndarray]:

@@ -63,7 +63,7 @@ class PipelineConfig:
             (0 < self.probability < 1, 'probability must be in (0, 1)'),
             (self.max_iterations >= 1, 'max_iterations must be >= 1'),
             (self.index_sample_size >= 10, 'index_sample_size must be >= 10'),
-            (self.ransac_points == 0 or self.ransac_points >= 100, 'ransac_points must be 0 (all) or >= 100'),
+            (self.ransac_points == 0 or self.ransac_points >= 1000, 'ransac_points must be 0 (all) or >= 1000'),
             (self.voxel_size >= 0, 'voxel_size must be >= 0 m (0 = off)'),
         ]
         for ok, why in checks:
@@ -145,7 +145,8 @@ class FramePipeline:
         config.validate()
         with self._lock:
             tuning_fields = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points', 'criterion',
-                             'max_planes', 'min_inliers', 'voxel_size')
+                             'max_planes', 'min_inliers', 'voxel_size', 'probability', 'max_iterations',
+                             'index_sample_size', 'exact_indices', 'ransac_points')
             if any(getattr(config, f) != getattr(self.config, f) for f in tuning_fields):
                 self.tolerance, self.tuned_at, self.last_tuning = None, None, None
                 self._generation += 1

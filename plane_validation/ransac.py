@@ -3,10 +3,10 @@
 Pure numpy: no ROS import. Coordinates are in meters (or any consistent unit); the
 tolerance ``t`` is an absolute point-to-plane distance in the same unit.
 
-Internally the points are held as a (3, n) array centred on their mean: distances to k planes
+Internally the points are held as a (3, n) array centred on a median: distances to k planes
 are then one (k, 3) @ (3, n) product (a (n, 3) @ (3, k) product is ~20x slower in numpy for
 small k), columns are selected with ``np.compress``, and plane fits can use raw second moments
-without losing precision to large absolute coordinates.
+without losing precision to large absolute coordinates (each fit also centres its own points).
 """
 from __future__ import annotations
 
@@ -116,10 +116,11 @@ def fit_plane(points: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def _fit_columns(cols: np.ndarray) -> tuple[np.ndarray, float]:
-    """Least-squares plane through the columns of ``cols`` (3, n), which must be centred near
-    the origin (raw second moments lose precision on far-away points)."""
+    """Least-squares plane through the columns of ``cols`` (3, n), a scratch copy: it is centred
+    in place (raw second moments of far-away points would lose precision)."""
     centroid = cols.mean(axis=1)
-    scatter = (cols @ cols.T) / cols.shape[1] - np.outer(centroid, centroid)
+    cols -= centroid[:, None]
+    scatter = cols @ cols.T
     # Eigenvector of the smallest eigenvalue of the 3x3 scatter matrix.
     normal = np.linalg.eigh(scatter)[1][:, 0]
     return normal, float(-normal @ centroid)
@@ -267,10 +268,11 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     ransac_points: when there are more valid points, the sequential search runs on a random
         sample of this many (min_inliers scaled to the sample); None = always on all points.
 
-    The planes found are then refined on every valid point: each point is labelled with the
-    nearest plane within ``tolerance`` (ties to the earlier plane, -1 when none), every plane is
-    refitted by least squares on its points, and the points are labelled once more. So a point
-    within ``t`` of two planes along a shared edge goes to the nearer, not to the first found.
+    Each plane found is then refitted by least squares on the searched points nearest to it
+    (within ``tolerance``), and every valid point is labelled with the nearest plane within
+    ``tolerance`` (ties to the earlier plane, -1 when none): a point within ``t`` of two planes
+    along a shared edge goes to the nearer, not to the first found. A plane left with fewer than
+    ``min_inliers`` points by that labelling is dropped (and said so in ``reason``).
     """
     pts = as_points(points)
     tolerance = float(tolerance)
@@ -297,14 +299,20 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     center = np.median(valid[:, ::max(1, n_valid // 1024)], axis=1) if n_valid else np.zeros(3)
     valid -= center[:, None]
 
-    search = valid
+    search, search_min = valid, min_count
     if ransac_points is not None and n_valid > ransac_points:
         search = valid[:, np.sort(rng.choice(n_valid, int(ransac_points), replace=False))]
-        min_count = max(3, int(np.ceil(min_count * ransac_points / n_valid)))
-    found, reason = _sequential(search, tolerance, max_planes, min_count, probability, int(max_iterations), rng,
+        search_min = max(3, int(np.ceil(min_count * ransac_points / n_valid)))
+    found, reason = _sequential(search, tolerance, max_planes, search_min, probability, int(max_iterations), rng,
                                 n_total=n_valid)
     labels = np.full(len(pts), -1, dtype=np.int32)
     planes = _label_all(valid, search, valid_idx, center, labels, found, tolerance)
+    small = [j for j, plane in enumerate(planes) if len(plane.inliers) < min_count]
+    if small:  # a sample's count is only an estimate (or a neighbour took the points): check all
+        found = [plane for j, plane in enumerate(found) if j not in small]
+        planes = _label_all(valid, search, valid_idx, center, labels, found, tolerance)
+        reason += (f'; dropped {len(small)} plane(s) left with fewer than min_inliers={min_count} points '
+                   'once every point was labelled')
     return Segmentation(labels=labels, planes=planes, tolerance=tolerance, n_valid=n_valid, reason=reason)
 
 

@@ -53,3 +53,14 @@ def test_outlines_lie_in_their_planes():
         np.testing.assert_allclose(outline.centroid, scene.points[seg.labels == k].mean(axis=0))
         assert np.abs(outline.corners @ plane.normal + plane.offset).max() < 1e-9
         assert outline.extent == pytest.approx(100.0, rel=0.05)  # the cube's side
+
+
+def test_collinear_plane_points_get_their_length_as_extent():
+    # a plane z = 0 whose points lie on one line along x (a scan line), below and above HULL_POINTS
+    for n in (200, 5000):
+        points = np.column_stack([np.linspace(0, 2, n), np.zeros(n), np.zeros(n)])
+        labels = np.zeros(n, np.int32)
+        seg = pv.Segmentation(labels=labels, planes=(pv.Plane(np.array([0.0, 0, 1]), 0.0, np.arange(n), 0.0),),
+                              tolerance=0.01, n_valid=n, reason='')
+        outline = plane_outlines(points, labels, seg)[0]
+        assert outline.extent == pytest.approx(2.0)

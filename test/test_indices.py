@@ -478,3 +478,22 @@ def test_sampled_separation_is_exact_when_the_cloud_fits_the_sample():
     labels = detect_planes(scene.points, 5.0, seed=0).labels
     assert pi.validity_indices(scene.points, labels, sample_size=2000, sampled_separation=True) == \
         pi.validity_indices(scene.points, labels, sample_size=2000)
+
+
+def test_sampled_silhouettes_survive_a_float_max_row_and_wide_clouds():
+    # A driver's FLT_MAX row (unassigned) must not turn the float32 distance sums into NaN.
+    scene = scenes.corner(10_000, 0.01, side=1.0, outlier_fraction=0.05, seed=0)
+    labels = detect_planes(scene.points, 0.03, seed=0).labels
+    points = scene.points.copy()
+    points[np.flatnonzero(labels < 0)[0]] = np.finfo(np.float32).max
+    clean = pi.validity_indices(scene.points, labels, seed=1)
+    for seed in range(12):
+        assert pi.validity_indices(points, labels, seed=seed).gs_planes > clean.gs_planes - 0.05
+    # Two small corners 1 km apart: distances within a corner keep their precision.
+    a = scenes.corner(6000, 0.002, side=0.2, seed=0)
+    b = scenes.corner(6000, 0.002, side=0.2, seed=1)
+    pts = np.vstack([a.points, b.points + [1000.0, 0, 0]])
+    lab = np.concatenate([a.labels, np.where(b.labels >= 0, b.labels + 3, -1)])
+    fast = pi.validity_indices(pts, lab, seed=0)
+    near = pi.validity_indices(np.vstack([a.points, b.points + [10.0, 0, 0]]), lab, seed=0)
+    assert fast.gs_planes == pytest.approx(near.gs_planes, abs=1e-3)

@@ -268,3 +268,23 @@ def test_far_away_coordinates_keep_their_precision():
     for a, b in zip(near.planes, far.planes):
         assert angle_deg(a.normal, b.normal) < 1e-4
         assert b.rms < 1e-6
+
+
+def test_a_far_small_plane_keeps_its_precision():
+    # 1 m corner at the origin and a tilted 1 m patch 100 km away, 1 um noise, t = 5 um.
+    rng = np.random.default_rng(0)
+    rot = Rotation.from_euler('xyz', [0.3, 0.7, 1.1]).as_matrix()
+    patch = np.column_stack([rng.random((6000, 2)), np.zeros(6000)]) @ rot.T + [1e5, 0, 0]
+    pts = np.vstack([scenes.corner(20000, 0.0, side=1.0, seed=0).points, patch])
+    pts += rng.normal(0, 1e-6, pts.shape)
+    seg = pv.detect_planes(pts, 5e-6, seed=0, min_inliers=1000)
+    far = seg.labels[20000:]
+    assert np.bincount(far[far >= 0]).max() >= 5990
+
+
+def test_planes_below_min_inliers_after_labelling_are_dropped():
+    scene = scenes.boxes(100_000, seed=1)
+    seg = pv.detect_planes(scene.points, 0.02, seed=0, min_inliers=2000, ransac_points=100)
+    assert seg.n_planes >= 3
+    assert all(len(p.inliers) >= 2000 for p in seg.planes)
+    np.testing.assert_array_equal(np.unique(seg.labels[seg.labels >= 0]), np.arange(seg.n_planes))
