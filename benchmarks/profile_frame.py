@@ -17,20 +17,24 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from pvbench.frames import VIEWS, load_frames, render  # noqa: E402
+from pvbench.node_e2e import cloud_message  # noqa: E402
 from pyinstrument import Profiler  # noqa: E402
+from suite import STEADY  # noqa: E402
 
 from plane_validation import pipeline as pv_pipeline  # noqa: E402
 from plane_validation.messages import frame_messages  # noqa: E402
 from plane_validation.pipeline import FramePipeline  # noqa: E402
-from pvbench.frames import VIEWS, load_frames, render  # noqa: E402
-from pvbench.node_e2e import cloud_message  # noqa: E402
-from suite import STEADY  # noqa: E402
 
 PACKAGE = 'plane_validation/'
 
 
 def _key(frame) -> str:
-    return f'{frame.function} ({frame.file_path_short}:{frame.line_no})'
+    """'function (file:line)'; a built-in (numpy C code) also names its Python caller."""
+    key = f'{frame.function} ({frame.file_path_short}:{frame.line_no})'
+    if frame.file_path_short and frame.file_path_short.startswith('<built-in>') and frame.parent is not None:
+        key = f'{frame.function} ← {frame.parent.function} ({frame.parent.file_path_short}:{frame.parent.line_no})'
+    return key
 
 
 def aggregate(root) -> tuple[dict[str, float], dict[str, float]]:

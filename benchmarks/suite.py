@@ -34,18 +34,23 @@ os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(ROOT / 'config' / 'f
 
 import numpy as np  # noqa: E402
 import scipy  # noqa: E402
+from pvbench import open3d_ref, quality  # noqa: E402
+from pvbench.frames import Frame, load_frames, resampled, synthetic_frames  # noqa: E402
+from pvbench.node_e2e import NodeBench, NodeRun, cloud_message  # noqa: E402
+from pvbench.stats import Summary, loglog_exponent  # noqa: E402
 
 from plane_validation import pipeline as pv_pipeline  # noqa: E402
 from plane_validation import ransac as pv_ransac  # noqa: E402
 from plane_validation.cloud import xyz_array  # noqa: E402
 from plane_validation.indices import validity_indices  # noqa: E402
-from plane_validation.pipeline import FramePipeline, FrameResult, PipelineConfig, frame_seed  # noqa: E402
+from plane_validation.pipeline import (  # noqa: E402
+    FramePipeline,
+    FrameResult,
+    PipelineConfig,
+    frame_seed,
+)
 from plane_validation.ransac import as_points, detect_planes  # noqa: E402
 from plane_validation.tuning import judge  # noqa: E402
-from pvbench import open3d_ref, quality  # noqa: E402
-from pvbench.frames import Frame, load_frames, resampled, synthetic_frames  # noqa: E402
-from pvbench.node_e2e import NodeBench, NodeRun, cloud_message  # noqa: E402
-from pvbench.stats import Summary, loglog_exponent  # noqa: E402
 
 TOLERANCE = 0.01       # m, as in the issue's Open3D measurement
 PLANES = 5
@@ -54,7 +59,8 @@ MIN_INLIERS = 0.005    # fraction of the valid points: small enough that 5 plane
 SIZES = (10_000, 30_000, 100_000, 300_000, 1_000_000)
 RATES = (2, 5, 10, 15, 20, 30)
 F1_SLACK = 0.01        # F1 differences below this count as equal (run-to-run spread)
-RSS_GROWTH_MB = 10.0   # "no growth": RSS at the last sample within this of the sample at frame 100
+RSS_GROWTH_MB = 10.0   # "no growth": the fitted RSS trend from frame 100 to the end stays below this
+RSS_EVERY = 50         # frames between RSS samples of figure (5)
 STEADY = PipelineConfig(auto_tune=False, tolerance=TOLERANCE, max_planes=PLANES, index_sample_size=SAMPLE,
                         min_inliers=MIN_INLIERS)
 
@@ -235,6 +241,17 @@ def scaling(frame: Frame, repeats: int, sizes) -> tuple[list[tuple[int, Summary,
     return rows, loglog_exponent(ns, [r[1].median for r in rows]), loglog_exponent(ns, [r[2].median for r in rows])
 
 
+def rss_growth(samples: list[tuple[int, float]]) -> tuple[float, int, int]:
+    """(MB, first frame, last frame): a least-squares line through the RSS samples from frame 100
+    on, evaluated from its first to its last frame (robust to the sawtooth of the allocator)."""
+    late = [(n, mb) for n, mb in samples if n >= 100] or samples
+    if len(late) < 2:
+        return float('nan'), late[0][0] if late else 0, late[-1][0] if late else 0
+    n, mb = np.array(late, dtype=float).T
+    slope = np.polyfit(n, mb, 1)[0]
+    return float(slope * (n[-1] - n[0])), int(n[0]), int(n[-1])
+
+
 # -- report ----------------------------------------------------------------------------------------
 
 def machine() -> str:
@@ -247,15 +264,15 @@ def machine() -> str:
         pass
     try:
         commit = subprocess.run(['git', 'rev-parse', '--short', 'HEAD'], cwd=ROOT, capture_output=True,
-                                text=True).stdout.strip()
+                                text=True, check=False).stdout.strip()
         dirty = subprocess.run(['git', 'status', '--porcelain', '--', 'plane_validation'], cwd=ROOT,
-                               capture_output=True, text=True).stdout.split()[1::2]
+                               capture_output=True, text=True, check=False).stdout.split()[1::2]
     except OSError:
         commit, dirty = 'unknown', []
     code = f'commit {commit}' + (f' + uncommitted {", ".join(dirty)}' if dirty else '')
     return (f'{time.strftime("%Y-%m-%d %H:%M")}; {os.cpu_count()} cores ({model}); Python '
             f'{platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, '
-            f'Open3D {open3d_ref.version()}; code: {code}')
+            f'Open3D {open3d_ref.version()}; code: {code}; load average {os.getloadavg()[0]:.2f} at start')
 
 
 def print_steady(frames: list[Frame], steady: list[Steady], refs: list[Reference | None], repeats: int) -> None:
@@ -306,12 +323,11 @@ def print_node(runs: list[NodeRun], retune: NodeRun | None, memory: NodeRun | No
               f'runs {fmt(Summary.of(during))} ms over {len(during)} frames, otherwise {fmt(Summary.of(idle))} ms')
     if memory is not None:
         print(f'\n## (5) node memory — {memory.sent} frames at {memory.rate:g} Hz, all 640 × 480 frames in turn\n')
-        print(f'RSS at start {memory.startup_rss_mb:.0f} MB; RSS (MB) every 100 frames: '
+        print(f'RSS at start {memory.startup_rss_mb:.0f} MB; RSS (MB) every {RSS_EVERY} frames: '
               + ', '.join(f'{rss:.0f}' for _, rss in memory.rss_mb))
-        growth = memory.rss_mb[-1][1] - memory.rss_mb[0][1] if memory.rss_mb else float('nan')
-        print(f'peak RSS (VmHWM) {memory.peak_mb:.0f} MB; growth from frame {memory.rss_mb[0][0]} to '
-              f'{memory.rss_mb[-1][0]}: {growth:+.1f} MB; answered {memory.answered}, dropped {memory.dropped}, '
-              f'lost {memory.lost}')
+        growth, first, last = rss_growth(memory.rss_mb)
+        print(f'peak RSS (VmHWM) {memory.peak_mb:.0f} MB; growth from frame {first} to {last} (fitted line): '
+              f'{growth:+.1f} MB; answered {memory.answered}, dropped {memory.dropped}, lost {memory.lost}')
 
 
 # -- main ------------------------------------------------------------------------------------------
@@ -374,11 +390,48 @@ def targets(fig: Figures) -> list[tuple[str, str, bool]]:
                        bool(during) and worst < fig.sweep_ms.median))
     if fig.memory is not None and fig.memory.rss_mb:
         mem = fig.memory
-        growth = mem.rss_mb[-1][1] - mem.rss_mb[0][1]
+        growth, first, last = rss_growth(mem.rss_mb)
         checks.append(('node peak RSS ≤ 400 MB', f'{mem.peak_mb:.0f} MB', mem.peak_mb <= 400))
-        checks.append((f'no RSS growth, frame {mem.rss_mb[0][0]} → {mem.rss_mb[-1][0]} (≤ {RSS_GROWTH_MB:g} MB)',
+        checks.append((f'no RSS growth, frame {first} → {last} (fitted, ≤ {RSS_GROWTH_MB:g} MB)',
                        f'{growth:+.1f} MB', growth <= RSS_GROWTH_MB))
     return checks
+
+
+def print_summary(fig: Figures) -> None:
+    """One table of the headline figures on the reference frame: median, min, max."""
+    i = fig.ref_index
+    frame, ours, ref = fig.frames[i], fig.steady[i], fig.refs[i]
+    rows: list[tuple[str, Summary, str]] = [
+        ('(1) steady-state frame, total', ours.total, 'ms'), ('(1) conversion', ours.convert, 'ms'),
+        ('(1) RANSAC', ours.ransac, 'ms'), ('(1) indices', ours.indices, 'ms'),
+        ('(1) publishing side (messages built)', ours.publish, 'ms')]
+    if fig.sweep_ms is not None:
+        rows.append(('(2) full auto-tune sweep', fig.sweep_ms, 'ms'))
+    if ref is not None:
+        rows.append(('(3) Open3D, 5 sequential segment_plane', ref.time, 'ms'))
+        ratio = ours.total.median / ref.time.median
+        rows.append(('(3) ours / Open3D (medians)', Summary(ratio, ratio, ratio, 1), ''))
+    for run in fig.rates:
+        if run.rate in (10, 30):
+            label = f'(4) node latency at {run.rate:g} Hz ({run.answered}/{run.sent} answered, {run.dropped} dropped)'
+            rows.append((label, Summary.of(run.latencies_ms), 'ms'))
+    if fig.rates:
+        best = float(max((r.rate for r in fig.rates if r.sustained), default=0))
+        rows.append(('(4) highest input rate with no drops (of ' + ', '.join(f'{r.rate:g}' for r in fig.rates) + ')',
+                     Summary(best, best, best, 1), 'Hz'))
+    if fig.memory is not None and fig.memory.rss_mb:
+        rss = Summary.of([mb for _, mb in fig.memory.rss_mb])
+        rows.append((f'(5) node RSS over {fig.memory.sent} frames (peak VmHWM {fig.memory.peak_mb:.0f} MB)', rss, 'MB'))
+        growth = rss_growth(fig.memory.rss_mb)[0]
+        rows.append(('(5) RSS growth, frame 100 to the end (fitted)', Summary(growth, growth, growth, 1), 'MB'))
+    if fig.exponents is not None:
+        for label, b in zip(('pipeline', 'RANSAC alone'), fig.exponents):
+            rows.append((f'(6) exponent b of time ∝ N^b, {label}', Summary(b, b, b, 1), ''))
+    print(f'\n## Summary — reference frame {frame.name} ({frame.n_valid} valid points)\n')
+    print('| figure | median | min | max | unit |\n| --- | ---: | ---: | ---: | --- |')
+    for what, s, unit in rows:
+        digits = 2 if unit in ('', 'Hz') else 1
+        print(f'| {what} | {s.median:.{digits}f} | {s.low:.{digits}f} | {s.high:.{digits}f} | {unit} |')
 
 
 def run_node(fig: Figures, quick: bool, rss_frames: int) -> None:
@@ -397,7 +450,7 @@ def run_node(fig: Figures, quick: bool, rss_frames: int) -> None:
             rate = min(10, max(sustained, default=min(RATES)))
             bench.clouds = [cloud_message(f.points, f.height, f.width) for f in fig.frames
                             if f.height * f.width == 640 * 480]
-            fig.memory = bench.run(rate, rss_frames, rss_every=100, name='memory')
+            fig.memory = bench.run(rate, rss_frames, rss_every=RSS_EVERY, name='memory')
         finally:
             bench.close()
 
@@ -458,10 +511,12 @@ def main(argv: list[str] | None = None) -> int:
         run_node(fig, args.quick, rss_frames)
         print_node(fig.rates, fig.retune, fig.memory, ref)
 
+    print_summary(fig)
     print('\n## Targets (issue 7)\n')
     print('| target | measured | |\n| --- | --- | --- |')
     for what, value, ok in targets(fig):
         print(f'| {what} | {value} | {"PASS" if ok else "FAIL"} |')
+    print(f'\nload average at the end (1 min): {os.getloadavg()[0]:.2f} — other work on the machine skews the times')
     return 0
 
 

@@ -121,11 +121,8 @@ class NodeBench:
         args = {'auto_tune': 'false', 'tolerance': str(self.tolerance), 'max_planes': str(self.planes), **params}
         cmd = [sys.executable, '-m', 'plane_validation.node', '--ros-args',
                *[a for k, v in args.items() for a in ('-p', f'{k}:={v}')], '-r', f'cloud:={TOPIC}']
-        log = open(self.log_dir / f'node_{name}.log', 'w')
-        try:
+        with open(self.log_dir / f'node_{name}.log', 'w') as log:  # the child keeps its own descriptor
             return subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
-        finally:
-            log.close()
 
     @staticmethod
     def _stop(proc: subprocess.Popen) -> None:

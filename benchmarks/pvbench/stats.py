@@ -21,14 +21,14 @@ class Summary:
     count: int
 
     @classmethod
-    def of(cls, values: Sequence[float]) -> 'Summary':
+    def of(cls, values: Sequence[float]) -> Summary:
         """Summary of ``values``; NaN everywhere when there are none."""
         vals = [float(v) for v in values if v is not None and math.isfinite(v)]
         if not vals:
             return cls(math.nan, math.nan, math.nan, 0)
         return cls(statistics.median(vals), min(vals), max(vals), len(vals))
 
-    def scaled(self, factor: float) -> 'Summary':
+    def scaled(self, factor: float) -> Summary:
         """The same summary in another unit (e.g. 1e3 for s -> ms)."""
         return Summary(self.median * factor, self.low * factor, self.high * factor, self.count)
 
