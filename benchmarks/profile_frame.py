@@ -32,8 +32,12 @@ PACKAGE = 'plane_validation/'
 def _key(frame) -> str:
     """'function (file:line)'; a built-in (numpy C code) also names its Python caller."""
     key = f'{frame.function} ({frame.file_path_short}:{frame.line_no})'
-    if frame.file_path_short and frame.file_path_short.startswith('<built-in>') and frame.parent is not None:
-        key = f'{frame.function} ← {frame.parent.function} ({frame.parent.file_path_short}:{frame.parent.line_no})'
+    if frame.file_path_short and frame.file_path_short.startswith('<built-in>'):
+        caller = frame.parent
+        while caller is not None and 'numpy/' in (caller.file_path_short or ''):  # numpy's Python wrappers
+            caller = caller.parent
+        if caller is not None:
+            key = f'{frame.function} ← {caller.function} ({caller.file_path_short}:{caller.line_no})'
     return key
 
 

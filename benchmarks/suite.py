@@ -506,6 +506,11 @@ def main(argv: list[str] | None = None) -> int:
         for n, w, s in rows:
             print(f'| {n} | {fmt(w)} | {fmt(s)} |')
         print(f'\nfitted exponent b of time ∝ N^b: pipeline {whole:.2f}, RANSAC alone {search:.2f}')
+        if len(rows) >= 2:
+            (n0, w0, s0), (n1, w1, s1) = rows[-2:]
+            print(f'between the two largest sizes ({n0} → {n1}): pipeline '
+                  f'{loglog_exponent([n0, n1], [w0.median, w1.median]):.2f}, RANSAC alone '
+                  f'{loglog_exponent([n0, n1], [s0.median, s1.median]):.2f}')
 
     if not args.skip_node:
         run_node(fig, args.quick, rss_frames)
