@@ -43,7 +43,7 @@ class PipelineConfig:
     max_iterations: int = 1000
     index_sample_size: int = 2000        # points for the sampled indices
     exact_indices: bool = False          # Dunn/DB on all points (slow on big clouds), not the sample
-    ransac_points: int = 65536           # RANSAC searches a random sample of this many points; 0 = all
+    ransac_points: int = 32768           # RANSAC searches a random sample of this many points; 0 = all
     voxel_size: float = 0.0              # m; 0 = off
     seed: int = 0                        # < 0 = fresh entropy every frame
 

@@ -24,7 +24,7 @@ SUBSET = 4096
 CONFIRM = 4
 #: Default for ``detect_planes(ransac_points=...)``: larger clouds are searched on a random
 #: sample of this many points; every point is then labelled against the planes found.
-RANSAC_POINTS = 65536
+RANSAC_POINTS = 32768
 #: Random points the degeneracy (spread) test looks at.
 SPREAD_POINTS = 1024
 #: A sample triple whose sine of the angle at its first point is below this is degenerate.
