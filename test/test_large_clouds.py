@@ -74,8 +74,17 @@ def test_full_resolution_clouds_arrive_with_the_shipped_profile():
             answered[stamp] = {kv.key: kv.value for kv in msg.status[0].values}
     probe.create_subscription(DiagnosticArray, '/diagnostics', on_diag,
                               QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
-    publisher = subprocess.Popen([sys.executable, '-c', PUBLISHER], env=env, stderr=subprocess.PIPE, text=True)
+    publisher = None
     try:
+        # The node's /diagnostics must reach the probe before any cloud is sent (a slow discovery
+        # would otherwise look like lost frames).
+        end = time.monotonic() + 30
+        while probe.count_publishers('/diagnostics') == 0 and time.monotonic() < end:
+            rclpy.spin_once(probe, timeout_sec=0.05)
+        assert probe.count_publishers('/diagnostics') > 0, 'the node never came up'
+        for _ in range(20):
+            rclpy.spin_once(probe, timeout_sec=0.05)  # let the reader and writer match
+        publisher = subprocess.Popen([sys.executable, '-c', PUBLISHER], env=env, stderr=subprocess.PIPE, text=True)
         end = time.monotonic() + 60
         while publisher.poll() is None and time.monotonic() < end:
             rclpy.spin_once(probe, timeout_sec=0.05)
@@ -84,7 +93,7 @@ def test_full_resolution_clouds_arrive_with_the_shipped_profile():
         assert publisher.wait(timeout=10) == 0, publisher.stderr.read()
     finally:
         for proc in (publisher, node):
-            if proc.poll() is None:
+            if proc is not None and proc.poll() is None:
                 proc.send_signal(signal.SIGINT)
                 try:
                     proc.wait(timeout=10)
