@@ -77,9 +77,7 @@ def _supported(fn, **kwargs) -> dict:
 
 
 def _finite(pts: np.ndarray) -> np.ndarray:
-    finite_rows = getattr(pv_ransac, 'finite_rows', None)
-    mask = finite_rows(pts) if finite_rows else np.isfinite(pts).all(axis=1)
-    return np.compress(mask, pts, axis=0)
+    return np.compress(pv_ransac.finite_rows(pts), pts, axis=0)
 
 
 # -- (1) steady-state frame, (3) Open3D, quality ---------------------------------------------------

@@ -109,10 +109,7 @@ def resolve_min_inliers(min_inliers: int | float, n_valid: int) -> int:
 
 def fit_plane(points: np.ndarray) -> tuple[np.ndarray, float]:
     """Least-squares plane through (n, 3) points (PCA): returns (unit normal (3,), offset)."""
-    pts = np.asarray(points, dtype=np.float64)
-    centroid = pts.mean(axis=0)
-    normal, offset = _fit_columns(np.ascontiguousarray((pts - centroid).T))
-    return normal, offset - float(normal @ centroid)
+    return _fit_columns(np.array(points, dtype=np.float64).T)  # a copy: _fit_columns centres it
 
 
 def _fit_columns(cols: np.ndarray) -> tuple[np.ndarray, float]:

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .indices import ValidityIndices, validity_indices
-from .ransac import RANSAC_POINTS, Segmentation, as_points, detect_planes
+from .ransac import RANSAC_POINTS, Segmentation, as_points, detect_planes, finite_rows
 
 __all__ = ['CRITERIA', 'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
            'select_plane_count', 'noise_from_segmentation', 'local_noise', 'judge', 'plane_thickness',
@@ -117,7 +117,7 @@ class PlaneCountResult:
 
 
 def _finite(points: np.ndarray) -> np.ndarray:
-    return points[np.isfinite(points).all(axis=1)]
+    return np.compress(finite_rows(points), points, axis=0)
 
 
 def local_noise(points: np.ndarray, *, k: int = 16, queries: int = 2000, seed=None) -> tuple[float, float]:

@@ -24,6 +24,7 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from plane_validation import scenes
+from plane_validation.geometry import plane_basis
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -100,21 +101,13 @@ def pixel_rays(width: int = WIDTH, height: int = HEIGHT, hfov_deg: float = HFOV_
                             np.ones(width * height)])
 
 
-def _plane_basis(normal: np.ndarray) -> np.ndarray:
-    """(3, 2) orthonormal in-plane axes."""
-    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = np.cross(normal, helper)
-    e1 /= np.linalg.norm(e1)
-    return np.column_stack([e1, np.cross(normal, e1)])
-
-
 def cast_face(eye: np.ndarray, rays: np.ndarray, plane: np.ndarray, face_points: np.ndarray) -> np.ndarray:
     """Ray parameter (= optical depth, m) where each scene-frame ray hits the convex face, inf if not.
 
     plane: (4,) a, b, c, d with unit normal; face_points: (m, 3) samples of the face (its outline).
     """
     normal, offset = plane[:3], plane[3]
-    basis = _plane_basis(normal)
+    basis = plane_basis(normal)[:, :2]  # (3, 2) orthonormal in-plane axes
     anchor = face_points.mean(axis=0)
     hull = ConvexHull((face_points - anchor) @ basis)
     corners = hull.points[hull.vertices]            # counter-clockwise
