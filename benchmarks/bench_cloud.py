@@ -6,7 +6,7 @@ import array
 
 import numpy as np
 
-from plane_validation.cloud import structured_array, xyz_array
+from plane_validation.formats.pointcloud2 import structured_array, xyz_array
 
 
 def main(repeats: int = 50) -> None:

@@ -39,18 +39,18 @@ from pvbench.frames import Frame, load_frames, resampled, synthetic_frames  # no
 from pvbench.node_e2e import NodeBench, NodeRun, cloud_message  # noqa: E402
 from pvbench.stats import Summary, loglog_exponent  # noqa: E402
 
-from plane_validation import pipeline as pv_pipeline  # noqa: E402
-from plane_validation import ransac as pv_ransac  # noqa: E402
-from plane_validation.cloud import xyz_array  # noqa: E402
-from plane_validation.indices import validity_indices  # noqa: E402
-from plane_validation.pipeline import (  # noqa: E402
+from plane_validation.app import pipeline as pv_pipeline  # noqa: E402
+from plane_validation.core import ransac as pv_ransac  # noqa: E402
+from plane_validation.formats.pointcloud2 import xyz_array  # noqa: E402
+from plane_validation.core.indices import validity_indices  # noqa: E402
+from plane_validation.app.pipeline import (  # noqa: E402
     FramePipeline,
     FrameResult,
     PipelineConfig,
     frame_seed,
 )
-from plane_validation.ransac import as_points, detect_planes  # noqa: E402
-from plane_validation.tuning import judge  # noqa: E402
+from plane_validation.core.ransac import as_points, detect_planes  # noqa: E402
+from plane_validation.core.verdict import judge  # noqa: E402
 
 TOLERANCE = 0.01       # m, as in the issue's Open3D measurement
 PLANES = 5
@@ -116,7 +116,7 @@ def _stages(msg, cfg: PipelineConfig, stamp_ns: int) -> tuple[float, float, floa
 def steady_state(frame: Frame, repeats: int) -> Steady:
     """The node's per-frame work at a fixed tolerance: process_cloud + frame_messages (total), and
     the same stages timed one at a time. A warm-up run first; stamps differ, so do the seeds."""
-    from plane_validation.messages import frame_messages
+    from plane_validation.ros.messages import frame_messages
     msg = cloud_message(frame.points, frame.height, frame.width)
     pipe = FramePipeline(STEADY)
     times: dict[str, list[float]] = {k: [] for k in ('total', 'convert', 'ransac', 'indices', 'publish')}

@@ -47,7 +47,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: E402
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
 from plane_validation import scenes  # noqa: E402
-from plane_validation.cloud import create_cloud, pack_rgb, rosbags_types  # noqa: E402
+from plane_validation.formats.pointcloud2 import create_cloud, pack_rgb, rosbags_types  # noqa: E402
 
 __all__ = ['BAGS', 'TOPIC', 'MSGTYPE', 'FRAME_ID', 'make_all', 'write_bag', 'frame_sha256', 'main']
 

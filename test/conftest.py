@@ -7,6 +7,6 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '1')
 
 # As the node and the command line do at start (see pipeline.limit_blas_threads).
-from plane_validation.pipeline import limit_blas_threads  # noqa: E402
+from plane_validation.app.pipeline import limit_blas_threads  # noqa: E402
 
 limit_blas_threads()

@@ -21,7 +21,7 @@ from std_msgs.msg import Float64MultiArray, Header
 from visualization_msgs.msg import MarkerArray
 
 import sensor_msgs.msg
-from plane_validation.cloud import create_cloud
+from plane_validation.formats.pointcloud2 import create_cloud
 
 OUTPUTS = {'segmented': PointCloud2, 'planes': MarkerArray, 'plane_poses': PoseArray,
            'plane_coefficients': Float64MultiArray}

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plane_validation.cloud import structured_array, xyz_array
+from plane_validation.formats.pointcloud2 import structured_array, xyz_array
 
 rosbag2 = pytest.importorskip('rosbags.rosbag2')
 typesys = pytest.importorskip('rosbags.typesys')

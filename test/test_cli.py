@@ -15,7 +15,7 @@ import pytest
 import plane_validation as pv
 from plane_validation import scenes
 from plane_validation.cli import build_parser, main, progress_bar
-from plane_validation.files import load_points
+from plane_validation.formats.files import load_points
 
 ROOT = Path(__file__).resolve().parents[1]
 BAGS = ROOT / 'bags'
@@ -210,7 +210,7 @@ def test_bundled_bag_frames(capsys):
 # -- the paper run ---------------------------------------------------------------------------------
 
 def test_paper_quick_run(tmp_path, capsys):
-    from plane_validation.paper import CASES
+    from plane_validation.app.paper import CASES
     out = tmp_path / 'paper'
     assert main(['paper', '--out', str(out), '--points', '400', '--steps', '10']) == 0
     assert 'wrote 16 figures' in capsys.readouterr().out

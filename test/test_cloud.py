@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from plane_validation.cloud import (
+from plane_validation.formats.pointcloud2 import (
     create_cloud, pack_rgb, rosbags_types, structured_array, unpack_rgb, xyz_array)
 
 sensor_msgs_msg = pytest.importorskip('sensor_msgs.msg')
@@ -461,7 +461,7 @@ def test_strict_rclpy_field_checks():
         'import array, numpy as np\n'
         'from sensor_msgs import msg as m\n'
         'from std_msgs.msg import Header\n'
-        'from plane_validation.cloud import create_cloud, xyz_array\n'
+        'from plane_validation.formats.pointcloud2 import create_cloud, xyz_array\n'
         'x = np.arange(5, dtype=np.float32)\n'
         'c = create_cloud(Header(frame_id="f"), {"x": x, "y": x, "z": x, "i": x.astype(np.uint8)},'
         ' types=m)\n'

@@ -6,7 +6,7 @@ import pytest
 
 from plane_validation import scenes
 from plane_validation.cli import main as cli_main
-from plane_validation.files import load_points, save_points
+from plane_validation.formats.files import load_points, save_points
 
 POINTS = scenes.corner(600, 1.0, scale=0.01, seed=2).points
 
@@ -140,8 +140,8 @@ BAGS = Path(__file__).resolve().parents[1] / 'bags'
 
 
 def test_bag_sources_pick_topic_and_message(tmp_path):
-    from plane_validation.cloud import xyz_array
-    from plane_validation.replay import read_clouds
+    from plane_validation.formats.pointcloud2 import xyz_array
+    from plane_validation.ros.replay import read_clouds
     frames = [xyz_array(msg) for _, _, msg in read_clouds(BAGS / 'corner_e025')]
     assert len(frames) == 5
     bag = str(BAGS / 'corner_e025')
@@ -169,7 +169,7 @@ def test_ros1_bag_source(tmp_path):
     from rosbags.rosbag1 import Writer as Writer1
     from rosbags.typesys import Stores, get_typestore
 
-    from plane_validation.cloud import create_cloud, rosbags_types
+    from plane_validation.formats.pointcloud2 import create_cloud, rosbags_types
     ts = get_typestore(Stores.ROS1_NOETIC)
     types = rosbags_types(ts)
     path = tmp_path / 'old.bag'

@@ -5,7 +5,7 @@ from scipy.spatial import ConvexHull
 
 import plane_validation as pv
 from plane_validation import scenes
-from plane_validation.geometry import hull_polygon, plane_basis, plane_outlines
+from plane_validation.core.geometry import hull_polygon, plane_basis, plane_outlines
 
 
 def polygon_area(xy: np.ndarray) -> float:

@@ -1,4 +1,4 @@
-"""Tests of plane_validation.indices against scikit-learn and brute-force scipy references."""
+"""Tests of plane_validation.core.indices against scikit-learn and brute-force scipy references."""
 from __future__ import annotations
 
 import math
@@ -11,9 +11,9 @@ from hypothesis import strategies as st
 from scipy.spatial.distance import cdist, pdist
 from sklearn import metrics
 
-from plane_validation import indices as pi
+from plane_validation.core import indices as pi
 from plane_validation import scenes
-from plane_validation.ransac import detect_planes
+from plane_validation.core.ransac import detect_planes
 
 TOL = 1e-9
 

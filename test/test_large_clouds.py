@@ -28,7 +28,7 @@ PUBLISHER = textwrap.dedent(f'''
     import rclpy, sensor_msgs.msg
     from rclpy.qos import qos_profile_sensor_data
     from std_msgs.msg import Header
-    from plane_validation.cloud import create_cloud
+    from plane_validation.formats.pointcloud2 import create_cloud
     rng = np.random.default_rng(0)
     v, u = np.mgrid[0:480, 0:640]
     x = (u - 320) / 525.0
@@ -60,7 +60,7 @@ PUBLISHER = textwrap.dedent(f'''
 
 def test_full_resolution_clouds_arrive_with_the_shipped_profile():
     env = dict(os.environ, FASTRTPS_DEFAULT_PROFILES_FILE=str(PROFILE))
-    node = subprocess.Popen([sys.executable, '-m', 'plane_validation.node', '--ros-args', '-p', 'auto_tune:=false',
+    node = subprocess.Popen([sys.executable, '-m', 'plane_validation.ros.node', '--ros-args', '-p', 'auto_tune:=false',
                              '-p', 'tolerance:=0.02', '-p', 'max_planes:=3', '-r', 'cloud:=/large/points'],
                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)

@@ -13,9 +13,9 @@ from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import PointCloud2, PointField  # noqa: E402
 
 from plane_validation import scenes  # noqa: E402
-from plane_validation.cloud import structured_array, xyz_array  # noqa: E402
-from plane_validation.node import PlaneValidationNode  # noqa: E402
-from plane_validation.pipeline import FramePipeline, PipelineConfig  # noqa: E402
+from plane_validation.formats.pointcloud2 import structured_array, xyz_array  # noqa: E402
+from plane_validation.ros.node import PlaneValidationNode  # noqa: E402
+from plane_validation.app.pipeline import FramePipeline, PipelineConfig  # noqa: E402
 from ros_harness import Harness, diag_values, make_header, xyz_cloud  # noqa: E402
 
 FIXED = {'auto_tune': False, 'tolerance': 0.01, 'seed': 7}
@@ -259,7 +259,7 @@ def test_node_process_stops_cleanly_on_signal(sig):
     import signal
     import subprocess
     import sys
-    proc = subprocess.Popen([sys.executable, '-m', 'plane_validation.node'], stdout=subprocess.PIPE,
+    proc = subprocess.Popen([sys.executable, '-m', 'plane_validation.ros.node'], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=dict(os.environ), start_new_session=True)
     try:
         time.sleep(3.0)
@@ -278,7 +278,7 @@ def test_node_with_invalid_startup_parameters_exits_with_a_reason():
     import os
     import subprocess
     import sys
-    proc = subprocess.run([sys.executable, '-m', 'plane_validation.node', '--ros-args', '-p', 'tune_min:=0.5',
+    proc = subprocess.run([sys.executable, '-m', 'plane_validation.ros.node', '--ros-args', '-p', 'tune_min:=0.5',
                            '-p', 'tune_max:=0.1'], capture_output=True, text=True, timeout=60, env=dict(os.environ))
     assert proc.returncode == 2
     assert 'tune_max must be greater than tune_min' in proc.stderr

@@ -120,7 +120,7 @@ def test_package_xml_format_3_and_declared_dependencies():
 
 
 def test_every_runtime_import_is_a_package_xml_dependency():
-    files = sorted((ROOT / PACKAGE).glob('*.py')) + sorted((ROOT / 'launch').glob('*.py'))
+    files = sorted((ROOT / PACKAGE).rglob('*.py')) + sorted((ROOT / 'launch').glob('*.py'))
     imports = _third_party_imports(files, local={PACKAGE})
     assert {'numpy', 'scipy', 'rclpy'} <= set(imports)  # the scan does see the imports
     assert _uncovered(imports, _depends(_package_xml(), 'exec_depend')) == []
@@ -217,7 +217,7 @@ def test_colcon_installs_executables_index_marker_and_share_files(prefix):
         assert installed.read_bytes() == (ROOT / rel).read_bytes(), f'{installed} differs from {rel}'
     site = _site_packages(prefix)
     assert (site / PACKAGE / '__init__.py').is_file()
-    assert (site / PACKAGE / 'node.py').is_file()
+    assert (site / PACKAGE / 'ros' / 'node.py').is_file()
 
 
 def test_colcon_build_needs_no_ros_wheels(prefix):

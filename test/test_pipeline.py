@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from plane_validation import scenes
-from plane_validation.pipeline import ERROR, OK, WARN, FramePipeline, PipelineConfig, voxel_downsample
+from plane_validation.app.pipeline import ERROR, OK, WARN, FramePipeline, PipelineConfig
+from plane_validation.core.geometry import voxel_downsample
 
 FIXED = PipelineConfig(auto_tune=False, tolerance=0.01, seed=1)
 

@@ -6,7 +6,7 @@ import numpy as np
 
 import plane_validation as pv
 from plane_validation import scenes
-from plane_validation.plot import plot_plane_count, plot_planes, plot_sweep
+from plane_validation.app.plot import plot_plane_count, plot_planes, plot_sweep
 
 CORNER = scenes.corner(900, 2.5, seed=5)
 

@@ -13,9 +13,9 @@ from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, W
 from rosbags.typesys import Stores, get_typestore
 
 from plane_validation import scenes
-from plane_validation.cloud import create_cloud, rosbags_types, structured_array
+from plane_validation.formats.pointcloud2 import create_cloud, rosbags_types, structured_array
 from plane_validation.cli import main as cli_main
-from plane_validation.replay import ReplayError, output_topics, replay_live, replay_offline
+from plane_validation.ros.replay import ReplayError, output_topics, replay_live, replay_offline
 
 ROOT = Path(__file__).resolve().parents[1]
 BAGS = ROOT / 'bags'

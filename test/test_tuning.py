@@ -4,7 +4,7 @@ import pytest
 
 import plane_validation as pv
 from plane_validation import scenes
-from plane_validation.tuning import CRITERIA, default_tolerances
+from plane_validation.core.tuning import CRITERIA, default_tolerances
 
 
 @pytest.fixture(scope='module')

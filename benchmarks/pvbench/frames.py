@@ -24,7 +24,7 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from plane_validation import scenes
-from plane_validation.geometry import plane_basis
+from plane_validation.core.geometry import plane_basis
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -197,20 +197,20 @@ def synthetic_frames(names: list[str] | None = None) -> list[Frame]:
 
 
 def load_frames(path: str) -> list[Frame]:
-    """Frames from a point file (via plane_validation.files.load_points) or the first cloud of a bag.
+    """Frames from a point file (via plane_validation.formats.files.load_points) or the first cloud of a bag.
 
     Raises ValueError (with the reason) when the file cannot be read.
     """
     p = Path(path)
     if p.is_dir() or p.suffix.lower() in ('.bag', '.mcap', '.db3'):
-        from plane_validation.cloud import xyz_array
-        from plane_validation.replay import read_clouds
+        from plane_validation.formats.pointcloud2 import xyz_array
+        from plane_validation.ros.replay import read_clouds
         bag = p if p.is_dir() else p.parent
         for _, _, msg in read_clouds(bag):
             pts = xyz_array(msg)
             return [Frame(name=p.name, points=pts, height=int(msg.height), width=int(msg.width), source=str(p))]
         raise ValueError(f'{p}: bag holds no PointCloud2 message')
-    from plane_validation.files import load_points
+    from plane_validation.formats.files import load_points
     try:
         pts = np.asarray(load_points(p), dtype=np.float64)
     except ValueError:

@@ -1,6 +1,6 @@
 """The node end to end: a real plane_validation node process fed PointCloud2s over Fast DDS.
 
-The node runs as ``python -m plane_validation.node`` (what ``ros2 run`` starts), one fresh
+The node runs as ``python -m plane_validation.ros.node`` (what ``ros2 run`` starts), one fresh
 process per run, on this process's ROS_DOMAIN_ID with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and
 the Fast DDS profile the caller put in FASTRTPS_DEFAULT_PROFILES_FILE (all set before rclpy
 starts). This process publishes organized frames in turn with fresh header stamps at a fixed
@@ -77,7 +77,7 @@ def cloud_message(points: np.ndarray, height: int, width: int):
     import sensor_msgs.msg
     from std_msgs.msg import Header
 
-    from plane_validation.cloud import create_cloud, pack_rgb
+    from plane_validation.formats.pointcloud2 import create_cloud, pack_rgb
     pts = np.asarray(points, dtype=np.float32)
     zero = np.zeros(len(pts), np.uint8)
     msg = create_cloud(Header(frame_id='camera'), {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2],
@@ -119,7 +119,7 @@ class NodeBench:
 
     def _start(self, params: dict[str, str], name: str) -> subprocess.Popen:
         args = {'auto_tune': 'false', 'tolerance': str(self.tolerance), 'max_planes': str(self.planes), **params}
-        cmd = [sys.executable, '-m', 'plane_validation.node', '--ros-args',
+        cmd = [sys.executable, '-m', 'plane_validation.ros.node', '--ros-args',
                *[a for k, v in args.items() for a in ('-p', f'{k}:={v}')], '-r', f'cloud:={TOPIC}']
         with open(self.log_dir / f'node_{name}.log', 'w') as log:  # the child keeps its own descriptor
             return subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)

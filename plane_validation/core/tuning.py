@@ -15,34 +15,22 @@ from scipy.spatial import cKDTree
 
 from .indices import ValidityIndices, validity_indices
 from .ransac import RANSAC_POINTS, Segmentation, as_points, detect_planes, finite_rows
+from .verdict import RELIABLE_GS_PLANES, SINGLE_PLANE_THICKNESS, judge, plane_thickness
 
 __all__ = ['CRITERIA', 'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
-           'select_plane_count', 'noise_from_segmentation', 'local_noise', 'judge', 'plane_thickness',
-           'RELIABLE_GS_PLANES',
-           'MAX_THICKNESS', 'MIN_PLANE_SILHOUETTE']
+           'select_plane_count', 'noise_from_segmentation', 'local_noise', 'MIN_PLANE_SILHOUETTE']
 
 #: Index name -> True when larger is better.
 CRITERIA = {'gs_planes': True, 'gs': True, 'silhouette': True, 'dunn': True, 'davies_bouldin': False,
             'davies_bouldin_classic': False}
 
-#: Below this GSplanes the planes are not reported as reliable: on plane-free clouds (sphere, bunny)
-#: the paper finds GS and GSplanes close to 0 (ours: up to 0.10 on noisy spheres); on our scenes
-#: with real planes it is 0.17-0.35 (the table with boxes: 0.13).
-RELIABLE_GS_PLANES = 0.15
-#: Largest RMS-thickness / in-plane-spread ratio of a plane called reliable (see plane_thickness).
-MAX_THICKNESS = 0.2
 #: A plane whose own mean silhouette S_j (eq. 5, among the planes) is below this is not a
 #: well-assigned plane; select_plane_count keeps the largest k whose planes all reach it.
 MIN_PLANE_SILHOUETTE = 0.05
-#: plane_thickness looks at a fixed random subset of this many inliers of a larger plane.
-THICKNESS_POINTS = 4096
 #: A tuning candidate is eligible when its planes cover at least this share of the best coverage.
 MIN_RELATIVE_COVERAGE = 0.5
 #: Silhouette-type scores closer than this to the best count as ties (the smallest t wins).
 SILHOUETTE_TIE = 0.01
-#: A lone plane this thin (see plane_thickness) is a plane; a thicker one may be a slab cut
-#: through stairs or a curved surface (a noisy 2 m floor with e = 1 cm is 0.01, a stair slope 0.14).
-SINGLE_PLANE_THICKNESS = 0.05
 
 
 @dataclass(frozen=True, eq=False)
@@ -288,46 +276,6 @@ def _choose(rows: list[TuningRow], criterion: str, n_points: int) -> int:
     # The reported SE runs ~1.5x small (shared sample noise), and 0.01 of silhouette is no real difference.
     margin = max(3 * getattr(rows[best].indices, se_name), SILHOUETTE_TIE) if se_name else 0.0
     return int(np.flatnonzero(masked >= masked[best] - margin)[0])
-
-
-def plane_thickness(points: np.ndarray, seg: Segmentation) -> np.ndarray:
-    """Per plane sqrt(l0 / l1) of its inlier scatter (smallest over middle eigenvalue): RMS
-    thickness over in-plane spread, 0 for a perfect plane, ~0.15 for the paper's corner at e = 7.5,
-    ~0.3 for a slab cut out of a sphere."""
-    out = []
-    for plane in seg.planes:
-        rows = plane.inliers
-        if len(rows) > THICKNESS_POINTS:  # a fixed random subset: the ratio is a robust statistic
-            rows = rows[np.random.default_rng(len(rows)).integers(0, len(rows), THICKNESS_POINTS)]
-        inl = points[rows]
-        if len(inl) < 3:
-            out.append(np.inf)
-            continue
-        centered = inl - inl.mean(axis=0)
-        ev = np.linalg.eigvalsh(centered.T @ centered)
-        out.append(float(np.sqrt(max(ev[0], 0.0) / ev[1])) if ev[1] > 0 else np.inf)
-    return np.array(out)
-
-
-def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices) -> tuple[bool, str]:
-    """Whether the planes of ``seg`` are reliable, with a one-line reason.
-
-    Reliable needs at least one plane, every plane flat (thickness ratio <= MAX_THICKNESS, see
-    :func:`plane_thickness`) and, for two planes or more, GSplanes >= RELIABLE_GS_PLANES. On
-    plane-free clouds (sphere, bunny) the tuned "planes" are thick slabs with GSplanes near 0.
-    """
-    if seg.n_planes == 0:
-        return False, f'no plane found ({seg.reason})'
-    thickness = plane_thickness(as_points(points), seg)
-    if np.max(thickness) > MAX_THICKNESS:
-        worst = int(np.argmax(thickness))
-        return False, f'plane {worst} is a thick slab (thickness ratio {thickness[worst]:.2f} > {MAX_THICKNESS})'
-    if seg.n_planes >= 2 and scores.gs_planes < RELIABLE_GS_PLANES:
-        return False, f'{seg.n_planes} planes but GSplanes {scores.gs_planes:.2f} < {RELIABLE_GS_PLANES}: ' \
-                      'the planes are not well separated'
-    if seg.n_planes == 1:
-        return True, f'1 plane, thickness ratio {thickness[0]:.3f}'
-    return True, f'{seg.n_planes} planes, GSplanes {scores.gs_planes:.2f}'
 
 
 def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 10,

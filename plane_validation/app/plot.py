@@ -13,7 +13,7 @@ def plot_planes(points: np.ndarray, labels: np.ndarray, path: str | Path, *, tit
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    from .messages import plane_colors
+    from ..core.geometry import plane_colors
 
     path = Path(path)
     if len(points) > max_points:
@@ -37,7 +37,7 @@ def plot_planes(points: np.ndarray, labels: np.ndarray, path: str | Path, *, tit
 
 def plot_cloud_message(msg, path: str | Path, *, title: str = '') -> Path:
     """Plot a ``segmented`` PointCloud2 (x, y, z, plane_id) as published by the node."""
-    from .cloud import structured_array, xyz_array
+    from ..formats.pointcloud2 import structured_array, xyz_array
     return plot_planes(xyz_array(msg), np.asarray(structured_array(msg)['plane_id']), path, title=title)
 
 
@@ -168,7 +168,7 @@ def plot_plane_count(result, path: str | Path, *, title: str = '', true_planes: 
     S_j >= MIN_PLANE_SILHOUETTE); right: Dunn and Davies-Bouldin. Legend entries give each
     index's own best k.
     """
-    from .tuning import CRITERIA, MIN_PLANE_SILHOUETTE
+    from ..core.tuning import CRITERIA, MIN_PLANE_SILHOUETTE
 
     path = Path(path)
     k = np.array(result.counts)

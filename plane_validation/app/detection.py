@@ -12,9 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .indices import ValidityIndices, validity_indices
-from .ransac import Segmentation, as_points, detect_planes
-from .tuning import TuningResult, judge, noise_from_segmentation, tune_tolerance
+from ..core.indices import ValidityIndices, validity_indices
+from ..core.ransac import Segmentation, as_points, detect_planes
+from ..core.tuning import TuningResult, noise_from_segmentation, tune_tolerance
+from ..core.verdict import judge
 
 __all__ = ['Detection', 'detect']
 

@@ -34,7 +34,7 @@ def load_points(source: str | Path) -> np.ndarray:
     or ROS 1 .bag (see :func:`plane_validation.bagcloud.parse_bag_source`).
     Raises ValueError naming the problem.
     """
-    from .bagcloud import parse_bag_source, read_bag_points
+    from .bags import parse_bag_source, read_bag_points
 
     bag = parse_bag_source(source)
     if bag is not None:
@@ -68,7 +68,7 @@ def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None 
     if lab is not None and len(lab) != len(pts):
         raise ValueError(f'{len(lab)} labels for {len(pts)} points')
     suffix = path.suffix.lower()
-    from .bagcloud import BAG_SUFFIXES, write_bag_points
+    from .bags import BAG_SUFFIXES, write_bag_points
     if suffix in BAG_SUFFIXES or suffix == '':
         return write_bag_points(path, pts)
     writers = {'.ply': _write_ply, '.pcd': _write_pcd, '.npy': _write_npy}

@@ -83,8 +83,8 @@ def parse_bag_source(source: str | Path) -> BagSource | None:
 
 def read_bag_points(source: BagSource) -> np.ndarray:
     """(height*width, 3) float64 x, y, z of one PointCloud2 in a bag (NaN holes kept)."""
-    from .cloud import xyz_array
-    from .replay import read_clouds
+    from .pointcloud2 import xyz_array
+    from ..ros.replay import read_clouds
 
     if source.index >= 0:
         seen = 0
@@ -123,7 +123,7 @@ def write_bag_points(path: str | Path, points: np.ndarray, *, topic: str = TOPIC
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
-    from .cloud import create_cloud, rosbags_types
+    from .pointcloud2 import create_cloud, rosbags_types
 
     path = Path(path)
     suffix = path.suffix.lower()

@@ -27,7 +27,7 @@ from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
 from .messages import frame_messages
-from .pipeline import (ERROR, LEVEL_NAMES, OK, WARN, FramePipeline, PipelineConfig, header_stamp_ns,
+from ..app.pipeline import (ERROR, LEVEL_NAMES, OK, WARN, FramePipeline, PipelineConfig, header_stamp_ns,
                        limit_blas_threads)
 
 #: name -> (description, (min, max) or None). Defaults come from PipelineConfig.

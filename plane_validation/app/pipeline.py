@@ -13,12 +13,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .cloud import xyz_array
-from .indices import ValidityIndices, validity_indices
-from .ransac import Segmentation, as_points, detect_planes, finite_rows
-from .tuning import CRITERIA, TuningResult, judge, noise_from_segmentation, tune_tolerance
+from ..formats.pointcloud2 import xyz_array
+from ..core.indices import ValidityIndices, validity_indices
+from ..core.geometry import voxel_downsample
+from ..core.ransac import Segmentation, as_points, detect_planes, finite_rows
+from ..core.tuning import CRITERIA, TuningResult, noise_from_segmentation, tune_tolerance
+from ..core.verdict import judge
 
-__all__ = ['PipelineConfig', 'FrameResult', 'FramePipeline', 'voxel_downsample', 'header_stamp_ns', 'frame_seed',
+__all__ = ['PipelineConfig', 'FrameResult', 'FramePipeline', 'header_stamp_ns', 'frame_seed',
            'OK', 'WARN', 'ERROR']
 
 OK, WARN, ERROR = 0, 1, 2
@@ -93,24 +95,6 @@ class FrameResult:
     @property
     def n_planes(self) -> int:
         return 0 if self.segmentation is None else self.segmentation.n_planes
-
-
-def voxel_downsample(points: np.ndarray, voxel_size: float) -> tuple[np.ndarray, np.ndarray]:
-    """Centroid of the points in each voxel of ``voxel_size`` meters.
-
-    Returns (centroids (m, 3), inverse (n,)) with ``inverse[i]`` the voxel of point i.
-    """
-    keys = np.floor(points / voxel_size).astype(np.int64)
-    keys -= keys.min(axis=0)
-    dims = keys.max(axis=0) + 1
-    if np.prod(dims.astype(float)) < 2**62:  # one integer key per voxel: a 1-D unique is much faster
-        _, inverse = np.unique(np.ravel_multi_index(keys.T, dims), return_inverse=True)
-    else:
-        _, inverse = np.unique(keys, axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    counts = np.bincount(inverse)
-    sums = np.column_stack([np.bincount(inverse, weights=points[:, i], minlength=len(counts)) for i in range(3)])
-    return sums / counts[:, None], inverse
 
 
 def header_stamp_ns(header) -> int:

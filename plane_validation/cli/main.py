@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .files import load_points
-from .report import format_planes
+from ..formats.files import load_points
+from ..app.report import format_planes
 
 __all__ = ['main', 'build_parser', 'format_planes', 'parse_tolerances']
 
@@ -81,7 +81,7 @@ def progress_bar(description: str, *, quiet: bool) -> Iterator[Callable[[int, in
 
 
 def _emit_json(document: dict) -> None:
-    from .report import dumps
+    from ..app.report import dumps
     print(dumps(document))
 
 
@@ -89,8 +89,8 @@ def _emit_json(document: dict) -> None:
 
 
 def cmd_detect(args: argparse.Namespace) -> int:
-    from .detection import detect
-    from .report import detection_document, format_indices
+    from ..app.detection import detect
+    from ..app.report import detection_document, format_indices
 
     points = load_points(args.cloud)
     tolerance = None if args.auto else args.tolerance
@@ -99,10 +99,10 @@ def cmd_detect(args: argparse.Namespace) -> int:
                      min_inliers=_min_inliers(args.min_inliers), progress=progress)
     written = []
     if args.out:
-        from .files import save_points
+        from ..formats.files import save_points
         written.append(save_points(args.out, points, det.segmentation.labels))
     if args.png:
-        from .plot import plot_planes
+        from ..app.plot import plot_planes
         valid = np.isfinite(points).all(axis=1)
         written.append(plot_planes(points[valid], det.segmentation.labels[valid], args.png, title=str(args.cloud)))
     if args.json:
@@ -129,8 +129,8 @@ def cmd_detect(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from .report import sweep_document, write_sweep_csv
-    from .tuning import tune_tolerance
+    from ..app.report import sweep_document, write_sweep_csv
+    from ..core.tuning import tune_tolerance
 
     points = load_points(args.cloud)
     with progress_bar('sweeping t', quiet=args.json) as progress:
@@ -141,7 +141,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.csv:
         written.append(write_sweep_csv(args.csv, result))
     if args.plot:
-        from .plot import plot_sweep
+        from ..app.plot import plot_sweep
         written.append(plot_sweep(result, args.plot, title=Path(str(args.cloud)).name))
     if args.json:
         _emit_json(sweep_document(args.cloud, points, result, seed=args.seed))
@@ -156,8 +156,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def cmd_planes(args: argparse.Namespace) -> int:
-    from .report import plane_count_document, plane_count_table
-    from .tuning import select_plane_count, tune_tolerance
+    from ..app.report import plane_count_document, plane_count_table
+    from ..core.tuning import select_plane_count, tune_tolerance
 
     points = load_points(args.cloud)
     min_inliers = _min_inliers(args.min_inliers)
@@ -170,7 +170,7 @@ def cmd_planes(args: argparse.Namespace) -> int:
     result = select_plane_count(points, tolerance, args.max_planes, min_inliers=min_inliers, seed=args.seed)
     written = []
     if args.plot:
-        from .plot import plot_plane_count
+        from ..app.plot import plot_plane_count
         written.append(plot_plane_count(result, args.plot, title=Path(str(args.cloud)).name))
     if args.json:
         _emit_json(plane_count_document(args.cloud, points, result, tolerance=tolerance, tolerance_source=source,
@@ -192,8 +192,8 @@ def cmd_planes(args: argparse.Namespace) -> int:
 
 
 def cmd_scene(args: argparse.Namespace) -> int:
-    from . import scenes
-    from .files import save_points
+    from ..core import scenes
+    from ..formats.files import save_points
 
     kwargs = {name: getattr(args, name) for name in ('noise', 'n_points', 'outlier_fraction', 'scale')
               if getattr(args, name) is not None}
@@ -211,7 +211,7 @@ def cmd_scene(args: argparse.Namespace) -> int:
 
 
 def cmd_paper(args: argparse.Namespace) -> int:
-    from .paper import CASES, linear_grid, run_paper
+    from ..app.paper import CASES, linear_grid, run_paper
 
     start = time.perf_counter()
     print(f'Running {len(CASES)} experiments into {args.out} ...', flush=True)
@@ -230,7 +230,7 @@ def cmd_paper(args: argparse.Namespace) -> int:
 
 def _config(args: argparse.Namespace):
     """PipelineConfig from the common options (only those given override the defaults)."""
-    from .pipeline import PipelineConfig
+    from ..app.pipeline import PipelineConfig
     changes = {name: getattr(args, name) for name in ('tolerance', 'seed', 'max_planes', 'min_inliers', 'voxel_size')
                if getattr(args, name, None) is not None}
     if getattr(args, 'fixed', False):
@@ -239,7 +239,7 @@ def _config(args: argparse.Namespace):
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
-    from .replay import replay_live, replay_offline
+    from ..ros.replay import replay_live, replay_offline
     cfg = _config(args)
     if args.live:
         summary = replay_live(args.bag, topic=args.topic, out=args.out, rate=args.rate, start_node=not args.no_node,
@@ -251,9 +251,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from .pipeline import PipelineConfig
-    from .plot import plot_cloud_message
-    from .replay import replay_live
+    from ..app.pipeline import PipelineConfig
+    from ..app.plot import plot_cloud_message
+    from ..ros.replay import replay_live
     out_dir = Path(args.out)
     out_dir.mkdir(parents=True, exist_ok=True)
     out_bag = out_dir / f'{Path(args.bag).name}.planes'
@@ -333,8 +333,8 @@ def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .scenes import SCENES
-    from .tuning import CRITERIA
+    from ..core.scenes import SCENES
+    from ..core.tuning import CRITERIA
 
     parser = argparse.ArgumentParser(
         prog='plane-validation', description='Self-validating plane detection: sequential RANSAC planes scored by '
@@ -432,7 +432,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    from .pipeline import limit_blas_threads
+    from ..app.pipeline import limit_blas_threads
     limit_blas_threads()  # small matrix products; spinning BLAS threads only slow a busy machine down
     try:
         return args.func(args)

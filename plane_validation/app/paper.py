@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import scenes
+from ..core import scenes
 from .plot import plot_plane_count, plot_sweep
-from .tuning import PlaneCountResult, TuningResult, select_plane_count, tune_tolerance
+from ..core.tuning import PlaneCountResult, TuningResult, select_plane_count, tune_tolerance
 
 __all__ = ['Case', 'CASES', 'CaseResult', 'run_paper', 'summary_markdown', 'linear_grid']
 

@@ -5,8 +5,6 @@ publish byte-identical messages for the same frame. Needs the ROS message packag
 """
 from __future__ import annotations
 
-import colorsys
-
 import numpy as np
 import sensor_msgs.msg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -14,25 +12,14 @@ from geometry_msgs.msg import Point, Pose, PoseArray, Quaternion, Vector3
 from std_msgs.msg import ColorRGBA, Float64MultiArray, MultiArrayDimension
 from visualization_msgs.msg import Marker, MarkerArray
 
-from .cloud import create_cloud, pack_rgb
-from .geometry import PlaneOutline, plane_outlines
-from .pipeline import FrameResult
+from ..formats.pointcloud2 import create_cloud, pack_rgb
+from ..core.geometry import UNASSIGNED_RGB, PlaneOutline, plane_colors, plane_outlines
+from ..app.pipeline import FrameResult
 
 __all__ = ['plane_colors', 'segmented_cloud', 'plane_markers', 'plane_poses', 'plane_coefficients',
            'diagnostics', 'frame_messages']
 
 _LEVELS = {0: DiagnosticStatus.OK, 1: DiagnosticStatus.WARN, 2: DiagnosticStatus.ERROR}
-#: Grey for unassigned points.
-UNASSIGNED_RGB = (128, 128, 128)
-
-
-def plane_colors(count: int) -> np.ndarray:
-    """(count, 3) uint8 distinct colours: golden-ratio steps around the hue circle."""
-    hues = (np.arange(count) * 0.618033988749895) % 1.0
-    rgb = np.array([colorsys.hsv_to_rgb(h, 0.85, 1.0) for h in hues], dtype=float).reshape(-1, 3)
-    return np.round(255 * rgb).astype(np.uint8)
-
-
 def segmented_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
     """x, y, z (float32), plane_id (int32, -1 unassigned) and packed rgb of the valid points."""
     labels = result.labels.astype(np.int32)

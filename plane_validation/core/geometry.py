@@ -1,9 +1,11 @@
-"""Plane outlines for display: centroid, in-plane frame and convex-hull polygon of each plane.
+"""Plane geometry for display and input reduction: outlines (centroid, in-plane frame, convex-hull
+polygon of each plane), plane colours and the voxel grid.
 
 Pure numpy/scipy (no ROS import); the node's markers and poses are built from these.
 """
 from __future__ import annotations
 
+import colorsys
 from dataclasses import dataclass
 
 import numpy as np
@@ -11,7 +13,8 @@ from scipy.spatial import ConvexHull, QhullError
 
 from .ransac import Segmentation
 
-__all__ = ['PlaneOutline', 'plane_basis', 'plane_outlines', 'hull_polygon']
+__all__ = ['PlaneOutline', 'plane_basis', 'plane_outlines', 'hull_polygon', 'plane_colors', 'UNASSIGNED_RGB',
+           'voxel_downsample']
 
 #: Largest point set whose hull is computed exactly (see hull_polygon).
 HULL_POINTS = 2048
@@ -82,3 +85,32 @@ def plane_outlines(points: np.ndarray, labels: np.ndarray, seg: Segmentation) ->
         extent = float(np.ptp(polygon, axis=1).max())
         out.append(PlaneOutline(centroid, rotation, centroid + (rotation[:, :2] @ polygon).T, extent))
     return tuple(out)
+
+
+#: Grey for unassigned points.
+UNASSIGNED_RGB = (128, 128, 128)
+
+
+def plane_colors(count: int) -> np.ndarray:
+    """(count, 3) uint8 distinct colours: golden-ratio steps around the hue circle."""
+    hues = (np.arange(count) * 0.618033988749895) % 1.0
+    rgb = np.array([colorsys.hsv_to_rgb(h, 0.85, 1.0) for h in hues], dtype=float).reshape(-1, 3)
+    return np.round(255 * rgb).astype(np.uint8)
+
+
+def voxel_downsample(points: np.ndarray, voxel_size: float) -> tuple[np.ndarray, np.ndarray]:
+    """Centroid of the points in each voxel of ``voxel_size`` meters.
+
+    Returns (centroids (m, 3), inverse (n,)) with ``inverse[i]`` the voxel of point i.
+    """
+    keys = np.floor(points / voxel_size).astype(np.int64)
+    keys -= keys.min(axis=0)
+    dims = keys.max(axis=0) + 1
+    if np.prod(dims.astype(float)) < 2**62:  # one integer key per voxel: a 1-D unique is much faster
+        _, inverse = np.unique(np.ravel_multi_index(keys.T, dims), return_inverse=True)
+    else:
+        _, inverse = np.unique(keys, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    counts = np.bincount(inverse)
+    sums = np.column_stack([np.bincount(inverse, weights=points[:, i], minlength=len(counts)) for i in range(3)])
+    return sums / counts[:, None], inverse

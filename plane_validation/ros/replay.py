@@ -20,7 +20,7 @@ from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from .pipeline import FramePipeline, FrameResult, PipelineConfig, header_stamp_ns
+from ..app.pipeline import FramePipeline, FrameResult, PipelineConfig, header_stamp_ns
 
 __all__ = ['ReplayError', 'FrameSummary', 'ReplaySummary', 'read_clouds', 'replay_offline', 'replay_live',
            'output_topics', 'POINTCLOUD2']
