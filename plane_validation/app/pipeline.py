@@ -2,83 +2,41 @@
 
 ``FramePipeline.process(points, stamp)`` takes one cloud, (re)tunes the tolerance when due,
 detects planes, scores them and returns a :class:`FrameResult` that says what to publish,
-including the diagnostic level and key-values. The only state is the current tolerance and
-when it was tuned; everything else comes from :class:`PipelineConfig`.
+including its :class:`~.diagnostics.Diagnostic`. The only state is the current tolerance and
+when it was tuned; everything else comes from :class:`~.config.PipelineConfig`.
 """
 from __future__ import annotations
 
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..formats.pointcloud2 import xyz_array
-from ..core.indices import ValidityIndices, validity_indices
 from ..core.geometry import voxel_downsample
+from ..core.indices import ValidityIndices, validity_indices
 from ..core.ransac import Segmentation, as_points, detect_planes, finite_rows
-from ..core.tuning import CRITERIA, TuningResult, noise_from_segmentation, tune_tolerance
+from ..core.tuning import TuningResult, noise_from_segmentation, tune_tolerance
 from ..core.verdict import judge
+from ..formats.pointcloud2 import trailing_bytes, xyz_array
+from .config import PipelineConfig
+from .diagnostics import Diagnostic, Level, fmt
 
-__all__ = ['PipelineConfig', 'FrameResult', 'FramePipeline', 'header_stamp_ns', 'frame_seed',
+__all__ = ['PipelineConfig', 'FrameResult', 'FramePipeline', 'header_stamp_ns', 'frame_seed', 'Level',
            'OK', 'WARN', 'ERROR']
 
-OK, WARN, ERROR = 0, 1, 2
-LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR'}
+OK, WARN, ERROR = Level.OK, Level.WARN, Level.ERROR
 
-
-@dataclass(frozen=True)
-class PipelineConfig:
-    """Every tunable of the pipeline; the node's ROS parameters map one to one onto these fields."""
-
-    tolerance: float = 0.02              # m, used when auto_tune is off and before the first tune
-    auto_tune: bool = True
-    tune_min: float = 0.0                # m; 0 = derive the candidate range from the cloud
-    tune_max: float = 0.0                # m; 0 = derive
-    tune_count: int = 12                 # candidates, geometrically spaced
-    tune_points: int = 20000             # subsample the sweep runs on
-    criterion: str = 'gs_planes'
-    retune_period: float = 0.0           # s; 0 = tune on the first frame only
-    max_planes: int = 10
-    min_inliers: float = 0.02            # count, or fraction of valid points when < 1
-    probability: float = 0.99
-    max_iterations: int = 1000
-    index_sample_size: int = 2000        # points for the sampled indices
-    exact_indices: bool = False          # Dunn/DB on all points (slow on big clouds), not the sample
-    ransac_points: int = 32768           # RANSAC searches a random sample of this many points; 0 = all
-    voxel_size: float = 0.0              # m; 0 = off
-    seed: int = 0                        # < 0 = fresh entropy every frame
-
-    def validate(self) -> 'PipelineConfig':
-        """Return self, or raise ValueError naming the first invalid field and why."""
-        checks = [
-            (np.isfinite(self.tolerance) and self.tolerance > 0, 'tolerance must be > 0 m'),
-            (self.tune_min >= 0 and self.tune_max >= 0, 'tune_min and tune_max must be >= 0 (0 = derive)'),
-            (self.tune_max == 0 or self.tune_max > self.tune_min,
-             'tune_max must be greater than tune_min'),
-            (self.tune_count >= 2, 'tune_count must be >= 2'),
-            (self.tune_points >= 100, 'tune_points must be >= 100'),
-            (self.criterion in CRITERIA, f'criterion must be one of {sorted(CRITERIA)}'),
-            (self.retune_period >= 0, 'retune_period must be >= 0 s'),
-            (self.max_planes >= 1, 'max_planes must be >= 1'),
-            (self.min_inliers >= 0, 'min_inliers must be >= 0'),
-            (0 < self.probability < 1, 'probability must be in (0, 1)'),
-            (self.max_iterations >= 1, 'max_iterations must be >= 1'),
-            (self.index_sample_size >= 10, 'index_sample_size must be >= 10'),
-            (self.ransac_points == 0 or self.ransac_points >= 1000, 'ransac_points must be 0 (all) or >= 1000'),
-            (self.voxel_size >= 0, 'voxel_size must be >= 0 m (0 = off)'),
-        ]
-        for ok, why in checks:
-            if not ok:
-                raise ValueError(why)
-        return self
-
+#: Configuration fields whose change voids the tuned tolerance (and a sweep in progress).
+TUNING_FIELDS = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points', 'criterion', 'max_planes',
+                 'min_inliers', 'voxel_size', 'probability', 'max_iterations', 'index_sample_size',
+                 'exact_indices', 'ransac_points')
 
 
 @dataclass(frozen=True, eq=False)
 class FrameResult:
     """What one frame produced. points: (n, 3) valid points (after voxelization when on),
-    labels: (n,) int32 for them. level: OK/WARN/ERROR. values: diagnostic key-values."""
+    labels: (n,) int32 for them; diagnostic: level, message and key-values to publish."""
 
     points: np.ndarray
     labels: np.ndarray
@@ -86,15 +44,25 @@ class FrameResult:
     indices: ValidityIndices | None
     tolerance: float
     tolerance_source: str
-    level: int
-    message: str
-    values: tuple[tuple[str, str], ...]
+    diagnostic: Diagnostic
     seconds: float
     plane_counts: tuple[int, ...] = ()  # labelled points per plane (input points, also with voxels)
 
     @property
     def n_planes(self) -> int:
         return 0 if self.segmentation is None else self.segmentation.n_planes
+
+    @property
+    def level(self) -> Level:
+        return self.diagnostic.level
+
+    @property
+    def message(self) -> str:
+        return self.diagnostic.message
+
+    @property
+    def values(self) -> tuple[tuple[str, str], ...]:
+        return self.diagnostic.values
 
 
 def header_stamp_ns(header) -> int:
@@ -118,6 +86,7 @@ class FramePipeline:
     tolerance: float | None = None       # tuned tolerance; None until the first tune
     tuned_at: float | None = None        # stamp (s) of the frame the tolerance was tuned on
     last_tuning: TuningResult | None = None
+    last_good: float | None = None       # the last tuned tolerance, kept across reconfiguration
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
     _generation: int = field(default=0, repr=False)  # bumped when the tuning set-up changes
 
@@ -128,10 +97,7 @@ class FramePipeline:
         """Swap the configuration (validated first); retune when the tuning setup changed."""
         config.validate()
         with self._lock:
-            tuning_fields = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points', 'criterion',
-                             'max_planes', 'min_inliers', 'voxel_size', 'probability', 'max_iterations',
-                             'index_sample_size', 'exact_indices', 'ransac_points')
-            if any(getattr(config, f) != getattr(self.config, f) for f in tuning_fields):
+            if any(getattr(config, f) != getattr(self.config, f) for f in TUNING_FIELDS):
                 self.tolerance, self.tuned_at, self.last_tuning = None, None, None
                 self._generation += 1
             self.config = config
@@ -142,6 +108,13 @@ class FramePipeline:
             if self.config.auto_tune and self.tolerance is not None:
                 return self.tolerance, f'tuned at t={self.tuned_at:.3f}s'
             return self.config.tolerance, 'fixed' if not self.config.auto_tune else 'parameter (not tuned yet)'
+
+    def _fallback_tolerance(self) -> tuple[float, str]:
+        """The tolerance to detect with when tuning fails: the last tuned one, else the parameter."""
+        with self._lock:
+            if self.last_good is not None:
+                return self.last_good, 'last tuned (tuning failed)'
+            return self.config.tolerance, 'parameter (tuning failed)'
 
     def retune_due(self, stamp: float) -> bool:
         """Whether a frame stamped ``stamp`` seconds should trigger a retune."""
@@ -170,6 +143,7 @@ class FramePipeline:
         with self._lock:
             if generation == self._generation:  # a parameter change during the sweep voids it
                 self.tolerance, self.tuned_at, self.last_tuning = result.tolerance, stamp, result
+                self.last_good = result.tolerance
         return result
 
     def process_cloud(self, msg, *, tune_inline: bool = True) -> FrameResult:
@@ -178,11 +152,17 @@ class FramePipeline:
         stamp_ns = header_stamp_ns(msg.header)
         try:
             points = xyz_array(msg)
+            extra = trailing_bytes(msg)
         except ValueError as exc:
             return self.reject(f'malformed PointCloud2: {exc}', ERROR)
-        return self.process(points, stamp_ns, tune_inline=tune_inline)
+        result = self.process(points, stamp_ns, tune_inline=tune_inline)
+        if extra:
+            note = (f'PointCloud2.data has {extra} byte(s) beyond height*row_step = {msg.height}*{msg.row_step}; '
+                    'they were ignored')
+            result = _replace_diagnostic(result, result.diagnostic.escalated(WARN, note))
+        return result
 
-    def reject(self, message: str, level: int = ERROR) -> FrameResult:
+    def reject(self, message: str, level: Level = ERROR) -> FrameResult:
         """Result for a frame that could not even be read (e.g. a malformed message)."""
         return _failed(level, message, time.perf_counter(), self.current_tolerance())
 
@@ -191,7 +171,9 @@ class FramePipeline:
 
         Bad input never raises: it gives an ERROR (malformed array) or WARN (too few points,
         degenerate geometry) result. With ``tune_inline`` a due retune runs before detection;
-        the node passes False and runs :meth:`retune` in a background thread instead.
+        the node passes False and runs :meth:`retune` in a background thread instead. When the
+        sweep fails (e.g. a tuning range the cloud cannot honour), the frame is still detected
+        with the last tuned tolerance (else the ``tolerance`` parameter) and reported as WARN.
         """
         start = time.perf_counter()
         stamp = stamp_ns * 1e-9
@@ -205,13 +187,13 @@ class FramePipeline:
         if len(valid) < 3:
             return _failed(WARN, f'too few valid points: {len(valid)} of {n_input} (need 3)', start,
                            self.current_tolerance(), n_input=n_input, n_valid=len(valid))
+        tune_problem = None
         if tune_inline and self.retune_due(stamp):
             try:
                 self.retune(valid, stamp, stamp_ns)
             except (ValueError, np.linalg.LinAlgError) as exc:
-                return _failed(WARN, f'cannot tune: {exc}', start, self.current_tolerance(),
-                               n_input=n_input, n_valid=len(valid))
-        tolerance, source = self.current_tolerance()
+                tune_problem = f'cannot tune: {exc}'
+        tolerance, source = self._fallback_tolerance() if tune_problem else self.current_tolerance()
         try:
             with np.errstate(over='ignore', invalid='ignore'):
                 work, inverse = (voxel_downsample(valid, cfg.voxel_size) if cfg.voxel_size > 0 else (valid, None))
@@ -228,13 +210,15 @@ class FramePipeline:
                            (tolerance, source), n_input=n_input, n_valid=len(valid))
         labels = seg.labels if inverse is None else seg.labels[inverse]
         level, message = (OK, verdict) if reliable else (WARN, f'no reliable planes: {verdict}')
+        if tune_problem:
+            level, message = WARN, f'{tune_problem}; detected with {source.split(" (")[0]} t={tolerance:.4g} m: {message}'
         counts = np.bincount(labels[labels >= 0], minlength=seg.n_planes)
         values = _values(cfg, tolerance, source, n_input, len(valid), int(np.sum(labels < 0)), seg, counts, scores,
                          noise_from_segmentation(seg))
         seconds = time.perf_counter() - start
         values += (('processing_ms', f'{1000 * seconds:.1f}'),)
         return FrameResult(points=valid, labels=labels, segmentation=seg, indices=scores, tolerance=tolerance,
-                           tolerance_source=source, level=level, message=message, values=values, seconds=seconds,
+                           tolerance_source=source, diagnostic=Diagnostic(level, message, values), seconds=seconds,
                            plane_counts=tuple(int(c) for c in counts))
 
 
@@ -243,9 +227,8 @@ def limit_blas_threads(threads: int = 1) -> None:
 
     The per-frame matrix products are small ((k, 3) @ (3, n)), so more BLAS threads buy nothing;
     but when the node's worker and retune threads, or other processes, compete for the cores,
-    OpenBLAS's spinning threads slow everything down several-fold (on this 2-core machine with a
-    second busy process: a Kinect frame 44 -> 165 ms median, a tuning sweep 0.7 -> 9 s). The node
-    and the command line call this at start; library users may call it too.
+    OpenBLAS's spinning threads slow everything down several-fold (benchmarks/README.md). The
+    node and the command line call this at start; library users may call it too.
     """
     from threadpoolctl import threadpool_limits
     threadpool_limits(limits=threads, user_api='blas')
@@ -256,33 +239,34 @@ def _min_inliers(value: float) -> int | float:
     return value if value < 1 else int(value)
 
 
-def _fmt(x: float) -> str:
-    return 'nan' if x is None or not np.isfinite(x) else f'{x:.6g}'
+def _replace_diagnostic(result: FrameResult, diagnostic: Diagnostic) -> FrameResult:
+    return replace(result, diagnostic=diagnostic)
 
 
 def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_valid: int, n_unassigned: int,
             seg: Segmentation, counts: np.ndarray, scores: ValidityIndices,
             noise: float) -> tuple[tuple[str, str], ...]:
-    values = [('tolerance', _fmt(tolerance)), ('tolerance_source', source), ('criterion', cfg.criterion),
+    values = [('tolerance', fmt(tolerance)), ('tolerance_source', source), ('criterion', cfg.criterion),
               ('planes', str(seg.n_planes)), ('input_points', str(n_input)), ('valid_points', str(n_valid)),
               ('unassigned_points', str(n_unassigned)),
-              ('dunn', _fmt(scores.dunn)), ('davies_bouldin', _fmt(scores.davies_bouldin)),
-              ('gs', _fmt(scores.gs)), ('gs_se', _fmt(scores.gs_se)),
-              ('gs_planes', _fmt(scores.gs_planes)), ('gs_planes_se', _fmt(scores.gs_planes_se)),
-              ('silhouette', _fmt(scores.silhouette)), ('silhouette_se', _fmt(scores.silhouette_se)),
+              ('dunn', fmt(scores.dunn)), ('davies_bouldin', fmt(scores.davies_bouldin)),
+              ('gs', fmt(scores.gs)), ('gs_se', fmt(scores.gs_se)),
+              ('gs_planes', fmt(scores.gs_planes)), ('gs_planes_se', fmt(scores.gs_planes_se)),
+              ('silhouette', fmt(scores.silhouette)), ('silhouette_se', fmt(scores.silhouette_se)),
               ('index_sample_size', str(scores.sample_size)), ('dunn_db_points', str(scores.separation_size)),
-              ('noise_estimate', _fmt(noise)),
+              ('noise_estimate', fmt(noise)),
               ('stop_reason', seg.reason)]
     for k, plane in enumerate(seg.planes):
-        values += [(f'plane_{k}_inliers', str(int(counts[k]))), (f'plane_{k}_rms', _fmt(plane.rms))]
+        values += [(f'plane_{k}_inliers', str(int(counts[k]))), (f'plane_{k}_rms', fmt(plane.rms))]
     return tuple(values)
 
 
-def _failed(level: int, message: str, start: float, tol: tuple[float, str], *,
+def _failed(level: Level, message: str, start: float, tol: tuple[float, str], *,
             n_input: int = 0, n_valid: int = 0) -> FrameResult:
-    values = (('tolerance', _fmt(tol[0])), ('tolerance_source', tol[1]), ('planes', '0'),
+    values = (('tolerance', fmt(tol[0])), ('tolerance_source', tol[1]), ('planes', '0'),
               ('input_points', str(n_input)), ('valid_points', str(n_valid)))
     seconds = time.perf_counter() - start
     return FrameResult(points=np.empty((0, 3)), labels=np.empty(0, np.int32), segmentation=None, indices=None,
-                       tolerance=tol[0], tolerance_source=tol[1], level=level, message=message,
-                       values=values + (('processing_ms', f'{1000 * seconds:.1f}'),), seconds=seconds)
+                       tolerance=tol[0], tolerance_source=tol[1],
+                       diagnostic=Diagnostic(level, message, values + (('processing_ms', f'{1000 * seconds:.1f}'),)),
+                       seconds=seconds)

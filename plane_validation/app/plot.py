@@ -5,6 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..formats.files import atomic_output
+
 
 def plot_planes(points: np.ndarray, labels: np.ndarray, path: str | Path, *, title: str = '',
                 max_points: int = 20000, seed: int = 0) -> Path:
@@ -30,7 +32,8 @@ def plot_planes(points: np.ndarray, labels: np.ndarray, path: str | Path, *, tit
     ax.set_zlabel('z [m]')
     ax.set_title(f'{title}\n{n_planes} planes (grey: unassigned)')
     fig.tight_layout()
-    fig.savefig(path)
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, format=path.suffix.lstrip('.').lower() or 'png')
     plt.close(fig)
     return path
 
@@ -75,8 +78,8 @@ def _save_png(fig, path: Path) -> Path:
     buffer = io.BytesIO()
     fig.savefig(buffer, format='png')
     buffer.seek(0)
-    with Image.open(buffer) as image:
-        image.convert('RGB').quantize(colors=256).save(path, format='PNG', optimize=True)
+    with Image.open(buffer) as image, atomic_output(path) as tmp:
+        image.convert('RGB').quantize(colors=256).save(tmp, format='PNG', optimize=True)
     return path
 
 

@@ -9,13 +9,15 @@
     plane-validation paper [--out DIR]         # the paper's synthetic experiments: PNGs + summary.md
 
 CLOUD is a .pcd, .ply, .npy, .xyz/.txt/.csv file or ``BAG[:TOPIC[:INDEX]]``. Exit status: 0 on
-success, 2 for bad usage or input (one line on stderr), 130 when interrupted.
+success, 2 for bad usage or input (one line on stderr), 130 when interrupted (Ctrl-C), 143 on
+SIGTERM and 129 on SIGHUP; an output is complete or absent either way.
 """
 from __future__ import annotations
 
 import argparse
 import dataclasses
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -229,10 +231,9 @@ def cmd_paper(args: argparse.Namespace) -> int:
 
 
 def _config(args: argparse.Namespace):
-    """PipelineConfig from the common options (only those given override the defaults)."""
-    from ..app.pipeline import PipelineConfig
-    changes = {name: getattr(args, name) for name in ('tolerance', 'seed', 'max_planes', 'min_inliers', 'voxel_size')
-               if getattr(args, name, None) is not None}
+    """PipelineConfig from the pipeline options (only those given override the table's defaults)."""
+    from ..app.config import PARAMETERS, PipelineConfig
+    changes = {name: getattr(args, name) for name in PARAMETERS if getattr(args, name, None) is not None}
     if getattr(args, 'fixed', False):
         changes['auto_tune'] = False
     return dataclasses.replace(PipelineConfig(), **changes).validate()
@@ -243,9 +244,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
     cfg = _config(args)
     if args.live:
         summary = replay_live(args.bag, topic=args.topic, out=args.out, rate=args.rate, start_node=not args.no_node,
-                              config=cfg)
+                              config=cfg, storage=args.storage)
     else:
-        summary = replay_offline(args.bag, topic=args.topic, out=args.out, config=cfg)
+        summary = replay_offline(args.bag, topic=args.topic, out=args.out, config=cfg, storage=args.storage)
     print(summary.line())
     return 0
 
@@ -311,35 +312,44 @@ def _non_negative_float(text: str) -> float:
     return _number(text, allow_zero=True)
 
 
-def _add_detection_options(parser: argparse.ArgumentParser, *, max_planes: int = 10) -> None:
-    """--seed, --max-planes, --min-inliers for the file commands."""
-    parser.add_argument('--seed', type=int, default=0, metavar='S',
-                        help='random seed; same seed, same result (default 0)')
-    parser.add_argument('--max-planes', dest='max_planes', type=_positive_int, default=max_planes, metavar='K',
-                        help=f'most planes to extract (default {max_planes})')
-    parser.add_argument('--min-inliers', dest='min_inliers', type=_non_negative_float, default=0.02, metavar='M',
-                        help='smallest plane: a point count, or a fraction of the valid points when < 1 '
-                             '(default 0.02)')
+def _add_detection_options(parser: argparse.ArgumentParser) -> None:
+    """--seed, --max-planes, --min-inliers for the file commands (defaults from the parameter table)."""
+    from ..app.config import PARAMETERS
+    parser.add_argument('--seed', type=int, default=PARAMETERS['seed'].default, metavar='S',
+                        help=f'random seed; same seed, same result (default {PARAMETERS["seed"].default})')
+    parser.add_argument('--max-planes', dest='max_planes', type=_positive_int, default=PARAMETERS['max_planes'].default,
+                        metavar='K', help=f'{PARAMETERS["max_planes"].description} '
+                        f'(default {PARAMETERS["max_planes"].default})')
+    parser.add_argument('--min-inliers', dest='min_inliers', type=_non_negative_float,
+                        default=PARAMETERS['min_inliers'].default, metavar='M',
+                        help=f'{PARAMETERS["min_inliers"].description} (default {PARAMETERS["min_inliers"].default})')
 
 
 def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:
-    """Options of the node's pipeline (replay)."""
-    parser.add_argument('--tolerance', type=float, help='RANSAC tolerance t in meters (with --fixed, or before tuning)')
-    parser.add_argument('--seed', type=int, help='random seed (default 0)')
-    parser.add_argument('--max-planes', dest='max_planes', type=int)
-    parser.add_argument('--min-inliers', dest='min_inliers', type=float, help='count, or fraction when < 1')
-    parser.add_argument('--fixed', action='store_true', help='use --tolerance as is, no auto-tuning')
-    parser.add_argument('--voxel-size', dest='voxel_size', type=float, help='voxel grid in meters (0 = off)')
+    """One option per pipeline parameter (replay), e.g. --tune-min for tune_min; unset ones keep the
+    table's default. Values are checked by PipelineConfig.validate."""
+    from ..app.config import PARAMETERS
+    group = parser.add_argument_group('pipeline parameters (as the node\'s ROS parameters)')
+    for name, spec in PARAMETERS.items():
+        flag = '--' + name.replace('_', '-')
+        default = str(spec.default).lower() if spec.type is bool else spec.default
+        text = f'{spec.description}{f" [{spec.unit}]" if spec.unit else ""} (default {default})'
+        if spec.type is bool:
+            group.add_argument(flag, dest=name, action=argparse.BooleanOptionalAction, default=None, help=text)
+        else:
+            group.add_argument(flag, dest=name, type=spec.type, default=None, help=text,
+                               choices=spec.choices or None, metavar=name.upper() if not spec.choices else None)
+    group.add_argument('--fixed', action='store_true', help='same as --no-auto-tune: use --tolerance as is')
 
 
 def build_parser() -> argparse.ArgumentParser:
     from ..core.scenes import SCENES
-    from ..core.tuning import CRITERIA
+    from ..core.tuning import CRITERIA, TUNE_CANDIDATES
 
     parser = argparse.ArgumentParser(
         prog='plane-validation', description='Self-validating plane detection: sequential RANSAC planes scored by '
         'cluster validity indices (Dunn, Davies-Bouldin, GS, GSplanes). Coordinates are taken as meters.',
-        epilog='Exit status: 0 success, 2 bad usage or input, 130 interrupted.')
+        epilog='Exit status: 0 success, 2 bad usage or input, 130 interrupted, 143 SIGTERM, 129 SIGHUP.')
     sub = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
 
     demo = sub.add_parser('demo', help='the main job: replay a bundled bag through the node over DDS')
@@ -356,6 +366,8 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument('--live', action='store_true', help='publish on ROS topics at the recorded timing')
     replay.add_argument('--rate', type=float, default=1.0, help='playback speed factor for --live')
     replay.add_argument('--no-node', action='store_true', help='with --live: do not start the node in-process')
+    replay.add_argument('--storage', choices=('mcap', 'sqlite3'),
+                        help='output bag storage (default: the input bag\'s; MCAP for a ROS 1 bag)')
     _add_pipeline_options(replay)
     replay.set_defaults(func=cmd_replay)
 
@@ -381,7 +393,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument('cloud', metavar='CLOUD', help=CLOUD_HELP)
     sweep.add_argument('--tolerances', type=parse_tolerances, metavar='A:B:N',
                        help='N tolerances evenly spaced from A to B meters, like the paper\'s axes (default: '
-                       '16 geometric candidates derived from the cloud)')
+                       f'{TUNE_CANDIDATES} geometric candidates derived from the cloud)')
     sweep.add_argument('--criterion', default='gs_planes', choices=sorted(CRITERIA),
                        help='index that chooses t (default gs_planes)')
     _add_detection_options(sweep)
@@ -430,14 +442,45 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP arrived: unwind like KeyboardInterrupt (partial outputs are removed)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_terminated(signum: int, _frame) -> None:
+    raise Terminated(signum)
+
+
+@contextmanager
+def _terminate_cleanly() -> Iterator[None]:
+    """SIGTERM and SIGHUP (timeout, systemd, docker stop, a closed terminal) raise Terminated in
+    the main thread, so every ``with``/``finally`` cleans up as for Ctrl-C."""
+    import signal
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, _raise_terminated) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from ..app.pipeline import limit_blas_threads
     limit_blas_threads()  # small matrix products; spinning BLAS threads only slow a busy machine down
     try:
-        return args.func(args)
+        with _terminate_cleanly():
+            return args.func(args)
     except KeyboardInterrupt:
         return 130
+    except Terminated as exc:
+        return 128 + exc.signum
     except (ValueError, OSError) as exc:
         message = ' '.join(str(exc).split()) or type(exc).__name__
         print(f'plane-validation: error: {message}', file=sys.stderr)

@@ -17,9 +17,12 @@ from .indices import ValidityIndices, validity_indices
 from .ransac import RANSAC_POINTS, Segmentation, as_points, detect_planes, finite_rows
 from .verdict import RELIABLE_GS_PLANES, SINGLE_PLANE_THICKNESS, judge, plane_thickness
 
-__all__ = ['CRITERIA', 'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
+__all__ = ['CRITERIA', 'TUNE_CANDIDATES', 'TUNE_POINTS', 'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
            'select_plane_count', 'noise_from_segmentation', 'local_noise', 'MIN_PLANE_SILHOUETTE']
 
+#: Default number of tuning candidates and the subsample a sweep runs on (points).
+TUNE_CANDIDATES = 12
+TUNE_POINTS = 20000
 #: Index name -> True when larger is better.
 CRITERIA = {'gs_planes': True, 'gs': True, 'silhouette': True, 'dunn': True, 'davies_bouldin': False,
             'davies_bouldin_classic': False}
@@ -131,7 +134,7 @@ def local_noise(points: np.ndarray, *, k: int = 16, queries: int = 2000, seed=No
     return spacing, float(np.median(np.sqrt(np.maximum(smallest, 0.0))))
 
 
-def default_tolerances(points: np.ndarray, count: int = 16, *, lo: float | None = None, hi: float | None = None,
+def default_tolerances(points: np.ndarray, count: int = TUNE_CANDIDATES, *, lo: float | None = None, hi: float | None = None,
                        seed=None) -> np.ndarray:
     """``count`` candidate tolerances (meters), geometrically spaced from ``lo`` to ``hi``.
 
@@ -182,8 +185,8 @@ def noise_from_segmentation(seg: Segmentation) -> float:
 
 def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_planes', *,
                    max_planes: int = 10, min_inliers: int | float = 0.02, probability: float = 0.99,
-                   max_iterations: int = 1000, sample_size: int | None = 2000, tune_points: int | None = 20000,
-                   t_min: float | None = None, t_max: float | None = None, count: int = 16,
+                   max_iterations: int = 1000, sample_size: int | None = 2000, tune_points: int | None = TUNE_POINTS,
+                   t_min: float | None = None, t_max: float | None = None, count: int = TUNE_CANDIDATES,
                    seed: int | None = None, progress: Callable[[int, int], None] | None = None,
                    ransac_points: int | None = RANSAC_POINTS, sampled_separation: bool = False) -> TuningResult:
     """Sweep the RANSAC tolerance and pick the best by ``criterion``.

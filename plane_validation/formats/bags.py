@@ -1,22 +1,25 @@
-"""One point cloud from or into a bag, for the command line (``BAG[:TOPIC[:INDEX]]``).
+"""Reading and writing bags with ``rosbags`` (no rclpy; rosbags is imported only when used).
 
-Reading goes through :func:`plane_validation.replay.read_clouds` (rosbags: rosbag2 directories,
-bare .mcap or .db3 files, compressed bags and ROS 1 .bag files); writing makes a rosbag2 bag with
-one ``sensor_msgs/msg/PointCloud2`` (ROS 2 Jazzy types) on ``/points``.
+:func:`read_clouds` yields the PointCloud2 messages of a bag (rosbag2 directories, bare .mcap or
+.db3 files, compressed bags and ROS 1 .bag files); :func:`read_bag_points` and
+:func:`write_bag_points` read and write one cloud for the command line (``BAG[:TOPIC[:INDEX]]``).
 """
 from __future__ import annotations
 
+import functools
 import shutil
 import tempfile
 from collections import deque
+from collections.abc import Iterator
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ['BAG_SUFFIXES', 'BagSource', 'parse_bag_source', 'read_bag_points', 'write_bag_points',
-           'TOPIC', 'STAMP_NS']
+__all__ = ['BAG_SUFFIXES', 'BagSource', 'BagError', 'POINTCLOUD2', 'STORAGES', 'parse_bag_source', 'read_clouds',
+           'open_bag', 'pick_topic', 'bag_storage', 'typestore', 'read_bag_points', 'write_bag_points', 'TOPIC',
+           'STAMP_NS']
 
 #: File extensions read as bags (a directory is always a rosbag2 bag).
 BAG_SUFFIXES = ('.mcap', '.db3', '.bag')
@@ -24,7 +27,85 @@ BAG_SUFFIXES = ('.mcap', '.db3', '.bag')
 TOPIC = '/points'
 STAMP_NS = 1_700_000_000 * 10**9
 FRAME_ID = 'map'
-_MSGTYPE = 'sensor_msgs/msg/PointCloud2'
+POINTCLOUD2 = 'sensor_msgs/msg/PointCloud2'
+#: rosbag2 storage plugins we write, by their metadata.yaml storage_identifier; data file suffixes.
+STORAGES = {'mcap': '.mcap', 'sqlite3': '.db3'}
+
+
+class BagError(ValueError):
+    """A bag that cannot be read or written: missing, corrupt, no such topic, wrong type, bad path."""
+
+
+@functools.cache
+def typestore():
+    """The ROS 2 Jazzy message types of rosbags."""
+    from rosbags.typesys import Stores, get_typestore
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def open_bag(bag: Path):
+    """An opened rosbags AnyReader for ``bag``, or BagError."""
+    from rosbags.highlevel import AnyReader, AnyReaderError
+    if not bag.exists():
+        raise BagError(f'bag not found: {bag}')
+    try:
+        reader = AnyReader([bag], default_typestore=typestore())
+        reader.open()
+    except (AnyReaderError, OSError, ValueError, KeyError) as exc:
+        raise BagError(f'cannot open bag {bag}: {exc}') from exc
+    return reader
+
+
+def bag_storage(bag: str | Path) -> str | None:
+    """'mcap' or 'sqlite3' for a rosbag2 bag (directory or bare storage file), None otherwise."""
+    bag = Path(bag)
+    if bag.is_dir():
+        meta = bag / 'metadata.yaml'
+        text = meta.read_text(errors='replace') if meta.is_file() else ''
+        for name, suffix in STORAGES.items():
+            if f'storage_identifier: {name}' in text or any(bag.glob(f'*{suffix}')):
+                return name
+        return None
+    return next((name for name, suffix in STORAGES.items() if bag.suffix.lower() == suffix), None)
+
+
+def pick_topic(reader, bag: Path, topic: str | None) -> list:
+    """The connections of ``topic``, or of the bag's only PointCloud2 topic when None."""
+    clouds = sorted({c.topic for c in reader.connections if c.msgtype == POINTCLOUD2})
+    if topic is None:
+        if len(clouds) != 1:
+            found = ', '.join(clouds) or 'none'
+            raise BagError(f'{bag}: cannot pick the cloud topic automatically (PointCloud2 topics: {found}); '
+                           'pass --topic')
+        topic = clouds[0]
+    conns = [c for c in reader.connections if c.topic == topic]
+    if not conns:
+        raise BagError(f'{bag}: no topic {topic!r}; PointCloud2 topics: {", ".join(clouds) or "none"}')
+    types = sorted({c.msgtype for c in conns})
+    if types != [POINTCLOUD2]:
+        carries = ' and '.join(types)
+        if POINTCLOUD2 in types:
+            raise BagError(f'{bag}: topic {topic!r} carries {carries}; only {POINTCLOUD2} can be read')
+        raise BagError(f'{bag}: topic {topic!r} carries {carries}, not {POINTCLOUD2}')
+    return conns
+
+
+def read_clouds(bag: str | Path, topic: str | None = None) -> Iterator[tuple[str, int, object]]:
+    """Yield (topic, bag timestamp ns, rosbags PointCloud2) for every cloud on ``topic``
+    (auto-detected when the bag has exactly one PointCloud2 topic). Raises BagError."""
+    bag = Path(bag)
+    reader = open_bag(bag)
+    try:
+        conns = pick_topic(reader, bag, topic)
+        try:
+            for conn, timestamp, raw in reader.messages(connections=conns):
+                yield conn.topic, timestamp, reader.deserialize(raw, conn.msgtype)
+        except BagError:
+            raise
+        except Exception as exc:  # rosbags raises many types on damaged data
+            raise BagError(f'{bag}: cannot read message: {type(exc).__name__}: {exc}') from exc
+    finally:
+        reader.close()
 
 
 @dataclass(frozen=True)
@@ -84,7 +165,6 @@ def parse_bag_source(source: str | Path) -> BagSource | None:
 def read_bag_points(source: BagSource) -> np.ndarray:
     """(height*width, 3) float64 x, y, z of one PointCloud2 in a bag (NaN holes kept)."""
     from .pointcloud2 import xyz_array
-    from ..ros.replay import read_clouds
 
     if source.index >= 0:
         seen = 0
@@ -114,14 +194,15 @@ def _xyz(source: BagSource, topic: str, msg, xyz_array) -> np.ndarray:
         raise ValueError(f'{source.path} [{topic}]: {exc}') from exc
 
 
-def write_bag_points(path: str | Path, points: np.ndarray, *, topic: str = TOPIC) -> Path:
-    """Write (N, 3) points (meters) as one float32 x y z PointCloud2 into a new rosbag2 bag.
+def write_bag_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None = None, *,
+                     topic: str = TOPIC) -> Path:
+    """Write (N, 3) points (meters) as one float32 x y z PointCloud2 into a new rosbag2 bag, with
+    (N,) labels as an int32 field ``label`` when given.
 
     ``path`` without extension: a bag directory (MCAP storage); ``.mcap`` or ``.db3``: a single
     storage file (MCAP or SQLite 3), readable without metadata.yaml. Refuses to overwrite.
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
 
     from .pointcloud2 import create_cloud, rosbags_types
 
@@ -135,18 +216,21 @@ def write_bag_points(path: str | Path, points: np.ndarray, *, topic: str = TOPIC
         raise ValueError(f'{path} already exists; remove it or choose another name')
     if not path.parent.is_dir():
         raise ValueError(f'{path}: directory {path.parent} does not exist')
-    typestore = get_typestore(Stores.ROS2_JAZZY)
-    types = rosbags_types(typestore)
+    store = typestore()
+    types = rosbags_types(store)
     xyz = np.asarray(points, dtype=np.float32).reshape(-1, 3)
     header = types.Header(stamp=types.Time(sec=STAMP_NS // 10**9, nanosec=STAMP_NS % 10**9), frame_id=FRAME_ID)
-    msg = create_cloud(header, {'x': xyz[:, 0], 'y': xyz[:, 1], 'z': xyz[:, 2]}, types=types)
+    columns = {'x': xyz[:, 0], 'y': xyz[:, 1], 'z': xyz[:, 2]}
+    if labels is not None:
+        columns['label'] = np.asarray(labels).astype(np.int32).reshape(-1)
+    msg = create_cloud(header, columns, types=types)
     storage = StoragePlugin.SQLITE3 if suffix == '.db3' else StoragePlugin.MCAP
     with tempfile.TemporaryDirectory(dir=path.parent, prefix=f'.{path.name}.') as tmp:
         bag_dir = Path(tmp) / (path.stem if suffix else path.name)
         writer = Writer(bag_dir, version=9, storage_plugin=storage)
         with writer:
-            conn = writer.add_connection(topic, _MSGTYPE, typestore=typestore)
-            writer.write(conn, STAMP_NS, typestore.serialize_cdr(msg, _MSGTYPE))
+            conn = writer.add_connection(topic, POINTCLOUD2, typestore=store)
+            writer.write(conn, STAMP_NS, store.serialize_cdr(msg, POINTCLOUD2))
         if suffix:
             (storage_file,) = bag_dir.glob(f'*{suffix}')
             shutil.move(storage_file, path)

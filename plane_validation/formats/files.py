@@ -11,11 +11,15 @@ Bags (``BAG[:TOPIC[:INDEX]]``): see :mod:`plane_validation.bagcloud`.
 """
 from __future__ import annotations
 
+import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ['load_points', 'save_points', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
+__all__ = ['atomic_output', 'load_points', 'save_points', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
 
 #: Extensions of plain point files (bags are recognised separately).
 TEXT_SUFFIXES = ('.xyz', '.txt', '.csv')
@@ -31,7 +35,7 @@ def load_points(source: str | Path) -> np.ndarray:
 
     source: a .pcd, .ply, .npy or whitespace/comma separated text file (.xyz .txt .csv: the
     first three columns), or ``BAG[:TOPIC[:INDEX]]`` with BAG a rosbag2 directory, .mcap, .db3
-    or ROS 1 .bag (see :func:`plane_validation.bagcloud.parse_bag_source`).
+    or ROS 1 .bag (see :func:`plane_validation.formats.bags.parse_bag_source`).
     Raises ValueError naming the problem.
     """
     from .bags import parse_bag_source, read_bag_points
@@ -59,7 +63,8 @@ def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None 
     The format follows the extension: .ply (float32 x y z, int32 vertex property ``plane_id``),
     .pcd (binary, float32 x y z, int32 field ``label``), .npy ((N, 3) or (N, 4) float64 with the
     label as 4th column), .xyz/.txt/.csv (text columns), or a bag: a path without extension
-    (rosbag2 directory) or ending in .mcap/.db3 (one PointCloud2 on /points, x y z float32).
+    (rosbag2 directory) or ending in .mcap/.db3 (one PointCloud2 on /points, x y z float32 and
+    int32 ``label``).
     All rows are written, NaN rows included, so that row i stays point i.
     """
     path = Path(path)
@@ -70,15 +75,31 @@ def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None 
     suffix = path.suffix.lower()
     from .bags import BAG_SUFFIXES, write_bag_points
     if suffix in BAG_SUFFIXES or suffix == '':
-        return write_bag_points(path, pts)
+        return write_bag_points(path, pts, lab)
     writers = {'.ply': _write_ply, '.pcd': _write_pcd, '.npy': _write_npy}
     if suffix not in writers and suffix not in TEXT_SUFFIXES:
         raise ValueError(f'{path}: cannot write {suffix!r} files (use .ply, .pcd, .npy, .xyz, .txt, .csv, '
                          '.mcap, .db3 or a bag directory)')
     if not path.parent.is_dir():
         raise ValueError(f'{path}: directory {path.parent} does not exist')
-    writers.get(suffix, _write_text)(path, pts, lab)
+    with atomic_output(path) as tmp:
+        writers.get(suffix, _write_text)(tmp, pts, lab)
     return path
+
+
+@contextmanager
+def atomic_output(path: str | Path) -> Iterator[Path]:
+    """A temporary path beside ``path`` (same suffix) that replaces ``path`` when the block ends
+    normally and is deleted otherwise, so an output file is complete or absent."""
+    path = Path(path)
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.stem}.', suffix=path.suffix)
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 # -- readers -------------------------------------------------------------------------------------

@@ -29,7 +29,7 @@ import numpy.typing as npt
 
 __all__ = [
     'DATATYPES', 'CloudTypes', 'RosbagsTypes', 'structured_array', 'xyz_array', 'create_cloud',
-    'rosbags_types', 'pack_rgb', 'unpack_rgb',
+    'rosbags_types', 'pack_rgb', 'unpack_rgb', 'trailing_bytes',
 ]
 
 #: PointField datatype code -> numpy scalar type (sensor_msgs/PointField constants).
@@ -224,6 +224,11 @@ def xyz_array(msg: Any, *, dtype: npt.DTypeLike = np.float64) -> np.ndarray:
     for i, name in enumerate(_XYZ):  # one strided pass each (faster than one (3,)-subarray pass)
         out[..., i] = grid[name]
     return out.reshape(-1, 3)
+
+
+def trailing_bytes(msg: Any) -> int:
+    """Bytes of msg.data beyond the declared height*row_step (0 for a well-formed message)."""
+    return max(0, _data_bytes(msg.data).size - _uint(msg, 'height') * _uint(msg, 'row_step'))
 
 
 def _is_rosbags(cls: Any) -> bool:

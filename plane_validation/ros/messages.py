@@ -14,12 +14,12 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from ..formats.pointcloud2 import create_cloud, pack_rgb
 from ..core.geometry import UNASSIGNED_RGB, PlaneOutline, plane_colors, plane_outlines
+from ..app.diagnostics import Diagnostic, Level
 from ..app.pipeline import FrameResult
 
-__all__ = ['plane_colors', 'segmented_cloud', 'plane_markers', 'plane_poses', 'plane_coefficients',
-           'diagnostics', 'frame_messages']
+__all__ = ['segmented_cloud', 'plane_markers', 'plane_poses', 'plane_coefficients',
+           'diagnostics', 'diagnostic_from_status', 'frame_messages', 'to_rclpy_cloud']
 
-_LEVELS = {0: DiagnosticStatus.OK, 1: DiagnosticStatus.WARN, 2: DiagnosticStatus.ERROR}
 def segmented_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
     """x, y, z (float32), plane_id (int32, -1 unassigned) and packed rgb of the valid points."""
     labels = result.labels.astype(np.int32)
@@ -98,18 +98,44 @@ def plane_coefficients(result: FrameResult) -> Float64MultiArray:
     return msg
 
 
-def diagnostics(header, result: FrameResult, name: str, extra: tuple[tuple[str, str], ...] = ()) -> DiagnosticArray:
+def diagnostics(header, diagnostic: Diagnostic, name: str) -> DiagnosticArray:
     """One DiagnosticStatus named ``name`` carrying the frame's level, message and key-values."""
-    status = DiagnosticStatus(level=_LEVELS[result.level], name=name, message=result.message,
+    status = DiagnosticStatus(level=bytes([int(diagnostic.level)]), name=name, message=diagnostic.message,
                               hardware_id=header.frame_id,
-                              values=[KeyValue(key=k, value=v) for k, v in result.values + tuple(extra)])
+                              values=[KeyValue(key=k, value=v) for k, v in diagnostic.values])
     return DiagnosticArray(header=header, status=[status])
+
+
+def diagnostic_from_status(status) -> Diagnostic:
+    """The inverse of :func:`diagnostics` for one DiagnosticStatus (rclpy or rosbags)."""
+    level = status.level if isinstance(status.level, int) else status.level[0]
+    return Diagnostic(Level(level), str(status.message), tuple((str(kv.key), str(kv.value)) for kv in status.values))
 
 
 def frame_messages(header, result: FrameResult, name: str,
                    extra: tuple[tuple[str, str], ...] = ()) -> dict[str, object]:
-    """Every output of one frame keyed by its topic suffix."""
+    """Every output of one frame keyed by its topic suffix; ``extra`` key-values are added to
+    its diagnostics."""
     outlines = _outlines(result)  # shared by the markers and the poses
     return {'segmented': segmented_cloud(header, result), 'planes': plane_markers(header, result, outlines=outlines),
             'plane_poses': plane_poses(header, result, outlines), 'plane_coefficients': plane_coefficients(result),
-            'diagnostics': diagnostics(header, result, name, extra)}
+            'diagnostics': diagnostics(header, result.diagnostic.with_values(*extra), name)}
+
+
+def to_rclpy_cloud(msg):
+    """rosbags PointCloud2 (ROS 2 or ROS 1 layout) -> rclpy sensor_msgs/PointCloud2, data copied once."""
+    import array
+
+    from builtin_interfaces.msg import Time
+    from sensor_msgs.msg import PointCloud2, PointField
+    from std_msgs.msg import Header
+
+    stamp = msg.header.stamp
+    out = PointCloud2(header=Header(stamp=Time(sec=int(stamp.sec), nanosec=int(stamp.nanosec)),
+                                    frame_id=str(msg.header.frame_id)),
+                      height=int(msg.height), width=int(msg.width), is_bigendian=bool(msg.is_bigendian),
+                      point_step=int(msg.point_step), row_step=int(msg.row_step), is_dense=bool(msg.is_dense),
+                      fields=[PointField(name=str(f.name), offset=int(f.offset), datatype=int(f.datatype),
+                                         count=int(f.count)) for f in msg.fields])
+    out.data = array.array('B', np.asarray(msg.data, dtype=np.uint8).tobytes())
+    return out

@@ -26,44 +26,33 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
+from ..app.config import PARAMETERS, Parameter, PipelineConfig
+from ..app.diagnostics import Level
+from ..app.pipeline import FramePipeline, header_stamp_ns, limit_blas_threads
 from .messages import frame_messages
-from ..app.pipeline import (ERROR, LEVEL_NAMES, OK, WARN, FramePipeline, PipelineConfig, header_stamp_ns,
-                       limit_blas_threads)
 
-#: name -> (description, (min, max) or None). Defaults come from PipelineConfig.
-PARAMETERS = {
-    'tolerance': ('RANSAC inlier distance t in meters (used when auto_tune is false, and before the first tune)',
-                  (1e-6, 10.0)),
-    'auto_tune': ('choose t by sweeping candidates and scoring them with the validity indices', None),
-    'tune_min': ('smallest tuning candidate in meters; 0 = derive the range from the cloud', (0.0, 10.0)),
-    'tune_max': ('largest tuning candidate in meters; 0 = derive the range from the cloud', (0.0, 10.0)),
-    'tune_count': ('number of tuning candidates, geometrically spaced', (2, 100)),
-    'tune_points': ('random subsample of the cloud the tuning sweep runs on', (100, 10_000_000)),
-    'criterion': ('index that picks t: gs_planes, gs, silhouette, dunn (max) or davies_bouldin (min)', None),
-    'retune_period': ('seconds between retunes, in header time; 0 = tune on the first frame only', (0.0, 1e6)),
-    'max_planes': ('stop after this many planes', (1, 100)),
-    'min_inliers': ('stop when the best plane has fewer inliers: a fraction of the valid points when < 1, '
-                    'else a count', (0.0, 1e9)),
-    'probability': ('RANSAC success probability that sets the iteration count', (1e-6, 0.999999)),
-    'max_iterations': ('cap on RANSAC hypotheses per plane', (1, 1_000_000)),
-    'index_sample_size': ('points the validity indices are computed on per frame (stratified sample)',
-                          (10, 1_000_000)),
-    'exact_indices': ('compute Dunn and Davies-Bouldin on all points (exact but ~0.2 s on a 300k-point frame) '
-                      'instead of on the index sample', None),
-    'ransac_points': ('RANSAC searches a random sample of this many points, then labels every point; 0 = all',
-                      (0, 100_000_000)),
-    'voxel_size': ('voxel grid in meters applied before detection; 0 = off', (0.0, 10.0)),
-    'seed': ('random seed; frames are seeded by (seed, header stamp); < 0 = fresh entropy', (-1, 2**31 - 1)),
-}
+ERROR, WARN = Level.ERROR, Level.WARN
+#: Seconds between two log lines of the same kind.
+LOG_THROTTLE_S = 5.0
+
+#: Node-only parameters (the pipeline's are in app/config.py's table).
+NODE_PARAMETERS = {'reliability': Parameter('reliability', 'best_effort', 'subscription reliability: best_effort '
+                                            '(sensor data) or reliable', choices=('best_effort', 'reliable'),
+                                            read_only=True)}
 
 
-def _descriptor(name: str, default) -> ParameterDescriptor:
-    description, bounds = PARAMETERS[name]
-    desc = ParameterDescriptor(description=description)
-    if bounds is not None and isinstance(default, float):
-        desc.floating_point_range = [FloatingPointRange(from_value=float(bounds[0]), to_value=float(bounds[1]))]
-    elif bounds is not None and isinstance(default, int) and not isinstance(default, bool):
-        desc.integer_range = [IntegerRange(from_value=int(bounds[0]), to_value=int(bounds[1]), step=1)]
+def descriptor(spec: Parameter) -> ParameterDescriptor:
+    """The ROS parameter descriptor of one table entry (its range includes the special value)."""
+    desc = ParameterDescriptor(description=spec.description + (f' [{spec.unit}]' if spec.unit else ''),
+                               read_only=spec.read_only)
+    if spec.low is not None:
+        lo, hi = spec.low, spec.high
+        if spec.special is not None:
+            lo, hi = min(lo, spec.special), max(hi, spec.special)
+        if spec.type is float:
+            desc.floating_point_range = [FloatingPointRange(from_value=float(lo), to_value=float(hi))]
+        elif spec.type is int:
+            desc.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi), step=1)]
     return desc
 
 
@@ -73,12 +62,13 @@ class PlaneValidationNode(Node):
 
     def __init__(self, name: str = 'plane_validation', **kwargs) -> None:
         super().__init__(name, **kwargs)
-        defaults = PipelineConfig()
-        config = {f.name: self.declare_parameter(f.name, getattr(defaults, f.name),
-                                                 _descriptor(f.name, getattr(defaults, f.name))).value
-                  for f in dataclasses.fields(PipelineConfig)}
-        reliability = self.declare_parameter('reliability', 'best_effort', ParameterDescriptor(
-            description='subscription reliability: best_effort (sensor data) or reliable', read_only=True)).value
+        config = {name: self.declare_parameter(name, spec.default, descriptor(spec)).value
+                  for name, spec in PARAMETERS.items()}
+        reliability = self.declare_parameter('reliability', NODE_PARAMETERS['reliability'].default,
+                                             descriptor(NODE_PARAMETERS['reliability'])).value
+        why = NODE_PARAMETERS['reliability'].problem(reliability)
+        if why is not None:
+            raise ValueError(why)
         self.pipeline = FramePipeline(PipelineConfig(**config))
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -121,7 +111,7 @@ class PlaneValidationNode(Node):
             try:
                 self.process(msg)
             except Exception as exc:  # never let one frame kill the worker
-                self.get_logger().error(f'frame failed unexpectedly: {exc!r}', throttle_duration_sec=5.0)
+                self.get_logger().error(f'frame failed unexpectedly: {exc!r}', throttle_duration_sec=LOG_THROTTLE_S)
 
     # -- one frame -------------------------------------------------------------------------------
     def process(self, msg: PointCloud2) -> None:
@@ -134,16 +124,17 @@ class PlaneValidationNode(Node):
         with self._wake:
             dropped_now, self._dropped_reported = self.frames_dropped - self._dropped_reported, self.frames_dropped
         if dropped_now:
-            result = dataclasses.replace(result, level=max(result.level, WARN),
-                                         message=f'{result.message}; {dropped_now} older frame(s) dropped '
-                                                 '(clouds arrive faster than they are processed)')
+            result = dataclasses.replace(result, diagnostic=result.diagnostic.escalated(
+                WARN, f'{dropped_now} older frame(s) dropped (clouds arrive faster than they are processed)'))
         extra = (('frames_processed', str(self.frames_processed)), ('frames_dropped', str(self.frames_dropped)),
                  ('retune_running', str(self._retuner is not None and self._retuner.is_alive()).lower()))
         for topic, out in frame_messages(msg.header, result, self.status_name, extra).items():
             self._pubs[topic].publish(out)
-        if result.level != OK:
-            log = self.get_logger().error if result.level == ERROR else self.get_logger().warning
-            log(f'{LEVEL_NAMES[result.level]}: {result.message}', throttle_duration_sec=5.0)
+        # rclpy ties a throttled call site to one severity: one call site per level, throttled apart
+        if result.level == ERROR:
+            self.get_logger().error(f'ERROR: {result.message}', throttle_duration_sec=LOG_THROTTLE_S)
+        elif result.level == WARN:
+            self.get_logger().warning(f'WARN: {result.message}', throttle_duration_sec=LOG_THROTTLE_S)
 
     def _start_retune(self, points, stamp_ns: int) -> None:
         if self._retuner is not None and self._retuner.is_alive():
@@ -154,7 +145,7 @@ class PlaneValidationNode(Node):
                 result = self.pipeline.retune(points, stamp_ns * 1e-9, stamp_ns)
                 self.get_logger().info(f'retuned: t = {result.tolerance:.4g} m ({result.verdict})')
             except Exception as exc:  # a failed sweep keeps the current tolerance; the node goes on
-                self.get_logger().warning(f'retune failed, keeping t: {exc!r}', throttle_duration_sec=5.0)
+                self.get_logger().warning(f'retune failed, keeping t: {exc!r}', throttle_duration_sec=LOG_THROTTLE_S)
         self._retuner = threading.Thread(target=run, name='plane_validation_retune', daemon=True)
         self._retuner.start()
 

@@ -1,0 +1,137 @@
+"""The pipeline's parameters, defined once: :class:`PipelineConfig` and its table :data:`PARAMETERS`.
+
+Each field carries its description, range and unit; the node's parameter descriptors and
+validation, ``config/params.yaml``, the command line's pipeline options and the README's parameter
+table are derived from it (and tests check the last two against it). No ROS import.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..core.ransac import RANSAC_POINTS
+from ..core.tuning import CRITERIA, TUNE_CANDIDATES, TUNE_POINTS
+
+__all__ = ['Parameter', 'PipelineConfig', 'PARAMETERS', 'parameters_markdown']
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One parameter: ``default`` also fixes the type (bool, int, float or str); values must lie in
+    [low, high] or equal ``special`` (a value with its own meaning, e.g. 0 = derive), or be one
+    of ``choices``. unit: 'm', 's' or ''."""
+
+    name: str
+    default: Any
+    description: str
+    low: float | None = None
+    high: float | None = None
+    special: float | None = None
+    choices: tuple[str, ...] = ()
+    unit: str = ''
+    read_only: bool = False
+
+    @property
+    def type(self) -> type:
+        return type(self.default)
+
+    def problem(self, value: Any) -> str | None:
+        """Why ``value`` is not allowed, or None."""
+        kind = self.type
+        if kind is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if type(value) is not kind:
+            return f'{self.name} must be a {kind.__name__}, got {value!r}'
+        if self.choices and value not in self.choices:
+            return f'{self.name} must be one of {", ".join(self.choices)}, got {value!r}'
+        if self.low is None or value == self.special:
+            return None
+        if not (self.low <= value <= self.high):  # also catches NaN
+            unit = f' {self.unit}' if self.unit else ''
+            special = f' or {_fmt(self.special)}' if self.special is not None else ''
+            return f'{self.name} must be in [{_fmt(self.low)}, {_fmt(self.high)}]{unit}{special}, got {value!r}'
+        return None
+
+
+def _p(default: Any, description: str, **spec: Any) -> Any:
+    return field(default=default, metadata={'parameter': dict(description=description, **spec)})
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """Every tunable of the per-frame pipeline; the node's ROS parameters map one to one onto
+    these fields. Distances in meters."""
+
+    tolerance: float = _p(0.02, 'RANSAC inlier distance t (used when auto_tune is false, and until the first tune)',
+                          low=1e-6, high=10.0, unit='m')
+    auto_tune: bool = _p(True, 'choose t by sweeping candidates scored with the validity indices')
+    tune_min: float = _p(0.0, 'smallest tuning candidate; 0 = derive from the cloud (nearest-neighbour spacing / 20)',
+                         low=1e-6, high=10.0, special=0.0, unit='m')
+    tune_max: float = _p(0.0, 'largest tuning candidate; 0 = derive from the cloud (at most the bounding-box '
+                         'diagonal / 8)', low=1e-6, high=10.0, special=0.0, unit='m')
+    tune_count: int = _p(TUNE_CANDIDATES, 'tuning candidates, geometrically spaced from tune_min to tune_max',
+                         low=2, high=100)
+    tune_points: int = _p(TUNE_POINTS, 'random subsample of the cloud the tuning sweep runs on',
+                          low=100, high=10_000_000)
+    criterion: str = _p('gs_planes', 'index that picks t (dunn and the gs indices are maximized, davies_bouldin '
+                        'minimized)', choices=tuple(CRITERIA))
+    retune_period: float = _p(0.0, 'header time between retunes; 0 = tune on the first frame only',
+                              low=0.0, high=1e6, unit='s')
+    max_planes: int = _p(10, 'stop after this many planes', low=1, high=100)
+    min_inliers: float = _p(0.02, 'smallest plane: a fraction of the valid points when < 1, else a count '
+                            '(a double: write 150.0)', low=0.0, high=1e9)
+    probability: float = _p(0.99, 'RANSAC success probability that sets the iteration count',
+                            low=1e-6, high=0.999999)
+    max_iterations: int = _p(1000, 'RANSAC hypotheses per plane, at most', low=1, high=1_000_000)
+    index_sample_size: int = _p(2000, 'points the validity indices are computed on per frame (stratified sample)',
+                                low=10, high=1_000_000)
+    exact_indices: bool = _p(False, 'Dunn and Davies-Bouldin on all points (exact, slow on large clouds) instead '
+                             'of on the index sample')
+    ransac_points: int = _p(RANSAC_POINTS, 'RANSAC searches a random sample of this many points, then labels '
+                            'every point; 0 = all', low=1000, high=100_000_000, special=0)
+    voxel_size: float = _p(0.0, 'voxel grid applied before detection; 0 = off', low=1e-6, high=10.0, special=0.0,
+                           unit='m')
+    seed: int = _p(0, 'random seed; frames are seeded by (seed, header stamp); -1 = fresh entropy every frame',
+                   low=-1, high=2**31 - 1)
+
+    def validate(self) -> PipelineConfig:
+        """Return self, or raise ValueError naming the first invalid field and why."""
+        for name, spec in PARAMETERS.items():
+            why = spec.problem(getattr(self, name))
+            if why is not None:
+                raise ValueError(why)
+        if self.tune_min > 0 and self.tune_max > 0 and self.tune_max <= self.tune_min:
+            raise ValueError(f'tune_max must be greater than tune_min, got tune_min={self.tune_min}, '
+                             f'tune_max={self.tune_max}')
+        return self
+
+
+#: name -> Parameter, in declaration order.
+PARAMETERS: dict[str, Parameter] = {
+    f.name: Parameter(name=f.name, default=f.default, **f.metadata['parameter'])
+    for f in dataclasses.fields(PipelineConfig)}
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, float) and value.is_integer() and abs(value) < 1e15:
+        return f'{value:.1f}'
+    return f'{value:g}' if isinstance(value, float) else str(value)
+
+
+def parameters_markdown(parameters: dict[str, Parameter] | None = None) -> str:
+    """The README's parameter table (Markdown), one row per parameter."""
+    rows = ['| parameter | default | range | meaning |', '|---|---|---|---|']
+    for p in (parameters or PARAMETERS).values():
+        if p.choices:
+            allowed = ' \\| '.join(p.choices)
+        elif p.low is not None:
+            allowed = f'{_fmt(p.low)} – {_fmt(p.high)}' + (f' or {_fmt(p.special)}' if p.special is not None else '')
+        else:
+            allowed = 'true \\| false' if p.type is bool else ''
+        unit = f' {p.unit}' if p.unit and p.low is not None else ''
+        note = ' (read-only)' if p.read_only else ''
+        rows.append(f'| `{p.name}` | `{_fmt(p.default)}` | {allowed}{unit} | {p.description}{note} |')
+    return '\n'.join(rows)

@@ -1,0 +1,95 @@
+"""Record the input clouds and the node's outputs into a rosbag2 bag that is complete or absent.
+
+The bag is written under a hidden temporary directory beside ``path`` and moved into place on
+:meth:`BagRecorder.close`; :meth:`BagRecorder.abort` (an exception or a signal turned into one)
+deletes it. Data files are named as rosbag2 names them (``<name>_0.mcap`` / ``<name>_0.db3``).
+"""
+from __future__ import annotations
+
+import shutil
+import tempfile
+from pathlib import Path
+
+from ..formats.bags import POINTCLOUD2, STORAGES, BagError, typestore
+
+__all__ = ['BagRecorder', 'OUTPUT_TYPES', 'output_topics']
+
+#: Output topic suffix -> message type, as the node publishes them (under /<node name>/).
+OUTPUT_TYPES = {'segmented': POINTCLOUD2, 'planes': 'visualization_msgs/msg/MarkerArray',
+                'plane_poses': 'geometry_msgs/msg/PoseArray',
+                'plane_coefficients': 'std_msgs/msg/Float64MultiArray'}
+DIAGNOSTICS_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
+
+
+def output_topics(node_name: str = 'plane_validation') -> dict[str, str]:
+    """Output key -> topic name, as the node publishes them."""
+    topics = {key: f'/{node_name}/{key}' for key in OUTPUT_TYPES}
+    topics['diagnostics'] = '/diagnostics'
+    return topics
+
+
+class BagRecorder:
+    """Writes rclpy messages keyed 'input' or an output key. storage: 'mcap' or 'sqlite3'."""
+
+    def __init__(self, path: Path, input_topic: str, node_name: str = 'plane_validation',
+                 storage: str = 'mcap') -> None:
+        from rosbags.rosbag2 import StoragePlugin, Writer
+
+        if storage not in STORAGES:
+            raise BagError(f'unknown storage {storage!r}; choose one of {", ".join(STORAGES)}')
+        if path.exists():
+            raise BagError(f'output {path} already exists; remove it or pass another --out')
+        if not path.parent.is_dir():
+            raise BagError(f'cannot write output bag {path}: directory {path.parent} does not exist')
+        self.path, self.storage = path, storage
+        self._tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f'.{path.name}.', suffix='.partial'))
+        self._bag = self._tmp / path.name
+        try:
+            self.writer = Writer(self._bag, version=9, storage_plugin=StoragePlugin[storage.upper()])
+            self.writer.open()
+            store = typestore()
+            self.connections = {'input': self.writer.add_connection(input_topic, POINTCLOUD2, typestore=store)}
+            for key, topic in output_topics(node_name).items():
+                msgtype = OUTPUT_TYPES.get(key, DIAGNOSTICS_TYPE)
+                self.connections[key] = self.writer.add_connection(topic, msgtype, typestore=store)
+        except Exception as exc:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            raise BagError(f'cannot write output bag {path}: {exc}') from exc
+
+    def write(self, key: str, timestamp: int, msg) -> None:
+        from rclpy.serialization import serialize_message
+        self.writer.write(self.connections[key], timestamp, serialize_message(msg))
+
+    def close(self) -> Path:
+        """Finish the bag and move it to ``path``."""
+        try:
+            self.writer.close()
+            suffix = STORAGES[self.storage]
+            data = self._bag / f'{self._bag.name}{suffix}'
+            rosbag2_name = f'{self._bag.name}_0{suffix}'
+            data.rename(self._bag / rosbag2_name)
+            meta = self._bag / 'metadata.yaml'
+            meta.write_text(meta.read_text().replace(f'- {data.name}\n', f'- {rosbag2_name}\n'))
+            self._bag.rename(self.path)
+        except BaseException:
+            self.abort()
+            raise
+        shutil.rmtree(self._tmp, ignore_errors=True)
+        return self.path
+
+    def abort(self) -> None:
+        """Throw the unfinished bag away."""
+        try:
+            self.writer.close()
+        except Exception:  # noqa: BLE001 - the bag is being thrown away anyway
+            pass
+        shutil.rmtree(self._tmp, ignore_errors=True)
+
+    def __enter__(self) -> BagRecorder:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
