@@ -23,8 +23,8 @@ from pyinstrument import Profiler  # noqa: E402
 from suite import STEADY  # noqa: E402
 
 from plane_validation.app import pipeline as pv_pipeline  # noqa: E402
-from plane_validation.ros.messages import frame_messages  # noqa: E402
 from plane_validation.app.pipeline import FramePipeline  # noqa: E402
+from plane_validation.ros.messages import frame_messages  # noqa: E402
 
 PACKAGE = 'plane_validation/'
 

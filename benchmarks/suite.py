@@ -40,17 +40,17 @@ from pvbench.node_e2e import NodeBench, NodeRun, cloud_message  # noqa: E402
 from pvbench.stats import Summary, loglog_exponent  # noqa: E402
 
 from plane_validation.app import pipeline as pv_pipeline  # noqa: E402
-from plane_validation.core import ransac as pv_ransac  # noqa: E402
-from plane_validation.formats.pointcloud2 import xyz_array  # noqa: E402
-from plane_validation.core.indices import validity_indices  # noqa: E402
 from plane_validation.app.pipeline import (  # noqa: E402
     FramePipeline,
     FrameResult,
     PipelineConfig,
     frame_seed,
 )
+from plane_validation.core import ransac as pv_ransac  # noqa: E402
+from plane_validation.core.indices import validity_indices  # noqa: E402
 from plane_validation.core.ransac import as_points, detect_planes  # noqa: E402
 from plane_validation.core.verdict import judge  # noqa: E402
+from plane_validation.formats.pointcloud2 import xyz_array  # noqa: E402
 
 TOLERANCE = 0.01       # m, as in the Open3D measurement
 PLANES = 5

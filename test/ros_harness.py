@@ -11,6 +11,7 @@ from collections import defaultdict
 
 import numpy as np
 import rclpy
+import sensor_msgs.msg
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseArray
@@ -20,7 +21,6 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64MultiArray, Header
 from visualization_msgs.msg import MarkerArray
 
-import sensor_msgs.msg
 from plane_validation.formats.pointcloud2 import create_cloud
 
 OUTPUTS = {'segmented': PointCloud2, 'planes': MarkerArray, 'plane_poses': PoseArray,

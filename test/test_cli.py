@@ -295,3 +295,18 @@ def test_progress_bar_only_on_a_terminal_and_never_with_json(monkeypatch, corner
     assert main(['sweep', str(corner_npy), '--tolerances', '0.005:0.03:4', '--json']) == 0
     assert sys.stderr.getvalue() == ''
     assert len(json.loads(capsys.readouterr().out)['sweep']) == 4
+
+
+def test_core_only_install_detects_and_plots(tmp_path):
+    """With only the core extra (no rclpy, *_msgs or rosbags) detect --png works: the plot's colours
+    come from the core, not from the ROS message module."""
+    cloud = tmp_path / 'corner.npy'
+    np.save(cloud, scenes.corner(1500, 1.0, scale=0.01, seed=0).points)
+    code = ('import sys, no_ros; no_ros.install(); from plane_validation.cli import main; '
+            'status = main(sys.argv[1:]); assert not no_ros.leaked(), no_ros.leaked(); sys.exit(status)')
+    proc = subprocess.run([sys.executable, '-c', code, 'detect', str(cloud), '--tolerance', '0.02', '--png',
+                           str(tmp_path / 'y.png'), '--out', str(tmp_path / 'labels.ply')],
+                          capture_output=True, text=True, timeout=120, cwd=Path(__file__).parent)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / 'y.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    assert '3 planes' in proc.stdout or 'plane 2' in proc.stdout

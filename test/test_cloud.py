@@ -9,15 +9,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from plane_validation.formats.pointcloud2 import (
-    create_cloud, pack_rgb, rosbags_types, structured_array, unpack_rgb, xyz_array)
+    create_cloud,
+    pack_rgb,
+    rosbags_types,
+    structured_array,
+    unpack_rgb,
+    xyz_array,
+)
 
 sensor_msgs_msg = pytest.importorskip('sensor_msgs.msg')
 std_msgs_msg = pytest.importorskip('std_msgs.msg')
 builtin_interfaces_msg = pytest.importorskip('builtin_interfaces.msg')
 typesys = pytest.importorskip('rosbags.typesys')
+pytestmark = pytest.mark.ros  # rclpy and the ROS message packages
 
 TYPESTORE = typesys.get_typestore(typesys.Stores.ROS2_JAZZY)
 RB = rosbags_types(TYPESTORE)

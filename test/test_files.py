@@ -140,8 +140,8 @@ BAGS = Path(__file__).resolve().parents[1] / 'bags'
 
 
 def test_bag_sources_pick_topic_and_message(tmp_path):
+    from plane_validation.formats.bags import read_clouds
     from plane_validation.formats.pointcloud2 import xyz_array
-    from plane_validation.ros.replay import read_clouds
     frames = [xyz_array(msg) for _, _, msg in read_clouds(BAGS / 'corner_e025')]
     assert len(frames) == 5
     bag = str(BAGS / 'corner_e025')
@@ -211,3 +211,23 @@ def test_bad_point_files_are_one_line_errors(tmp_path, name, content, words):
     with pytest.raises(ValueError, match=words) as info:
         load_points(path)
     assert str(path) in str(info.value)
+
+
+def test_labels_written_to_a_bag_are_kept(tmp_path):
+    """--out NAME without an extension writes a rosbag2 bag: the labels go into an int32 field
+    'label' instead of being dropped."""
+    from plane_validation.formats.bags import read_clouds
+    from plane_validation.formats.pointcloud2 import structured_array
+    labels = np.arange(len(POINTS)) % 3 - 1
+    path = save_points(tmp_path / 'labelled', POINTS, labels)
+    ((_, _, msg),) = list(read_clouds(path))
+    cloud = structured_array(msg)
+    np.testing.assert_array_equal(cloud['label'], labels)
+    np.testing.assert_allclose(np.column_stack([cloud['x'], cloud['y'], cloud['z']]), POINTS, atol=1e-6)
+
+
+def test_point_file_outputs_are_complete_or_absent(tmp_path):
+    with pytest.raises(ValueError):
+        save_points(tmp_path / 'bad.ply', POINTS, np.zeros(3))  # wrong label count: nothing written
+    save_points(tmp_path / 'ok.pcd', POINTS, np.zeros(len(POINTS)))
+    assert [p.name for p in tmp_path.iterdir()] == ['ok.pcd']  # no temporary leftovers

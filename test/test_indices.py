@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 from scipy.spatial.distance import cdist, pdist
 from sklearn import metrics
 
-from plane_validation.core import indices as pi
 from plane_validation import scenes
+from plane_validation.core import indices as pi
 from plane_validation.core.ransac import detect_planes
 
 TOL = 1e-9

@@ -16,6 +16,8 @@ rclpy = pytest.importorskip('rclpy')
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 
+pytestmark = pytest.mark.ros  # rclpy and the ROS message packages (and DDS for node tests)
+
 PROFILE = Path(__file__).resolve().parents[1] / 'config' / 'fastdds_large_clouds.xml'
 FRAMES = 20
 FIRST_STAMP = 7_000_000_000_000

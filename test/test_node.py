@@ -10,13 +10,15 @@ import pytest
 
 rclpy = pytest.importorskip('rclpy')
 from rclpy.parameter import Parameter  # noqa: E402
+from ros_harness import Harness, diag_values, make_header, xyz_cloud  # noqa: E402
 from sensor_msgs.msg import PointCloud2, PointField  # noqa: E402
 
 from plane_validation import scenes  # noqa: E402
+from plane_validation.app.pipeline import FramePipeline, PipelineConfig  # noqa: E402
 from plane_validation.formats.pointcloud2 import structured_array, xyz_array  # noqa: E402
 from plane_validation.ros.node import PlaneValidationNode  # noqa: E402
-from plane_validation.app.pipeline import FramePipeline, PipelineConfig  # noqa: E402
-from ros_harness import Harness, diag_values, make_header, xyz_cloud  # noqa: E402
+
+pytestmark = pytest.mark.ros  # rclpy and the ROS message packages (and DDS for node tests)
 
 FIXED = {'auto_tune': False, 'tolerance': 0.01, 'seed': 7}
 
@@ -283,3 +285,38 @@ def test_node_with_invalid_startup_parameters_exits_with_a_reason():
     assert proc.returncode == 2
     assert 'tune_max must be greater than tune_min' in proc.stderr
     assert 'Traceback' not in proc.stderr
+
+
+def test_error_and_warn_log_lines_both_appear_throttled_per_level(harness, capfd):
+    """rclpy ties a throttled call site to one severity: an ERROR frame, then a WARN frame, then an
+    ERROR frame must give one ERROR and one WARN line (the third is throttled), not a ValueError
+    logged as 'frame failed unexpectedly'."""
+    stamp = 9_000_000_000_000
+    no_z = xyz_cloud(corner_points(), stamp)
+    no_z.fields = list(no_z.fields)[:2]
+    two_points = xyz_cloud(np.array([[0, 0, 0], [1, 1, 1.0]]), stamp + 1)
+    no_z_again = xyz_cloud(corner_points(), stamp + 2)
+    no_z_again.fields = list(no_z_again.fields)[:2]
+    levels = [harness.send(msg)['diagnostics'].status[0].level for msg in (no_z, two_points, no_z_again)]
+    assert levels == [b'\x02', b'\x01', b'\x02']
+    time.sleep(0.2)
+    err = capfd.readouterr().err
+    assert 'failed unexpectedly' not in err
+    assert err.count('ERROR: malformed PointCloud2') == 1, err
+    assert err.count('WARN: too few valid points') == 1, err
+
+
+def test_a_tuning_range_the_cloud_cannot_honour_keeps_the_last_tuned_tolerance(ros):
+    node = PlaneValidationNode(parameter_overrides=[Parameter('seed', value=3)])
+    harness = Harness(node)
+    try:
+        first = diag_values(harness.send(xyz_cloud(corner_points(0.002), 10_000_000_000_000))['diagnostics'])
+        assert first['tolerance_source'].startswith('tuned') and first['planes'] == '3'
+        assert node.set_parameters([Parameter('tune_min', value=5.0)])[0].successful  # tune_max 0: derived
+        out = harness.send(xyz_cloud(corner_points(0.002), 10_000_000_000_001))['diagnostics']
+        values, status = diag_values(out), out.status[0]
+        assert status.level == b'\x01' and 'cannot tune' in status.message and 'tune_min' in status.message
+        assert values['tolerance'] == first['tolerance'] and values['tolerance_source'] == 'last tuned (tuning failed)'
+        assert values['planes'] == '3'
+    finally:
+        harness.close()

@@ -20,12 +20,15 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.ros  # rclpy and the ROS message packages (and DDS for node tests)
+
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = 'plane_validation'
 #: what a colcon workspace needs of the repository (not .venv, bags/, benchmarks/, test/, ...)
 SOURCES = ['package.xml', 'setup.py', 'setup.cfg', 'resource', PACKAGE, 'config', 'launch']
 EXECUTABLES = ['plane_validation_node', 'plane-validation']
-SHARE_FILES = ['package.xml', 'config/params.yaml', 'config/fastdds_large_clouds.xml', 'launch/plane_validation.launch.py']
+SHARE_FILES = ['package.xml', 'config/params.yaml', 'config/fastdds_large_clouds.xml',
+               'launch/plane_validation.launch.py']
 BUILD_TIMEOUT = 300.0
 
 EXEC_DEPENDS = ['rclpy', 'sensor_msgs', 'std_msgs', 'geometry_msgs', 'visualization_msgs',
@@ -48,7 +51,7 @@ ROSDEP_KEYS = {
     'pytest': 'python3-pytest',
 }
 #: pip-only optional imports, made inside functions with a clear error when missing (no rosdep key)
-OPTIONAL_PIP = {'pypcd4'}
+OPTIONAL_PIP = {'pypcd4', 'mcap', 'mcap_ros2'}  # mcap*: test-only, skipped when missing
 #: ROS packages whose python module has the package's name
 ROS_PACKAGES = {'rclpy', 'launch', 'launch_ros', 'ament_index_python', 'rosidl_runtime_py',
                 'message_filters', 'tf2_ros', 'tf2_py', 'rosbag2_py'}

@@ -133,3 +133,35 @@ def test_large_frames_sample_ransac_and_indices_unless_told_otherwise():
     assert values['dunn_db_points'] == values['index_sample_size'] != '80000'
     assert exact_values['dunn_db_points'] == '80000'
     assert sorted(fast.plane_counts) == pytest.approx(sorted(exact.plane_counts), rel=0.01)
+
+
+def test_trailing_bytes_after_the_declared_data_are_reported_as_warn():
+    from rosbags.typesys import Stores, get_typestore
+
+    from plane_validation.formats.pointcloud2 import create_cloud, rosbags_types
+    types = rosbags_types(get_typestore(Stores.ROS2_JAZZY))
+    pts = scenes.corner(900, 0.0, scale=0.01, seed=2).points.astype(np.float32)
+    header = types.Header(stamp=types.Time(sec=1, nanosec=0), frame_id='f')
+    msg = create_cloud(header, {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2]}, types=types)
+    config = PipelineConfig(auto_tune=False, tolerance=0.01)
+    clean = FramePipeline(config).process_cloud(msg)
+    msg.data = np.concatenate([msg.data, np.zeros(7, np.uint8)])
+    padded = FramePipeline(config).process_cloud(msg)
+    assert clean.level == OK and padded.level == WARN
+    assert '7 byte(s) beyond height*row_step' in padded.message
+    assert padded.n_planes == clean.n_planes == 3 and np.array_equal(padded.labels, clean.labels)
+
+
+def test_a_failed_tune_detects_with_the_last_tuned_tolerance():
+    import dataclasses
+    points = scenes.corner(3000, 0.2, scale=0.01, seed=5).points
+    pipeline = FramePipeline(PipelineConfig(seed=1))
+    first = pipeline.process(points, 1)
+    assert first.level == OK and first.tolerance_source.startswith('tuned')
+    pipeline.reconfigure(dataclasses.replace(pipeline.config, tune_min=5.0))  # above the derived tune_max
+    again = pipeline.process(points, 2)
+    assert again.level == WARN and 'cannot tune' in again.message and 'tune_min' in again.message
+    assert again.tolerance == first.tolerance and again.n_planes == 3
+    assert dict(again.values)['tolerance_source'] == 'last tuned (tuning failed)'
+    fresh = FramePipeline(PipelineConfig(seed=1, tune_min=5.0)).process(points, 3)  # nothing tuned yet
+    assert fresh.level == WARN and fresh.tolerance == PipelineConfig().tolerance and fresh.n_planes == 3

@@ -1,7 +1,8 @@
 """Sequential RANSAC core: accuracy on scenes with ground truth, bad input, determinism."""
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 import plane_validation as pv

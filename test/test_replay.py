@@ -13,9 +13,11 @@ from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, W
 from rosbags.typesys import Stores, get_typestore
 
 from plane_validation import scenes
-from plane_validation.formats.pointcloud2 import create_cloud, rosbags_types, structured_array
 from plane_validation.cli import main as cli_main
+from plane_validation.formats.pointcloud2 import create_cloud, rosbags_types, structured_array
 from plane_validation.ros.replay import ReplayError, output_topics, replay_live, replay_offline
+
+pytestmark = pytest.mark.ros  # rclpy and the ROS message packages (and DDS for node tests)
 
 ROOT = Path(__file__).resolve().parents[1]
 BAGS = ROOT / 'bags'
@@ -187,3 +189,72 @@ def test_cli_replay_prints_frames_and_summary(tmp_path, capsys):
     assert '5 frames from' in text
     assert cli_main(['replay', str(tmp_path / 'missing')]) == 2
     assert 'bag not found' in capsys.readouterr().err
+
+
+def _data_files(bag: Path) -> list[str]:
+    return sorted(p.name for p in bag.iterdir() if p.name != 'metadata.yaml')
+
+
+def test_mcap_input_gives_mcap_output_decoded_by_foxglove_readers(tmp_path):
+    """room is an MCAP bag: the output is MCAP too, named as rosbag2 names it, and Foxglove's own
+    reader (mcap + mcap-ros2-support, not rosbags) decodes every message."""
+    make_reader = pytest.importorskip('mcap.reader').make_reader
+    DecoderFactory = pytest.importorskip('mcap_ros2.decoder').DecoderFactory
+
+    out = tmp_path / 'room_offline'
+    summary = replay_offline(BAGS / 'room', out=out, echo=None)
+    assert _data_files(out) == ['room_offline_0.mcap']
+    assert '- room_offline_0.mcap' in (out / 'metadata.yaml').read_text()
+    counts: dict[str, int] = {}
+    with open(out / 'room_offline_0.mcap', 'rb') as f:
+        for _, channel, _, decoded in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            if channel.topic == '/diagnostics':
+                assert decoded.status[0].name == 'plane_validation: plane detection'
+            if channel.topic == '/plane_validation/plane_coefficients':
+                assert len(decoded.data) % 4 == 0
+    frames = len(summary.frames)
+    assert frames >= 2 and counts == {topic: frames for topic in [summary.topic, *output_topics().values()]}
+
+
+def test_storage_option_and_sqlite_input(tmp_path):
+    out = tmp_path / 'cube_as_mcap'
+    assert cli_main(['replay', str(BAGS / 'cube'), '--out', str(out), '--storage', 'mcap', '--fixed']) == 0
+    assert _data_files(out) == ['cube_as_mcap_0.mcap']
+    replay_offline(BAGS / 'cube', out=tmp_path / 'cube_out', echo=None)  # cube is sqlite3
+    assert _data_files(tmp_path / 'cube_out') == ['cube_out_0.db3']
+    with AnyReader([tmp_path / 'cube_out'], default_typestore=TS2) as reader:
+        assert sum(c.msgcount for c in reader.connections if c.topic == '/diagnostics') == 5
+
+
+@pytest.mark.parametrize('sig, status', [('SIGTERM', 143), ('SIGHUP', 129)])
+def test_signal_during_replay_leaves_no_output(tmp_path, sig, status):
+    import os
+    import signal
+    import subprocess
+    import sys
+    out = tmp_path / 'out'
+    proc = subprocess.Popen([sys.executable, '-u', '-m', 'plane_validation.cli', 'replay', str(BAGS / 'room'),
+                             '--out', str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ))
+    try:
+        first = proc.stdout.readline()  # the first frame is written: the bag is half done
+        assert first.startswith('frame    0') and list(tmp_path.glob('.out.*')), first
+        proc.send_signal(getattr(signal, sig))
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == status, err
+    assert list(tmp_path.iterdir()) == [], 'an unfinished output was left behind'
+    assert 'Traceback' not in err
+
+
+def test_a_topic_with_two_message_types_names_both(tmp_path):
+    bag = tmp_path / 'mixed'
+    with Writer(bag, version=9) as writer:
+        writer.add_connection('/points', 'sensor_msgs/msg/PointCloud2', typestore=TS2)
+        writer.add_connection('/points', 'std_msgs/msg/String', typestore=TS2)
+    with pytest.raises(ReplayError) as info:
+        replay_offline(bag, topic='/points', out=tmp_path / 'o', echo=None)
+    assert 'sensor_msgs/msg/PointCloud2 and std_msgs/msg/String' in str(info.value)

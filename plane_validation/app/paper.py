@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from ..core import scenes
-from .plot import plot_plane_count, plot_sweep
 from ..core.tuning import PlaneCountResult, TuningResult, select_plane_count, tune_tolerance
+from .plot import plot_plane_count, plot_sweep
 
 __all__ = ['Case', 'CASES', 'CaseResult', 'run_paper', 'summary_markdown', 'linear_grid']
 

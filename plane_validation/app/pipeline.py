@@ -182,7 +182,7 @@ class FramePipeline:
             pts = as_points(points)
         except ValueError as exc:
             return _failed(ERROR, f'bad input: {exc}', start, self.current_tolerance())
-        valid = np.compress(finite_rows(pts), pts, axis=0)  # ~4x faster than a boolean index
+        valid = np.compress(finite_rows(pts), pts, axis=0)  # much faster than a boolean index
         n_input = len(pts)
         if len(valid) < 3:
             return _failed(WARN, f'too few valid points: {len(valid)} of {n_input} (need 3)', start,
@@ -211,7 +211,8 @@ class FramePipeline:
         labels = seg.labels if inverse is None else seg.labels[inverse]
         level, message = (OK, verdict) if reliable else (WARN, f'no reliable planes: {verdict}')
         if tune_problem:
-            level, message = WARN, f'{tune_problem}; detected with {source.split(" (")[0]} t={tolerance:.4g} m: {message}'
+            used = source.split(' (')[0]
+            level, message = WARN, f'{tune_problem}; detected with {used} t={tolerance:.4g} m: {message}'
         counts = np.bincount(labels[labels >= 0], minlength=seg.n_planes)
         values = _values(cfg, tolerance, source, n_input, len(valid), int(np.sum(labels < 0)), seg, counts, scores,
                          noise_from_segmentation(seg))

@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from .detection import Detection
 from ..core.indices import ValidityIndices
 from ..core.ransac import Segmentation
 from ..core.tuning import CRITERIA, PlaneCountResult, TuningResult
+from .detection import Detection
 
 __all__ = ['jsonable', 'dumps', 'planes_json', 'indices_json', 'detection_document', 'sweep_document',
            'plane_count_document', 'SWEEP_COLUMNS', 'write_sweep_csv', 'format_planes', 'format_indices',

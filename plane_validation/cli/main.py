@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..formats.files import load_points
 from ..app.report import format_planes
+from ..formats.files import load_points
 
 __all__ = ['main', 'build_parser', 'format_planes', 'parse_tolerances']
 
@@ -421,7 +421,8 @@ def build_parser() -> argparse.ArgumentParser:
     scene.add_argument('--points', dest='n_points', type=_positive_int, metavar='N', help='number of points')
     scene.add_argument('--outliers', dest='outlier_fraction', type=float, metavar='F',
                        help='fraction of uniform outliers')
-    scene.add_argument('--scale', type=_positive_float, metavar='S', help='multiply all coordinates (0.01: paper units -> m)')
+    scene.add_argument('--scale', type=_positive_float, metavar='S',
+                       help='multiply all coordinates (0.01: paper units -> m)')
     scene.add_argument('--seed', type=int, default=0, metavar='S', help='random seed (default 0)')
     scene.add_argument('--out', metavar='FILE', help='.ply, .pcd, .npy, .xyz/.txt/.csv (with the true plane of each '
                        'point), or a bag: a new directory, .mcap or .db3 (one PointCloud2 on /points); '

@@ -422,9 +422,9 @@ def _cluster_distance_sums(cl: _Clusters, rows: np.ndarray, onehot: np.ndarray, 
 
     fast (for sampled estimates): float32 through |a|^2 + |b|^2 - 2 a.b, with both sides centred
     on the target cluster's centroid, so the cancellation error stays ~1e-4 of the distances of
-    interest (within a cluster: its spread; between clusters: their separation). About 2x faster
-    than cdist on a 2,000-point sample; cdist when the set is large or has coordinates near the
-    float range (a driver's FLT_MAX rows).
+    interest (within a cluster: its spread; between clusters: their separation); faster than
+    cdist on the default sample. cdist when the set is large or has coordinates near the float
+    range (a driver's FLT_MAX rows).
     """
     points = cl.points[rows]
     if fast and cl.n <= FAST_SILHOUETTE_POINTS:
@@ -501,7 +501,7 @@ def silhouette_samples(points: np.ndarray, labels: np.ndarray) -> np.ndarray:
 
     Label -1 points form one cluster. Rows with non-finite coordinates get NaN. All zeros when
     there are fewer than two clusters; 0 for a singleton cluster (as scikit-learn).
-    Memory is bounded (blocks of ``CHUNK_FLOATS`` distances); time O(N^2), ~1 s for 20k points.
+    Memory is bounded (blocks of ``CHUNK_FLOATS`` distances); time O(N^2).
     """
     pts, _ = _check(points, labels)
     cl = _clusters(points, labels)
@@ -687,11 +687,10 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     seed.
 
     sampled_separation: compute Dunn and both Davies-Bouldin forms on the same sample (when
-    the silhouettes are sampled). Much faster on large clouds (a 270k-point Kinect frame: ~12 ms
-    for all indices instead of ~250 ms), but biased: sampled clusters lie farther apart and are
-    a little smaller than the full ones, so Dunn comes out larger and DB smaller than exact;
-    compare such values only with values from the same sample size. GS values are unchanged
-    (the same sample, rows and seed either way).
+    the silhouettes are sampled). Much faster on large clouds (benchmarks/README.md), but
+    biased: sampled clusters lie farther apart and are a little smaller than the full ones, so
+    Dunn comes out larger and DB smaller than exact; compare such values only with values from
+    the same sample size. GS values are unchanged (the same sample, rows and seed either way).
 
     Label -1 points form one extra cluster for everything but GS_planes, which ignores them.
     Defined values, never exceptions: fewer than two clusters -> dunn 0.0, davies_bouldin inf,
@@ -701,8 +700,7 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     s_i = 0. ValueError only for badly shaped input (points not (N, 3), labels not (N,) integers)
     or sample_size < 2.
 
-    Cost: ~0.1 s for 50k points in 7 clusters with the default sample size (exact silhouettes are
-    O(N^2): ~1 s per 20k points).
+    Cost: O(sample_size^2) for the sampled silhouettes; exact silhouettes are O(N^2).
     """
     if sample_size is not None and (int(sample_size) != sample_size or sample_size < 2):
         raise ValueError(f'sample_size must be None or an integer >= 2, got {sample_size!r}')

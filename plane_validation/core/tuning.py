@@ -17,7 +17,8 @@ from .indices import ValidityIndices, validity_indices
 from .ransac import RANSAC_POINTS, Segmentation, as_points, detect_planes, finite_rows
 from .verdict import RELIABLE_GS_PLANES, SINGLE_PLANE_THICKNESS, judge, plane_thickness
 
-__all__ = ['CRITERIA', 'TUNE_CANDIDATES', 'TUNE_POINTS', 'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
+__all__ = ['CRITERIA', 'TUNE_CANDIDATES', 'TUNE_POINTS',
+           'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
            'select_plane_count', 'noise_from_segmentation', 'local_noise', 'MIN_PLANE_SILHOUETTE']
 
 #: Default number of tuning candidates and the subsample a sweep runs on (points).
@@ -134,8 +135,8 @@ def local_noise(points: np.ndarray, *, k: int = 16, queries: int = 2000, seed=No
     return spacing, float(np.median(np.sqrt(np.maximum(smallest, 0.0))))
 
 
-def default_tolerances(points: np.ndarray, count: int = TUNE_CANDIDATES, *, lo: float | None = None, hi: float | None = None,
-                       seed=None) -> np.ndarray:
+def default_tolerances(points: np.ndarray, count: int = TUNE_CANDIDATES, *, lo: float | None = None,
+                       hi: float | None = None, seed=None) -> np.ndarray:
     """``count`` candidate tolerances (meters), geometrically spaced from ``lo`` to ``hi``.
 
     Bounds not given are derived from the cloud: ``lo`` is a twentieth of the median
@@ -156,6 +157,9 @@ def default_tolerances(points: np.ndarray, count: int = TUNE_CANDIDATES, *, lo: 
         if hi is None:
             cap = max(10 * thickness, 5 * spacing)
             hi = min(diagonal / 8, cap) if cap > 0 else diagonal / 8
+            if lo is not None and lo >= hi:
+                raise ValueError(f'the smallest candidate {lo:g} m (t_min, the node\'s tune_min) is not below the '
+                                 f'largest one derived from this cloud, {hi:.3g} m: lower it or give t_max too')
         if lo is None:
             lo = min(spacing / 20, hi / 100) if spacing > 0 else hi / 1000
     if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):

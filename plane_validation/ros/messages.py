@@ -12,10 +12,10 @@ from geometry_msgs.msg import Point, Pose, PoseArray, Quaternion, Vector3
 from std_msgs.msg import ColorRGBA, Float64MultiArray, MultiArrayDimension
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ..formats.pointcloud2 import create_cloud, pack_rgb
-from ..core.geometry import UNASSIGNED_RGB, PlaneOutline, plane_colors, plane_outlines
 from ..app.diagnostics import Diagnostic, Level
 from ..app.pipeline import FrameResult
+from ..core.geometry import UNASSIGNED_RGB, PlaneOutline, plane_colors, plane_outlines
+from ..formats.pointcloud2 import create_cloud, pack_rgb
 
 __all__ = ['segmented_cloud', 'plane_markers', 'plane_poses', 'plane_coefficients',
            'diagnostics', 'diagnostic_from_status', 'frame_messages', 'to_rclpy_cloud']

@@ -56,6 +56,20 @@ def descriptor(spec: Parameter) -> ParameterDescriptor:
     return desc
 
 
+def params_yaml(node_name: str = 'plane_validation') -> str:
+    """config/params.yaml: every node parameter at its default, with its description."""
+    lines = ['# Parameters of plane_validation_node (generated from plane_validation/app/config.py and',
+             '# ros/node.py by params_yaml(); a test checks it). Distances are in meters.',
+             '#   ros2 run plane_validation plane_validation_node --ros-args --params-file config/params.yaml \\',
+             '#     -r cloud:=/camera/depth/points',
+             f'{node_name}:', '  ros__parameters:']
+    for spec in {**PARAMETERS, **NODE_PARAMETERS}.values():
+        value = str(spec.default).lower() if spec.type is bool else spec.default
+        lines.append(f'    # {spec.description}' + (f' [{spec.unit}]' if spec.unit else ''))
+        lines.append(f'    {spec.name}: {value}')
+    return '\n'.join(lines) + '\n'
+
+
 class PlaneValidationNode(Node):
     """Subscribes ``cloud``; publishes ``~/segmented``, ``~/planes``, ``~/plane_poses``,
     ``~/plane_coefficients`` and ``/diagnostics``."""
@@ -116,9 +130,10 @@ class PlaneValidationNode(Node):
     # -- one frame -------------------------------------------------------------------------------
     def process(self, msg: PointCloud2) -> None:
         """Convert, run the shared pipeline, publish every output stamped with the input header."""
-        result = self.pipeline.process_cloud(msg, tune_inline=self.pipeline.tolerance is None)
+        tune_inline = self.pipeline.tolerance is None
+        result = self.pipeline.process_cloud(msg, tune_inline=tune_inline)
         stamp_ns = header_stamp_ns(msg.header)
-        if result.segmentation is not None and self.pipeline.retune_due(stamp_ns * 1e-9):
+        if not tune_inline and result.segmentation is not None and self.pipeline.retune_due(stamp_ns * 1e-9):
             self._start_retune(result.points, stamp_ns)  # frames go on with the current t meanwhile
         self.frames_processed += 1
         with self._wake:

@@ -10,8 +10,8 @@ import threading
 from collections.abc import Callable
 
 from ..app.pipeline import header_stamp_ns
-from .messages import diagnostic_from_status
 from ..app.summary import FrameSummary
+from .messages import diagnostic_from_status
 
 __all__ = ['OutputPairing']
 

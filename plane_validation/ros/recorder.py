@@ -52,9 +52,11 @@ class BagRecorder:
             for key, topic in output_topics(node_name).items():
                 msgtype = OUTPUT_TYPES.get(key, DIAGNOSTICS_TYPE)
                 self.connections[key] = self.writer.add_connection(topic, msgtype, typestore=store)
-        except Exception as exc:
+        except BaseException as exc:  # also a signal turned into an exception
             shutil.rmtree(self._tmp, ignore_errors=True)
-            raise BagError(f'cannot write output bag {path}: {exc}') from exc
+            if isinstance(exc, Exception):
+                raise BagError(f'cannot write output bag {path}: {exc}') from exc
+            raise
 
     def write(self, key: str, timestamp: int, msg) -> None:
         from rclpy.serialization import serialize_message

@@ -145,5 +145,6 @@ def replay_live(bag: str | Path, *, topic: str | None = None, out: str | Path | 
         finally:
             session.close()
         write_received()
-    return ReplaySummary(bag=bag, topic=cloud_topic, output=out_path, frames=sorted(pairing.frames, key=lambda f: f.index),
-                         dropped=pairing.dropped, last_segmented=pairing.last_segmented)
+    frames_answered = sorted(pairing.frames, key=lambda f: f.index)
+    return ReplaySummary(bag=bag, topic=cloud_topic, output=out_path, frames=frames_answered, dropped=pairing.dropped,
+                         last_segmented=pairing.last_segmented)
