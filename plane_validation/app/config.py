@@ -13,7 +13,7 @@ from typing import Any
 from ..core.ransac import RANSAC_POINTS
 from ..core.tuning import CRITERIA, TUNE_CANDIDATES, TUNE_POINTS
 
-__all__ = ['Parameter', 'PipelineConfig', 'PARAMETERS', 'parameters_markdown']
+__all__ = ['Parameter', 'PipelineConfig', 'PARAMETERS', 'parameters_markdown', 'min_inliers_value']
 
 
 @dataclass(frozen=True)
@@ -111,6 +111,12 @@ class PipelineConfig:
 PARAMETERS: dict[str, Parameter] = {
     f.name: Parameter(name=f.name, default=f.default, **f.metadata['parameter'])
     for f in dataclasses.fields(PipelineConfig)}
+
+
+def min_inliers_value(value: float) -> int | float:
+    """The min_inliers parameter (a double in ROS) as the core takes it: a fraction when < 1,
+    else a count (150.0 -> 150)."""
+    return value if value < 1 else int(value)
 
 
 def _fmt(value: Any) -> str:

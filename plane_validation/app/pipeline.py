@@ -19,7 +19,7 @@ from ..core.ransac import Segmentation, as_points, detect_planes, finite_rows
 from ..core.tuning import TuningResult, noise_from_segmentation, tune_tolerance
 from ..core.verdict import judge
 from ..formats.pointcloud2 import trailing_bytes, xyz_array
-from .config import PipelineConfig
+from .config import PipelineConfig, min_inliers_value
 from .diagnostics import Diagnostic, Level, fmt
 
 __all__ = ['PipelineConfig', 'FrameResult', 'FramePipeline', 'header_stamp_ns', 'frame_seed', 'Level',
@@ -135,7 +135,7 @@ class FramePipeline:
         if cfg.voxel_size > 0:
             points = voxel_downsample(points, cfg.voxel_size)[0]
         result = tune_tolerance(points, None, cfg.criterion, max_planes=cfg.max_planes,
-                                min_inliers=_min_inliers(cfg.min_inliers), probability=cfg.probability,
+                                min_inliers=min_inliers_value(cfg.min_inliers), probability=cfg.probability,
                                 max_iterations=cfg.max_iterations, sample_size=cfg.index_sample_size,
                                 tune_points=cfg.tune_points, t_min=cfg.tune_min or None, t_max=cfg.tune_max or None,
                                 count=cfg.tune_count, seed=frame_seed(cfg.seed, stamp_ns),
@@ -199,7 +199,7 @@ class FramePipeline:
                 work, inverse = (voxel_downsample(valid, cfg.voxel_size) if cfg.voxel_size > 0 else (valid, None))
                 seed = frame_seed(cfg.seed, stamp_ns)
                 seg = detect_planes(work, tolerance, max_planes=cfg.max_planes,
-                                    min_inliers=_min_inliers(cfg.min_inliers), probability=cfg.probability,
+                                    min_inliers=min_inliers_value(cfg.min_inliers), probability=cfg.probability,
                                     max_iterations=cfg.max_iterations, seed=seed,
                                     ransac_points=cfg.ransac_points or None)
                 scores = validity_indices(work, seg.labels, sample_size=cfg.index_sample_size, seed=seed,
@@ -233,11 +233,6 @@ def limit_blas_threads(threads: int = 1) -> None:
     """
     from threadpoolctl import threadpool_limits
     threadpool_limits(limits=threads, user_api='blas')
-
-
-def _min_inliers(value: float) -> int | float:
-    """ROS parameters are doubles: 0.02 is a fraction, 150.0 a count."""
-    return value if value < 1 else int(value)
 
 
 def _replace_diagnostic(result: FrameResult, diagnostic: Diagnostic) -> FrameResult:

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..app.config import min_inliers_value
 from ..app.report import format_planes
 from ..formats.files import load_points
 
@@ -41,11 +42,6 @@ EXIT_USAGE = 2
 CLOUD_HELP = ('point cloud: .pcd (ascii/binary/binary_compressed), .ply, .npy, .xyz/.txt/.csv, or a bag as '
               'BAG[:TOPIC[:INDEX]] (rosbag2 directory, .mcap, .db3 or ROS 1 .bag; INDEX counts from 0, '
               'negative from the end)')
-
-
-def _min_inliers(value: float) -> int | float:
-    """A count when >= 1, else a fraction of the valid points."""
-    return value if value < 1 else int(value)
 
 
 def parse_tolerances(text: str) -> np.ndarray:
@@ -98,7 +94,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
     tolerance = None if args.auto else args.tolerance
     with progress_bar('tuning t', quiet=args.json) as progress:
         det = detect(points, tolerance, seed=args.seed, max_planes=args.max_planes,
-                     min_inliers=_min_inliers(args.min_inliers), progress=progress)
+                     min_inliers=min_inliers_value(args.min_inliers), progress=progress)
     written = []
     if args.out:
         from ..formats.files import save_points
@@ -109,7 +105,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
         written.append(plot_planes(points[valid], det.segmentation.labels[valid], args.png, title=str(args.cloud)))
     if args.json:
         _emit_json(detection_document(args.cloud, det, max_planes=args.max_planes,
-                                      min_inliers=_min_inliers(args.min_inliers),
+                                      min_inliers=min_inliers_value(args.min_inliers),
                                       output=str(args.out) if args.out else None))
         return 0
     seg = det.segmentation
@@ -137,7 +133,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     points = load_points(args.cloud)
     with progress_bar('sweeping t', quiet=args.json) as progress:
         result = tune_tolerance(points, tolerances=args.tolerances, criterion=args.criterion, seed=args.seed,
-                                max_planes=args.max_planes, min_inliers=_min_inliers(args.min_inliers),
+                                max_planes=args.max_planes, min_inliers=min_inliers_value(args.min_inliers),
                                 progress=progress)
     written = []
     if args.csv:
@@ -162,7 +158,7 @@ def cmd_planes(args: argparse.Namespace) -> int:
     from ..core.tuning import select_plane_count, tune_tolerance
 
     points = load_points(args.cloud)
-    min_inliers = _min_inliers(args.min_inliers)
+    min_inliers = min_inliers_value(args.min_inliers)
     tolerance, source = args.tolerance, 'fixed'
     if tolerance is None:
         with progress_bar('tuning t', quiet=args.json) as progress:
