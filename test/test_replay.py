@@ -77,24 +77,33 @@ def test_live_replay_matches_offline_for_the_same_seed(tmp_path):
     live = replay_live(bag, out=tmp_path / 'live', rate=0.5, echo=None)
     assert live.frames, 'the node answered no frame'
     by_stamp = {f.timestamp: f for f in offline.frames}
+    quick = offline.frames[0].tolerance  # both answer the first frame with the quick estimate
+    matched = set()
     for frame in live.frames:  # frames the node dropped under load have no answer
         ref = by_stamp[frame.timestamp]
         assert frame.n_planes == ref.n_planes
-        assert frame.tolerance == pytest.approx(ref.tolerance, rel=1e-5)
+        if frame.tolerance != pytest.approx(ref.tolerance, rel=1e-5):
+            # offline adopts the sweep's t from the next frame; live, once the background sweep ends
+            assert frame.tolerance == pytest.approx(quick, rel=1e-5) and frame.index < 3, frame.line()
+            continue
         assert frame.gs_planes == pytest.approx(ref.gs_planes, rel=1e-5)
+        matched.add(frame.timestamp)
+    assert len(matched) >= 3 and live.frames[0].tolerance == pytest.approx(quick, rel=1e-5)
     off_seg = {ts: structured_array(m)['plane_id'] for ts, m in _read_output(tmp_path / 'offline')[
         output_topics()['segmented']]}
     live_seg = _read_output(tmp_path / 'live')[output_topics()['segmented']]
     assert live_seg
     for ts, msg in live_seg:
-        np.testing.assert_array_equal(structured_array(msg)['plane_id'], off_seg[ts])
+        if ts in matched:
+            np.testing.assert_array_equal(structured_array(msg)['plane_id'], off_seg[ts])
     # coefficients carry no header: they must still be recorded at their own frame's time
     topic = output_topics()['plane_coefficients']
     off_coeffs = dict(_read_output(tmp_path / 'offline')[topic])
     live_coeffs = _read_output(tmp_path / 'live')[topic]
     assert [ts for ts, _ in live_coeffs] == [ts for ts, _ in live_seg]
     for ts, msg in live_coeffs:
-        np.testing.assert_allclose(msg.data, off_coeffs[ts].data)
+        if ts in matched:
+            np.testing.assert_allclose(msg.data, off_coeffs[ts].data)
 
 
 def _cloud_msg(ts, points, stamp_ns, family_types):

@@ -16,7 +16,7 @@ import numpy as np
 from ..core.geometry import voxel_downsample
 from ..core.indices import ValidityIndices, validity_indices
 from ..core.ransac import Segmentation, as_points, detect_planes, finite_rows
-from ..core.tuning import TuningResult, noise_from_segmentation, tune_tolerance
+from ..core.tuning import TuningResult, noise_from_segmentation, quick_tolerance, tune_tolerance
 from ..core.verdict import judge
 from ..formats.pointcloud2 import trailing_bytes, xyz_array
 from .config import PipelineConfig, min_inliers_value
@@ -87,6 +87,8 @@ class FramePipeline:
     tuned_at: float | None = None        # stamp (s) of the frame the tolerance was tuned on
     last_tuning: TuningResult | None = None
     last_good: float | None = None       # the last tuned tolerance, kept across reconfiguration
+    quick: float | None = None           # quick_tolerance of the first frame, until a sweep ends
+    tune_error: str | None = None        # why the last sweep failed (None after a success)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
     _generation: int = field(default=0, repr=False)  # bumped when the tuning set-up changes
 
@@ -98,23 +100,24 @@ class FramePipeline:
         config.validate()
         with self._lock:
             if any(getattr(config, f) != getattr(self.config, f) for f in TUNING_FIELDS):
-                self.tolerance, self.tuned_at, self.last_tuning = None, None, None
+                self.tolerance, self.tuned_at, self.last_tuning, self.tune_error = None, None, None, None
                 self._generation += 1
             self.config = config
 
-    def current_tolerance(self) -> tuple[float, str]:
-        """(tolerance in meters, where it came from)."""
+    def current_tolerance(self, *, tuning_failed: bool = False) -> tuple[float, str]:
+        """(tolerance in meters, where it came from): the fixed parameter, the tuned value, else
+        the last tuned value, the quick estimate, or the parameter until a sweep succeeds."""
         with self._lock:
-            if self.config.auto_tune and self.tolerance is not None:
+            if not self.config.auto_tune:
+                return self.config.tolerance, 'fixed'
+            if self.tolerance is not None and not tuning_failed:
                 return self.tolerance, f'tuned at t={self.tuned_at:.3f}s'
-            return self.config.tolerance, 'fixed' if not self.config.auto_tune else 'parameter (not tuned yet)'
-
-    def _fallback_tolerance(self) -> tuple[float, str]:
-        """The tolerance to detect with when tuning fails: the last tuned one, else the parameter."""
-        with self._lock:
+            why = 'tuning failed' if tuning_failed else 'sweep pending'
             if self.last_good is not None:
-                return self.last_good, 'last tuned (tuning failed)'
-            return self.config.tolerance, 'parameter (tuning failed)'
+                return self.last_good, f'last tuned ({why})'
+            if self.quick is not None:
+                return self.quick, f'quick estimate ({why})'
+            return self.config.tolerance, 'parameter (tuning failed)' if tuning_failed else 'parameter (not tuned yet)'
 
     def retune_due(self, stamp: float) -> bool:
         """Whether a frame stamped ``stamp`` seconds should trigger a retune."""
@@ -134,17 +137,26 @@ class FramePipeline:
             cfg, generation = self.config, self._generation
         if cfg.voxel_size > 0:
             points = voxel_downsample(points, cfg.voxel_size)[0]
-        result = tune_tolerance(points, None, cfg.criterion, max_planes=cfg.max_planes,
-                                min_inliers=min_inliers_value(cfg.min_inliers), probability=cfg.probability,
-                                max_iterations=cfg.max_iterations, sample_size=cfg.index_sample_size,
-                                tune_points=cfg.tune_points, t_min=cfg.tune_min or None, t_max=cfg.tune_max or None,
-                                count=cfg.tune_count, seed=frame_seed(cfg.seed, stamp_ns),
-                                ransac_points=cfg.ransac_points or None, sampled_separation=not cfg.exact_indices)
+        try:
+            result = self._sweep(cfg, points, stamp_ns)
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            with self._lock:
+                self.tune_error = str(exc)
+            raise
         with self._lock:
             if generation == self._generation:  # a parameter change during the sweep voids it
                 self.tolerance, self.tuned_at, self.last_tuning = result.tolerance, stamp, result
-                self.last_good = result.tolerance
+                self.last_good, self.tune_error = result.tolerance, None
         return result
+
+    @staticmethod
+    def _sweep(cfg: PipelineConfig, points: np.ndarray, stamp_ns: int) -> TuningResult:
+        return tune_tolerance(points, None, cfg.criterion, max_planes=cfg.max_planes,
+                              min_inliers=min_inliers_value(cfg.min_inliers), probability=cfg.probability,
+                              max_iterations=cfg.max_iterations, sample_size=cfg.index_sample_size,
+                              tune_points=cfg.tune_points, t_min=cfg.tune_min or None, t_max=cfg.tune_max or None,
+                              count=cfg.tune_count, seed=frame_seed(cfg.seed, stamp_ns),
+                              ransac_points=cfg.ransac_points or None, sampled_separation=not cfg.exact_indices)
 
     def process_cloud(self, msg, *, tune_inline: bool = True) -> FrameResult:
         """One sensor_msgs/PointCloud2 (rclpy or rosbags) through :meth:`process`; a malformed
@@ -193,7 +205,11 @@ class FramePipeline:
                 self.retune(valid, stamp, stamp_ns)
             except (ValueError, np.linalg.LinAlgError) as exc:
                 tune_problem = f'cannot tune: {exc}'
-        tolerance, source = self._fallback_tolerance() if tune_problem else self.current_tolerance()
+        elif self.config.auto_tune and self.tolerance is None and self.last_good is None and self.quick is None:
+            self.quick = quick_tolerance(valid, seed=frame_seed(cfg.seed, stamp_ns))  # until the sweep ends
+        elif self.tune_error is not None and self.tolerance is None:
+            tune_problem = f'cannot tune: {self.tune_error}'  # a background sweep failed
+        tolerance, source = self.current_tolerance(tuning_failed=tune_problem is not None)
         try:
             with np.errstate(over='ignore', invalid='ignore'):
                 work, inverse = (voxel_downsample(valid, cfg.voxel_size) if cfg.voxel_size > 0 else (valid, None))

@@ -19,7 +19,7 @@ from .verdict import RELIABLE_GS_PLANES, SINGLE_PLANE_THICKNESS, judge, plane_th
 
 __all__ = ['CRITERIA', 'TUNE_CANDIDATES', 'TUNE_POINTS',
            'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
-           'select_plane_count', 'noise_from_segmentation', 'local_noise', 'MIN_PLANE_SILHOUETTE']
+           'select_plane_count', 'noise_from_segmentation', 'local_noise', 'quick_tolerance', 'MIN_PLANE_SILHOUETTE']
 
 #: Default number of tuning candidates and the subsample a sweep runs on (points).
 TUNE_CANDIDATES = 12
@@ -133,6 +133,22 @@ def local_noise(points: np.ndarray, *, k: int = 16, queries: int = 2000, seed=No
     centered = nb - nb.mean(axis=1, keepdims=True)
     smallest = np.linalg.eigvalsh(np.einsum('nki,nkj->nij', centered, centered) / k)[:, 0]
     return spacing, float(np.median(np.sqrt(np.maximum(smallest, 0.0))))
+
+
+#: quick_tolerance is this many local noise thicknesses (tuned t on the Kinect frames of
+#: benchmarks/README.md: 4-10 thicknesses).
+QUICK_TOLERANCE_THICKNESSES = 6.0
+
+
+def quick_tolerance(points: np.ndarray, *, seed=None) -> float:
+    """A rough tolerance (meters) from the local noise probe alone, without a sweep: what a
+    caller can use while :func:`tune_tolerance` runs. Raises ValueError on fewer than 3 points."""
+    pts = _finite(as_points(points))
+    if len(pts) < 3:
+        raise ValueError(f'need at least 3 finite points, got {len(pts)}')
+    spacing, thickness = local_noise(pts, seed=seed)
+    t = QUICK_TOLERANCE_THICKNESSES * thickness
+    return float(t if t > 0 else max(spacing, 1e-6))
 
 
 def default_tolerances(points: np.ndarray, count: int = TUNE_CANDIDATES, *, lo: float | None = None,

@@ -130,10 +130,9 @@ class PlaneValidationNode(Node):
     # -- one frame -------------------------------------------------------------------------------
     def process(self, msg: PointCloud2) -> None:
         """Convert, run the shared pipeline, publish every output stamped with the input header."""
-        tune_inline = self.pipeline.tolerance is None
-        result = self.pipeline.process_cloud(msg, tune_inline=tune_inline)
+        result = self.pipeline.process_cloud(msg, tune_inline=False)
         stamp_ns = header_stamp_ns(msg.header)
-        if not tune_inline and result.segmentation is not None and self.pipeline.retune_due(stamp_ns * 1e-9):
+        if result.segmentation is not None and self.pipeline.retune_due(stamp_ns * 1e-9):
             self._start_retune(result.points, stamp_ns)  # frames go on with the current t meanwhile
         self.frames_processed += 1
         with self._wake:

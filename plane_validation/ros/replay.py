@@ -9,10 +9,13 @@ Either way the output bag appears only once complete.
 """
 from __future__ import annotations
 
+import contextlib
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+
+import numpy as np
 
 from ..app.config import PipelineConfig
 from ..app.pipeline import FramePipeline, header_stamp_ns
@@ -74,13 +77,18 @@ def replay_offline(bag: str | Path, *, topic: str | None = None, out: str | Path
             _progress(total, progress) as bar:
         for index, (_, timestamp, cloud) in enumerate(read_clouds(bag, conns[0].topic)):
             msg = to_rclpy_cloud(cloud)
-            result = pipeline.process_cloud(msg)
+            result = pipeline.process_cloud(msg, tune_inline=False)
             extra = (('frames_processed', str(index + 1)), ('frames_dropped', '0'), ('retune_running', 'false'))
             recorder.write('input', timestamp, msg)
             outputs = frame_messages(msg.header, result, status_name, extra)
             for key, out_msg in outputs.items():
                 recorder.write(key, timestamp, out_msg)
             summary.last_segmented = outputs['segmented']
+            stamp_ns = header_stamp_ns(msg.header)
+            if result.segmentation is not None and pipeline.retune_due(stamp_ns * 1e-9):
+                # as the node's background sweep: its t applies from the next frame
+                with contextlib.suppress(ValueError, np.linalg.LinAlgError):
+                    pipeline.retune(result.points, stamp_ns * 1e-9, stamp_ns)
             frame = FrameSummary.from_diagnostic(index, timestamp, result.diagnostic)
             summary.frames.append(frame)
             bar.update(1)
