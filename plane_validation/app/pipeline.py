@@ -265,6 +265,7 @@ def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_
               ('gs', fmt(scores.gs)), ('gs_se', fmt(scores.gs_se)),
               ('gs_planes', fmt(scores.gs_planes)), ('gs_planes_se', fmt(scores.gs_planes_se)),
               ('silhouette', fmt(scores.silhouette)), ('silhouette_se', fmt(scores.silhouette_se)),
+              ('plane_silhouette', fmt(scores.plane_silhouette)),
               ('index_sample_size', str(scores.sample_size)), ('dunn_db_points', str(scores.separation_size)),
               ('noise_estimate', fmt(noise)),
               ('stop_reason', seg.reason)]

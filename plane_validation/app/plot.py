@@ -56,7 +56,8 @@ _STYLE = {'gs_planes': dict(color='tab:red', marker='o', label='GSplanes'),
           'silhouette': dict(color='tab:green', marker='^', label='silhouette (mean $s_i$)'),
           'dunn': dict(color='tab:purple', marker='D', label='Dunn'),
           'davies_bouldin': dict(color='tab:orange', marker='v', label='Davies–Bouldin (eq. 3)'),
-          'davies_bouldin_classic': dict(color='tab:brown', marker='x', label='Davies–Bouldin (centroids)')}
+          'davies_bouldin_classic': dict(color='tab:brown', marker='x', label='Davies–Bouldin (centroids)'),
+          'plane_silhouette': dict(color='black', marker='*', label='PS (point-to-plane)')}
 
 
 def _figure(rows: int, cols: int, size: tuple[float, float]):
@@ -120,7 +121,7 @@ def plot_sweep(result, path: str | Path, *, title: str = '', unit: str = 'm',
     fig, axes = _figure(2, 2, (10.0, 7.2))
     (ax_sil, ax_dunn), (ax_db, ax_count) = axes
     values = {name: [getattr(r.indices, name) for r in result.rows] for name in _STYLE}
-    for name in ('gs_planes', 'gs', 'silhouette'):
+    for name in ('plane_silhouette', 'gs_planes', 'gs', 'silhouette'):
         _plot_index(ax_sil, t, values[name], name)
     se = np.array([r.indices.gs_planes_se for r in result.rows])
     if np.any(se > 0):
@@ -128,7 +129,7 @@ def plot_sweep(result, path: str | Path, *, title: str = '', unit: str = 'm',
         ax_sil.fill_between(t, gsp - 2 * se, gsp + 2 * se, color='tab:red', alpha=0.15, linewidth=0,
                             label='GSplanes ± 2 SE (sampled)')
     ax_sil.set_ylabel('silhouette index (higher is better)')
-    ax_sil.set_title('Global silhouettes: GS, GSplanes')
+    ax_sil.set_title('Silhouettes: PS, GS, GSplanes')
     _plot_index(ax_dunn, t, values['dunn'], 'dunn')
     ax_dunn.set_ylabel('Dunn index (higher is better)')
     ax_dunn.set_title('Dunn index (eq. 2)')
@@ -182,7 +183,7 @@ def plot_plane_count(result, path: str | Path, *, title: str = '', true_planes: 
             ax.text(0.5, 0.5, 'no planes found', ha='center', va='center', transform=ax.transAxes)
     values = {name: [getattr(x, name) for x in result.indices] for name in CRITERIA}
     best = {name: result.best_by(name) for name in CRITERIA} if len(k) else {}
-    for name in ('gs_planes', 'gs', 'silhouette'):
+    for name in ('plane_silhouette', 'gs_planes', 'gs', 'silhouette'):
         _plot_index(ax_sil, k, values[name], name, best=best.get(name), unit_of_best='k = {}')
     lowest = [min(x.plane_silhouettes, default=np.nan) for x in result.indices]
     ax_sil.plot(k, _finite(lowest), color='tab:red', linestyle=':', marker='.', label='smallest plane $S_j$')

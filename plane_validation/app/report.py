@@ -25,7 +25,7 @@ __all__ = ['jsonable', 'dumps', 'planes_json', 'indices_json', 'detection_docume
 
 #: Index fields reported per sweep row / plane count (the ValidityIndices scalars).
 INDEX_FIELDS = ('dunn', 'davies_bouldin', 'davies_bouldin_classic', 'silhouette', 'gs', 'gs_planes',
-                'silhouette_se', 'gs_se', 'gs_planes_se')
+                'plane_silhouette', 'silhouette_se', 'gs_se', 'gs_planes_se')
 #: Columns of the sweep CSV, one row per candidate tolerance.
 SWEEP_COLUMNS = ('tolerance', 'n_planes', 'assigned_points') + INDEX_FIELDS + ('max_thickness', 'seconds', 'chosen')
 
@@ -152,7 +152,8 @@ def format_indices(scores: ValidityIndices) -> str:
     """The indices on two lines, with standard errors where sampled."""
     def se(value: float, err: float) -> str:
         return f'{value:.4f}' + (f' ± {err:.4f}' if err > 0 else '')
-    return (f'  GSplanes {se(scores.gs_planes, scores.gs_planes_se)}   GS {se(scores.gs, scores.gs_se)}   '
+    return (f'  PS {scores.plane_silhouette:.4f}   '
+            f'GSplanes {se(scores.gs_planes, scores.gs_planes_se)}   GS {se(scores.gs, scores.gs_se)}   '
             f'silhouette {se(scores.silhouette, scores.silhouette_se)}\n'
             f'  Dunn {scores.dunn:.4g}   Davies-Bouldin {scores.davies_bouldin:.4g} '
             f'(classic {scores.davies_bouldin_classic:.4g})   planes {scores.n_planes}, clusters {scores.n_clusters}, '
@@ -161,11 +162,12 @@ def format_indices(scores: ValidityIndices) -> str:
 
 def plane_count_table(result: PlaneCountResult) -> str:
     """Indices of the first k planes per row, the smallest S_j, and the k each index picks."""
-    lines = [f'{"k":>3} {"inliers":>8} {"dunn":>8} {"DB":>8} {"GS":>7} {"GSpl":>7} {"sil":>7} {"min S_j":>8}']
+    lines = [f'{"k":>3} {"inliers":>8} {"dunn":>8} {"DB":>8} {"GS":>7} {"GSpl":>7} {"PS":>7} {"sil":>7} '
+             f'{"min S_j":>8}']
     for k, x in zip(result.counts, result.indices):
         inliers = len(result.segmentation.planes[k - 1].inliers)
         low = min(x.plane_silhouettes, default=float('nan'))
         mark = ' <' if k == result.n_planes else ''
         lines.append(f'{k:3d} {inliers:8d} {x.dunn:8.4f} {x.davies_bouldin:8.3g} {x.gs:7.3f} {x.gs_planes:7.3f} '
-                     f'{x.silhouette:7.3f} {low:8.3f}{mark}')
+                     f'{x.plane_silhouette:7.3f} {x.silhouette:7.3f} {low:8.3f}{mark}')
     return '\n'.join(lines)

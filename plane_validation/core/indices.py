@@ -23,6 +23,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 from scipy.spatial.distance import cdist, pdist
 
+from .plane_silhouette import plane_silhouette
 from .ransac import finite_rows
 
 __all__ = [
@@ -626,7 +627,8 @@ class ValidityIndices:
 
     dunn (eq. 2, larger better), davies_bouldin (eq. 3 with diam/dist, smaller better),
     davies_bouldin_classic (centroid form, = sklearn), silhouette (mean s_i, = sklearn),
-    gs (eq. 6), gs_planes (GS without the unassigned points); plane_silhouettes: per plane, in
+    gs (eq. 6), gs_planes (GS without the unassigned points), plane_silhouette (PS, from
+    point-to-plane distances, see :mod:`.plane_silhouette`); plane_silhouettes: per plane, in
     label order, its mean silhouette S_j (eq. 5) among the planes (the terms GS_planes averages);
     the *_se fields are standard errors
     of the sampled estimates (0.0 when exact). sample_size: points the silhouettes were computed
@@ -649,6 +651,7 @@ class ValidityIndices:
     sample_size: int
     plane_silhouettes: tuple[float, ...] = ()
     separation_size: int = -1    # points Dunn and both DB forms were computed on (-1: n_points)
+    plane_silhouette: float = 0.0  # PS, the point-to-plane index (core/plane_silhouette.py)
 
     def __post_init__(self) -> None:
         if self.separation_size < 0:
@@ -721,9 +724,10 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     else:
         dunn, db = 0.0, np.inf
     full, planes = _estimates(coded.sizes, coded.ids, sub, exact=not sampled)
+    ps = plane_silhouette(points, labels, sample_size=sample_size, seed=rng)
     return ValidityIndices(
         dunn=float(dunn), davies_bouldin=float(db), davies_bouldin_classic=_db_classic(sep),
         silhouette=full.silhouette, gs=full.gs, gs_planes=planes.gs,
         silhouette_se=full.silhouette_se, gs_se=full.gs_se, gs_planes_se=planes.gs_se,
         n_planes=int((coded.ids >= 0).sum()), n_clusters=k, n_points=n, sample_size=full.size,
-        plane_silhouettes=planes.cluster_means, separation_size=sep.n)
+        plane_silhouettes=planes.cluster_means, separation_size=sep.n, plane_silhouette=ps)

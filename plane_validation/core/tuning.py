@@ -26,7 +26,7 @@ TUNE_CANDIDATES = 12
 TUNE_POINTS = 20000
 #: Index name -> True when larger is better.
 CRITERIA = {'gs_planes': True, 'gs': True, 'silhouette': True, 'dunn': True, 'davies_bouldin': False,
-            'davies_bouldin_classic': False}
+            'davies_bouldin_classic': False, 'plane_silhouette': True}
 
 #: A plane whose own mean silhouette S_j (eq. 5, among the planes) is below this is not a
 #: well-assigned plane; select_plane_count keeps the largest k whose planes all reach it.
@@ -83,13 +83,14 @@ class TuningResult:
 
     def table(self) -> str:
         """A plain-text table of the sweep, one row per tolerance."""
-        head = f'{"t":>10} {"planes":>6} {"dunn":>8} {"DB":>8} {"GS":>7} {"GSpl":>7} {"sil":>7} {"ms":>7}'
+        head = f'{"t":>10} {"planes":>6} {"dunn":>8} {"DB":>8} {"GS":>7} {"GSpl":>7} {"PS":>7} {"sil":>7} {"ms":>7}'
         lines = [head]
         for i, r in enumerate(self.rows):
             x = r.indices
             mark = ' <' if i == self.best else ''
             lines.append(f'{r.tolerance:10.4g} {r.n_planes:6d} {x.dunn:8.4f} {x.davies_bouldin:8.3g} {x.gs:7.3f} '
-                         f'{x.gs_planes:7.3f} {x.silhouette:7.3f} {1000 * r.seconds:7.1f}{mark}')
+                         f'{x.gs_planes:7.3f} {x.plane_silhouette:7.3f} {x.silhouette:7.3f} '
+                         f'{1000 * r.seconds:7.1f}{mark}')
         return '\n'.join(lines)
 
 

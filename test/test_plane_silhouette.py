@@ -1,0 +1,48 @@
+"""The plane silhouette (PS): a point-to-plane validity index."""
+import numpy as np
+import pytest
+
+from plane_validation import detect_planes, scenes, validity_indices
+from plane_validation.core.plane_silhouette import plane_silhouette
+
+
+def test_true_planes_score_high_and_a_noise_level_tolerance_beats_slivers():
+    scene = scenes.cube(6000, 1.0, scale=0.01, seed=0)  # e = 1 cm
+    truth = plane_silhouette(scene.points, scene.labels, seed=0)
+    slivers = detect_planes(scene.points, 0.002, seed=0, max_planes=12, min_inliers=0.01)
+    right = detect_planes(scene.points, 0.02, seed=0, max_planes=12, min_inliers=0.01)
+    assert truth > 0.85
+    good, bad = (plane_silhouette(scene.points, seg.labels, seed=0) for seg in (right, slivers))
+    assert good > bad + 0.3
+
+
+def test_strips_of_a_crossing_surface_are_punished():
+    """Giving a wall's points near the floor to the floor (as an infinite plane at large t does)
+    lowers PS: those points lie on the wall region, b_i ~ 0."""
+    scene = scenes.corner(3000, 0.0, scale=0.01, seed=1)
+    labels = scene.labels.copy()
+    floor = np.argmax(np.abs(scene.planes[:, 2]))  # the plane z = const
+    near = (np.abs(scene.points[:, 2] - np.median(scene.points[scene.labels == floor, 2])) < 0.1)
+    labels[near] = floor
+    assert plane_silhouette(scene.points, labels, seed=0) < plane_silhouette(scene.points, scene.labels, seed=0) - 0.05
+
+
+def test_coverage_and_edge_cases():
+    scene = scenes.room(5000, 0.005, seed=2)
+    full = plane_silhouette(scene.points, scene.labels, seed=0)
+    half = scene.labels.copy()
+    half[: len(half) // 2] = -1
+    assert plane_silhouette(scene.points, half, seed=0) < full
+    assert plane_silhouette(scene.points, np.full(len(scene.points), -1), seed=0) == 0.0
+    pts = scene.points.copy()
+    pts[:10] = np.nan
+    value = plane_silhouette(pts, scene.labels, seed=3)
+    assert -1 <= value <= 1 and value == plane_silhouette(pts, scene.labels, seed=3)  # seeded: deterministic
+    with pytest.raises(ValueError):
+        plane_silhouette(scene.points, scene.labels[:-1])
+
+
+def test_reported_by_validity_indices():
+    scene = scenes.corner(2000, 1.0, scale=0.01, seed=4)
+    scores = validity_indices(scene.points, scene.labels, seed=0)
+    assert scores.plane_silhouette > 0.8 and 'plane_silhouette' in scores.as_dict()
