@@ -41,6 +41,7 @@ class NodeRun:
     latencies_ms: list[float] = field(default_factory=list)
     processing_ms: list[float] = field(default_factory=list)
     retune_running: list[bool] = field(default_factory=list)
+    tolerance_sources: list[str] = field(default_factory=list)
     rss_mb: list[tuple[int, float]] = field(default_factory=list)
     peak_mb: float = float('nan')
     startup_rss_mb: float = float('nan')
@@ -187,6 +188,7 @@ class NodeBench:
                 run.latencies_ms.append(1e3 * (arrived - sent[stamp]))
                 run.processing_ms.append(float(values.get('processing_ms', 'nan')))
                 run.retune_running.append(values.get('retune_running', 'false') == 'true')
+                run.tolerance_sources.append(values.get('tolerance_source', ''))
                 run.dropped = max(run.dropped, int(values.get('frames_dropped', '0')))
         return run
 

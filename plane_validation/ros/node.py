@@ -132,8 +132,7 @@ class PlaneValidationNode(Node):
         """Convert, run the shared pipeline, publish every output stamped with the input header."""
         result = self.pipeline.process_cloud(msg, tune_inline=False)
         stamp_ns = header_stamp_ns(msg.header)
-        if result.segmentation is not None and self.pipeline.retune_due(stamp_ns * 1e-9):
-            self._start_retune(result.points, stamp_ns)  # frames go on with the current t meanwhile
+        retune = result.segmentation is not None and self.pipeline.retune_due(stamp_ns * 1e-9) and not self._tuning()
         self.frames_processed += 1
         with self._wake:
             dropped_now, self._dropped_reported = self.frames_dropped - self._dropped_reported, self.frames_dropped
@@ -141,18 +140,21 @@ class PlaneValidationNode(Node):
             result = dataclasses.replace(result, diagnostic=result.diagnostic.escalated(
                 WARN, f'{dropped_now} older frame(s) dropped (clouds arrive faster than they are processed)'))
         extra = (('frames_processed', str(self.frames_processed)), ('frames_dropped', str(self.frames_dropped)),
-                 ('retune_running', str(self._retuner is not None and self._retuner.is_alive()).lower()))
+                 ('retune_running', str(retune or self._tuning()).lower()))
         for topic, out in frame_messages(msg.header, result, self.status_name, extra).items():
             self._pubs[topic].publish(out)
+        if retune:  # after publishing: the sweep competes for the GIL; frames go on with the current t
+            self._start_retune(result.points, stamp_ns)
         # rclpy ties a throttled call site to one severity: one call site per level, throttled apart
         if result.level == ERROR:
             self.get_logger().error(f'ERROR: {result.message}', throttle_duration_sec=LOG_THROTTLE_S)
         elif result.level == WARN:
             self.get_logger().warning(f'WARN: {result.message}', throttle_duration_sec=LOG_THROTTLE_S)
 
+    def _tuning(self) -> bool:
+        return self._retuner is not None and self._retuner.is_alive()
+
     def _start_retune(self, points, stamp_ns: int) -> None:
-        if self._retuner is not None and self._retuner.is_alive():
-            return
 
         def run() -> None:
             try:
