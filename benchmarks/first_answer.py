@@ -40,7 +40,8 @@ def main() -> None:
                 run = bench.run(args.rate, args.frames, params={'auto_tune': 'true'}, name=f'first{run_index}')
                 tuned = next((i for i, s in enumerate(run.tolerance_sources) if s.startswith('tuned')), None)
                 between = run.latencies_ms[1:tuned] if tuned else []
-                print(f'{Path(path).name}: first answer {run.latencies_ms[0]:.0f} ms (processing {run.processing_ms[0]:.0f} ms) '
+                print(f'{Path(path).name}: first answer {run.latencies_ms[0]:.0f} ms '
+                      f'(processing {run.processing_ms[0]:.0f} ms) '
                       f'({run.tolerance_sources[0]}); tuned from answer {tuned} of {run.answered} '
                       f'({run.dropped} dropped); median latency before that '
                       f'{statistics.median(between) if between else float("nan"):.0f} ms', flush=True)

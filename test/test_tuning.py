@@ -142,3 +142,16 @@ def test_single_noisy_plane_is_one_reliable_plane(seed):
     assert result.segmentation.n_planes == 1, result.table()
     assert result.reliable, result.verdict
     assert 0.005 <= result.noise_estimate <= 0.02
+
+
+def test_the_library_limits_blas_threads_itself():
+    from threadpoolctl import threadpool_info
+
+    from plane_validation.core.blas import single_blas_thread
+
+    @single_blas_thread
+    def inner():
+        return [i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas']
+    assert inner() and all(n == 1 for n in inner())
+    assert getattr(pv.tune_tolerance, '__wrapped__', None) is not None
+    assert getattr(pv.validity_indices, '__wrapped__', None) is not None

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 from scipy.spatial.distance import cdist, pdist
 
+from .blas import single_blas_thread
 from .plane_silhouette import plane_silhouette
 from .ransac import finite_rows
 
@@ -670,6 +671,7 @@ class ValidityIndices:
         return out
 
 
+@single_blas_thread
 def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int | None = 2000,
                      seed: int | np.random.Generator | None = None,
                      sampled_separation: bool = False) -> ValidityIndices:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .blas import single_blas_thread
 from .indices import ValidityIndices, validity_indices
 from .ransac import RANSAC_POINTS, Segmentation, as_points, detect_planes, finite_rows
 from .verdict import RELIABLE_GS_PLANES, SINGLE_PLANE_THICKNESS, judge, plane_thickness
@@ -204,6 +205,7 @@ def noise_from_segmentation(seg: Segmentation) -> float:
     return float(np.sqrt(3 * np.sum(counts * rms ** 2) / counts.sum()))
 
 
+@single_blas_thread
 def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_planes', *,
                    max_planes: int = 10, min_inliers: int | float = 0.02, probability: float = 0.99,
                    max_iterations: int = 1000, sample_size: int | None = 2000, tune_points: int | None = TUNE_POINTS,
@@ -302,6 +304,7 @@ def _choose(rows: list[TuningRow], criterion: str, n_points: int) -> int:
     return int(np.flatnonzero(masked >= masked[best] - margin)[0])
 
 
+@single_blas_thread
 def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 10,
                        criterion: str = 'gs_planes', *, min_inliers: int | float = 0.02, probability: float = 0.99,
                        max_iterations: int = 1000, sample_size: int | None = 2000,
