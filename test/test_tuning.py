@@ -155,3 +155,15 @@ def test_the_library_limits_blas_threads_itself():
     assert inner() and all(n == 1 for n in inner())
     assert getattr(pv.tune_tolerance, '__wrapped__', None) is not None
     assert getattr(pv.validity_indices, '__wrapped__', None) is not None
+
+
+def test_a_count_min_inliers_is_scaled_to_the_tuning_subsample():
+    from plane_validation.core.tuning import _scaled_min_inliers
+    assert _scaled_min_inliers(200, 20000, 250000) == 16
+    assert _scaled_min_inliers(0.002, 20000, 250000) == 0.002
+    assert _scaled_min_inliers(200, 5000, 5000) == 200
+    # the same share of the cloud as a count or as a fraction: the same sweep
+    scene = scenes.room(40000, 0.005, seed=3)
+    as_count = pv.tune_tolerance(scene.points, seed=1, tune_points=10000, min_inliers=400)
+    as_share = pv.tune_tolerance(scene.points, seed=1, tune_points=10000, min_inliers=0.01)
+    assert [r.n_planes for r in as_count.rows] == [r.n_planes for r in as_share.rows]

@@ -243,12 +243,14 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_pla
     ransac_seed, index_seed = rng.integers(0, 2**63, size=2)
     opts = dict(max_planes=max_planes, min_inliers=min_inliers, probability=probability,
                 max_iterations=max_iterations, ransac_points=ransac_points)
+    # a count means the same share of the cloud on the subsample (as ransac_points scales it)
+    sweep_opts = dict(opts, min_inliers=_scaled_min_inliers(min_inliers, len(sweep_pts), len(finite)))
 
     rows: list[TuningRow] = []
     previous: tuple[np.ndarray, ValidityIndices] | None = None
     for t in cand:
         t0 = time.perf_counter()
-        seg = detect_planes(sweep_pts, t, seed=int(ransac_seed), **opts)
+        seg = detect_planes(sweep_pts, t, seed=int(ransac_seed), **sweep_opts)
         if previous is not None and np.array_equal(previous[0], seg.labels):
             scores = previous[1]  # same partition as the last candidate: same indices
         else:
@@ -275,6 +277,13 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_pla
     return TuningResult(rows=tuple(rows), criterion=criterion, best=best, tolerance=t_best, segmentation=final,
                         indices=final_scores, noise_estimate=noise_from_segmentation(final), reliable=reliable,
                         verdict=verdict, seconds=time.perf_counter() - start)
+
+
+def _scaled_min_inliers(min_inliers: int | float, n_sample: int, n_valid: int) -> int | float:
+    """A count ``min_inliers`` (>= 1) scaled from ``n_valid`` points to ``n_sample``; a fraction as is."""
+    if min_inliers < 1 or n_sample >= n_valid:
+        return min_inliers
+    return max(3, int(np.ceil(min_inliers * n_sample / n_valid)))
 
 
 def _choose(rows: list[TuningRow], criterion: str, n_points: int) -> int:
