@@ -310,3 +310,14 @@ def test_core_only_install_detects_and_plots(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / 'y.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert '3 planes' in proc.stdout or 'plane 2' in proc.stdout
+
+
+def test_file_commands_follow_the_parameter_table(corner_npy, tmp_path, capsys):
+    assert main(['detect', str(corner_npy), '--tolerance', '0.02', '--seed', '-1', '--json']) == 0  # fresh entropy
+    assert json.loads(capsys.readouterr().out)['seed'] is None  # null: fresh entropy
+    with pytest.raises(SystemExit) as info:
+        main(['detect', str(corner_npy), '--max-planes', '500'])
+    assert info.value.code == 2 and 'max_planes must be in [1, 100]' in capsys.readouterr().err
+    # an output that cannot be written is refused before the work, and nothing is written
+    assert main(['detect', str(corner_npy), '--out', str(tmp_path / 'labels.foo')]) == 2
+    assert "cannot write '.foo' files" in capsys.readouterr().err and list(tmp_path.iterdir()) == []

@@ -192,7 +192,7 @@ def test_parameter_change_applies_to_next_frame_and_invalid_is_rejected(harness)
     assert node.set_parameters([Parameter('auto_tune', value=True), Parameter('tune_min', value=0.0)])[0].successful
     out = harness.send(xyz_cloud(corner_points(1.0), 4_000_000_000_002))  # e = 1 cm
     assert diag_values(out['diagnostics'])['tolerance_source'] == 'quick estimate (sweep pending)'
-    node._retuner.join(timeout=30)
+    assert node.wait_for_sweep(timeout=30)
     out = harness.send(xyz_cloud(corner_points(1.0), 4_000_000_000_003))
     values = diag_values(out['diagnostics'])
     assert values['tolerance_source'].startswith('tuned at')
@@ -244,7 +244,7 @@ def test_periodic_retune_runs_in_the_background_while_frames_flow(ros):
         cloud = scenes.corner(30000, 1.0, scale=0.01, seed=4).points  # e = 1 cm
         first = h.send(xyz_cloud(cloud, 6_000_000_000_000), timeout=60)  # answered before any sweep
         assert diag_values(first['diagnostics'])['tolerance_source'] == 'quick estimate (sweep pending)'
-        node._retuner.join(timeout=60)
+        assert node.wait_for_sweep(timeout=60)
         seen_running = []
         for k in range(1, 150):  # header time advances 0.1 s per frame: a retune is due after 0.5 s
             out = h.send(xyz_cloud(cloud, 6_000_000_000_000 + k * 100_000_000), timeout=60)
@@ -317,12 +317,12 @@ def test_a_tuning_range_the_cloud_cannot_honour_keeps_the_last_tuned_tolerance(r
     try:
         quick = diag_values(harness.send(xyz_cloud(corner_points(0.002), 10_000_000_000_000))['diagnostics'])
         assert quick['tolerance_source'] == 'quick estimate (sweep pending)'  # answered at once
-        harness.node._retuner.join(timeout=30)
+        assert harness.node.wait_for_sweep(timeout=30)
         first = diag_values(harness.send(xyz_cloud(corner_points(0.002), 10_000_000_000_001))['diagnostics'])
         assert first['tolerance_source'].startswith('tuned') and first['planes'] == '3'
         assert node.set_parameters([Parameter('tune_min', value=5.0)])[0].successful  # tune_max 0: derived
         harness.send(xyz_cloud(corner_points(0.002), 10_000_000_000_002))  # the background sweep fails
-        harness.node._retuner.join(timeout=30)
+        assert harness.node.wait_for_sweep(timeout=30)
         out = harness.send(xyz_cloud(corner_points(0.002), 10_000_000_000_003))['diagnostics']
         values, status = diag_values(out), out.status[0]
         assert status.level == b'\x01' and 'cannot tune' in status.message and 'tune_min' in status.message

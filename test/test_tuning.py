@@ -145,16 +145,36 @@ def test_single_noisy_plane_is_one_reliable_plane(seed):
 
 
 def test_the_library_limits_blas_threads_itself():
-    from threadpoolctl import threadpool_info
-
-    from plane_validation.core.blas import single_blas_thread
-
-    @single_blas_thread
-    def inner():
-        return [i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas']
-    assert inner() and all(n == 1 for n in inner())
-    assert getattr(pv.tune_tolerance, '__wrapped__', None) is not None
-    assert getattr(pv.validity_indices, '__wrapped__', None) is not None
+    """Run in a fresh process (this one has one BLAS thread for good): the limit holds inside the
+    library's calls, is shared by nested calls and restored afterwards."""
+    import subprocess
+    import sys
+    code = """
+from threadpoolctl import threadpool_info
+import plane_validation as pv
+from plane_validation.core.blas import single_blas_thread
+def blas():
+    return [i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas']
+before = blas()
+@single_blas_thread
+def outer():
+    inner_seen = inner()
+    return blas(), inner_seen
+@single_blas_thread
+def inner():
+    return blas()
+seen, inner_seen = outer()
+assert all(n == 1 for n in seen + inner_seen), (seen, inner_seen)
+assert blas() == before, (blas(), before)
+assert pv.tune_tolerance.__wrapped__ and pv.validity_indices.__wrapped__
+print(before)
+"""
+    env = {k: v for k, v in __import__('os').environ.items() if not k.endswith('_NUM_THREADS')}
+    env['OPENBLAS_NUM_THREADS'] = '2'
+    proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, env=env, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    threads = eval(proc.stdout)  # numpy's and scipy's OpenBLAS
+    assert threads and all(n == 2 for n in threads)  # the test saw a multi-threaded BLAS to limit
 
 
 def test_a_count_min_inliers_is_scaled_to_the_tuning_subsample():

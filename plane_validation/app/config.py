@@ -63,7 +63,7 @@ class PipelineConfig:
     """Every tunable of the per-frame pipeline; the node's ROS parameters map one to one onto
     these fields. Distances in meters."""
 
-    tolerance: float = _p(0.02, 'RANSAC inlier distance t (used when auto_tune is false, and until the first tune)',
+    tolerance: float = _p(0.02, 'RANSAC inlier distance t (used when auto_tune is false)',
                           low=1e-6, high=10.0, unit='m')
     auto_tune: bool = _p(True, 'choose t by sweeping candidates scored with the validity indices')
     tune_min: float = _p(0.0, 'smallest tuning candidate; 0 = derive from the cloud (nearest-neighbour spacing / 20)',
@@ -79,8 +79,8 @@ class PipelineConfig:
     retune_period: float = _p(0.0, 'header time between retunes; 0 = tune on the first frame only',
                               low=0.0, high=1e6, unit='s')
     max_planes: int = _p(10, 'stop after this many planes', low=1, high=100)
-    min_inliers: float = _p(0.02, 'smallest plane: a fraction of the valid points when < 1, else a count '
-                            '(a double: write 150.0)', low=0.0, high=1e9)
+    min_inliers: float = _p(0.02, 'smallest plane: a fraction of the valid points when < 1, else a count',
+                            low=0.0, high=1e9)
     probability: float = _p(0.99, 'RANSAC success probability that sets the iteration count',
                             low=1e-6, high=0.999999)
     max_iterations: int = _p(1000, 'RANSAC hypotheses per plane, at most', low=1, high=1_000_000)

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..core.blas import limit_blas_threads
 from ..core.geometry import voxel_downsample
 from ..core.indices import ValidityIndices, validity_indices
 from ..core.ransac import Segmentation, as_points, detect_planes, finite_rows
@@ -23,6 +24,7 @@ from .config import PipelineConfig, min_inliers_value
 from .diagnostics import Diagnostic, Level, fmt
 
 __all__ = ['PipelineConfig', 'FrameResult', 'FramePipeline', 'header_stamp_ns', 'frame_seed', 'Level',
+           'limit_blas_threads',
            'OK', 'WARN', 'ERROR']
 
 OK, WARN, ERROR = Level.OK, Level.WARN, Level.ERROR
@@ -35,8 +37,8 @@ TUNING_FIELDS = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points
 
 @dataclass(frozen=True, eq=False)
 class FrameResult:
-    """What one frame produced. points: (n, 3) valid points (after voxelization when on),
-    labels: (n,) int32 for them; diagnostic: level, message and key-values to publish."""
+    """What one frame produced. points: (n, 3) valid points (before any voxel grid), labels:
+    (n,) int32 for them; diagnostic: level, message and key-values to publish."""
 
     points: np.ndarray
     labels: np.ndarray
@@ -89,6 +91,7 @@ class FramePipeline:
     last_good: float | None = None       # the last tuned tolerance, kept across reconfiguration
     quick: float | None = None           # quick_tolerance of the first frame, until a sweep ends
     tune_error: str | None = None        # why the last sweep failed (None after a success)
+    failed_at: float | None = None       # stamp (s) of the frame the last failed sweep ran on
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
     _generation: int = field(default=0, repr=False)  # bumped when the tuning set-up changes
 
@@ -100,7 +103,8 @@ class FramePipeline:
         config.validate()
         with self._lock:
             if any(getattr(config, f) != getattr(self.config, f) for f in TUNING_FIELDS):
-                self.tolerance, self.tuned_at, self.last_tuning, self.tune_error = None, None, None, None
+                self.tolerance, self.tuned_at, self.last_tuning = None, None, None
+                self.tune_error, self.failed_at = None, None
                 self._generation += 1
             self.config = config
 
@@ -125,10 +129,12 @@ class FramePipeline:
             cfg = self.config
             if not cfg.auto_tune:
                 return False
-            if self.tolerance is None:
+            last = self.failed_at if self.failed_at is not None else self.tuned_at
+            if last is None:
                 return True
-            # header time running backwards (a looping bag, a restarted sensor) also retunes
-            return cfg.retune_period > 0 and (stamp - self.tuned_at >= cfg.retune_period or stamp < self.tuned_at)
+            # a failed sweep is retried like a periodic one (or after a parameter change); header
+            # time running backwards (a looping bag, a restarted sensor) also retunes
+            return cfg.retune_period > 0 and (stamp - last >= cfg.retune_period or stamp < last)
 
     def retune(self, points: np.ndarray, stamp: float, stamp_ns: int = 0) -> TuningResult:
         """Run a tolerance sweep on ``points`` (valid rows, meters) and adopt its choice, unless
@@ -141,12 +147,13 @@ class FramePipeline:
             result = self._sweep(cfg, points, stamp_ns)
         except (ValueError, np.linalg.LinAlgError) as exc:
             with self._lock:
-                self.tune_error = str(exc)
+                if generation == self._generation:  # a voided sweep's failure is not reported
+                    self.tune_error, self.failed_at = str(exc), stamp
             raise
         with self._lock:
             if generation == self._generation:  # a parameter change during the sweep voids it
                 self.tolerance, self.tuned_at, self.last_tuning = result.tolerance, stamp, result
-                self.last_good, self.tune_error = result.tolerance, None
+                self.last_good, self.tune_error, self.failed_at = result.tolerance, None, None
         return result
 
     @staticmethod
@@ -206,9 +213,10 @@ class FramePipeline:
             except (ValueError, np.linalg.LinAlgError) as exc:
                 tune_problem = f'cannot tune: {exc}'
         elif self.config.auto_tune and self.tolerance is None and self.last_good is None and self.quick is None:
-            self.quick = quick_tolerance(valid, seed=frame_seed(cfg.seed, stamp_ns))  # until the sweep ends
-        elif self.tune_error is not None and self.tolerance is None:
-            tune_problem = f'cannot tune: {self.tune_error}'  # a background sweep failed
+            quick = quick_tolerance(valid, seed=frame_seed(cfg.seed, stamp_ns))  # until the sweep ends
+            self.quick = float(np.clip(quick, cfg.tune_min or quick, cfg.tune_max or quick))
+        if tune_problem is None and self.tune_error is not None:
+            tune_problem = f'cannot tune: {self.tune_error}'  # the last sweep (maybe in the background) failed
         tolerance, source = self.current_tolerance(tuning_failed=tune_problem is not None)
         try:
             with np.errstate(over='ignore', invalid='ignore'):
@@ -237,18 +245,6 @@ class FramePipeline:
         return FrameResult(points=valid, labels=labels, segmentation=seg, indices=scores, tolerance=tolerance,
                            tolerance_source=source, diagnostic=Diagnostic(level, message, values), seconds=seconds,
                            plane_counts=tuple(int(c) for c in counts))
-
-
-def limit_blas_threads(threads: int = 1) -> None:
-    """Limit BLAS (OpenBLAS, MKL) to ``threads`` threads for the whole process.
-
-    The per-frame matrix products are small ((k, 3) @ (3, n)), so more BLAS threads buy nothing;
-    but when the node's worker and retune threads, or other processes, compete for the cores,
-    OpenBLAS's spinning threads slow everything down several-fold (benchmarks/README.md). The
-    node and the command line call this at start; library users may call it too.
-    """
-    from threadpoolctl import threadpool_limits
-    threadpool_limits(limits=threads, user_api='blas')
 
 
 def _replace_diagnostic(result: FrameResult, diagnostic: Diagnostic) -> FrameResult:

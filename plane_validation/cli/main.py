@@ -27,7 +27,7 @@ import numpy as np
 
 from ..app.config import min_inliers_value
 from ..app.report import format_planes
-from ..formats.files import load_points
+from ..formats.files import check_output, load_points
 
 __all__ = ['main', 'build_parser', 'format_planes', 'parse_tolerances']
 
@@ -90,10 +90,12 @@ def cmd_detect(args: argparse.Namespace) -> int:
     from ..app.detection import detect
     from ..app.report import detection_document, format_indices
 
+    if args.out:
+        check_output(args.out)  # before the work, not after
     points = load_points(args.cloud)
     tolerance = None if args.auto else args.tolerance
     with progress_bar('tuning t', quiet=args.json) as progress:
-        det = detect(points, tolerance, seed=args.seed, max_planes=args.max_planes,
+        det = detect(points, tolerance, seed=_seed(args.seed), max_planes=args.max_planes,
                      min_inliers=min_inliers_value(args.min_inliers), progress=progress)
     written = []
     if args.out:
@@ -132,7 +134,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     points = load_points(args.cloud)
     with progress_bar('sweeping t', quiet=args.json) as progress:
-        result = tune_tolerance(points, tolerances=args.tolerances, criterion=args.criterion, seed=args.seed,
+        result = tune_tolerance(points, tolerances=args.tolerances, criterion=args.criterion, seed=_seed(args.seed),
                                 max_planes=args.max_planes, min_inliers=min_inliers_value(args.min_inliers),
                                 progress=progress)
     written = []
@@ -155,17 +157,17 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 def cmd_planes(args: argparse.Namespace) -> int:
     from ..app.report import plane_count_document, plane_count_table
-    from ..core.tuning import select_plane_count, tune_tolerance
+    from ..core.tuning import MIN_PLANE_SILHOUETTE, select_plane_count, tune_tolerance
 
     points = load_points(args.cloud)
     min_inliers = min_inliers_value(args.min_inliers)
     tolerance, source = args.tolerance, 'fixed'
     if tolerance is None:
         with progress_bar('tuning t', quiet=args.json) as progress:
-            tolerance = tune_tolerance(points, seed=args.seed, max_planes=args.max_planes, min_inliers=min_inliers,
-                                       progress=progress).tolerance
+            tolerance = tune_tolerance(points, seed=_seed(args.seed), max_planes=args.max_planes,
+                                       min_inliers=min_inliers, progress=progress).tolerance
         source = 'auto'
-    result = select_plane_count(points, tolerance, args.max_planes, min_inliers=min_inliers, seed=args.seed)
+    result = select_plane_count(points, tolerance, args.max_planes, min_inliers=min_inliers, seed=_seed(args.seed))
     written = []
     if args.plot:
         from ..app.plot import plot_plane_count
@@ -180,7 +182,7 @@ def cmd_planes(args: argparse.Namespace) -> int:
     print(plane_count_table(result))
     if result.counts:
         others = ', '.join(f'{name} {result.best_by(name)}' for name in ('gs', 'davies_bouldin', 'dunn', 'gs_planes'))
-        print(f'selected k = {result.n_planes} (largest k whose planes all have S_j >= 0.05); '
+        print(f'selected k = {result.n_planes} (largest k whose planes all have S_j >= {MIN_PLANE_SILHOUETTE}); '
               f'each index\'s own optimum: {others}')
     else:
         print('no planes found')
@@ -308,17 +310,36 @@ def _non_negative_float(text: str) -> float:
     return _number(text, allow_zero=True)
 
 
-def _add_detection_options(parser: argparse.ArgumentParser) -> None:
-    """--seed, --max-planes, --min-inliers for the file commands (defaults from the parameter table)."""
+def _table_type(name: str) -> Callable[[str], object]:
+    """An argparse type for the table's parameter ``name``: its type, range and choices."""
     from ..app.config import PARAMETERS
-    parser.add_argument('--seed', type=int, default=PARAMETERS['seed'].default, metavar='S',
-                        help=f'random seed; same seed, same result (default {PARAMETERS["seed"].default})')
-    parser.add_argument('--max-planes', dest='max_planes', type=_positive_int, default=PARAMETERS['max_planes'].default,
-                        metavar='K', help=f'{PARAMETERS["max_planes"].description} '
-                        f'(default {PARAMETERS["max_planes"].default})')
-    parser.add_argument('--min-inliers', dest='min_inliers', type=_non_negative_float,
-                        default=PARAMETERS['min_inliers'].default, metavar='M',
-                        help=f'{PARAMETERS["min_inliers"].description} (default {PARAMETERS["min_inliers"].default})')
+    spec = PARAMETERS[name]
+
+    def parse(text: str):
+        try:
+            value = spec.type(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f'expected a {spec.type.__name__}, got {text!r}') from None
+        why = spec.problem(value)
+        if why is not None:
+            raise argparse.ArgumentTypeError(why)
+        return value
+    parse.__name__ = name  # argparse names the type in its messages
+    return parse
+
+
+def _seed(value: int) -> int | None:
+    """The table's seed: < 0 means fresh entropy."""
+    return None if value < 0 else value
+
+
+def _add_detection_options(parser: argparse.ArgumentParser) -> None:
+    """--seed, --max-planes, --min-inliers for the file commands (type, range and default from the table)."""
+    from ..app.config import PARAMETERS
+    for name, metavar in (('seed', 'S'), ('max_planes', 'K'), ('min_inliers', 'M')):
+        spec = PARAMETERS[name]
+        parser.add_argument('--' + name.replace('_', '-'), dest=name, type=_table_type(name), default=spec.default,
+                            metavar=metavar, help=f'{spec.description} (default {spec.default})')
 
 
 def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:
@@ -333,12 +354,13 @@ def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:
         if spec.type is bool:
             group.add_argument(flag, dest=name, action=argparse.BooleanOptionalAction, default=None, help=text)
         else:
-            group.add_argument(flag, dest=name, type=spec.type, default=None, help=text,
-                               choices=spec.choices or None, metavar=name.upper() if not spec.choices else None)
+            group.add_argument(flag, dest=name, type=_table_type(name), default=None, help=text,
+                               metavar='{' + ','.join(spec.choices) + '}' if spec.choices else name.upper())
     group.add_argument('--fixed', action='store_true', help='same as --no-auto-tune: use --tolerance as is')
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from ..app.config import PARAMETERS
     from ..core.scenes import SCENES
     from ..core.tuning import CRITERIA, TUNE_CANDIDATES
 
@@ -390,8 +412,8 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument('--tolerances', type=parse_tolerances, metavar='A:B:N',
                        help='N tolerances evenly spaced from A to B meters, like the paper\'s axes (default: '
                        f'{TUNE_CANDIDATES} geometric candidates derived from the cloud)')
-    sweep.add_argument('--criterion', default='gs_planes', choices=sorted(CRITERIA),
-                       help='index that chooses t (default gs_planes)')
+    sweep.add_argument('--criterion', default=PARAMETERS['criterion'].default, choices=sorted(CRITERIA),
+                       help=f'index that chooses t (default {PARAMETERS["criterion"].default})')
     _add_detection_options(sweep)
     sweep.add_argument('--plot', metavar='PNG', help='write indices and planes vs t, chosen t marked')
     sweep.add_argument('--csv', metavar='CSV', help='write one row per t: planes and every index')
@@ -448,6 +470,9 @@ class Terminated(BaseException):
 
 
 def _raise_terminated(signum: int, _frame) -> None:
+    import signal
+    for sig in (signal.SIGTERM, signal.SIGHUP):  # a second signal must not interrupt the clean-up
+        signal.signal(sig, signal.SIG_IGN)
     raise Terminated(signum)
 
 

@@ -2,39 +2,58 @@
 
 The products here are small ((k, 3) @ (3, n)); OpenBLAS's spinning worker threads only slow
 them down, several-fold when another busy thread or process shares the cores (benchmarks/README.md).
+The BLAS thread count is process-wide: calls that overlap (from several threads, or nested) share
+one limit, set by the first to enter and restored by the last to leave.
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import TypeVar
 
-__all__ = ['single_blas_thread']
+__all__ = ['single_blas_thread', 'limit_blas_threads']
 
 F = TypeVar('F', bound=Callable)
-_state = threading.local()
-_controller = None
+_lock = threading.Lock()
+_active = 0
+_restore = None
 
 
-def _limiter():
-    global _controller
-    if _controller is None:
-        from threadpoolctl import ThreadpoolController
-        _controller = ThreadpoolController()
-    return _controller.limit(limits=1, user_api='blas')
+def _controller():
+    from threadpoolctl import ThreadpoolController
+    return ThreadpoolController()
+
+
+@contextlib.contextmanager
+def _limiter() -> Iterator[None]:
+    global _active, _restore
+    with _lock:
+        if _active == 0:
+            _restore = _controller().limit(limits=1, user_api='blas')
+        _active += 1
+    try:
+        yield
+    finally:
+        with _lock:
+            _active -= 1
+            if _active == 0:
+                _restore.restore_original_limits()
+                _restore = None
 
 
 def single_blas_thread(func: F) -> F:
-    """Run ``func`` with BLAS limited to one thread (restored afterwards; nested calls limit once)."""
+    """Run ``func`` with BLAS limited to one thread (see the module docstring)."""
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
-        if getattr(_state, 'active', False):
+        with _limiter():
             return func(*args, **kwargs)
-        _state.active = True
-        try:
-            with _limiter():
-                return func(*args, **kwargs)
-        finally:
-            _state.active = False
     return wrapper
+
+
+def limit_blas_threads(threads: int = 1) -> None:
+    """Limit BLAS to ``threads`` threads for the rest of the process (the node and the command
+    line call this at start; the library's own limit then has nothing left to do)."""
+    from threadpoolctl import threadpool_limits
+    threadpool_limits(limits=threads, user_api='blas')

@@ -10,9 +10,12 @@ without losing precision to large absolute coordinates (each fit also centres it
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .regions import Neighbours, graph_neighbours, grid_neighbours
 
 __all__ = ['Plane', 'Segmentation', 'detect_planes', 'fit_plane', 'as_points', 'finite_rows', 'resolve_min_inliers']
 
@@ -194,9 +197,12 @@ def _within(cols: np.ndarray, normal: np.ndarray, offset: float, tolerance: floa
 
 
 def _best_plane(cols: np.ndarray, tolerance: float, probability: float, max_iterations: int,
-                rng: np.random.Generator) -> tuple[np.ndarray, float, np.ndarray] | None:
+                rng: np.random.Generator, region_of: Callable[[np.ndarray], np.ndarray] | None = None
+                ) -> tuple[np.ndarray, float, np.ndarray] | None:
     """One RANSAC run on the points ``cols`` (3, m): (normal, offset, inlier mask) after
-    refinement, or None when every sampled triple was degenerate."""
+    refinement, or None when every sampled triple was degenerate. ``region_of`` maps an inlier mask
+    (m,) to the part a plane would really keep (its largest connected region); the confirmed
+    hypotheses are then compared by that, and the plane is refitted on it."""
     m = cols.shape[1]
     subset = cols if m <= SUBSET else cols[:, rng.choice(m, SUBSET, replace=False)]
     # Scoring only ranks hypotheses: float32 halves its memory traffic, and the rounding (~1e-7 of
@@ -214,7 +220,7 @@ def _best_plane(cols: np.ndarray, tolerance: float, probability: float, max_iter
         if len(normals) == 0:
             continue
         near = _distances(subset32, normals.astype(np.float32), offsets.astype(np.float32)) <= tolerance
-        # a uint16 row sum is 3x faster than count_nonzero(axis=1); SUBSET < 65536
+        # a uint16 row sum is much faster than count_nonzero(axis=1); SUBSET < 65536
         counts = np.add.reduce(near.view(np.uint8), axis=1, dtype=np.uint16).astype(np.int64)
         # Keep the CONFIRM best hypotheses seen so far for confirmation on all points.
         best_normals = np.concatenate([best_normals, normals])
@@ -228,6 +234,8 @@ def _best_plane(cols: np.ndarray, tolerance: float, probability: float, max_iter
     # MSAC: the truncated squared distance prefers, of two planes with similar support, the one
     # its inliers hug (a plane tilted across a small face and its neighbours' edges loses).
     dist = _distances(cols, best_normals, best_offsets)
+    if region_of is not None:
+        return _best_region(cols, tolerance, best_normals, best_offsets, dist, region_of)
     np.minimum(dist, tolerance, out=dist)
     winner = int(np.argmin(np.einsum('ij,ij->i', dist, dist)))
     normal, offset = best_normals[winner], best_offsets[winner]
@@ -248,11 +256,53 @@ def _best_plane(cols: np.ndarray, tolerance: float, probability: float, max_iter
     return normal, offset, inliers
 
 
+def _best_region(cols: np.ndarray, tolerance: float, normals: np.ndarray, offsets: np.ndarray, dist: np.ndarray,
+                 keep: Callable[[np.ndarray], np.ndarray]) -> tuple[np.ndarray, float, np.ndarray]:
+    """Of the confirmed hypotheses (distances ``dist`` (h, m)), the one whose largest region is
+    largest (ties: MSAC); then refit on the region and take the region again, at most 3 times."""
+    inliers = dist <= tolerance
+    counts = np.count_nonzero(inliers, axis=1)
+    np.minimum(dist, tolerance, out=dist)
+    cost = np.einsum('ij,ij->i', dist, dist)
+    winner, region, size = -1, None, -1
+    for h in np.lexsort((cost, -counts)):  # a hypothesis cannot keep more than its inliers: skip
+        if counts[h] <= size:
+            break
+        candidate = keep(inliers[h])
+        found = int(np.count_nonzero(candidate))
+        if found > size or (found == size and cost[h] < cost[winner]):
+            winner, region, size = int(h), candidate, found
+    normal, offset = normals[winner], offsets[winner]
+    for _ in range(3):
+        count = int(np.count_nonzero(region))
+        if count < 3:
+            break
+        new_normal, new_offset = _fit_columns(np.compress(region, cols, axis=1))
+        new_region = keep(_within(cols, new_normal, new_offset, tolerance))
+        if np.count_nonzero(new_region) < count:
+            break
+        normal, offset = new_normal, new_offset
+        if np.array_equal(new_region, region):
+            break
+        region = new_region
+    return normal, offset, region
+
+
 def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
                   min_inliers: int | float = 0.02, probability: float = 0.99,
                   max_iterations: int = 1000, seed: int | np.random.Generator | None = None,
-                  ransac_points: int | None = RANSAC_POINTS) -> Segmentation:
-    """Find planes one by one with RANSAC, removing each plane's inliers before the next search.
+                  ransac_points: int | None = RANSAC_POINTS, shape: tuple[int, int] | None = None,
+                  connectivity: bool = False) -> Segmentation:
+    """Find planes one by one with RANSAC, removing each plane's points before the next search.
+
+    With ``connectivity`` (the default) a plane is a connected planar region: each candidate's
+    inliers are split into connected regions (:mod:`.regions`), the largest becomes the plane, the
+    other inliers go back to the pool (so coplanar patches of separate objects become separate
+    planes), and candidates are compared by the region they would keep. ``shape=(H, W)`` says the
+    rows are an H x W image in row-major order (NaN rows for holes): neighbours are then image
+    neighbours without a depth jump, and a large image is searched on a regular sub-grid;
+    otherwise a nearest-neighbour graph. ``connectivity=False`` gives the paper's method: every
+    point within ``t`` of an infinite plane (``shape`` is then only checked).
 
     points: (N, 3) float array, meters; rows with NaN/inf are ignored (label -1).
     tolerance: inlier distance ``t`` in meters (> 0).
@@ -283,7 +333,12 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
         raise ValueError(f'max_iterations must be an integer >= 1, got {max_iterations!r}')
     if ransac_points is not None and (int(ransac_points) != ransac_points or ransac_points < 3):
         raise ValueError(f'ransac_points must be None or an integer >= 3, got {ransac_points!r}')
+    if shape is not None:
+        shape = check_shape(shape, len(pts))
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    if connectivity:
+        return _detect_regions(pts, tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
+                               ransac_points, shape)
 
     cols = np.ascontiguousarray(pts.T)
     finite = np.isfinite(cols).all(axis=0)
@@ -300,8 +355,8 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     if ransac_points is not None and n_valid > ransac_points:
         search = valid[:, np.sort(rng.choice(n_valid, int(ransac_points), replace=False))]
         search_min = max(3, int(np.ceil(min_count * ransac_points / n_valid)))
-    found, reason = _sequential(search, tolerance, max_planes, search_min, probability, int(max_iterations), rng,
-                                n_total=n_valid)
+    found, reason, _ = _sequential(search, tolerance, max_planes, search_min, probability, int(max_iterations), rng,
+                                   n_total=n_valid)
     labels = np.full(len(pts), -1, dtype=np.int32)
     planes = _label_all(valid, search, valid_idx, center, labels, found, tolerance)
     small = [j for j, plane in enumerate(planes) if len(plane.inliers) < min_count]
@@ -314,11 +369,16 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
 
 
 def _sequential(cols: np.ndarray, tolerance: float, max_planes: int, min_count: int, probability: float,
-                max_iterations: int, rng: np.random.Generator, n_total: int) -> tuple[list, str]:
+                max_iterations: int, rng: np.random.Generator, n_total: int,
+                neighbours: Neighbours | None = None) -> tuple[list, str, np.ndarray | None]:
     """Sequential RANSAC on the points ``cols`` (3, n): the planes [(normal, offset)] in
-    extraction order and why the search stopped."""
+    extraction order, why the search stopped, and with ``neighbours`` the region of each point
+    (n,) (-1: none)."""
     n = cols.shape[1]
     rest = cols
+    rest_idx = np.arange(n)
+    region = None if neighbours is None else np.full(n, -1, dtype=np.int64)
+    region_of = None
     found: list[tuple[np.ndarray, float]] = []
     reason = f'reached max_planes={max_planes}'
     while len(found) < max_planes:
@@ -326,7 +386,12 @@ def _sequential(cols: np.ndarray, tolerance: float, max_planes: int, min_count: 
         if why is not None:
             reason = why if rest.shape[1] < n or n_total < 3 else f'no plane: {why}'
             break
-        best = _best_plane(rest, tolerance, probability, max_iterations, rng)
+        if neighbours is not None:
+            def region_of(mask: np.ndarray, rest_idx=rest_idx) -> np.ndarray:
+                full = np.zeros(n, bool)
+                full[rest_idx[mask]] = True
+                return neighbours.largest(full)[rest_idx]
+        best = _best_plane(rest, tolerance, probability, max_iterations, rng, region_of)
         if best is None:
             reason = 'every sampled triple was degenerate (nearly collinear or duplicate points)'
             break
@@ -336,9 +401,12 @@ def _sequential(cols: np.ndarray, tolerance: float, max_planes: int, min_count: 
             reason = f'best remaining plane has {count} < min_inliers={min_count} points' + \
                 ('' if n == n_total else f' (in a sample of {n} of {n_total} points)')
             break
+        if region is not None:
+            region[rest_idx[inliers]] = len(found)
+            rest_idx = rest_idx[~inliers]
         found.append((normal, offset))
         rest = np.compress(~inliers, rest, axis=1)
-    return found, reason
+    return found, reason, region
 
 
 def _nearest(cols: np.ndarray, found: list[tuple[np.ndarray, float]], tolerance: float
@@ -382,3 +450,123 @@ def _label_all(valid: np.ndarray, search: np.ndarray, valid_idx: np.ndarray, cen
         planes.append(Plane(normal=normal, offset=offset, inliers=valid_idx[own == j],
                             rms=float(np.sqrt(mean_sq[j]))))
     return tuple(planes)
+
+
+def check_shape(shape, n: int) -> tuple[int, int]:
+    """``shape`` as (H, W) ints with H * W == n, or ValueError."""
+    try:
+        h, w = (int(v) for v in shape)
+    except (TypeError, ValueError):
+        raise ValueError(f'shape must be (H, W), got {shape!r}') from None
+    if h < 1 or w < 1 or h * w != n:
+        raise ValueError(f'shape {shape!r} does not match {n} points (H * W must equal the number of rows)')
+    return h, w
+
+
+def _detect_regions(pts: np.ndarray, tolerance: float, max_planes: int, min_inliers: int | float,
+                    probability: float, max_iterations: int, rng: np.random.Generator,
+                    ransac_points: int | None, shape: tuple[int, int] | None) -> Segmentation:
+    """detect_planes with connected regions (see its docstring)."""
+    finite = finite_rows(pts)
+    valid_idx = np.flatnonzero(finite)
+    n_valid = len(valid_idx)
+    min_count = resolve_min_inliers(min_inliers, n_valid)
+    center = np.median(pts[valid_idx[::max(1, n_valid // 1024)]], axis=0) if n_valid else np.zeros(3)
+    if shape is not None:
+        h, w = shape
+        step = 1 if ransac_points is None or n_valid <= ransac_points else \
+            int(np.ceil(np.sqrt(n_valid / ransac_points)))
+        grid = pts.reshape(h, w, 3)[step // 2::step, step // 2::step]
+        grid_valid = finite.reshape(h, w)[step // 2::step, step // 2::step]
+        neighbours = grid_neighbours(grid, grid_valid)
+        rows, cols_ = np.divmod(neighbours.pixel, grid.shape[1])
+        search_idx = (rows * step + step // 2) * w + cols_ * step + step // 2
+    else:
+        step = 0
+        search_idx = valid_idx
+        if ransac_points is not None and n_valid > ransac_points:
+            search_idx = valid_idx[np.sort(rng.choice(n_valid, int(ransac_points), replace=False))]
+        neighbours = graph_neighbours(pts[search_idx] - center)
+    search = np.ascontiguousarray((pts[search_idx] - center).T)
+    search_min = max(3, int(np.ceil(min_count * len(search_idx) / max(n_valid, 1))))
+    found, reason, region = _sequential(search, tolerance, max_planes, search_min, probability, max_iterations,
+                                        rng, n_total=n_valid, neighbours=neighbours)
+    labels = np.full(len(pts), -1, dtype=np.int32)
+    if not found:
+        return Segmentation(labels=labels, planes=(), tolerance=tolerance, n_valid=n_valid, reason=reason)
+    # each region's plane refitted on its own points
+    found = [_fit_columns(np.compress(region == j, search, axis=1)) if np.count_nonzero(region == j) >= 3 else plane
+             for j, plane in enumerate(found)]
+    if len(search_idx) == n_valid:
+        labels[search_idx] = region
+    elif shape is not None:
+        uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]
+        labels = _spread_grid(pts, shape, step, region, neighbours, uncentred, tolerance)[0]
+    else:
+        labels[valid_idx] = _spread_nearest(pts[valid_idx] - center, search, region, found, tolerance)
+    counts = np.bincount(labels[labels >= 0], minlength=len(found))
+    small = np.flatnonzero(counts < min_count)
+    if len(small):
+        keep = np.flatnonzero(counts >= min_count)
+        remap = np.full(len(found) + 1, -1, dtype=np.int32)
+        remap[keep] = np.arange(len(keep))
+        labels = remap[labels]  # -1 indexes the last entry, which is -1
+        found = [found[j] for j in keep]
+        reason += (f'; dropped {len(small)} region(s) left with fewer than min_inliers={min_count} points '
+                   'once every point was labelled')
+    planes = []
+    for j, (normal, offset) in enumerate(found):
+        members = np.flatnonzero(labels == j)
+        resid = (pts[members] - center) @ normal + offset
+        normal, offset = _canonical(normal, offset - float(normal @ center))
+        planes.append(Plane(normal=normal, offset=offset, inliers=members.astype(np.int64),
+                            rms=float(np.sqrt(np.mean(resid ** 2))) if len(members) else 0.0))
+    return Segmentation(labels=labels, planes=tuple(planes), tolerance=tolerance, n_valid=n_valid, reason=reason)
+
+
+def _spread_grid(pts: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray, neighbours: Neighbours,
+                 planes: list, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """Labels (N,) of every pixel of the image ``pts`` (N, 3) from the regions of the searched
+    sub-grid: of the up to four sub-grid pixels around a pixel, the region whose plane (``planes``
+    in the coordinates of ``pts``) is nearest, when within ``tolerance``; -1 otherwise. Also the
+    distance (N,) to the chosen plane (inf when none)."""
+    h, w = shape
+    gh, gw = neighbours.shape
+    sub = np.full(gh * gw, -1, dtype=np.int64)
+    sub[neighbours.pixel] = region
+    sub = sub.reshape(gh, gw)
+    k, n = len(planes), len(pts)
+    dist = np.empty((k + 1, n))  # row k (label -1): no region; NaN rows compare False
+    np.matmul(np.array([p[0] for p in planes]), pts.T, out=dist[:k])
+    dist[:k] += np.array([p[1] for p in planes])[:, None]
+    np.abs(dist[:k], out=dist[:k])
+    dist[k] = np.inf
+    flat = dist.reshape(-1)
+    lo_r = np.minimum(np.maximum(np.arange(h) - step // 2, 0) // step, gh - 1)
+    lo_c = np.minimum(np.maximum(np.arange(w) - step // 2, 0) // step, gw - 1)
+    out = np.full(n, -1, dtype=np.int32)
+    best = np.full(n, np.inf)
+    todo = np.arange(n)
+    for dr, dc in ((0, 0), (1, 1), (0, 1), (1, 0)):  # the sub-grid pixel up-left first: most take it
+        r, c = np.divmod(todo, w)
+        lab = sub[np.minimum(lo_r[r] + dr, gh - 1), np.minimum(lo_c[c] + dc, gw - 1)]
+        d = flat[np.where(lab >= 0, lab, k) * n + todo]
+        better = (d <= tolerance) & (d < best[todo])
+        out[todo[better]], best[todo[better]] = lab[better], d[better]
+        if dr == dc == 0:
+            todo = todo[~better & np.isfinite(d)]  # the rest (valid pixels only): the other three
+    return out, best
+
+
+def _spread_nearest(points: np.ndarray, search: np.ndarray, region: np.ndarray, found: list,
+                    tolerance: float) -> np.ndarray:
+    """Labels of ``points`` (n, 3) from the region of their nearest searched point (``search``
+    (3, m)), when within ``tolerance`` of that region's plane; -1 otherwise."""
+    from scipy.spatial import cKDTree
+    _, nearest = cKDTree(search.T).query(points, k=1)
+    lab = region[nearest]
+    normals = np.array([n for n, _ in found])
+    offsets = np.array([d for _, d in found])
+    j = np.where(lab >= 0, lab, 0)
+    dist = np.abs(np.einsum('ij,ij->i', points, normals[j]) + offsets[j])
+    return np.where((lab >= 0) & (dist <= tolerance), lab, -1).astype(np.int32)

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ['atomic_output', 'load_points', 'save_points', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
+__all__ = ['atomic_output', 'check_output', 'load_points', 'save_points', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
 
 #: Extensions of plain point files (bags are recognised separately).
 TEXT_SUFFIXES = ('.xyz', '.txt', '.csv')
@@ -72,19 +72,26 @@ def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None 
     lab = None if labels is None else np.asarray(labels).astype(np.int32).reshape(-1)
     if lab is not None and len(lab) != len(pts):
         raise ValueError(f'{len(lab)} labels for {len(pts)} points')
+    check_output(path)
     suffix = path.suffix.lower()
     from .bags import BAG_SUFFIXES, write_bag_points
     if suffix in BAG_SUFFIXES or suffix == '':
         return write_bag_points(path, pts, lab)
     writers = {'.ply': _write_ply, '.pcd': _write_pcd, '.npy': _write_npy}
-    if suffix not in writers and suffix not in TEXT_SUFFIXES:
+    with atomic_output(path) as tmp:
+        writers.get(suffix, _write_text)(tmp, pts, lab)
+    return path
+
+
+def check_output(path: str | Path) -> None:
+    """ValueError unless :func:`save_points` can write ``path`` (known type, existing directory)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in ('.ply', '.pcd', '.npy', '.mcap', '.db3', '') + TEXT_SUFFIXES:
         raise ValueError(f'{path}: cannot write {suffix!r} files (use .ply, .pcd, .npy, .xyz, .txt, .csv, '
                          '.mcap, .db3 or a bag directory)')
     if not path.parent.is_dir():
         raise ValueError(f'{path}: directory {path.parent} does not exist')
-    with atomic_output(path) as tmp:
-        writers.get(suffix, _write_text)(tmp, pts, lab)
-    return path
 
 
 @contextmanager
@@ -97,6 +104,9 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
     tmp = Path(name)
     try:
         yield tmp
+        umask = os.umask(0)
+        os.umask(umask)
+        tmp.chmod(0o666 & ~umask)  # as a plain open() would have made it (mkstemp makes 0600)
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)

@@ -17,8 +17,31 @@ from ..app.pipeline import FrameResult
 from ..core.geometry import UNASSIGNED_RGB, PlaneOutline, plane_colors, plane_outlines
 from ..formats.pointcloud2 import create_cloud, pack_rgb
 
-__all__ = ['segmented_cloud', 'plane_markers', 'plane_poses', 'plane_coefficients',
+__all__ = ['OUTPUTS', 'msgtype', 'status_name', 'node_values', 'segmented_cloud', 'plane_markers', 'plane_poses',
+           'plane_coefficients',
            'diagnostics', 'diagnostic_from_status', 'frame_messages', 'to_rclpy_cloud']
+
+#: The node's outputs: key -> message class. The first four are published under ~/<key>, the
+#: diagnostics on /diagnostics.
+OUTPUTS = {'segmented': sensor_msgs.msg.PointCloud2, 'planes': MarkerArray, 'plane_poses': PoseArray,
+           'plane_coefficients': Float64MultiArray, 'diagnostics': DiagnosticArray}
+
+
+def msgtype(cls) -> str:
+    """'pkg/msg/Name' of an rclpy message class (the name bags and rosbags use)."""
+    return f'{cls.__module__.split(".")[0]}/msg/{cls.__name__}'
+
+
+def status_name(node_name: str) -> str:
+    """The name of the node's DiagnosticStatus."""
+    return f'{node_name}: plane detection'
+
+
+def node_values(processed: int, dropped: int, sweep_running: bool) -> tuple[tuple[str, str], ...]:
+    """The node's own diagnostic key-values, added to each frame's."""
+    return (('frames_processed', str(processed)), ('frames_dropped', str(dropped)),
+            ('retune_running', str(sweep_running).lower()))
+
 
 def segmented_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
     """x, y, z (float32), plane_id (int32, -1 unassigned) and packed rgb of the valid points."""

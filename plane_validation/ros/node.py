@@ -5,9 +5,9 @@
 
 Data flow: the subscription callback only puts the newest cloud into a one-slot mailbox (an
 older unprocessed cloud is dropped and counted); a worker thread takes it, runs the shared
-:class:`~plane_validation.pipeline.FramePipeline` and publishes. The first frame is tuned inline;
-later retunes (``retune_period``) run in a background thread while frames keep being processed
-with the current tolerance.
+:class:`~plane_validation.app.pipeline.FramePipeline` and publishes. Tolerance sweeps (the first,
+and later ones every ``retune_period``) run in a background thread while frames keep being
+processed with the current tolerance (a quick estimate until the first sweep ends).
 """
 from __future__ import annotations
 
@@ -16,20 +16,16 @@ import sys
 import threading
 
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseArray
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import PointCloud2
-from std_msgs.msg import Float64MultiArray
-from visualization_msgs.msg import MarkerArray
 
 from ..app.config import PARAMETERS, Parameter, PipelineConfig
 from ..app.diagnostics import Level
 from ..app.pipeline import FramePipeline, header_stamp_ns, limit_blas_threads
-from .messages import frame_messages
+from .messages import OUTPUTS, frame_messages, node_values, status_name
 
 ERROR, WARN = Level.ERROR, Level.WARN
 #: Seconds between two log lines of the same kind.
@@ -91,19 +87,17 @@ class PlaneValidationNode(Node):
                          reliability=ReliabilityPolicy.RELIABLE if reliability == 'reliable'
                          else ReliabilityPolicy.BEST_EFFORT)
         self.create_subscription(PointCloud2, 'cloud', self._on_cloud, qos)
-        self._pubs = {'segmented': self.create_publisher(PointCloud2, '~/segmented', 1),
-                      'planes': self.create_publisher(MarkerArray, '~/planes', 1),
-                      'plane_poses': self.create_publisher(PoseArray, '~/plane_poses', 1),
-                      'plane_coefficients': self.create_publisher(Float64MultiArray, '~/plane_coefficients', 1),
-                      'diagnostics': self.create_publisher(DiagnosticArray, '/diagnostics', 10)}
-        self.status_name = f'{self.get_name()}: plane detection'
+        self._pubs = {key: self.create_publisher(cls, '/diagnostics', 10) if key == 'diagnostics'
+                      else self.create_publisher(cls, f'~/{key}', 1) for key, cls in OUTPUTS.items()}
+        self.status_name = status_name(self.get_name())
         self.frames_dropped = 0
         self._dropped_reported = 0
         self.frames_processed = 0
         self._slot: PointCloud2 | None = None
         self._wake = threading.Condition()
         self._stopping = False
-        self._retuner: threading.Thread | None = None
+        self._sweep_idle = threading.Event()
+        self._sweep_idle.set()
         self._worker = threading.Thread(target=self._work, name='plane_validation_worker', daemon=True)
         self._worker.start()
 
@@ -133,18 +127,20 @@ class PlaneValidationNode(Node):
         result = self.pipeline.process_cloud(msg, tune_inline=False)
         stamp_ns = header_stamp_ns(msg.header)
         retune = result.segmentation is not None and self.pipeline.retune_due(stamp_ns * 1e-9) and not self._tuning()
+        if retune:
+            self._sweep_idle.clear()  # from now until the sweep ends, wait_for_sweep waits
         self.frames_processed += 1
         with self._wake:
             dropped_now, self._dropped_reported = self.frames_dropped - self._dropped_reported, self.frames_dropped
         if dropped_now:
             result = dataclasses.replace(result, diagnostic=result.diagnostic.escalated(
                 WARN, f'{dropped_now} older frame(s) dropped (clouds arrive faster than they are processed)'))
-        extra = (('frames_processed', str(self.frames_processed)), ('frames_dropped', str(self.frames_dropped)),
-                 ('retune_running', str(retune or self._tuning()).lower()))
+        extra = node_values(self.frames_processed, self.frames_dropped, retune or self._tuning())
         for topic, out in frame_messages(msg.header, result, self.status_name, extra).items():
             self._pubs[topic].publish(out)
         if retune:  # after publishing: the sweep competes for the GIL; frames go on with the current t
             self._start_retune(result.points, stamp_ns)
+
         # rclpy ties a throttled call site to one severity: one call site per level, throttled apart
         if result.level == ERROR:
             self.get_logger().error(f'ERROR: {result.message}', throttle_duration_sec=LOG_THROTTLE_S)
@@ -152,18 +148,23 @@ class PlaneValidationNode(Node):
             self.get_logger().warning(f'WARN: {result.message}', throttle_duration_sec=LOG_THROTTLE_S)
 
     def _tuning(self) -> bool:
-        return self._retuner is not None and self._retuner.is_alive()
+        return not self._sweep_idle.is_set()
 
     def _start_retune(self, points, stamp_ns: int) -> None:
-
         def run() -> None:
             try:
                 result = self.pipeline.retune(points, stamp_ns * 1e-9, stamp_ns)
-                self.get_logger().info(f'retuned: t = {result.tolerance:.4g} m ({result.verdict})')
+                if self.pipeline.last_tuning is result:  # not voided by a parameter change
+                    self.get_logger().info(f'retuned: t = {result.tolerance:.4g} m ({result.verdict})')
             except Exception as exc:  # a failed sweep keeps the current tolerance; the node goes on
                 self.get_logger().warning(f'retune failed, keeping t: {exc!r}', throttle_duration_sec=LOG_THROTTLE_S)
-        self._retuner = threading.Thread(target=run, name='plane_validation_retune', daemon=True)
-        self._retuner.start()
+            finally:
+                self._sweep_idle.set()
+        threading.Thread(target=run, name='plane_validation_retune', daemon=True).start()
+
+    def wait_for_sweep(self, timeout: float | None = None) -> bool:
+        """Wait until no tolerance sweep is running (True) or ``timeout`` seconds pass (False)."""
+        return self._sweep_idle.wait(timeout)
 
     # -- parameters ------------------------------------------------------------------------------
     def _on_set_parameters(self, params) -> SetParametersResult:
@@ -180,8 +181,7 @@ class PlaneValidationNode(Node):
             self._stopping = True
             self._wake.notify_all()
         self._worker.join(timeout=10)
-        if self._retuner is not None:
-            self._retuner.join(timeout=30)  # a sweep cannot be interrupted; it ends within seconds
+        self._sweep_idle.wait(timeout=30)  # a sweep cannot be interrupted; it ends within seconds
         super().destroy_node()
 
 

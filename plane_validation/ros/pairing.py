@@ -11,7 +11,7 @@ from collections.abc import Callable
 
 from ..app.pipeline import header_stamp_ns
 from ..app.summary import FrameSummary
-from .messages import diagnostic_from_status
+from .messages import diagnostic_from_status, status_name
 
 __all__ = ['OutputPairing']
 
@@ -43,7 +43,7 @@ class OutputPairing:
                 return
             if key == 'planes' and not msg.markers:
                 return
-            if key == 'diagnostics' and not any(s.name.startswith(f'{self.node_name}:') for s in msg.status):
+            if key == 'diagnostics' and not any(s.name == status_name(self.node_name) for s in msg.status):
                 return  # another node's diagnostics
             stamp = header_stamp_ns(msg.markers[0].header if key == 'planes' else msg.header)
             if stamp not in self.bag_time:

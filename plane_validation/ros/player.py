@@ -42,13 +42,11 @@ class LiveSession:
     def __init__(self, cloud_topic: str, node_name: str, receive: Callable[[str, object], None],
                  node_factory: Callable[[object], object] | None = None) -> None:
         import rclpy
-        from diagnostic_msgs.msg import DiagnosticArray
-        from geometry_msgs.msg import PoseArray
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import QoSProfile, ReliabilityPolicy
         from sensor_msgs.msg import PointCloud2
-        from std_msgs.msg import Float64MultiArray
-        from visualization_msgs.msg import MarkerArray
+
+        from .messages import OUTPUTS
 
         self.context = rclpy.Context()
         rclpy.init(context=self.context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
@@ -63,9 +61,7 @@ class LiveSession:
             self.publisher = self.player.create_publisher(PointCloud2, cloud_topic, QoSProfile(
                 depth=10, reliability=ReliabilityPolicy.RELIABLE))
             self.topics = output_topics(node_name)
-            classes = {'segmented': PointCloud2, 'planes': MarkerArray, 'plane_poses': PoseArray,
-                       'plane_coefficients': Float64MultiArray, 'diagnostics': DiagnosticArray}
-            for key, cls in classes.items():
+            for key, cls in OUTPUTS.items():
                 self.player.create_subscription(cls, self.topics[key], lambda msg, key=key: receive(key, msg), reliable)
             if node_factory is not None:
                 self.nodes.append(node_factory(self.context))

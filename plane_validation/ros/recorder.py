@@ -11,21 +11,14 @@ import tempfile
 from pathlib import Path
 
 from ..formats.bags import POINTCLOUD2, STORAGES, BagError, typestore
+from .messages import OUTPUTS, msgtype
 
-__all__ = ['BagRecorder', 'OUTPUT_TYPES', 'output_topics']
-
-#: Output topic suffix -> message type, as the node publishes them (under /<node name>/).
-OUTPUT_TYPES = {'segmented': POINTCLOUD2, 'planes': 'visualization_msgs/msg/MarkerArray',
-                'plane_poses': 'geometry_msgs/msg/PoseArray',
-                'plane_coefficients': 'std_msgs/msg/Float64MultiArray'}
-DIAGNOSTICS_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
+__all__ = ['BagRecorder', 'output_topics']
 
 
 def output_topics(node_name: str = 'plane_validation') -> dict[str, str]:
     """Output key -> topic name, as the node publishes them."""
-    topics = {key: f'/{node_name}/{key}' for key in OUTPUT_TYPES}
-    topics['diagnostics'] = '/diagnostics'
-    return topics
+    return {key: '/diagnostics' if key == 'diagnostics' else f'/{node_name}/{key}' for key in OUTPUTS}
 
 
 class BagRecorder:
@@ -42,18 +35,19 @@ class BagRecorder:
         if not path.parent.is_dir():
             raise BagError(f'cannot write output bag {path}: directory {path.parent} does not exist')
         self.path, self.storage = path, storage
-        self._tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f'.{path.name}.', suffix='.partial'))
-        self._bag = self._tmp / path.name
+        self._tmp = None
         try:
+            self._tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f'.{path.name}.', suffix='.partial'))
+            self._bag = self._tmp / path.name
             self.writer = Writer(self._bag, version=9, storage_plugin=StoragePlugin[storage.upper()])
             self.writer.open()
             store = typestore()
             self.connections = {'input': self.writer.add_connection(input_topic, POINTCLOUD2, typestore=store)}
             for key, topic in output_topics(node_name).items():
-                msgtype = OUTPUT_TYPES.get(key, DIAGNOSTICS_TYPE)
-                self.connections[key] = self.writer.add_connection(topic, msgtype, typestore=store)
+                self.connections[key] = self.writer.add_connection(topic, msgtype(OUTPUTS[key]), typestore=store)
         except BaseException as exc:  # also a signal turned into an exception
-            shutil.rmtree(self._tmp, ignore_errors=True)
+            if self._tmp is not None:
+                shutil.rmtree(self._tmp, ignore_errors=True)
             if isinstance(exc, Exception):
                 raise BagError(f'cannot write output bag {path}: {exc}') from exc
             raise
@@ -71,7 +65,8 @@ class BagRecorder:
             rosbag2_name = f'{self._bag.name}_0{suffix}'
             data.rename(self._bag / rosbag2_name)
             meta = self._bag / 'metadata.yaml'
-            meta.write_text(meta.read_text().replace(f'- {data.name}\n', f'- {rosbag2_name}\n'))
+            # the name stands in relative_file_paths and in files[].path
+            meta.write_text(meta.read_text().replace(f' {data.name}\n', f' {rosbag2_name}\n'))
             self._bag.rename(self.path)
         except BaseException:
             self.abort()

@@ -21,7 +21,7 @@ from ..app.config import PipelineConfig
 from ..app.pipeline import FramePipeline, header_stamp_ns
 from ..app.summary import FrameSummary, ReplaySummary
 from ..formats.bags import POINTCLOUD2, BagError, bag_storage, open_bag, pick_topic, read_clouds
-from .messages import frame_messages, to_rclpy_cloud
+from .messages import frame_messages, node_values, status_name, to_rclpy_cloud
 from .pairing import OutputPairing
 from .player import LiveSession, play, wait_for
 from .recorder import BagRecorder, output_topics
@@ -72,15 +72,14 @@ def replay_offline(bag: str | Path, *, topic: str | None = None, out: str | Path
         reader.close()
     pipeline = FramePipeline(config or PipelineConfig())
     summary = ReplaySummary(bag=bag, topic=conns[0].topic, output=out_path)
-    status_name = f'{node_name}: plane detection'
     with BagRecorder(out_path, conns[0].topic, node_name, output_storage(bag, storage)) as recorder, \
             _progress(total, progress) as bar:
         for index, (_, timestamp, cloud) in enumerate(read_clouds(bag, conns[0].topic)):
             msg = to_rclpy_cloud(cloud)
             result = pipeline.process_cloud(msg, tune_inline=False)
-            extra = (('frames_processed', str(index + 1)), ('frames_dropped', '0'), ('retune_running', 'false'))
+            extra = node_values(index + 1, 0, False)
             recorder.write('input', timestamp, msg)
-            outputs = frame_messages(msg.header, result, status_name, extra)
+            outputs = frame_messages(msg.header, result, status_name(node_name), extra)
             for key, out_msg in outputs.items():
                 recorder.write(key, timestamp, out_msg)
             summary.last_segmented = outputs['segmented']
