@@ -12,7 +12,7 @@ import yaml
 
 import plane_validation
 from plane_validation.app.config import PARAMETERS, PipelineConfig, parameters_markdown
-from plane_validation.core.verdict import RELIABLE_GS_PLANES
+from plane_validation.core.verdict import RELIABLE_PS
 
 ROOT = Path(__file__).resolve().parents[1]
 ROS_FREE_LAYERS = ('core', 'formats', 'app')
@@ -88,7 +88,7 @@ def test_readme_parameter_table_is_the_generated_one():
 
 def test_readme_quotes_the_verdict_threshold():
     text = (ROOT / 'README.md').read_text()
-    assert f'GSplanes ≥ {RELIABLE_GS_PLANES}' in text
+    assert f'PS ≥ {RELIABLE_PS}' in text
     assert 'GSplanes 0.1 ' not in text and 'GSplanes < 0.1.' not in text
 
 

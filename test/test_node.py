@@ -182,7 +182,7 @@ def test_parameter_change_applies_to_next_frame_and_invalid_is_rejected(harness)
         assert result.reason, bad.name
         assert why in result.reason
     assert node.get_parameter('tolerance').value == 0.004
-    assert node.get_parameter('criterion').value == 'gs_planes'
+    assert node.get_parameter('criterion').value == PipelineConfig().criterion
     assert node.pipeline.config.tolerance == 0.004
     out = harness.send(xyz_cloud(corner_points(0.001), 4_000_000_000_001))
     assert float(diag_values(out['diagnostics'])['tolerance']) == pytest.approx(0.004)

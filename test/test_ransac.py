@@ -35,7 +35,7 @@ def label_accuracy(seg: pv.Segmentation, scene: scenes.Scene) -> float:
 @pytest.mark.parametrize('make, k', [(scenes.corner, 3), (scenes.cube, 6)])
 def test_noise_free_scene_exact(make, k):
     scene = make(3000 if k == 3 else 6000, 0.0, seed=11)
-    seg = pv.detect_planes(scene.points, 1e-6 * 100, max_planes=10, seed=3)
+    seg = pv.detect_planes(scene.points, 1e-6 * 100, max_planes=10, seed=3, connectivity=False)
     assert seg.n_planes == k
     mapping = match_planes(seg.coefficients, scene.planes)
     assert sorted(mapping) == list(range(k))
@@ -65,7 +65,7 @@ def test_noisy_corner_nearest_plane_labels():
 def test_sequential_removal_alone_would_be_worse():
     """The nearest-plane reassignment is what lifts the noisy corner above 95 %."""
     scene = scenes.corner(6000, 2.5, seed=5)
-    seg = pv.detect_planes(scene.points, 5.0, seed=1)
+    seg = pv.detect_planes(scene.points, 5.0, seed=1, connectivity=False)
     dist = np.abs(scene.points @ seg.coefficients[:, :3].T + seg.coefficients[:, 3])
     within = dist <= 5.0
     ambiguous = within.sum(axis=1) > 1
@@ -227,7 +227,7 @@ def test_rigid_transform_moves_planes_and_keeps_labels(seed, quat, shift):
 def test_labels_are_the_nearest_plane_within_tolerance():
     scene = scenes.cube(8000, 2.5, outlier_fraction=0.05, seed=6)
     t = 5.0
-    seg = pv.detect_planes(scene.points, t, seed=1)
+    seg = pv.detect_planes(scene.points, t, seed=1, connectivity=False)
     dist = np.abs(scene.points @ seg.coefficients[:, :3].T + seg.coefficients[:, 3])  # (n, k)
     assigned = seg.labels >= 0
     own = dist[np.flatnonzero(assigned), seg.labels[assigned]]
@@ -241,8 +241,8 @@ def test_labels_are_the_nearest_plane_within_tolerance():
 
 def test_ransac_sample_finds_the_same_planes_as_all_points():
     scene = scenes.boxes(120_000, seed=3)
-    full = pv.detect_planes(scene.points, 0.02, seed=0, ransac_points=None)
-    sampled = pv.detect_planes(scene.points, 0.02, seed=0, ransac_points=10_000)
+    full = pv.detect_planes(scene.points, 0.02, seed=0, ransac_points=None, connectivity=False)
+    sampled = pv.detect_planes(scene.points, 0.02, seed=0, ransac_points=10_000, connectivity=False)
     assert full.n_planes == sampled.n_planes == 5
     mapping = match_planes(sampled.coefficients, full.coefficients)  # extraction order may differ
     assert sorted(mapping) == list(range(5))

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..core.ransac import RANSAC_POINTS
-from ..core.tuning import CRITERIA, TUNE_CANDIDATES, TUNE_POINTS
+from ..core.tuning import CRITERIA, DEFAULT_CRITERION, TUNE_CANDIDATES, TUNE_POINTS
 
 __all__ = ['Parameter', 'PipelineConfig', 'PARAMETERS', 'parameters_markdown', 'min_inliers_value']
 
@@ -74,7 +74,7 @@ class PipelineConfig:
                          low=2, high=100)
     tune_points: int = _p(TUNE_POINTS, 'random subsample of the cloud the tuning sweep runs on',
                           low=100, high=10_000_000)
-    criterion: str = _p('gs_planes', 'index that picks t (dunn and the gs indices are maximized, davies_bouldin '
+    criterion: str = _p(DEFAULT_CRITERION, 'index that picks t (dunn and the gs indices are maximized, davies_bouldin '
                         'minimized)', choices=tuple(CRITERIA))
     retune_period: float = _p(0.0, 'header time between retunes; 0 = tune on the first frame only',
                               low=0.0, high=1e6, unit='s')
@@ -90,6 +90,8 @@ class PipelineConfig:
                              'of on the index sample')
     ransac_points: int = _p(RANSAC_POINTS, 'RANSAC searches a random sample of this many points, then labels '
                             'every point; 0 = all', low=1000, high=100_000_000, special=0)
+    connectivity: bool = _p(True, 'a plane is a connected region (organized clouds: image neighbours without a depth '
+                            'jump); false = every point within t of an infinite plane (the paper)')
     voxel_size: float = _p(0.0, 'voxel grid applied before detection; 0 = off', low=1e-6, high=10.0, special=0.0,
                            unit='m')
     seed: int = _p(0, 'random seed; frames are seeded by (seed, header stamp); -1 = fresh entropy every frame',

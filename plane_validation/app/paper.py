@@ -101,9 +101,11 @@ def run_case(case: Case, out: Path, *, grid: np.ndarray, seed: int = 0, points: 
     """Run one case and write its two figures into ``out``."""
     start = time.perf_counter()
     scene = case.make(seed, points)
-    sweep = tune_tolerance(scene.points, tolerances=grid, seed=seed)
-    auto = tune_tolerance(scene.points, seed=seed)
-    counts = select_plane_count(scene.points, sweep.tolerance, max_planes=case.max_planes, seed=seed)
+    # the paper's method: every point within t of an infinite plane (no connected regions)
+    sweep = tune_tolerance(scene.points, tolerances=grid, criterion='gs_planes', seed=seed, connectivity=False)
+    auto = tune_tolerance(scene.points, criterion='gs_planes', seed=seed, connectivity=False)
+    counts = select_plane_count(scene.points, sweep.tolerance, max_planes=case.max_planes, seed=seed,
+                                connectivity=False)
     title = f'{case.scene}, e = {case.noise:g} {UNIT}, {len(scene.points)} points'
     truth = case.true_planes if case.true_planes else None
     sweep_png = plot_sweep(sweep, out / f'{case.name}_sweep.png', title=title, unit=UNIT, true_planes=truth)

@@ -32,7 +32,7 @@ OK, WARN, ERROR = Level.OK, Level.WARN, Level.ERROR
 #: Configuration fields whose change voids the tuned tolerance (and a sweep in progress).
 TUNING_FIELDS = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points', 'criterion', 'max_planes',
                  'min_inliers', 'voxel_size', 'probability', 'max_iterations', 'index_sample_size',
-                 'exact_indices', 'ransac_points')
+                 'exact_indices', 'ransac_points', 'connectivity')
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,6 +49,8 @@ class FrameResult:
     diagnostic: Diagnostic
     seconds: float
     plane_counts: tuple[int, ...] = ()  # labelled points per plane (input points, also with voxels)
+    organized: np.ndarray | None = None  # all (H * W, 3) rows of an organized input
+    shape: tuple[int, int] | None = None  # its (H, W)
 
     @property
     def n_planes(self) -> int:
@@ -136,15 +138,17 @@ class FramePipeline:
             # time running backwards (a looping bag, a restarted sensor) also retunes
             return cfg.retune_period > 0 and (stamp - last >= cfg.retune_period or stamp < last)
 
-    def retune(self, points: np.ndarray, stamp: float, stamp_ns: int = 0) -> TuningResult:
-        """Run a tolerance sweep on ``points`` (valid rows, meters) and adopt its choice, unless
-        the tuning set-up changed while it ran. Raises ValueError when no sweep is possible."""
+    def retune(self, points: np.ndarray, stamp: float, stamp_ns: int = 0, *,
+               shape: tuple[int, int] | None = None) -> TuningResult:
+        """Run a tolerance sweep on ``points`` (meters; all rows of an organized cloud of ``shape``,
+        else its valid rows) and adopt its choice, unless the tuning set-up changed while it ran.
+        Raises ValueError when no sweep is possible."""
         with self._lock:
             cfg, generation = self.config, self._generation
         if cfg.voxel_size > 0:
-            points = voxel_downsample(points, cfg.voxel_size)[0]
+            points, shape = voxel_downsample(points[finite_rows(points)], cfg.voxel_size)[0], None
         try:
-            result = self._sweep(cfg, points, stamp_ns)
+            result = self._sweep(cfg, points, stamp_ns, shape)
         except (ValueError, np.linalg.LinAlgError) as exc:
             with self._lock:
                 if generation == self._generation:  # a voided sweep's failure is not reported
@@ -157,13 +161,14 @@ class FramePipeline:
         return result
 
     @staticmethod
-    def _sweep(cfg: PipelineConfig, points: np.ndarray, stamp_ns: int) -> TuningResult:
+    def _sweep(cfg: PipelineConfig, points: np.ndarray, stamp_ns: int, shape) -> TuningResult:
         return tune_tolerance(points, None, cfg.criterion, max_planes=cfg.max_planes,
                               min_inliers=min_inliers_value(cfg.min_inliers), probability=cfg.probability,
                               max_iterations=cfg.max_iterations, sample_size=cfg.index_sample_size,
                               tune_points=cfg.tune_points, t_min=cfg.tune_min or None, t_max=cfg.tune_max or None,
                               count=cfg.tune_count, seed=frame_seed(cfg.seed, stamp_ns),
-                              ransac_points=cfg.ransac_points or None, sampled_separation=not cfg.exact_indices)
+                              ransac_points=cfg.ransac_points or None, sampled_separation=not cfg.exact_indices,
+                              shape=shape, connectivity=cfg.connectivity)
 
     def process_cloud(self, msg, *, tune_inline: bool = True) -> FrameResult:
         """One sensor_msgs/PointCloud2 (rclpy or rosbags) through :meth:`process`; a malformed
@@ -174,7 +179,8 @@ class FramePipeline:
             extra = trailing_bytes(msg)
         except ValueError as exc:
             return self.reject(f'malformed PointCloud2: {exc}', ERROR)
-        result = self.process(points, stamp_ns, tune_inline=tune_inline)
+        shape = (int(msg.height), int(msg.width)) if msg.height > 1 else None  # organized: an image
+        result = self.process(points, stamp_ns, tune_inline=tune_inline, shape=shape)
         if extra:
             note = (f'PointCloud2.data has {extra} byte(s) beyond height*row_step = {msg.height}*{msg.row_step}; '
                     'they were ignored')
@@ -185,8 +191,10 @@ class FramePipeline:
         """Result for a frame that could not even be read (e.g. a malformed message)."""
         return _failed(level, message, time.perf_counter(), self.current_tolerance())
 
-    def process(self, points: np.ndarray, stamp_ns: int = 0, *, tune_inline: bool = True) -> FrameResult:
-        """Run one frame. points: (N, 3) meters, NaN rows allowed; stamp_ns: header stamp.
+    def process(self, points: np.ndarray, stamp_ns: int = 0, *, tune_inline: bool = True,
+                shape: tuple[int, int] | None = None) -> FrameResult:
+        """Run one frame. points: (N, 3) meters, NaN rows allowed; stamp_ns: header stamp;
+        shape: (H, W) when the rows are an organized image (a depth camera's cloud).
 
         Bad input never raises: it gives an ERROR (malformed array) or WARN (too few points,
         degenerate geometry) result. With ``tune_inline`` a due retune runs before detection;
@@ -201,15 +209,18 @@ class FramePipeline:
             pts = as_points(points)
         except ValueError as exc:
             return _failed(ERROR, f'bad input: {exc}', start, self.current_tolerance())
-        valid = np.compress(finite_rows(pts), pts, axis=0)  # much faster than a boolean index
+        finite = finite_rows(pts)
+        valid = np.compress(finite, pts, axis=0)  # much faster than a boolean index
         n_input = len(pts)
+        if shape is not None and (cfg.voxel_size > 0 or not cfg.connectivity or shape[0] * shape[1] != n_input):
+            shape = None  # only regions use the image; the voxel grid does not keep it; a wrong shape is ignored
         if len(valid) < 3:
             return _failed(WARN, f'too few valid points: {len(valid)} of {n_input} (need 3)', start,
                            self.current_tolerance(), n_input=n_input, n_valid=len(valid))
         tune_problem = None
         if tune_inline and self.retune_due(stamp):
             try:
-                self.retune(valid, stamp, stamp_ns)
+                self.retune(pts if shape else valid, stamp, stamp_ns, shape=shape)
             except (ValueError, np.linalg.LinAlgError) as exc:
                 tune_problem = f'cannot tune: {exc}'
         elif self.config.auto_tune and self.tolerance is None and self.last_good is None and self.quick is None:
@@ -220,19 +231,23 @@ class FramePipeline:
         tolerance, source = self.current_tolerance(tuning_failed=tune_problem is not None)
         try:
             with np.errstate(over='ignore', invalid='ignore'):
-                work, inverse = (voxel_downsample(valid, cfg.voxel_size) if cfg.voxel_size > 0 else (valid, None))
+                if shape is not None:  # the organized rows, NaN holes and all
+                    work, inverse = pts, None
+                else:
+                    work, inverse = (voxel_downsample(valid, cfg.voxel_size) if cfg.voxel_size > 0 else (valid, None))
                 seed = frame_seed(cfg.seed, stamp_ns)
                 seg = detect_planes(work, tolerance, max_planes=cfg.max_planes,
                                     min_inliers=min_inliers_value(cfg.min_inliers), probability=cfg.probability,
                                     max_iterations=cfg.max_iterations, seed=seed,
-                                    ransac_points=cfg.ransac_points or None)
+                                    ransac_points=cfg.ransac_points or None, shape=shape,
+                                    connectivity=cfg.connectivity)
                 scores = validity_indices(work, seg.labels, sample_size=cfg.index_sample_size, seed=seed,
                                           sampled_separation=not cfg.exact_indices)
                 reliable, verdict = judge(work, seg, scores)
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
             return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
                            (tolerance, source), n_input=n_input, n_valid=len(valid))
-        labels = seg.labels if inverse is None else seg.labels[inverse]
+        labels = seg.labels[inverse] if inverse is not None else seg.labels[finite] if shape else seg.labels
         level, message = (OK, verdict) if reliable else (WARN, f'no reliable planes: {verdict}')
         if tune_problem:
             used = source.split(' (')[0]
@@ -244,7 +259,7 @@ class FramePipeline:
         values += (('processing_ms', f'{1000 * seconds:.1f}'),)
         return FrameResult(points=valid, labels=labels, segmentation=seg, indices=scores, tolerance=tolerance,
                            tolerance_source=source, diagnostic=Diagnostic(level, message, values), seconds=seconds,
-                           plane_counts=tuple(int(c) for c in counts))
+                           plane_counts=tuple(int(c) for c in counts), organized=pts if shape else None, shape=shape)
 
 
 def _replace_diagnostic(result: FrameResult, diagnostic: Diagnostic) -> FrameResult:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .regions import Neighbours, graph_neighbours, grid_neighbours
+from .regions import NORMAL_ANGLE_DEG, Neighbours, graph_neighbours, grid_neighbours
 
 __all__ = ['Plane', 'Segmentation', 'detect_planes', 'fit_plane', 'as_points', 'finite_rows', 'resolve_min_inliers']
 
@@ -197,14 +197,23 @@ def _within(cols: np.ndarray, normal: np.ndarray, offset: float, tolerance: floa
 
 
 def _best_plane(cols: np.ndarray, tolerance: float, probability: float, max_iterations: int,
-                rng: np.random.Generator, region_of: Callable[[np.ndarray], np.ndarray] | None = None
-                ) -> tuple[np.ndarray, float, np.ndarray] | None:
+                rng: np.random.Generator, region_of: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+                point_normals: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray] | None:
     """One RANSAC run on the points ``cols`` (3, m): (normal, offset, inlier mask) after
     refinement, or None when every sampled triple was degenerate. ``region_of`` maps an inlier mask
     (m,) to the part a plane would really keep (its largest connected region); the confirmed
-    hypotheses are then compared by that, and the plane is refitted on it."""
+    hypotheses are then compared by that, and the plane is refitted on it. ``point_normals`` (3, m),
+    local surface normals (NaN: unknown): hypotheses are scored only by the points whose normal
+    agrees with theirs."""
     m = cols.shape[1]
-    subset = cols if m <= SUBSET else cols[:, rng.choice(m, SUBSET, replace=False)]
+    pick = None if m <= SUBSET else rng.choice(m, SUBSET, replace=False)
+    subset = cols if pick is None else cols[:, pick]
+    coherent = None
+    if point_normals is not None:
+        sub_normals = point_normals if pick is None else point_normals[:, pick]
+        unknown = np.isnan(sub_normals[0])
+        sub_normals = np.nan_to_num(sub_normals).astype(np.float32)
+        min_cos = np.float32(np.cos(np.radians(NORMAL_ANGLE_DEG)))
     # Scoring only ranks hypotheses: float32 halves its memory traffic, and the rounding (~1e-7 of
     # the centred coordinates) only matters for points within a hair of t.
     subset32 = subset.astype(np.float32)
@@ -220,6 +229,10 @@ def _best_plane(cols: np.ndarray, tolerance: float, probability: float, max_iter
         if len(normals) == 0:
             continue
         near = _distances(subset32, normals.astype(np.float32), offsets.astype(np.float32)) <= tolerance
+        if point_normals is not None:
+            coherent = np.abs(normals.astype(np.float32) @ sub_normals) >= min_cos
+            coherent |= unknown
+            near &= coherent
         # a uint16 row sum is much faster than count_nonzero(axis=1); SUBSET < 65536
         counts = np.add.reduce(near.view(np.uint8), axis=1, dtype=np.uint16).astype(np.int64)
         # Keep the CONFIRM best hypotheses seen so far for confirmation on all points.
@@ -257,7 +270,7 @@ def _best_plane(cols: np.ndarray, tolerance: float, probability: float, max_iter
 
 
 def _best_region(cols: np.ndarray, tolerance: float, normals: np.ndarray, offsets: np.ndarray, dist: np.ndarray,
-                 keep: Callable[[np.ndarray], np.ndarray]) -> tuple[np.ndarray, float, np.ndarray]:
+                 keep: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> tuple[np.ndarray, float, np.ndarray]:
     """Of the confirmed hypotheses (distances ``dist`` (h, m)), the one whose largest region is
     largest (ties: MSAC); then refit on the region and take the region again, at most 3 times."""
     inliers = dist <= tolerance
@@ -268,7 +281,7 @@ def _best_region(cols: np.ndarray, tolerance: float, normals: np.ndarray, offset
     for h in np.lexsort((cost, -counts)):  # a hypothesis cannot keep more than its inliers: skip
         if counts[h] <= size:
             break
-        candidate = keep(inliers[h])
+        candidate = keep(inliers[h], normals[h])
         found = int(np.count_nonzero(candidate))
         if found > size or (found == size and cost[h] < cost[winner]):
             winner, region, size = int(h), candidate, found
@@ -278,7 +291,7 @@ def _best_region(cols: np.ndarray, tolerance: float, normals: np.ndarray, offset
         if count < 3:
             break
         new_normal, new_offset = _fit_columns(np.compress(region, cols, axis=1))
-        new_region = keep(_within(cols, new_normal, new_offset, tolerance))
+        new_region = keep(_within(cols, new_normal, new_offset, tolerance), new_normal)
         if np.count_nonzero(new_region) < count:
             break
         normal, offset = new_normal, new_offset
@@ -292,7 +305,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
                   min_inliers: int | float = 0.02, probability: float = 0.99,
                   max_iterations: int = 1000, seed: int | np.random.Generator | None = None,
                   ransac_points: int | None = RANSAC_POINTS, shape: tuple[int, int] | None = None,
-                  connectivity: bool = False) -> Segmentation:
+                  connectivity: bool = True) -> Segmentation:
     """Find planes one by one with RANSAC, removing each plane's points before the next search.
 
     With ``connectivity`` (the default) a plane is a connected planar region: each candidate's
@@ -377,6 +390,9 @@ def _sequential(cols: np.ndarray, tolerance: float, max_planes: int, min_count: 
     n = cols.shape[1]
     rest = cols
     rest_idx = np.arange(n)
+    if neighbours is not None and neighbours.usable is not None:  # only points that can join a region
+        rest_idx = np.flatnonzero(neighbours.usable[neighbours.pixel])
+        rest = cols[:, rest_idx]
     region = None if neighbours is None else np.full(n, -1, dtype=np.int64)
     region_of = None
     found: list[tuple[np.ndarray, float]] = []
@@ -387,11 +403,13 @@ def _sequential(cols: np.ndarray, tolerance: float, max_planes: int, min_count: 
             reason = why if rest.shape[1] < n or n_total < 3 else f'no plane: {why}'
             break
         if neighbours is not None:
-            def region_of(mask: np.ndarray, rest_idx=rest_idx) -> np.ndarray:
+            def region_of(mask: np.ndarray, normal: np.ndarray, rest_idx=rest_idx) -> np.ndarray:
                 full = np.zeros(n, bool)
                 full[rest_idx[mask]] = True
-                return neighbours.largest(full)[rest_idx]
-        best = _best_plane(rest, tolerance, probability, max_iterations, rng, region_of)
+                return neighbours.largest(full & neighbours.coherent(normal))[rest_idx]
+        rest_normals = None if neighbours is None or neighbours.normals is None else \
+            np.ascontiguousarray(neighbours.normals[rest_idx].T)
+        best = _best_plane(rest, tolerance, probability, max_iterations, rng, region_of, rest_normals)
         if best is None:
             reason = 'every sampled triple was degenerate (nearly collinear or duplicate points)'
             break
@@ -494,14 +512,19 @@ def _detect_regions(pts: np.ndarray, tolerance: float, max_planes: int, min_inli
     labels = np.full(len(pts), -1, dtype=np.int32)
     if not found:
         return Segmentation(labels=labels, planes=(), tolerance=tolerance, n_valid=n_valid, reason=reason)
-    # each region's plane refitted on its own points
-    found = [_fit_columns(np.compress(region == j, search, axis=1)) if np.count_nonzero(region == j) >= 3 else plane
-             for j, plane in enumerate(found)]
-    if len(search_idx) == n_valid:
-        labels[search_idx] = region
-    elif shape is not None:
+    # each region's plane refitted on its own points, then the borders settled by nearest plane
+    found = _refit(search, region, found)
+    region = _compete(search, region, found, tolerance, neighbours)
+    found = _refit(search, region, found)
+    if shape is not None:
         uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]
         labels = _spread_grid(pts, shape, step, region, neighbours, uncentred, tolerance)[0]
+    elif len(search_idx) == n_valid:
+        own = np.where(region >= 0, region, 0)
+        normals = np.array([n for n, _ in found])
+        offsets = np.array([d for _, d in found])
+        near = np.abs(np.einsum('ji,ij->j', normals[own], search) + offsets[own]) <= tolerance
+        labels[search_idx] = np.where((region >= 0) & near, region, -1)  # within t of the refitted plane
     else:
         labels[valid_idx] = _spread_nearest(pts[valid_idx] - center, search, region, found, tolerance)
     counts = np.bincount(labels[labels >= 0], minlength=len(found))
@@ -524,12 +547,74 @@ def _detect_regions(pts: np.ndarray, tolerance: float, max_planes: int, min_inli
     return Segmentation(labels=labels, planes=tuple(planes), tolerance=tolerance, n_valid=n_valid, reason=reason)
 
 
+def _refit(search: np.ndarray, region: np.ndarray, found: list) -> list:
+    """Each region's plane fitted to its points (3, m) ``search`` (kept when it has fewer than 3)."""
+    return [_fit_columns(np.compress(region == j, search, axis=1)) if np.count_nonzero(region == j) >= 3 else plane
+            for j, plane in enumerate(found)]
+
+
+#: Rounds of border settling in _compete: a region can win back this many pixels (or graph hops)
+#: of a strip that a plane found before it took.
+COMPETE_ROUNDS = 6
+
+
+def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: float,
+             neighbours: Neighbours) -> np.ndarray:
+    """Settle the borders between regions: each searched point (3, m) takes, of its own region and
+    its neighbours' regions, the one whose plane is nearest within ``tolerance`` (so a strip that an
+    earlier plane took along an edge goes back to the surface it lies on, and unassigned points
+    next to a region join it when they fit its plane); repeated COMPETE_ROUNDS times."""
+    k, m = len(found), search.shape[1]
+    dist = np.empty((k + 1, m))
+    dist[:k] = _distances(search, np.array([n for n, _ in found]), np.array([d for _, d in found]))
+    dist[k] = np.inf
+    dist[dist > tolerance] = np.inf  # only planes within t can be taken
+    flat = dist.reshape(-1)
+    columns = np.arange(m)
+    if neighbours.shape is not None:  # one offer per point and direction: 8 image directions
+        gh, gw = neighbours.shape
+        node = np.full(gh * gw, -1, dtype=np.int64)
+        node[neighbours.pixel] = columns
+        node = np.pad(node.reshape(gh, gw), 1, constant_values=-1)
+        groups = []
+        for dr in (-1, 0, 1):
+            for dc in (-1, 0, 1):
+                if dr or dc:
+                    src = node[1 + dr:gh + 1 + dr, 1 + dc:gw + 1 + dc]
+                    dst = node[1:-1, 1:-1]
+                    both = (src >= 0) & (dst >= 0)
+                    groups.append((src[both], dst[both]))
+    else:  # graph edges both ways; a destination may get several offers in a group
+        e = neighbours.edges
+        groups = [(e[:, 0], e[:, 1]), (e[:, 1], e[:, 0])]
+    region = np.where(region >= 0, region, k)
+    for _ in range(COMPETE_ROUNDS):
+        best = flat[region * m + columns]
+        best = np.where(region < k, best, np.inf)
+        label = region.copy()
+        for src, dst in groups:
+            cand = region[src]
+            d = flat[cand * m + dst]
+            if neighbours.shape is None:  # several offers per destination: keep each one's nearest
+                nearest = np.full(m, np.inf)
+                np.minimum.at(nearest, dst, d)
+                keep = d == nearest[dst]
+                cand, d, dst = cand[keep], d[keep], dst[keep]
+            better = d < best[dst]
+            label[dst[better]], best[dst[better]] = cand[better], d[better]
+        if np.array_equal(label, region):
+            break
+        region = label
+    return np.where(region < k, region, -1)
+
+
 def _spread_grid(pts: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray, neighbours: Neighbours,
                  planes: list, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
     """Labels (N,) of every pixel of the image ``pts`` (N, 3) from the regions of the searched
-    sub-grid: of the up to four sub-grid pixels around a pixel, the region whose plane (``planes``
-    in the coordinates of ``pts``) is nearest, when within ``tolerance``; -1 otherwise. Also the
-    distance (N,) to the chosen plane (inf when none)."""
+    sub-grid: the region of the nearest sub-grid pixel when the pixel is within ``tolerance`` of its
+    plane (``planes`` in the coordinates of ``pts``), else, of the 3 x 3 sub-grid pixels around it,
+    the region whose plane is nearest within ``tolerance``; -1 otherwise. Also the distance (N,) to
+    the chosen plane (inf when none)."""
     h, w = shape
     gh, gw = neighbours.shape
     sub = np.full(gh * gw, -1, dtype=np.int64)
@@ -542,14 +627,15 @@ def _spread_grid(pts: np.ndarray, shape: tuple[int, int], step: int, region: np.
     np.abs(dist[:k], out=dist[:k])
     dist[k] = np.inf
     flat = dist.reshape(-1)
-    lo_r = np.minimum(np.maximum(np.arange(h) - step // 2, 0) // step, gh - 1)
-    lo_c = np.minimum(np.maximum(np.arange(w) - step // 2, 0) // step, gw - 1)
+    near_r = np.clip(np.round((np.arange(h) - step // 2) / step).astype(np.int64), 0, gh - 1)
+    near_c = np.clip(np.round((np.arange(w) - step // 2) / step).astype(np.int64), 0, gw - 1)
     out = np.full(n, -1, dtype=np.int32)
     best = np.full(n, np.inf)
     todo = np.arange(n)
-    for dr, dc in ((0, 0), (1, 1), (0, 1), (1, 0)):  # the sub-grid pixel up-left first: most take it
+    offsets = [(0, 0)] + [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
+    for dr, dc in offsets:  # the nearest sub-grid pixel first: most pixels take its region
         r, c = np.divmod(todo, w)
-        lab = sub[np.minimum(lo_r[r] + dr, gh - 1), np.minimum(lo_c[c] + dc, gw - 1)]
+        lab = sub[np.clip(near_r[r] + dr, 0, gh - 1), np.clip(near_c[c] + dc, 0, gw - 1)]
         d = flat[np.where(lab >= 0, lab, k) * n + todo]
         better = (d <= tolerance) & (d < best[todo])
         out[todo[better]], best[todo[better]] = lab[better], d[better]

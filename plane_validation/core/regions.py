@@ -5,8 +5,9 @@ its largest connected component). :class:`Neighbours` is built once per detectio
 points; :meth:`Neighbours.components` then labels the connected components of any subset.
 
 * Organized clouds (an H x W image): neighbours on the image grid (4-connected), except across a
-  depth jump: two pixels whose 3-D distance exceeds ``JUMP`` typical pixel spacings at their range
-  are on different surfaces, and a pixel at such a jump joins no region (its full-resolution
+  depth jump: a gap between two pixels ``JUMP`` times the gaps beside it on the same image line
+  (and larger than ``JUMP`` typical pixel spacings at that range) separates surfaces, and the far
+  pixel of such a jump joins no region (its full-resolution
   neighbours are labelled afterwards from the regions around them). Components come from
   ``scipy.ndimage.label``.
 * Unorganized clouds: each point's ``NEIGHBOURS`` nearest neighbours within ``RADIUS`` median
@@ -25,13 +26,21 @@ from scipy.spatial import cKDTree
 
 __all__ = ['Neighbours', 'grid_neighbours', 'graph_neighbours', 'JUMP', 'NEIGHBOURS', 'RADIUS']
 
-#: Grid neighbours farther apart than this many typical pixel spacings (at their range) are not
-#: joined: a depth jump. Generous, since a surface seen at a grazing angle has stretched pixels.
-JUMP = 8.0
+#: A gap between grid neighbours this many times the gaps next to it along the image line (and
+#: this many typical pixel spacings at its range) is a depth jump.
+JUMP = 4.0
 #: Unorganized clouds: each point is joined to up to this many nearest neighbours ...
 NEIGHBOURS = 10
 #: ... that lie within this many median k-th-neighbour distances.
 RADIUS = 2.0
+#: Points whose neighbours lie along a line are also joined across it, to the nearest of this many.
+ACROSS_CANDIDATES = 48
+#: A point whose local surface normal is farther than this from a candidate plane's normal does not
+#: count towards that plane's region (a plane slanted across the nosings of a staircase keeps only
+#: strips of the treads, not the risers that would join them into one region).
+NORMAL_ANGLE_DEG = 25.0
+#: Grid normals from neighbours this many pixels away (smoother than adjacent pixels).
+NORMAL_REACH = 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,6 +54,14 @@ class Neighbours:
     pixel: np.ndarray | None = None
     usable: np.ndarray | None = None
     edges: np.ndarray | None = None
+    normals: np.ndarray | None = None  # (n, 3) unit local surface normals, NaN where unknown
+
+    def coherent(self, normal: np.ndarray) -> np.ndarray:
+        """(n,) bool: points whose local normal is within NORMAL_ANGLE_DEG of ``normal`` (or unknown)."""
+        if self.normals is None:
+            return np.ones(self.n, bool)
+        cos = np.abs(self.normals @ normal)
+        return ~(cos < np.cos(np.radians(NORMAL_ANGLE_DEG)))  # NaN (unknown) counts as coherent
 
     def components(self, mask: np.ndarray) -> tuple[np.ndarray, int]:
         """Connected components of the points where ``mask`` (n,) is True: (labels (n,) int, -1
@@ -76,44 +93,104 @@ class Neighbours:
         return labels == int(np.argmax(sizes))
 
 
+def _gaps(image_points: np.ndarray, valid: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
+    """3-D distance between pixel neighbours along ``axis`` (NaN where either is invalid) and the
+    range of the nearer of the two."""
+    a = image_points[:, :-1] if axis == 1 else image_points[:-1]
+    b = image_points[:, 1:] if axis == 1 else image_points[1:]
+    va = valid[:, :-1] if axis == 1 else valid[:-1]
+    vb = valid[:, 1:] if axis == 1 else valid[1:]
+    with np.errstate(invalid='ignore'):
+        gap = np.where(va & vb, np.linalg.norm(a - b, axis=-1), np.nan)
+        reach = np.minimum(np.linalg.norm(a, axis=-1), np.linalg.norm(b, axis=-1))
+    return gap, reach
+
+
+def _jumps(gap: np.ndarray, reach: np.ndarray, axis: int, typical: float) -> np.ndarray:
+    """Edges whose gap is JUMP times the larger of the gaps just before and after them along the
+    same image line (a surface seen at a grazing angle has large but steady gaps; a depth jump is
+    a lone large one), and more than JUMP typical pixel spacings at their range."""
+    pad = np.full((gap.shape[0], 1) if axis == 1 else (1, gap.shape[1]), np.nan)
+    before = np.concatenate([pad, gap], axis=axis)[:, :-1] if axis == 1 else np.concatenate([pad, gap])[:-1]
+    after = np.concatenate([gap, pad], axis=axis)[:, 1:] if axis == 1 else np.concatenate([gap, pad])[1:]
+    local = np.fmax(before, after)
+    local = np.where(np.isnan(local), gap, local)
+    with np.errstate(invalid='ignore'):
+        return (gap > JUMP * np.maximum(local, typical * reach)) & np.isfinite(gap)
+
+
 def grid_neighbours(image_points: np.ndarray, valid: np.ndarray) -> Neighbours:
     """Neighbours of the valid pixels of an (h, w, 3) image of points (meters; the sensor at the
     origin). Points are numbered in row-major order of the valid pixels ``valid`` (h, w)."""
     h, w = valid.shape
-    rng_ = np.linalg.norm(np.where(valid[..., None], image_points, 0.0), axis=-1)
-
-    def ok(a: np.ndarray, b: np.ndarray, va: np.ndarray, vb: np.ndarray, ra: np.ndarray, rb: np.ndarray):
-        both = va & vb
-        gap = np.linalg.norm(np.where(both[..., None], a - b, 0.0), axis=-1)
-        scale = np.maximum(np.maximum(ra, rb), 1e-12)
-        angular = gap / scale  # pixel spacing relative to range
-        typical = np.median(angular[both]) if both.any() else 0.0
-        return both & (angular <= JUMP * typical)
-
-    right_ok = ok(image_points[:, :-1], image_points[:, 1:], valid[:, :-1], valid[:, 1:], rng_[:, :-1], rng_[:, 1:])
-    down_ok = ok(image_points[:-1], image_points[1:], valid[:-1], valid[1:], rng_[:-1], rng_[1:])
-    # a jump is an edge between two valid pixels that is not ok; both its pixels are unusable
-    jump_r = valid[:, :-1] & valid[:, 1:] & ~right_ok
-    jump_d = valid[:-1] & valid[1:] & ~down_ok
+    right, right_reach = _gaps(image_points, valid, 1)
+    down, down_reach = _gaps(image_points, valid, 0)
+    with np.errstate(invalid='ignore', divide='ignore'):
+        angular = np.concatenate([(right / right_reach)[np.isfinite(right)], (down / down_reach)[np.isfinite(down)]])
+    typical = float(np.median(angular)) if len(angular) else 0.0  # pixel spacing per meter of range
+    jump_r = _jumps(right, right_reach, 1, typical)
+    jump_d = _jumps(down, down_reach, 0, typical)
+    # the far pixel of a jump joins no region: that cuts the grid there and leaves a thin object
+    # in front (a shelf edge a pixel wide) whole
+    dist = np.linalg.norm(np.where(valid[..., None], image_points, 0.0), axis=-1)
+    far_right = dist[:, 1:] > dist[:, :-1]  # the right pixel is the far one
+    far_down = dist[1:] > dist[:-1]
     usable = valid.copy()
-    usable[:, :-1] &= ~jump_r
-    usable[:, 1:] &= ~jump_r
-    usable[:-1] &= ~jump_d
-    usable[1:] &= ~jump_d
+    usable[:, :-1] &= ~(jump_r & ~far_right)
+    usable[:, 1:] &= ~(jump_r & far_right)
+    usable[:-1] &= ~(jump_d & ~far_down)
+    usable[1:] &= ~(jump_d & far_down)
     pixel = np.flatnonzero(valid.reshape(-1))
-    return Neighbours(n=len(pixel), shape=(h, w), pixel=pixel, usable=usable.reshape(-1))
+    normals = _grid_normals(image_points, valid).reshape(-1, 3)[pixel]
+    return Neighbours(n=len(pixel), shape=(h, w), pixel=pixel, usable=usable.reshape(-1), normals=normals)
+
+
+def _grid_normals(image_points: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """(h, w, 3) unit normals from the image neighbours NORMAL_REACH pixels away (NaN at holes)."""
+    r = NORMAL_REACH
+    pts = np.where(valid[..., None], image_points, np.nan)
+    pad = np.pad(pts, ((r, r), (r, r), (0, 0)), constant_values=np.nan)
+    h, w = valid.shape
+    du = pad[r:r + h, 2 * r:] - pad[r:r + h, :w]
+    dv = pad[2 * r:, r:r + w] - pad[:h, r:r + w]
+    n = np.cross(du, dv)
+    with np.errstate(invalid='ignore', divide='ignore'):
+        return n / np.linalg.norm(n, axis=-1, keepdims=True)
 
 
 def graph_neighbours(points: np.ndarray) -> Neighbours:
-    """Neighbours of unorganized (n, 3) points: each joined to its NEIGHBOURS nearest within
-    RADIUS median NEIGHBOURS-th-neighbour distances."""
+    """Neighbours of unorganized (n, 3) points: each joined to its NEIGHBOURS nearest within RADIUS
+    median NEIGHBOURS-th-neighbour distances and, where those lie along a line (a lidar ring), to
+    its nearest point off that line (on the next ring) among ACROSS_CANDIDATES."""
     n = len(points)
     k = min(NEIGHBOURS + 1, n)
     if k < 2:
         return Neighbours(n=n, edges=np.empty((0, 2), np.int64))
-    dist, idx = cKDTree(points).query(points, k=k)
-    reach = RADIUS * float(np.median(dist[:, -1]))
-    near = dist[:, 1:] <= reach
+    tree = cKDTree(points)
+    dist, idx = tree.query(points, k=min(ACROSS_CANDIDATES, n))
+    missing = idx >= n  # far-out coordinates (a driver's FLT_MAX rows) find no neighbour
+    idx = np.where(missing, np.arange(n)[:, None], idx)
+    dist = np.where(missing, np.inf, dist)
+    reach = RADIUS * float(np.median(dist[:, k - 1]))
+    near = dist[:, 1:k] <= reach
     rows = np.repeat(np.arange(n), k - 1).reshape(n, k - 1)
-    edges = np.column_stack([rows[near], idx[:, 1:][near]])
-    return Neighbours(n=n, edges=edges)
+    edges = [np.column_stack([rows[near], idx[:, 1:k][near]])]
+    normals = None
+    if k >= 4:  # local normals: the smallest principal axis of each point's neighbourhood
+        nb = points[idx[:, :k]] - points[idx[:, :k]].mean(axis=1, keepdims=True)
+        values, vectors = np.linalg.eigh(np.einsum('nki,nkj->nij', nb, nb))
+        normals = vectors[:, :, 0]
+        line = values[:, 1] < 0.05 * values[:, 2]  # neighbours along a line: no normal, a ring
+        normals[line] = np.nan
+        normals[values[:, 0] > 0.1 * values[:, 1]] = np.nan  # noise above the spacing: no normal either
+        if line.any() and idx.shape[1] > k:
+            rows_l = np.flatnonzero(line)
+            direction = vectors[rows_l, :, 2]
+            offs = points[idx[rows_l, k:]] - points[rows_l, None, :]
+            with np.errstate(invalid='ignore', divide='ignore'):
+                cos = np.abs(np.einsum('nkd,nd->nk', offs, direction)) / np.linalg.norm(offs, axis=-1)
+            across = cos < 0.7
+            first = np.argmax(across, axis=1)
+            has = across[np.arange(len(rows_l)), first]
+            edges.append(np.column_stack([rows_l[has], idx[rows_l[has], k + first[has]]]))
+    return Neighbours(n=n, edges=np.concatenate(edges), normals=normals)

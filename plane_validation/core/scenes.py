@@ -11,18 +11,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ['Scene', 'corner', 'cube', 'room', 'stairs', 'table', 'sphere', 'boxes', 'SCENES']
+__all__ = ['Scene', 'corner', 'cube', 'room', 'stairs', 'table', 'sphere', 'boxes', 'SCENES', 'depth_camera',
+           'lidar', 'SENSOR_VIEWS']
 
 
 @dataclass(frozen=True, eq=False)
 class Scene:
-    """points: (N, 3) float64; labels: (N,) int32 true plane index or -1; planes: (k, 4) a, b, c, d."""
+    """points: (N, 3) float64; labels: (N,) int32 true plane index or -1; planes: (k, 4) a, b, c, d;
+    shape: (H, W) when the rows are an image (a depth camera's organized cloud, NaN rows for holes)."""
 
     name: str
     points: np.ndarray
     labels: np.ndarray
     planes: np.ndarray
     noise: float
+    shape: tuple[int, int] | None = None
 
     @property
     def n_planes(self) -> int:
@@ -199,3 +202,117 @@ def sphere(n_points: int = 5000, noise: float = 0.0, *, radius: float = 1.0, out
 #: Scene generators by name, for the CLI and the bag maker.
 SCENES = {'corner': corner, 'cube': cube, 'room': room, 'stairs': stairs, 'table': table, 'sphere': sphere,
           'boxes': boxes}
+
+
+# -- sensor models -------------------------------------------------------------------------------
+
+def _furnished_room() -> list[_Rect]:
+    """A 5 x 4 x 2.5 m room with a cabinet against the back wall and a box on the floor."""
+    rects = _box_faces((0, 0, 0), (5.0, 4.0, 2.5))
+    rects += _box_faces((1.0, 3.4, 0.0), (2.2, 4.0, 1.0), bottom=False)[:5]   # cabinet, front 0.6 m out
+    rects += _box_faces((3.0, 1.5, 0.0), (3.6, 2.1, 0.5), bottom=False)      # a box on the floor
+    return rects
+
+
+def _table_scene() -> list[_Rect]:
+    top_z = 0.75
+    rects = [_Rect((-1.0, -1.0, 0.0), X, Y, 3.5, 3.0), _Rect((0.0, 0.0, top_z), X, Y, 1.2, 0.8)]
+    rects += _box_faces((0.10, 0.10, top_z), (0.50, 0.40, top_z + 0.25), bottom=False)
+    rects += _box_faces((0.70, 0.35, top_z), (1.00, 0.65, top_z + 0.20), bottom=False)
+    return rects
+
+
+def _stairs_scene(steps: int = 6, rise: float = 0.17, run: float = 0.28) -> list[_Rect]:
+    treads = [_Rect((k * run, 0, (k + 1) * rise), X, Y, run, 1.2) for k in range(steps)]
+    risers = [_Rect((k * run, 0, k * rise), Y, Z, 1.2, rise) for k in range(steps)]
+    return treads + risers
+
+
+def _street() -> list[_Rect]:
+    """Ground, two facades, a wall and a parked box-shaped van around the origin (meters)."""
+    return ([_Rect((-30, -30, 0), X, Y, 60, 60), _Rect((-30, 8, 0), Z, X, 12, 60), _Rect((-30, -8, 0), X, Z, 60, 9),
+             _Rect((12, -8, 0), Y, Z, 16, 3)] + _box_faces((3, 2, 0), (8, 4, 2.2), bottom=False))
+
+
+#: Depth-camera views: rectangles, eye and target (meters, z up), and how the scene is named.
+SENSOR_VIEWS = {
+    'room': (_furnished_room, (4.6, 0.4, 1.5), (1.5, 3.6, 0.7)),
+    'table': (_table_scene, (0.6, -1.0, 1.6), (0.6, 0.4, 0.75)),
+    'stairs': (_stairs_scene, (-1.2, 0.6, 1.6), (0.8, 0.6, 0.5)),
+}
+
+
+def _raycast(rects: list[_Rect], eye: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest hit of each ray (n, 3, unit) from ``eye``: (range (n,), rectangle index (n,), -1 none)."""
+    best = np.full(len(rays), np.inf)
+    which = np.full(len(rays), -1, dtype=np.int32)
+    for j, r in enumerate(rects):
+        n, o, u, v = r.normal, np.asarray(r.origin, float), np.asarray(r.u, float), np.asarray(r.v, float)
+        with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
+            t = ((o - eye) @ n) / (rays @ n)
+            hit = eye + t[:, None] * rays - o
+            s, q = hit @ u, hit @ v
+        ok = (t > 1e-6) & (s >= 0) & (s <= r.su) & (q >= 0) & (q <= r.sv) & (t < best)
+        best[ok], which[ok] = t[ok], j
+    return best, which
+
+
+def _look_at(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """(3, 3) rotation camera -> world for an optical frame (x right, y down, z forward), z up."""
+    forward = (target - eye) / np.linalg.norm(target - eye)
+    right = np.cross(forward, (0.0, 0.0, 1.0))
+    right /= np.linalg.norm(right)
+    down = np.cross(forward, right)
+    return np.column_stack([right, down, forward])
+
+
+def depth_camera(view: str = 'room', *, width: int = 640, height: int = 480, hfov_deg: float = 58.0,
+                 sigma_1m: float = 0.0015, quantum_1m: float = 0.002, min_cos: float = 0.2,
+                 max_range: float = 6.0, seed=None) -> Scene:
+    """An organized depth-camera frame (camera frame, meters, NaN holes) of a :data:`SENSOR_VIEWS`
+    view: depth noise sigma(z) = sigma_1m * z^2 (1.5 mm at 1 m, 6 mm at 2 m), depth quantised in
+    steps of quantum_1m * z^2, no return where the ray meets the surface at a grazing angle
+    (|cos| < min_cos) or beyond max_range. ``noise`` of the scene is sigma_1m."""
+    make, eye, target = SENSOR_VIEWS[view]
+    rects = make()
+    rng = np.random.default_rng(seed)
+    eye, target = np.asarray(eye, float), np.asarray(target, float)
+    rot = _look_at(eye, target)
+    f = width / 2 / np.tan(np.radians(hfov_deg) / 2)
+    u, v = np.meshgrid(np.arange(width) + 0.5 - width / 2, np.arange(height) + 0.5 - height / 2)
+    rays_cam = np.column_stack([u.ravel() / f, v.ravel() / f, np.ones(width * height)])
+    rays = rays_cam @ rot.T
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    rng_, which = _raycast(rects, eye, rays)
+    normals = np.array([r.normal for r in rects])
+    cos = np.abs(np.einsum('ij,ij->i', rays, normals[np.maximum(which, 0)]))
+    z = rng_ * (rays @ rot[:, 2])  # optical depth
+    lost = (which < 0) | (cos < min_cos) | ~(z <= max_range)
+    z = np.where(lost, 1.0, z)
+    z = z + rng.normal(0.0, 1.0, len(z)) * sigma_1m * z ** 2
+    step = quantum_1m * z ** 2
+    z = np.round(z / step) * step
+    points = rays_cam * np.where(lost, np.nan, z)[:, None]
+    labels = np.where(lost, -1, which).astype(np.int32)
+    planes = np.array([np.append(rot.T @ r.normal, -r.normal @ np.asarray(r.origin) + r.normal @ eye) for r in rects])
+    return Scene(name=f'depth_{view}', points=points, labels=labels, planes=planes, noise=sigma_1m,
+                 shape=(height, width))
+
+
+def lidar(*, rings: int = 32, azimuths: int = 1800, sigma: float = 0.015, height: float = 1.8,
+          elevation_deg: tuple[float, float] = (-30.0, 10.0), max_range: float = 60.0, seed=None) -> Scene:
+    """A spinning lidar's scan (sensor frame, meters, unorganized) of a street: ``rings`` beams
+    between the elevations, ``azimuths`` steps per turn, range noise N(0, sigma) along each beam."""
+    rects = _street()
+    rng = np.random.default_rng(seed)
+    eye = np.array([0.0, 0.0, height])
+    el = np.radians(np.linspace(*elevation_deg, rings))[:, None]
+    az = np.linspace(0, 2 * np.pi, azimuths, endpoint=False)[None, :]
+    rays = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el) * np.ones_like(az)], -1)
+    rays = rays.reshape(-1, 3)
+    rng_, which = _raycast(rects, eye, rays)
+    hit = (which >= 0) & (rng_ <= max_range)
+    r = rng_[hit] + rng.normal(0.0, sigma, hit.sum())
+    points = rays[hit] * r[:, None]
+    planes = np.array([np.append(rect.normal, -rect.normal @ (np.asarray(rect.origin) - eye)) for rect in rects])
+    return Scene(name='lidar_street', points=points, labels=which[hit].astype(np.int32), planes=planes, noise=sigma)

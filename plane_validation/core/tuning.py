@@ -15,10 +15,10 @@ from scipy.spatial import cKDTree
 
 from .blas import single_blas_thread
 from .indices import ValidityIndices, validity_indices
-from .ransac import RANSAC_POINTS, Segmentation, as_points, detect_planes, finite_rows
+from .ransac import RANSAC_POINTS, Segmentation, as_points, check_shape, detect_planes, finite_rows
 from .verdict import RELIABLE_GS_PLANES, SINGLE_PLANE_THICKNESS, judge, plane_thickness
 
-__all__ = ['CRITERIA', 'TUNE_CANDIDATES', 'TUNE_POINTS',
+__all__ = ['CRITERIA', 'DEFAULT_CRITERION', 'TUNE_CANDIDATES', 'TUNE_POINTS',
            'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
            'select_plane_count', 'noise_from_segmentation', 'local_noise', 'quick_tolerance', 'MIN_PLANE_SILHOUETTE']
 
@@ -28,6 +28,8 @@ TUNE_POINTS = 20000
 #: Index name -> True when larger is better.
 CRITERIA = {'gs_planes': True, 'gs': True, 'silhouette': True, 'dunn': True, 'davies_bouldin': False,
             'davies_bouldin_classic': False, 'plane_silhouette': True}
+#: The criterion tune_tolerance uses unless told (chosen on benchmarks/quality.py; the paper's is gs_planes).
+DEFAULT_CRITERION = 'plane_silhouette'
 
 #: A plane whose own mean silhouette S_j (eq. 5, among the planes) is below this is not a
 #: well-assigned plane; select_plane_count keeps the largest k whose planes all reach it.
@@ -206,12 +208,13 @@ def noise_from_segmentation(seg: Segmentation) -> float:
 
 
 @single_blas_thread
-def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_planes', *,
+def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT_CRITERION, *,
                    max_planes: int = 10, min_inliers: int | float = 0.02, probability: float = 0.99,
                    max_iterations: int = 1000, sample_size: int | None = 2000, tune_points: int | None = TUNE_POINTS,
                    t_min: float | None = None, t_max: float | None = None, count: int = TUNE_CANDIDATES,
                    seed: int | None = None, progress: Callable[[int, int], None] | None = None,
-                   ransac_points: int | None = RANSAC_POINTS, sampled_separation: bool = False) -> TuningResult:
+                   ransac_points: int | None = RANSAC_POINTS, sampled_separation: bool = False,
+                   shape: tuple[int, int] | None = None, connectivity: bool = True) -> TuningResult:
     """Sweep the RANSAC tolerance and pick the best by ``criterion``.
 
     points: (N, 3) meters. tolerances: candidate ``t`` values in meters, or None for ``count``
@@ -224,7 +227,9 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_pla
     max(3 SE, 0.01) of the best (indistinguishable given the silhouette sampling), the smallest
     ``t`` wins; see :func:`_choose` for the single-plane case.
     progress: called as ``progress(done, total)`` after each candidate (e.g. to drive a progress bar).
-    ransac_points, sampled_separation: passed to :func:`detect_planes` and :func:`validity_indices`.
+    ransac_points, sampled_separation: passed to :func:`detect_planes` and :func:`validity_indices`;
+    shape, connectivity: to :func:`detect_planes` (an organized cloud is swept on a regular
+    sub-grid of about ``tune_points`` pixels, which keeps it organized).
     """
     _check_criterion(criterion)
     start = time.perf_counter()
@@ -238,13 +243,22 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_pla
     cand = np.unique(cand)
     if cand.size == 0 or not np.all(np.isfinite(cand)) or cand[0] <= 0:
         raise ValueError('tolerances must be finite and > 0')
-    sweep_pts = finite if tune_points is None or len(finite) <= tune_points else \
-        finite[rng.choice(len(finite), tune_points, replace=False)]
+    sweep_shape = None
+    if shape is not None:
+        h, w = check_shape(shape, len(pts))
+        step = 1 if tune_points is None or len(finite) <= tune_points else \
+            int(np.ceil(np.sqrt(len(finite) / tune_points)))
+        grid = pts.reshape(h, w, 3)[step // 2::step, step // 2::step]
+        sweep_pts, sweep_shape = grid.reshape(-1, 3), grid.shape[:2]
+    else:
+        sweep_pts = finite if tune_points is None or len(finite) <= tune_points else \
+            finite[rng.choice(len(finite), tune_points, replace=False)]
+    n_sweep = int(np.count_nonzero(finite_rows(sweep_pts)))
     ransac_seed, index_seed = rng.integers(0, 2**63, size=2)
     opts = dict(max_planes=max_planes, min_inliers=min_inliers, probability=probability,
-                max_iterations=max_iterations, ransac_points=ransac_points)
+                max_iterations=max_iterations, ransac_points=ransac_points, connectivity=connectivity)
     # a count means the same share of the cloud on the subsample (as ransac_points scales it)
-    sweep_opts = dict(opts, min_inliers=_scaled_min_inliers(min_inliers, len(sweep_pts), len(finite)))
+    sweep_opts = dict(opts, min_inliers=_scaled_min_inliers(min_inliers, n_sweep, len(finite)), shape=sweep_shape)
 
     rows: list[TuningRow] = []
     previous: tuple[np.ndarray, ValidityIndices] | None = None
@@ -265,10 +279,10 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = 'gs_pla
         if progress is not None:
             progress(len(rows), len(cand))
 
-    best = _choose(rows, criterion, len(sweep_pts))
+    best = _choose(rows, criterion, n_sweep)
     t_best = rows[best].tolerance
-    final = detect_planes(pts, t_best, seed=int(ransac_seed), **opts)
-    if sweep_pts is finite and len(finite) == len(pts):
+    final = detect_planes(pts, t_best, seed=int(ransac_seed), shape=shape, **opts)
+    if sweep_pts is finite and len(finite) == len(pts) and shape is None:
         final_scores = rows[best].indices  # the sweep already scored this very segmentation
     else:
         final_scores = validity_indices(pts, final.labels, sample_size=sample_size, seed=int(index_seed),
@@ -309,7 +323,10 @@ def _choose(rows: list[TuningRow], criterion: str, n_points: int) -> int:
         return int(np.flatnonzero(single & (coverage >= 0.95 * coverage[single].max()))[0])
     se_name = {'gs_planes': 'gs_planes_se', 'gs': 'gs_se', 'silhouette': 'silhouette_se'}.get(criterion)
     # The reported SE runs ~1.5x small (shared sample noise), and 0.01 of silhouette is no real difference.
-    margin = max(3 * getattr(rows[best].indices, se_name), SILHOUETTE_TIE) if se_name else 0.0
+    if se_name:
+        margin = max(3 * getattr(rows[best].indices, se_name), SILHOUETTE_TIE)
+    else:
+        margin = SILHOUETTE_TIE if criterion == 'plane_silhouette' else 0.0  # PS is sampled too
     return int(np.flatnonzero(masked >= masked[best] - margin)[0])
 
 
@@ -317,7 +334,8 @@ def _choose(rows: list[TuningRow], criterion: str, n_points: int) -> int:
 def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 10,
                        criterion: str = 'gs_planes', *, min_inliers: int | float = 0.02, probability: float = 0.99,
                        max_iterations: int = 1000, sample_size: int | None = 2000,
-                       seed: int | None = None) -> PlaneCountResult:
+                       seed: int | None = None, shape: tuple[int, int] | None = None,
+                       connectivity: bool = True) -> PlaneCountResult:
     """Score the first k planes (the rest unassigned) for k = 1..K and pick k (paper Fig. 2).
 
     One sequential RANSAC run with ``max_planes`` finds up to K planes at ``tolerance`` meters;
@@ -330,7 +348,8 @@ def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 1
     rng = np.random.default_rng(seed)
     ransac_seed, index_seed = rng.integers(0, 2**63, size=2)
     seg = detect_planes(points, tolerance, max_planes=max_planes, min_inliers=min_inliers,
-                        probability=probability, max_iterations=max_iterations, seed=int(ransac_seed))
+                        probability=probability, max_iterations=max_iterations, seed=int(ransac_seed),
+                        shape=shape, connectivity=connectivity)
     pts = as_points(points)
     counts, scores = [], []
     for k in range(1, seg.n_planes + 1):

@@ -139,7 +139,7 @@ class PlaneValidationNode(Node):
         for topic, out in frame_messages(msg.header, result, self.status_name, extra).items():
             self._pubs[topic].publish(out)
         if retune:  # after publishing: the sweep competes for the GIL; frames go on with the current t
-            self._start_retune(result.points, stamp_ns)
+            self._start_retune(result, stamp_ns)
 
         # rclpy ties a throttled call site to one severity: one call site per level, throttled apart
         if result.level == ERROR:
@@ -150,10 +150,12 @@ class PlaneValidationNode(Node):
     def _tuning(self) -> bool:
         return not self._sweep_idle.is_set()
 
-    def _start_retune(self, points, stamp_ns: int) -> None:
+    def _start_retune(self, frame, stamp_ns: int) -> None:
+        points = frame.organized if frame.shape else frame.points
+
         def run() -> None:
             try:
-                result = self.pipeline.retune(points, stamp_ns * 1e-9, stamp_ns)
+                result = self.pipeline.retune(points, stamp_ns * 1e-9, stamp_ns, shape=frame.shape)
                 if self.pipeline.last_tuning is result:  # not voided by a parameter change
                     self.get_logger().info(f'retuned: t = {result.tolerance:.4g} m ({result.verdict})')
             except Exception as exc:  # a failed sweep keeps the current tolerance; the node goes on

@@ -1,0 +1,120 @@
+"""Segmentation quality against per-point ground truth: point F1 after one-to-one matching, the
+Hoover et al. (1996) region counts, and the matched planes' angle errors. Pure numpy/scipy.
+
+Hoover et al., "An experimental comparison of range image segmentation algorithms", PAMI 1996:
+with overlap threshold T, a detected region D and a true region G with |D n G| >= T|D| and
+>= T|G| are a *correct* detection; a true region covered (>= T) by several detected regions, each
+mostly (>= T) inside it, is *over-segmented*; a detected region covering (>= T) several true ones,
+each mostly (>= T) inside it, is an *under-segmentation*; true regions in none of these are
+*missed*, detected ones *noise*.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+__all__ = ['Quality', 'segmentation_quality', 'HOOVER_OVERLAP']
+
+#: Hoover's overlap threshold T.
+HOOVER_OVERLAP = 0.8
+
+
+@dataclass(frozen=True)
+class Quality:
+    """precision, recall, f1: of the points on true planes, after one-to-one matching of detected
+    to true planes by overlap; correct, over, under, missed, noise: Hoover counts (regions);
+    angle_deg: median angle between matched detected and true plane normals (NaN without)."""
+
+    precision: float
+    recall: float
+    f1: float
+    correct: int
+    over: int
+    under: int
+    missed: int
+    noise: int
+    true_planes: int
+    detected: int
+    angle_deg: float
+
+
+def _overlaps(pred: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(counts (d, g) of points in detected d and true g, sizes of d (d,), sizes of g (g,))."""
+    d, g = int(pred.max(initial=-1)) + 1, int(truth.max(initial=-1)) + 1
+    both = (pred >= 0) & (truth >= 0)
+    counts = np.bincount(pred[both] * g + truth[both], minlength=d * g).reshape(d, g).astype(float)
+    return counts, np.bincount(pred[pred >= 0], minlength=d).astype(float), \
+        np.bincount(truth[truth >= 0], minlength=g).astype(float)
+
+
+def _hoover(counts: np.ndarray, dsize: np.ndarray, gsize: np.ndarray, t: float) -> tuple[int, int, int, int, int]:
+    d, g = counts.shape
+    used_d, used_g = np.zeros(d, bool), np.zeros(g, bool)
+    correct = 0
+    ok = (counts >= t * dsize[:, None]) & (counts >= t * gsize[None, :]) & (counts > 0)
+    for i, j in zip(*np.nonzero(ok)):
+        if not used_d[i] and not used_g[j]:
+            used_d[i] = used_g[j] = True
+            correct += 1
+    inside_g = counts >= t * dsize[:, None]   # detected i mostly inside true j
+    inside_d = counts >= t * gsize[None, :]   # true j mostly inside detected i
+    over = 0
+    for j in np.flatnonzero(~used_g):
+        parts = np.flatnonzero(inside_g[:, j] & ~used_d & (counts[:, j] > 0))
+        if len(parts) >= 2 and counts[parts, j].sum() >= t * gsize[j]:
+            used_d[parts] = True
+            used_g[j] = True
+            over += 1
+    under = 0
+    for i in np.flatnonzero(~used_d):
+        parts = np.flatnonzero(inside_d[i, :] & ~used_g & (counts[i, :] > 0))
+        if len(parts) >= 2 and counts[i, parts].sum() >= t * dsize[i]:
+            used_g[parts] = True
+            used_d[i] = True
+            under += 1
+    missed = int(np.count_nonzero(~used_g & (gsize > 0)))
+    return correct, over, under, missed, int(np.count_nonzero(~used_d & (dsize > 0)))
+
+
+def segmentation_quality(pred: np.ndarray, truth: np.ndarray, *, points: np.ndarray | None = None,
+                         pred_planes: np.ndarray | None = None, overlap: float = HOOVER_OVERLAP) -> Quality:
+    """Score detected labels ``pred`` (N,) against true labels ``truth`` (N,) (-1: none in both).
+
+    Precision is over all detected points (a plane that takes clutter pays for it), recall over
+    the points of true planes. ``points`` (N, 3) and ``pred_planes`` (d, 4) give the angle errors (the true planes
+    are fitted to their points).
+    """
+    pred = np.asarray(pred).astype(np.int64).reshape(-1)
+    truth = np.asarray(truth).astype(np.int64).reshape(-1)
+    if len(pred) != len(truth):
+        raise ValueError(f'{len(pred)} detected labels for {len(truth)} true labels')
+    counts, dsize, gsize = _overlaps(pred, truth)
+    matched = 0.0
+    pairs: list[tuple[int, int]] = []
+    if counts.size:
+        rows, cols = linear_sum_assignment(-counts)
+        keep = counts[rows, cols] > 0
+        pairs = list(zip(rows[keep], cols[keep]))
+        matched = float(counts[rows, cols][keep].sum())
+    precision = matched / dsize.sum() if dsize.sum() else 0.0
+    recall = matched / gsize.sum() if gsize.sum() else 0.0
+    f1 = 2 * precision * recall / (precision + recall) if precision + recall else 0.0
+    correct, over, under, missed, noise = _hoover(counts, dsize, gsize, overlap)
+    angle = float('nan')
+    if points is not None and pred_planes is not None and pairs:
+        angles = []
+        for i, j in pairs:
+            true_pts = points[truth == j]
+            true_pts = true_pts[np.isfinite(true_pts).all(axis=1)]
+            if len(true_pts) < 3:
+                continue
+            centered = true_pts - true_pts.mean(axis=0)
+            normal = np.linalg.eigh(centered.T @ centered)[1][:, 0]
+            cos = abs(float(normal @ pred_planes[i, :3]) / np.linalg.norm(pred_planes[i, :3]))
+            angles.append(np.degrees(np.arccos(min(1.0, cos))))
+        angle = float(np.median(angles)) if angles else float('nan')
+    return Quality(precision=precision, recall=recall, f1=f1, correct=correct, over=over, under=under, missed=missed,
+                   noise=noise, true_planes=int(np.count_nonzero(gsize)), detected=int(np.count_nonzero(dsize)),
+                   angle_deg=angle)

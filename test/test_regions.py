@@ -1,0 +1,104 @@
+"""Planes as connected regions (detect_planes(connectivity=True), the default)."""
+import hashlib
+
+import numpy as np
+import pytest
+
+import plane_validation as pv
+from plane_validation import scenes
+from plane_validation.core.scoring import segmentation_quality
+
+
+def _wall_with_box(holes: float = 0.1, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """An organized 120 x 160 depth image: a wall 2 m away and, in the middle, the front of a box
+    8 cm in front of it (a depth jump); ``holes`` of the pixels are NaN. Returns points, truth."""
+    rng = np.random.default_rng(seed)
+    v, u = np.mgrid[0:120, 0:160]
+    x, y = (u - 80) / 150.0, (v - 60) / 150.0
+    box = (np.abs(u - 80) < 30) & (np.abs(v - 60) < 25)
+    depth = np.where(box, 1.92, 2.0) + rng.normal(0, 0.002, box.shape)
+    pts = np.stack([x * depth, y * depth, depth], -1).reshape(-1, 3)
+    pts[rng.random(len(pts)) < holes] = np.nan
+    return pts, box.reshape(-1).astype(np.int32)
+
+
+def test_organized_depth_jump_separates_a_box_front_from_the_wall_behind():
+    pts, truth = _wall_with_box()
+    regions = pv.detect_planes(pts, 0.1, seed=1, shape=(120, 160), min_inliers=200)
+    infinite = pv.detect_planes(pts, 0.1, seed=1, connectivity=False, min_inliers=200)
+    q = segmentation_quality(regions.labels, truth)
+    assert regions.n_planes == 2 and q.correct == 2 and q.f1 > 0.93, q
+    # t = 10 cm: the infinite plane of the wall also takes the box front 8 cm before it
+    assert infinite.n_planes == 1 and segmentation_quality(infinite.labels, truth).correct < 2
+    assert np.all(regions.labels[np.isnan(pts[:, 0])] == -1)  # holes stay unassigned
+
+
+def test_coplanar_separate_objects_are_separate_planes_in_an_unorganized_cloud():
+    rng = np.random.default_rng(2)
+    tops = [np.column_stack([rng.uniform(x0, x0 + 0.4, 3000), rng.uniform(0, 0.4, 3000), rng.normal(0, 0.002, 3000)])
+            for x0 in (0.0, 1.0)]  # two box tops at the same height, 0.6 m apart
+    pts = np.vstack(tops)
+    regions = pv.detect_planes(pts, 0.01, seed=0, min_inliers=500)
+    infinite = pv.detect_planes(pts, 0.01, seed=0, min_inliers=500, connectivity=False)
+    assert infinite.n_planes == 1 and regions.n_planes == 2
+    q = segmentation_quality(regions.labels, np.repeat([0, 1], 3000))
+    assert q.correct == 2
+    a, b = regions.planes
+    assert abs(abs(a.normal @ b.normal) - 1) < 1e-4 and abs(abs(a.offset) - abs(b.offset)) < 0.002  # coplanar
+
+
+def test_every_tread_and_riser_at_a_tolerance_of_three_tenths_of_the_rise():
+    scene = scenes.stairs(16000, 0.003, steps=4, rise=0.17, seed=3)
+    seg = pv.detect_planes(scene.points, 0.3 * 0.17, seed=0, max_planes=12, min_inliers=0.02)
+    q = segmentation_quality(seg.labels, scene.labels)
+    assert q.correct == scene.n_planes == 8, q
+    infinite = pv.detect_planes(scene.points, 0.3 * 0.17, seed=0, max_planes=12, min_inliers=0.02,
+                                connectivity=False)
+    assert segmentation_quality(infinite.labels, scene.labels).correct < 8  # the slanted plane wins there
+
+
+def test_depth_camera_frame_with_holes_and_grazing_losses():
+    scene = scenes.depth_camera('table', width=160, height=120, seed=0)
+    assert scene.shape == (120, 160) and np.isnan(scene.points[:, 0]).any()
+    seg = pv.detect_planes(scene.points, 0.01, seed=0, shape=scene.shape, max_planes=10, min_inliers=50)
+    q = segmentation_quality(seg.labels, scene.labels)
+    assert q.correct >= 4 and q.f1 > 0.9, q
+
+
+def test_lidar_scene_is_unorganized_and_its_planes_are_found():
+    scene = scenes.lidar(rings=32, azimuths=900, seed=0)
+    assert scene.shape is None
+    seg = pv.detect_planes(scene.points, 0.05, seed=0, max_planes=10, min_inliers=100)
+    q = segmentation_quality(seg.labels, scene.labels)
+    assert q.correct >= 4 and q.f1 > 0.9, q
+
+
+def test_without_connectivity_the_result_is_the_paper_method_of_before():
+    """Digests of (labels, coefficients) made by the implementation before connected regions
+    existed (commit 0289458), for the same scenes, tolerances and seeds."""
+    cases = [(scenes.corner(3000, 2.5, seed=1).points, 3.0, '3bdba61ccefb1772'),
+             (scenes.boxes(60000, seed=2).points, 0.02, '8796fb7f58b7e617'),
+             (scenes.stairs(8000, 0.004, seed=3).points, 0.03, '390857867ff10b2b')]
+    for points, t, digest in cases:
+        seg = pv.detect_planes(points, t, seed=5, ransac_points=20000, connectivity=False)
+        got = hashlib.sha256(seg.labels.tobytes() + seg.coefficients.round(9).tobytes()).hexdigest()[:16]
+        assert got == digest
+
+
+def test_regions_are_seeded_and_shape_is_checked():
+    pts, _ = _wall_with_box()
+    a = pv.detect_planes(pts, 0.01, seed=4, shape=(120, 160))
+    b = pv.detect_planes(pts, 0.01, seed=4, shape=(120, 160))
+    assert np.array_equal(a.labels, b.labels)
+    with pytest.raises(ValueError, match='does not match'):
+        pv.detect_planes(pts, 0.01, shape=(100, 100))
+    with pytest.raises(ValueError, match='shape must be'):
+        pv.detect_planes(pts, 0.01, shape='120x160')
+
+
+def test_large_organized_frame_is_searched_on_a_sub_grid_and_fully_labelled():
+    scene = scenes.depth_camera('room', seed=2)  # 640 x 480
+    seg = pv.detect_planes(scene.points, 0.06, seed=0, shape=scene.shape, max_planes=12, min_inliers=0.005)
+    assert 'in a sample of' in seg.reason or seg.n_planes == 12
+    q = segmentation_quality(seg.labels, scene.labels)
+    assert q.correct >= 5 and q.f1 > 0.9, q
