@@ -94,6 +94,10 @@ def test_organized_pcd_keeps_nan_rows_in_place(tmp_path):
     loaded = load_points(path)
     assert loaded.shape == (width * height, 3)
     np.testing.assert_array_equal(np.isnan(loaded).any(axis=1), holes)
+    from plane_validation.formats.files import load_cloud
+    points, shape = load_cloud(path)
+    assert shape == (height, width) and np.array_equal(points, loaded, equal_nan=True)
+    assert load_cloud(tmp_path / 'organized.pcd')[1] == (height, width)
     assert cli_main(['detect', str(path), '--tolerance', '0.02']) == 0
 
 

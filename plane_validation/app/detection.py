@@ -40,8 +40,10 @@ class Detection:
 
 
 def detect(points: np.ndarray, tolerance: float | None = None, *, seed: int = 0, max_planes: int = 10,
-           min_inliers: int | float = 0.02, progress: Callable[[int, int], None] | None = None) -> Detection:
-    """Planes of (N, 3) ``points`` at ``tolerance`` meters, or at the auto-tuned t when None.
+           min_inliers: int | float = 0.02, progress: Callable[[int, int], None] | None = None,
+           shape: tuple[int, int] | None = None) -> Detection:
+    """Planes of (N, 3) ``points`` at ``tolerance`` meters, or at the auto-tuned t when None;
+    ``shape`` (H, W) for an organized cloud.
 
     Equivalent Python API calls (same results): fixed t -> ``detect_planes(points, t, seed=seed,
     max_planes=..., min_inliers=...)`` and ``validity_indices(points, labels, seed=seed)``; auto ->
@@ -50,12 +52,13 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, seed: int = 0,
     pts = as_points(points)
     start = time.perf_counter()
     if tolerance is None:
-        tuned = tune_tolerance(pts, seed=seed, max_planes=max_planes, min_inliers=min_inliers, progress=progress)
+        tuned = tune_tolerance(pts, seed=seed, max_planes=max_planes, min_inliers=min_inliers, progress=progress,
+                               shape=shape)
         return Detection(points=pts, segmentation=tuned.segmentation, indices=tuned.indices,
                          tolerance=tuned.tolerance, tolerance_source='auto', reliable=tuned.reliable,
                          verdict=tuned.verdict, noise_estimate=tuned.noise_estimate, seed=seed,
                          seconds=time.perf_counter() - start, tuning=tuned)
-    seg = detect_planes(pts, tolerance, seed=seed, max_planes=max_planes, min_inliers=min_inliers)
+    seg = detect_planes(pts, tolerance, seed=seed, max_planes=max_planes, min_inliers=min_inliers, shape=shape)
     scores = validity_indices(pts, seg.labels, seed=seed)
     reliable, verdict = judge(pts, seg, scores)
     return Detection(points=pts, segmentation=seg, indices=scores, tolerance=float(tolerance),

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..app.config import min_inliers_value
 from ..app.report import format_planes
-from ..formats.files import check_output, load_points
+from ..formats.files import check_output, load_cloud
 
 __all__ = ['main', 'build_parser', 'format_planes', 'parse_tolerances']
 
@@ -92,11 +92,11 @@ def cmd_detect(args: argparse.Namespace) -> int:
 
     if args.out:
         check_output(args.out)  # before the work, not after
-    points = load_points(args.cloud)
+    points, shape = load_cloud(args.cloud)
     tolerance = None if args.auto else args.tolerance
     with progress_bar('tuning t', quiet=args.json) as progress:
         det = detect(points, tolerance, seed=_seed(args.seed), max_planes=args.max_planes,
-                     min_inliers=min_inliers_value(args.min_inliers), progress=progress)
+                     min_inliers=min_inliers_value(args.min_inliers), progress=progress, shape=shape)
     written = []
     if args.out:
         from ..formats.files import save_points
@@ -132,11 +132,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from ..app.report import sweep_document, write_sweep_csv
     from ..core.tuning import tune_tolerance
 
-    points = load_points(args.cloud)
+    points, shape = load_cloud(args.cloud)
     with progress_bar('sweeping t', quiet=args.json) as progress:
         result = tune_tolerance(points, tolerances=args.tolerances, criterion=args.criterion, seed=_seed(args.seed),
                                 max_planes=args.max_planes, min_inliers=min_inliers_value(args.min_inliers),
-                                progress=progress)
+                                progress=progress, shape=shape)
     written = []
     if args.csv:
         written.append(write_sweep_csv(args.csv, result))
@@ -159,15 +159,16 @@ def cmd_planes(args: argparse.Namespace) -> int:
     from ..app.report import plane_count_document, plane_count_table
     from ..core.tuning import MIN_PLANE_SILHOUETTE, select_plane_count, tune_tolerance
 
-    points = load_points(args.cloud)
+    points, shape = load_cloud(args.cloud)
     min_inliers = min_inliers_value(args.min_inliers)
     tolerance, source = args.tolerance, 'fixed'
     if tolerance is None:
         with progress_bar('tuning t', quiet=args.json) as progress:
             tolerance = tune_tolerance(points, seed=_seed(args.seed), max_planes=args.max_planes,
-                                       min_inliers=min_inliers, progress=progress).tolerance
+                                       min_inliers=min_inliers, progress=progress, shape=shape).tolerance
         source = 'auto'
-    result = select_plane_count(points, tolerance, args.max_planes, min_inliers=min_inliers, seed=_seed(args.seed))
+    result = select_plane_count(points, tolerance, args.max_planes, min_inliers=min_inliers, seed=_seed(args.seed),
+                                shape=shape)
     written = []
     if args.plot:
         from ..app.plot import plot_plane_count

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ['BAG_SUFFIXES', 'BagSource', 'BagError', 'POINTCLOUD2', 'STORAGES', 'parse_bag_source', 'read_clouds',
-           'open_bag', 'pick_topic', 'bag_storage', 'typestore', 'read_bag_points', 'write_bag_points', 'TOPIC',
+           'open_bag', 'pick_topic', 'bag_storage', 'typestore', 'read_bag_points', 'read_bag_message',
+           'write_bag_points', 'TOPIC',
            'STAMP_NS']
 
 #: File extensions read as bags (a directory is always a rosbag2 bag).
@@ -165,13 +166,22 @@ def parse_bag_source(source: str | Path) -> BagSource | None:
 def read_bag_points(source: BagSource) -> np.ndarray:
     """(height*width, 3) float64 x, y, z of one PointCloud2 in a bag (NaN holes kept)."""
     from .pointcloud2 import xyz_array
+    topic, msg = _message(source)
+    return _xyz(source, topic, msg, xyz_array)
 
+
+def read_bag_message(source: BagSource):
+    """The rosbags PointCloud2 message ``source`` names."""
+    return _message(source)[1]
+
+
+def _message(source: BagSource) -> tuple[str, object]:
     if source.index >= 0:
         seen = 0
         with closing(read_clouds(source.path, source.topic)) as clouds:
             for topic, _, msg in clouds:
                 if seen == source.index:
-                    return _xyz(source, topic, msg, xyz_array)
+                    return topic, msg
                 seen += 1
     else:
         last: deque = deque(maxlen=-source.index)
@@ -181,7 +191,7 @@ def read_bag_points(source: BagSource) -> np.ndarray:
         seen = len(last)
         if seen == -source.index:
             topic, _, msg = last[0]
-            return _xyz(source, topic, msg, xyz_array)
+            return topic, msg
     where = f'on {source.topic}' if source.topic else 'on its cloud topic'
     raise ValueError(f'{source.path}: no cloud number {source.index} {where} '
                      f'({"only " if seen else ""}{seen} cloud{"s" if seen != 1 else ""})')

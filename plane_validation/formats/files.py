@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ['atomic_output', 'check_output', 'load_points', 'save_points', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
+__all__ = ['atomic_output', 'check_output', 'load_cloud', 'load_points', 'save_points', 'POINT_SUFFIXES',
+           'TEXT_SUFFIXES']
 
 #: Extensions of plain point files (bags are recognised separately).
 TEXT_SUFFIXES = ('.xyz', '.txt', '.csv')
@@ -55,6 +56,44 @@ def load_points(source: str | Path) -> np.ndarray:
     reader = {'.pcd': _read_pcd, '.ply': _read_ply, '.npy': _read_npy}.get(suffix, _read_text)
     points = reader(path)
     return np.ascontiguousarray(points, dtype=np.float64)
+
+
+def load_cloud(source: str | Path) -> tuple[np.ndarray, tuple[int, int] | None]:
+    """:func:`load_points` and the cloud's image shape (H, W) when it is organized (a PCD with
+    HEIGHT > 1, or a bag cloud with height > 1), else None."""
+    from .bags import parse_bag_source, read_bag_message
+    from .pointcloud2 import xyz_array
+    bag = parse_bag_source(source)
+    if bag is None:
+        points = load_points(source)
+        return points, _pcd_shape(source, len(points))
+    msg = read_bag_message(bag)
+    try:
+        points = xyz_array(msg)
+    except ValueError as exc:
+        raise ValueError(f'{bag.path}: {exc}') from exc
+    h, w = int(msg.height), int(msg.width)
+    return points, (h, w) if h > 1 else None
+
+
+def _pcd_shape(source: str | Path, n_points: int) -> tuple[int, int] | None:
+    """(H, W) of an organized PCD file of ``n_points`` rows, else None."""
+    if Path(source).suffix.lower() == '.pcd':
+        header = {}
+        with open(source, 'rb') as f:
+            for raw in f:
+                words = raw.decode('ascii', 'replace').split()
+                if words and not words[0].startswith('#'):
+                    header[words[0].upper()] = words[1:]
+                if words and words[0].upper() == 'DATA':
+                    break
+        try:
+            h, w = int(header['HEIGHT'][0]), int(header['WIDTH'][0])
+        except (KeyError, IndexError, ValueError):
+            return None
+    else:
+        return None
+    return (h, w) if h > 1 and h * w == n_points else None
 
 
 def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None = None) -> Path:
