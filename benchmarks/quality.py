@@ -79,13 +79,13 @@ def load_clouds(only: list[str] | None = None) -> list[Cloud]:
 
 
 def _grid(cloud: Cloud, count: int) -> np.ndarray:
-    lo, hi = (0.0005, 0.05) if cloud.shape is not None else (0.002, 0.12)
+    lo, hi = (0.0005, 0.15) if cloud.shape is not None else (0.002, 0.15)
     return np.geomspace(lo, hi, count)
 
 
 def _params(cloud: Cloud) -> dict:
     n = int(np.isfinite(cloud.points).all(axis=1).sum())
-    return dict(max_planes=cloud.true_planes + 8, min_inliers=max(5, int(0.0008 * n)) if n > 20000 else 5)
+    return dict(max_planes=cloud.true_planes + 8, min_inliers=max(5, int((0.0008 if n > 20000 else 0.01) * n)))
 
 
 def _best(results: list[tuple[float, Quality, float]]) -> tuple[float, Quality, float]:

@@ -74,21 +74,23 @@ def test_every_bundled_bag_replays_offline_as_documented(name, tmp_path):
 def test_live_replay_matches_offline_for_the_same_seed(tmp_path):
     bag = BAGS / 'corner_e025'
     offline = replay_offline(bag, out=tmp_path / 'offline', echo=None)
-    live = replay_live(bag, out=tmp_path / 'live', rate=0.5, echo=None)
+    live = replay_live(bag, out=tmp_path / 'live', rate=0.2, echo=None)
     assert live.frames, 'the node answered no frame'
     by_stamp = {f.timestamp: f for f in offline.frames}
     quick = offline.frames[0].tolerance  # both answer the first frame with the quick estimate
-    matched = set()
+    matched, tuned = set(), False
     for frame in live.frames:  # frames the node dropped under load have no answer
         ref = by_stamp[frame.timestamp]
         assert frame.n_planes == ref.n_planes
         if frame.tolerance != pytest.approx(ref.tolerance, rel=1e-5):
             # offline adopts the sweep's t from the next frame; live, once the background sweep ends
-            assert frame.tolerance == pytest.approx(quick, rel=1e-5) and frame.index < 3, frame.line()
+            # (later on a loaded machine): until then the quick estimate, never after a match
+            assert frame.tolerance == pytest.approx(quick, rel=1e-5) and not tuned, frame.line()
             continue
         assert frame.gs_planes == pytest.approx(ref.gs_planes, rel=1e-5)
         matched.add(frame.timestamp)
-    assert len(matched) >= 3 and live.frames[0].tolerance == pytest.approx(quick, rel=1e-5)
+        tuned |= frame.tolerance != pytest.approx(quick, rel=1e-5)
+    assert len(matched) >= 2 and live.frames[0].tolerance == pytest.approx(quick, rel=1e-5)
     off_seg = {ts: structured_array(m)['plane_id'] for ts, m in _read_output(tmp_path / 'offline')[
         output_topics()['segmented']]}
     live_seg = _read_output(tmp_path / 'live')[output_topics()['segmented']]

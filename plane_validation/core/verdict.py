@@ -23,6 +23,9 @@ RELIABLE_PS = 0.7
 RELIABLE_GS_PLANES = 0.15
 #: Largest RMS-thickness / in-plane-spread ratio of a plane called reliable (see plane_thickness).
 MAX_THICKNESS = 0.2
+#: ... unless the thicker planes hold less than this share of the planes' points (a few stray
+#: points found as a small plane do not make a good segmentation unreliable).
+THICK_SHARE = 0.1
 #: A lone plane this thin (see plane_thickness) is a plane; a thicker one may be a slab cut
 #: through stairs or a curved surface (a noisy 2 m floor with e = 1 cm is 0.01, a stair slope 0.14).
 SINGLE_PLANE_THICKNESS = 0.05
@@ -52,16 +55,19 @@ def plane_thickness(points: np.ndarray, seg: Segmentation) -> np.ndarray:
 def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices) -> tuple[bool, str]:
     """Whether the planes of ``seg`` are reliable, with a one-line reason.
 
-    Reliable needs at least one plane, every plane flat (thickness ratio <= MAX_THICKNESS, see
-    :func:`plane_thickness`) and a plane silhouette PS >= RELIABLE_PS: the points lie on their
+    Reliable needs at least one plane, the planes flat (those with a thickness ratio above
+    MAX_THICKNESS, see :func:`plane_thickness`, hold less than THICK_SHARE of their points) and a
+    plane silhouette PS >= RELIABLE_PS: the points lie on their
     planes and clear of the other regions. On plane-free clouds (sphere, bunny) the "planes" are
     thick slabs or patches whose points lie near their neighbours' planes.
     """
     if seg.n_planes == 0:
         return False, f'no plane found ({seg.reason})'
     thickness = plane_thickness(as_points(points), seg)
-    if np.max(thickness) > MAX_THICKNESS:
-        worst = int(np.argmax(thickness))
+    sizes = np.array([len(p.inliers) for p in seg.planes], dtype=float)
+    thick = thickness > MAX_THICKNESS
+    if sizes[thick].sum() >= THICK_SHARE * sizes.sum():
+        worst = int(np.argmax(np.where(thick, sizes, -1)))
         return False, f'plane {worst} is a thick slab (thickness ratio {thickness[worst]:.2f} > {MAX_THICKNESS})'
     if scores.plane_silhouette < RELIABLE_PS:
         return False, (f'{seg.n_planes} plane(s) but PS {scores.plane_silhouette:.2f} < {RELIABLE_PS}: the points '
