@@ -62,8 +62,11 @@ PUBLISHER = textwrap.dedent(f'''
 
 def test_full_resolution_clouds_arrive_with_the_shipped_profile():
     env = dict(os.environ, FASTRTPS_DEFAULT_PROFILES_FILE=str(PROFILE))
+    # transport is under test here, not detection speed: the paper's faster infinite planes keep the
+    # node well inside the 100 ms frame interval even on a loaded machine (regions: benchmarks/)
     node = subprocess.Popen([sys.executable, '-m', 'plane_validation.ros.node', '--ros-args', '-p', 'auto_tune:=false',
-                             '-p', 'tolerance:=0.02', '-p', 'max_planes:=3', '-r', 'cloud:=/large/points'],
+                             '-p', 'tolerance:=0.02', '-p', 'max_planes:=3', '-p', 'connectivity:=false',
+                             '-r', 'cloud:=/large/points'],
                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
     rclpy.init()
