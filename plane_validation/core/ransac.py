@@ -516,9 +516,10 @@ def _detect_regions(pts: np.ndarray, tolerance: float, max_planes: int, min_inli
     found = _refit(search, region, found)
     region = _compete(search, region, found, tolerance, neighbours)
     found = _refit(search, region, found)
+    residual = None
     if shape is not None:
         uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]
-        labels = _spread_grid(pts, shape, step, region, neighbours, uncentred, tolerance)[0]
+        labels, residual = _spread_grid(pts, shape, step, region, neighbours, uncentred, tolerance)
     elif len(search_idx) == n_valid:
         own = np.where(region >= 0, region, 0)
         normals = np.array([n for n, _ in found])
@@ -537,12 +538,14 @@ def _detect_regions(pts: np.ndarray, tolerance: float, max_planes: int, min_inli
         found = [found[j] for j in keep]
         reason += (f'; dropped {len(small)} region(s) left with fewer than min_inliers={min_count} points '
                    'once every point was labelled')
+    order = np.argsort(labels, kind='stable')
+    bounds = np.searchsorted(labels[order], np.arange(len(found) + 1))
     planes = []
     for j, (normal, offset) in enumerate(found):
-        members = np.flatnonzero(labels == j)
-        resid = (pts[members] - center) @ normal + offset
+        members = order[bounds[j]:bounds[j + 1]].astype(np.int64)
+        resid = residual[members] if residual is not None else (pts[members] - center) @ normal + offset
         normal, offset = _canonical(normal, offset - float(normal @ center))
-        planes.append(Plane(normal=normal, offset=offset, inliers=members.astype(np.int64),
+        planes.append(Plane(normal=normal, offset=offset, inliers=members,
                             rms=float(np.sqrt(np.mean(resid ** 2))) if len(members) else 0.0))
     return Segmentation(labels=labels, planes=tuple(planes), tolerance=tolerance, n_valid=n_valid, reason=reason)
 
@@ -629,18 +632,22 @@ def _spread_grid(pts: np.ndarray, shape: tuple[int, int], step: int, region: np.
     flat = dist.reshape(-1)
     near_r = np.clip(np.round((np.arange(h) - step // 2) / step).astype(np.int64), 0, gh - 1)
     near_c = np.clip(np.round((np.arange(w) - step // 2) / step).astype(np.int64), 0, gw - 1)
-    out = np.full(n, -1, dtype=np.int32)
-    best = np.full(n, np.inf)
-    todo = np.arange(n)
-    offsets = [(0, 0)] + [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
-    for dr, dc in offsets:  # the nearest sub-grid pixel first: most pixels take its region
+    # the nearest sub-grid pixel first, as whole images: most pixels take its region
+    lab = sub[near_r[:, None], near_c[None, :]].reshape(-1)
+    lab = np.where(lab >= 0, lab, k)
+    columns = np.arange(n)
+    d = flat[lab * n + columns]
+    take = d <= tolerance
+    out = np.where(take, lab, -1).astype(np.int32)
+    best = np.where(take, d, np.inf)
+    todo = np.flatnonzero(~take & np.isfinite(dist[:k].min(axis=0)))  # valid pixels left
+    offsets = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
+    for dr, dc in offsets:  # the rest: the eight sub-grid pixels around the nearest one
         r, c = np.divmod(todo, w)
         lab = sub[np.clip(near_r[r] + dr, 0, gh - 1), np.clip(near_c[c] + dc, 0, gw - 1)]
         d = flat[np.where(lab >= 0, lab, k) * n + todo]
         better = (d <= tolerance) & (d < best[todo])
         out[todo[better]], best[todo[better]] = lab[better], d[better]
-        if dr == dc == 0:
-            todo = todo[~better & np.isfinite(d)]  # the rest (valid pixels only): the other three
     return out, best
 
 

@@ -93,17 +93,20 @@ class Neighbours:
         return labels == int(np.argmax(sizes))
 
 
-def _gaps(image_points: np.ndarray, valid: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
+def _gaps(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, axis: int
+          ) -> tuple[np.ndarray, np.ndarray]:
     """3-D distance between pixel neighbours along ``axis`` (NaN where either is invalid) and the
     range of the nearer of the two."""
     a = image_points[:, :-1] if axis == 1 else image_points[:-1]
     b = image_points[:, 1:] if axis == 1 else image_points[1:]
     va = valid[:, :-1] if axis == 1 else valid[:-1]
     vb = valid[:, 1:] if axis == 1 else valid[1:]
+    ra = ranges[:, :-1] if axis == 1 else ranges[:-1]
+    rb = ranges[:, 1:] if axis == 1 else ranges[1:]
+    d = a - b
     with np.errstate(invalid='ignore'):
-        gap = np.where(va & vb, np.linalg.norm(a - b, axis=-1), np.nan)
-        reach = np.minimum(np.linalg.norm(a, axis=-1), np.linalg.norm(b, axis=-1))
-    return gap, reach
+        gap = np.where(va & vb, np.sqrt(np.einsum('...i,...i->...', d, d)), np.nan)
+    return gap, np.minimum(ra, rb)
 
 
 def _jumps(gap: np.ndarray, reach: np.ndarray, axis: int, typical: float) -> np.ndarray:
@@ -123,8 +126,10 @@ def grid_neighbours(image_points: np.ndarray, valid: np.ndarray) -> Neighbours:
     """Neighbours of the valid pixels of an (h, w, 3) image of points (meters; the sensor at the
     origin). Points are numbered in row-major order of the valid pixels ``valid`` (h, w)."""
     h, w = valid.shape
-    right, right_reach = _gaps(image_points, valid, 1)
-    down, down_reach = _gaps(image_points, valid, 0)
+    with np.errstate(invalid='ignore'):
+        ranges = np.sqrt(np.einsum('...i,...i->...', image_points, image_points))  # from the sensor
+    right, right_reach = _gaps(image_points, valid, ranges, 1)
+    down, down_reach = _gaps(image_points, valid, ranges, 0)
     with np.errstate(invalid='ignore', divide='ignore'):
         angular = np.concatenate([(right / right_reach)[np.isfinite(right)], (down / down_reach)[np.isfinite(down)]])
     typical = float(np.median(angular)) if len(angular) else 0.0  # pixel spacing per meter of range
@@ -132,7 +137,7 @@ def grid_neighbours(image_points: np.ndarray, valid: np.ndarray) -> Neighbours:
     jump_d = _jumps(down, down_reach, 0, typical)
     # the far pixel of a jump joins no region: that cuts the grid there and leaves a thin object
     # in front (a shelf edge a pixel wide) whole
-    dist = np.linalg.norm(np.where(valid[..., None], image_points, 0.0), axis=-1)
+    dist = np.where(valid, ranges, 0.0)
     far_right = dist[:, 1:] > dist[:, :-1]  # the right pixel is the far one
     far_down = dist[1:] > dist[:-1]
     usable = valid.copy()
@@ -155,7 +160,7 @@ def _grid_normals(image_points: np.ndarray, valid: np.ndarray) -> np.ndarray:
     dv = pad[2 * r:, r:r + w] - pad[:h, r:r + w]
     n = np.cross(du, dv)
     with np.errstate(invalid='ignore', divide='ignore'):
-        return n / np.linalg.norm(n, axis=-1, keepdims=True)
+        return n / np.sqrt(np.einsum('...i,...i->...', n, n))[..., None]
 
 
 def graph_neighbours(points: np.ndarray) -> Neighbours:
