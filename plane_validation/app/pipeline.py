@@ -184,7 +184,7 @@ class FramePipeline:
         if extra:
             note = (f'PointCloud2.data has {extra} byte(s) beyond height*row_step = {msg.height}*{msg.row_step}; '
                     'they were ignored')
-            result = _replace_diagnostic(result, result.diagnostic.escalated(WARN, note))
+            result = replace(result, diagnostic=result.diagnostic.escalated(WARN, note))
         return result
 
     def reject(self, message: str, level: Level = ERROR) -> FrameResult:
@@ -260,10 +260,6 @@ class FramePipeline:
         return FrameResult(points=valid, labels=labels, segmentation=seg, indices=scores, tolerance=tolerance,
                            tolerance_source=source, diagnostic=Diagnostic(level, message, values), seconds=seconds,
                            plane_counts=tuple(int(c) for c in counts), organized=pts if shape else None, shape=shape)
-
-
-def _replace_diagnostic(result: FrameResult, diagnostic: Diagnostic) -> FrameResult:
-    return replace(result, diagnostic=diagnostic)
 
 
 def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_valid: int, n_unassigned: int,

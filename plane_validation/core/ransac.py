@@ -592,8 +592,7 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: flo
         groups = [(e[:, 0], e[:, 1]), (e[:, 1], e[:, 0])]
     region = np.where(region >= 0, region, k)
     for _ in range(COMPETE_ROUNDS):
-        best = flat[region * m + columns]
-        best = np.where(region < k, best, np.inf)
+        best = flat[region * m + columns]  # row k (no region) is inf
         label = region.copy()
         for src, dst in groups:
             cand = region[src]

@@ -27,6 +27,8 @@ TEXT_SUFFIXES = ('.xyz', '.txt', '.csv')
 POINT_SUFFIXES = ('.pcd', '.ply', '.npy') + TEXT_SUFFIXES
 
 #: PCD TYPE letter and SIZE -> numpy dtype character.
+#: A PCD header is read from at most this many leading bytes when only its shape is wanted.
+PCD_HEADER_BYTES = 65536
 _PCD_TYPES = {('F', 4): 'f4', ('F', 8): 'f8', ('I', 1): 'i1', ('I', 2): 'i2', ('I', 4): 'i4', ('I', 8): 'i8',
               ('U', 1): 'u1', ('U', 2): 'u2', ('U', 4): 'u4', ('U', 8): 'u8'}
 
@@ -78,20 +80,13 @@ def load_cloud(source: str | Path) -> tuple[np.ndarray, tuple[int, int] | None]:
 
 def _pcd_shape(source: str | Path, n_points: int) -> tuple[int, int] | None:
     """(H, W) of an organized PCD file of ``n_points`` rows, else None."""
-    if Path(source).suffix.lower() == '.pcd':
-        header = {}
-        with open(source, 'rb') as f:
-            for raw in f:
-                words = raw.decode('ascii', 'replace').split()
-                if words and not words[0].startswith('#'):
-                    header[words[0].upper()] = words[1:]
-                if words and words[0].upper() == 'DATA':
-                    break
-        try:
-            h, w = int(header['HEIGHT'][0]), int(header['WIDTH'][0])
-        except (KeyError, IndexError, ValueError):
-            return None
-    else:
+    if Path(source).suffix.lower() != '.pcd':
+        return None
+    with open(source, 'rb') as f:
+        parsed = _pcd_header(f.read(PCD_HEADER_BYTES))  # the header only, not the data again
+    try:
+        h, w = int(parsed[0]['HEIGHT'][0]), int(parsed[0]['WIDTH'][0])
+    except (TypeError, KeyError, IndexError, ValueError):
         return None
     return (h, w) if h > 1 and h * w == n_points else None
 
@@ -211,14 +206,14 @@ def _read_ply(path: Path) -> np.ndarray:
     return _xyz_columns(path, vertex)
 
 
-def _read_pcd(path: Path) -> np.ndarray:
-    raw = path.read_bytes()
+def _pcd_header(raw: bytes) -> tuple[dict[str, list[str]], int] | None:
+    """(KEY -> values, offset of the data) of a PCD file's bytes; None without a DATA line."""
     header: dict[str, list[str]] = {}
     offset = 0
     while True:
         end = raw.find(b'\n', offset)
         if end < 0:
-            raise ValueError(f'{path}: PCD header has no DATA line')
+            return None
         line = raw[offset:end].decode('ascii', errors='replace').strip()
         offset = end + 1
         if not line or line.startswith('#'):
@@ -226,7 +221,15 @@ def _read_pcd(path: Path) -> np.ndarray:
         key, *values = line.split()
         header[key.upper()] = values
         if key.upper() == 'DATA':
-            break
+            return header, offset
+
+
+def _read_pcd(path: Path) -> np.ndarray:
+    raw = path.read_bytes()
+    parsed = _pcd_header(raw)
+    if parsed is None:
+        raise ValueError(f'{path}: PCD header has no DATA line')
+    header, offset = parsed
     try:
         fields = header['FIELDS']
         sizes = [int(v) for v in header['SIZE']]
