@@ -102,3 +102,18 @@ def test_large_organized_frame_is_searched_on_a_sub_grid_and_fully_labelled():
     assert 'in a sample of' in seg.reason or seg.n_planes == 12
     q = segmentation_quality(seg.labels, scene.labels)
     assert q.correct >= 5 and q.f1 > 0.9, q
+
+
+def test_a_prebuilt_search_graph_gives_the_same_planes_as_building_it_per_call():
+    from plane_validation.core.ransac import search_graph
+    pts, _ = _wall_with_box()
+    unorganized = np.vstack([pts[np.isfinite(pts).all(axis=1)], pts[:5] + 10])  # NaN rows and far points too
+    for cloud, shape in ((pts, (120, 160)), (unorganized, None)):
+        graph = search_graph(cloud, shape)
+        for t in (0.004, 0.02, 0.1):
+            own = pv.detect_planes(cloud, t, seed=3, shape=shape, min_inliers=200)
+            shared = pv.detect_planes(cloud, t, seed=3, shape=shape, min_inliers=200, graph=graph)
+            assert np.array_equal(own.labels, shared.labels) and own.n_planes == shared.n_planes >= 1
+    assert search_graph(unorganized, ransac_points=1000) is None  # it would be a random sample: not fixed
+    with pytest.raises(ValueError, match='built for'):
+        pv.detect_planes(pts[:-1], 0.01, graph=search_graph(pts, (120, 160)))

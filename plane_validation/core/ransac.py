@@ -17,7 +17,8 @@ import numpy as np
 
 from .regions import NORMAL_ANGLE_DEG, Neighbours, graph_neighbours, grid_neighbours
 
-__all__ = ['Plane', 'Segmentation', 'detect_planes', 'fit_plane', 'as_points', 'finite_rows', 'resolve_min_inliers']
+__all__ = ['Plane', 'Segmentation', 'SearchGraph', 'detect_planes', 'search_graph', 'fit_plane', 'as_points',
+           'finite_rows', 'resolve_min_inliers']
 
 #: Hypotheses scored per numpy call.
 BATCH = 128
@@ -305,7 +306,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
                   min_inliers: int | float = 0.02, probability: float = 0.99,
                   max_iterations: int = 1000, seed: int | np.random.Generator | None = None,
                   ransac_points: int | None = RANSAC_POINTS, shape: tuple[int, int] | None = None,
-                  connectivity: bool = True) -> Segmentation:
+                  connectivity: bool = True, graph: SearchGraph | None = None) -> Segmentation:
     """Find planes one by one with RANSAC, removing each plane's points before the next search.
 
     With ``connectivity`` (the default) a plane is a connected planar region: each candidate's
@@ -327,6 +328,8 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     seed: int, Generator, or None for fresh entropy.
     ransac_points: when there are more valid points, the sequential search runs on a random
         sample of this many (min_inliers scaled to the sample); None = always on all points.
+    graph: the :func:`search_graph` of these points, shape and ransac_points, to reuse across calls
+        on one cloud (a tolerance sweep); None builds it here.
 
     Each plane found is then refitted by least squares on the searched points nearest to it
     (within ``tolerance``), and every valid point is labelled with the nearest plane within
@@ -350,8 +353,10 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
         shape = check_shape(shape, len(pts))
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     if connectivity:
+        if graph is not None and graph.n_points != len(pts):
+            raise ValueError(f'graph was built for {graph.n_points} points, not {len(pts)}')
         return _detect_regions(pts, tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
-                               ransac_points, shape)
+                               ransac_points, shape, graph)
 
     cols = np.ascontiguousarray(pts.T)
     finite = np.isfinite(cols).all(axis=0)
@@ -481,17 +486,36 @@ def check_shape(shape, n: int) -> tuple[int, int]:
     return h, w
 
 
-def _detect_regions(pts: np.ndarray, tolerance: float, max_planes: int, min_inliers: int | float,
-                    probability: float, max_iterations: int, rng: np.random.Generator,
-                    ransac_points: int | None, shape: tuple[int, int] | None) -> Segmentation:
-    """detect_planes with connected regions (see its docstring)."""
+@dataclass(frozen=True, eq=False)
+class SearchGraph:
+    """The points a connected-regions search runs on and their neighbourhood graph.
+
+    search_idx: (m,) rows of the cloud searched; step: the image sub-grid step (0: unorganized);
+    center: (3,) meters subtracted before the search; neighbours: their graph. It depends only on the
+    cloud, ``shape`` and ``ransac_points``, not on the tolerance: a sweep builds it once
+    (:func:`search_graph`) and passes it to every :func:`detect_planes` call on that cloud.
+    """
+
+    n_points: int
+    search_idx: np.ndarray
+    step: int
+    center: np.ndarray
+    neighbours: Neighbours
+
+
+def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
+                 ransac_points: int | None = RANSAC_POINTS, rng: np.random.Generator | None = None
+                 ) -> SearchGraph | None:
+    """The :class:`SearchGraph` of ``points`` (N, 3) meters. An unorganized cloud of more than
+    ``ransac_points`` valid points is searched on a random sample drawn from ``rng``; without
+    ``rng`` such a cloud has no fixed graph and None is returned."""
+    pts = as_points(points)
     finite = finite_rows(pts)
     valid_idx = np.flatnonzero(finite)
     n_valid = len(valid_idx)
-    min_count = resolve_min_inliers(min_inliers, n_valid)
     center = np.median(pts[valid_idx[::max(1, n_valid // 1024)]], axis=0) if n_valid else np.zeros(3)
     if shape is not None:
-        h, w = shape
+        h, w = check_shape(shape, len(pts))
         step = 1 if ransac_points is None or n_valid <= ransac_points else \
             int(np.ceil(np.sqrt(n_valid / ransac_points)))
         grid = pts.reshape(h, w, 3)[step // 2::step, step // 2::step]
@@ -503,8 +527,25 @@ def _detect_regions(pts: np.ndarray, tolerance: float, max_planes: int, min_inli
         step = 0
         search_idx = valid_idx
         if ransac_points is not None and n_valid > ransac_points:
+            if rng is None:
+                return None
             search_idx = valid_idx[np.sort(rng.choice(n_valid, int(ransac_points), replace=False))]
         neighbours = graph_neighbours(pts[search_idx] - center)
+    return SearchGraph(n_points=len(pts), search_idx=search_idx, step=step, center=center, neighbours=neighbours)
+
+
+def _detect_regions(pts: np.ndarray, tolerance: float, max_planes: int, min_inliers: int | float,
+                    probability: float, max_iterations: int, rng: np.random.Generator,
+                    ransac_points: int | None, shape: tuple[int, int] | None,
+                    graph: SearchGraph | None) -> Segmentation:
+    """detect_planes with connected regions (see its docstring)."""
+    finite = finite_rows(pts)
+    valid_idx = np.flatnonzero(finite)
+    n_valid = len(valid_idx)
+    min_count = resolve_min_inliers(min_inliers, n_valid)
+    if graph is None:
+        graph = search_graph(pts, shape, ransac_points, rng)
+    search_idx, step, center, neighbours = graph.search_idx, graph.step, graph.center, graph.neighbours
     search = np.ascontiguousarray((pts[search_idx] - center).T)
     search_min = max(3, int(np.ceil(min_count * len(search_idx) / max(n_valid, 1))))
     found, reason, region = _sequential(search, tolerance, max_planes, search_min, probability, max_iterations,

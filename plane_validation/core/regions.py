@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
-from scipy.sparse import coo_matrix
+from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
@@ -47,7 +47,7 @@ NORMAL_REACH = 3
 class Neighbours:
     """Adjacency of n points. Grid form: ``shape`` (h, w) with point i at flat pixel ``pixel[i]``,
     ``usable`` (h * w,) the pixels that may join a region (valid, at no depth jump); graph form:
-    ``edges`` (e, 2) point pairs."""
+    ``edges`` (e, 2) point pairs, sorted by the first."""
 
     n: int
     shape: tuple[int, int] | None = None
@@ -68,14 +68,17 @@ class Neighbours:
         outside the mask, components 0..c-1; c)."""
         if self.shape is not None:
             return self._grid_components(mask)
-        inside = self.edges[mask[self.edges[:, 0]] & mask[self.edges[:, 1]]]
-        graph = coo_matrix((np.ones(len(inside), np.int8), (inside[:, 0], inside[:, 1])), shape=(self.n, self.n))
-        _, labels = connected_components(graph, directed=False)
-        labels = np.where(mask, labels, -1)
-        ids, dense = np.unique(labels[mask], return_inverse=True)
-        out = np.full(self.n, -1, dtype=np.int64)
-        out[mask] = dense
-        return out, len(ids)
+        src, dst = self.edges.T  # sorted by source (graph_neighbours): the CSR rows need no sort
+        inside = mask[src] & mask[dst]
+        indptr = np.zeros(self.n + 1, np.int64)
+        np.cumsum(np.bincount(src[inside], minlength=self.n), out=indptr[1:])
+        graph = csr_matrix((np.ones(np.count_nonzero(inside)), dst[inside], indptr), shape=(self.n, self.n))
+        count, labels = connected_components(graph, directed=True, connection='weak')
+        sizes = np.bincount(labels[mask], minlength=count)
+        used = np.flatnonzero(sizes)
+        dense = np.full(len(sizes), -1, dtype=np.int64)
+        dense[used] = np.arange(len(used))
+        return np.where(mask, dense[labels], -1), len(used)
 
     def _grid_components(self, mask: np.ndarray) -> tuple[np.ndarray, int]:
         image = np.zeros(self.shape[0] * self.shape[1], bool)
@@ -198,4 +201,6 @@ def graph_neighbours(points: np.ndarray) -> Neighbours:
             first = np.argmax(across, axis=1)
             has = across[np.arange(len(rows_l)), first]
             edges.append(np.column_stack([rows_l[has], idx[rows_l[has], k + first[has]]]))
-    return Neighbours(n=n, edges=np.concatenate(edges), normals=normals)
+    edges = np.concatenate(edges)
+    return Neighbours(n=n, edges=np.ascontiguousarray(edges[np.lexsort((edges[:, 1], edges[:, 0]))].T).T,
+                      normals=normals)

@@ -15,7 +15,7 @@ from scipy.spatial import cKDTree
 
 from .blas import single_blas_thread
 from .indices import ValidityIndices, validity_indices
-from .ransac import RANSAC_POINTS, Segmentation, as_points, check_shape, detect_planes, finite_rows
+from .ransac import RANSAC_POINTS, Segmentation, as_points, check_shape, detect_planes, finite_rows, search_graph
 from .verdict import RELIABLE_GS_PLANES, SINGLE_PLANE_THICKNESS, judge, plane_thickness
 
 __all__ = ['CRITERIA', 'DEFAULT_CRITERION', 'TUNE_CANDIDATES', 'TUNE_POINTS',
@@ -259,6 +259,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                 max_iterations=max_iterations, ransac_points=ransac_points, connectivity=connectivity)
     # a count means the same share of the cloud on the subsample (as ransac_points scales it)
     sweep_opts = dict(opts, min_inliers=_scaled_min_inliers(min_inliers, n_sweep, len(finite)), shape=sweep_shape)
+    if connectivity:  # the same neighbourhood graph for every candidate (None when it would be sampled)
+        sweep_opts['graph'] = search_graph(sweep_pts, sweep_shape, ransac_points)
 
     rows: list[TuningRow] = []
     previous: tuple[np.ndarray, ValidityIndices] | None = None
