@@ -5,13 +5,16 @@ absent), the ICL-NUIM frame with depth-camera noise added, and the synthetic sen
 plane_validation.core.scenes (depth camera: room, table, stairs; spinning lidar). Each method runs
 over a grid of tolerances; a row gives each method at its best t (most Hoover-correct regions,
 then F1) and, for ours, the auto-tuned result (tune_tolerance with the library defaults).
+--criteria instead auto-tunes with each criterion of plane_validation.core.tuning.CRITERIA and
+gives each one's F1 as a fraction of the best regions result over the grid (the oracle).
 
-Run: .venv/bin/python benchmarks/quality.py [--quick] [--write-readme] [--only NAME ...]
+Run: .venv/bin/python benchmarks/quality.py [--criteria] [--quick] [--write-readme] [--only NAME ...]
 """
 from __future__ import annotations
 
 import argparse
 import re
+import shlex
 import sys
 import time
 from dataclasses import dataclass
@@ -25,10 +28,13 @@ from pvbench import open3d_ref  # noqa: E402
 import plane_validation as pv  # noqa: E402
 from plane_validation.core import scenes  # noqa: E402
 from plane_validation.core.scoring import Quality, segmentation_quality  # noqa: E402
+from plane_validation.core.tuning import CRITERIA, DEFAULT_CRITERION  # noqa: E402
 
 GT = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'gt'
 README = Path(__file__).resolve().parent / 'README.md'
 MARK = '<!-- quality table -->'
+CRITERIA_MARK = '<!-- criteria table -->'
+GOOD_RATIO = 0.97
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,30 +157,81 @@ def run(clouds: list[Cloud], count: int, with_auto: bool) -> list[str]:
     return rows
 
 
-def write_readme(rows: list[str], command: str) -> None:
+def run_criteria(clouds: list[Cloud], count: int) -> list[str]:
+    """Per cloud: the oracle (best regions result over the grid), then auto-tuning by each criterion."""
+    names = list(CRITERIA)
+    ratios: dict[str, list[float]] = {c: [] for c in names}
+    seconds: dict[str, list[float]] = {c: [] for c in names}
+    rows = ['| cloud | oracle F1 | ' + ' | '.join(f'{c} (default)' if c == DEFAULT_CRITERION else c
+                                                for c in names) + ' |',
+            '|---|--:|' + '---|' * len(names)]
+    print(*rows, sep='\n', flush=True)
+    for cloud in clouds:
+        oracle = _best([(t, *ours(cloud, t, True)) for t in _grid(cloud, count)])[1]
+        cells = []
+        for c in names:
+            t, q, s, _, _ = auto(cloud, criterion=c)
+            ratio = q.f1 / oracle.f1 if oracle.f1 else float('nan')
+            ratios[c].append(ratio)
+            seconds[c].append(s)
+            cell = f'{ratio:.3f}, {q.correct}/{q.true_planes}, {1000 * t:.3g} mm'
+            cells.append(f'**{cell}**' if ratio >= GOOD_RATIO else cell)
+        rows.append(f'| {cloud.name} | {oracle.f1:.3f} | ' + ' | '.join(cells) + ' |')
+        print(rows[-1], flush=True)
+    rows += [f'| ratio: median / min, clouds ≥ {GOOD_RATIO} | | ' + ' | '.join(
+                 f'{np.nanmedian(ratios[c]):.3f} / {np.nanmin(ratios[c]):.3f}, '
+                 f'{sum(r >= GOOD_RATIO for r in ratios[c])}/{len(clouds)}' for c in names) + ' |',
+             '| median tuning s | | ' + ' | '.join(f'{np.median(seconds[c]):.2f}' for c in names) + ' |']
+    print(*rows[-2:], sep='\n', flush=True)
+    return rows
+
+
+def _write_block(mark: str, heading: str, block: str) -> None:
+    """Replace the text between the mark pair in the README, or append it under heading."""
     text = README.read_text()
-    block = (f'{MARK}\nCommand: `{command}`. Each cell: correct/true planes (over/under/missed/noise, Hoover '
-             'at overlap 0.8), point F1 after one-to-one matching, and the tolerance; the best over the grid '
-             'for each method, the auto-tuned t for the last columns.\n\n' + '\n'.join(rows) + f'\n{MARK}')
-    if MARK in text:
-        text = re.sub(re.escape(MARK) + '.*?' + re.escape(MARK), lambda _: block, text, flags=re.S)
+    block = f'{mark}\n{block}\n{mark}'
+    if mark in text:
+        text = re.sub(re.escape(mark) + '.*?' + re.escape(mark), lambda _: block, text, flags=re.S)
     else:
-        text += '\n## Segmentation quality against ground truth (benchmarks/quality.py)\n\n' + block + '\n'
+        text += f'\n## {heading}\n\n{block}\n'
     README.write_text(text)
+
+
+def write_readme(rows: list[str], command: str) -> None:
+    _write_block(MARK, 'Segmentation quality against ground truth (benchmarks/quality.py)',
+                 f'Command: `{command}`. Each cell: correct/true planes (over/under/missed/noise, Hoover '
+                 'at overlap 0.8), point F1 after one-to-one matching, and the tolerance; the best over the grid '
+                 'for each method, the auto-tuned t for the last columns.\n\n' + '\n'.join(rows))
+
+
+def write_criteria_readme(rows: list[str], command: str) -> None:
+    _write_block(CRITERIA_MARK, 'Auto-tuning by each criterion (benchmarks/quality.py --criteria)',
+                 f'Command: `{command}`. Oracle: the point F1 of the best regions result over the tolerance grid '
+                 '(most Hoover-correct regions, then F1). Each cell: auto-tuned F1 / oracle F1, correct/true '
+                 f'planes, the tuned t; bold when the ratio is ≥ {GOOD_RATIO}.\n\n' + '\n'.join(rows))
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--quick', action='store_true', help='6 tolerances instead of 14, no auto-tuning')
+    parser.add_argument('--quick', action='store_true',
+                        help='6 tolerances instead of 14, no auto-tuning (except with --criteria)')
+    parser.add_argument('--criteria', action='store_true', help='auto-tuning by each criterion against the oracle')
     parser.add_argument('--write-readme', action='store_true', help='put the table into benchmarks/README.md')
     parser.add_argument('--only', nargs='*', help='cloud names')
     args = parser.parse_args()
     from plane_validation.core.blas import limit_blas_threads
     limit_blas_threads()
+    command = shlex.join(['python', 'benchmarks/quality.py', *sys.argv[1:]])
+    count = 6 if args.quick else 14
+    if args.criteria:
+        rows = run_criteria(load_clouds(args.only), count)
+        if args.write_readme:
+            write_criteria_readme(rows, command)
+        return
     print(f'Open3D: {open3d_ref.version()}', flush=True)
-    rows = run(load_clouds(args.only), 6 if args.quick else 14, with_auto=not args.quick)
+    rows = run(load_clouds(args.only), count, with_auto=not args.quick)
     if args.write_readme:
-        write_readme(rows, 'python benchmarks/quality.py' + (' --quick' if args.quick else ''))
+        write_readme(rows, command)
 
 
 if __name__ == '__main__':
