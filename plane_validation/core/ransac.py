@@ -10,11 +10,13 @@ without losing precision to large absolute coordinates (each fit also centres it
 """
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .noise import NOISE_REFERENCE, tolerance_scale
 from .regions import NORMAL_ANGLE_DEG, Neighbours, graph_neighbours, grid_neighbours
 
 __all__ = ['Plane', 'Segmentation', 'SearchGraph', 'detect_planes', 'search_graph', 'fit_plane', 'as_points',
@@ -64,7 +66,8 @@ class Segmentation:
 
     labels: (N,) int32, plane index 0..k-1 in extraction order, -1 unassigned or invalid row.
     planes: detected planes in extraction order. tolerance: meters. n_valid: finite rows.
-    reason: why extraction stopped (human-readable).
+    reason: why extraction stopped (human-readable). noise_model, noise_reference: how the
+    tolerance grows with range (:mod:`.noise`; ``tolerance`` is t0, the one up to the reference range).
     """
 
     labels: np.ndarray
@@ -72,6 +75,8 @@ class Segmentation:
     tolerance: float
     n_valid: int
     reason: str
+    noise_model: str = 'constant'
+    noise_reference: float = NOISE_REFERENCE
     coefficients: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -192,12 +197,21 @@ def _distances(cols: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> np
     return np.abs(dist, out=dist)
 
 
-def _within(cols: np.ndarray, normal: np.ndarray, offset: float, tolerance: float) -> np.ndarray:
+#: An inlier tolerance in meters: one for every point, or (n,) one per point (a noise model).
+Tolerance = float | np.ndarray
+
+
+def _at(tolerance: Tolerance, idx) -> Tolerance:
+    """A tolerance for a subset ``idx`` of the points: a scalar as is, a per-point (n,) array indexed."""
+    return tolerance if np.ndim(tolerance) == 0 else tolerance[idx]
+
+
+def _within(cols: np.ndarray, normal: np.ndarray, offset: float, tolerance: Tolerance) -> np.ndarray:
     """(n,) bool: points ``cols`` (3, n) within ``tolerance`` of the plane."""
     return _distances(cols, normal[None, :], np.array([offset]))[0] <= tolerance
 
 
-def _best_plane(cols: np.ndarray, tolerance: float, probability: float, max_iterations: int,
+def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_iterations: int,
                 rng: np.random.Generator, region_of: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
                 point_normals: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray] | None:
     """One RANSAC run on the points ``cols`` (3, m): (normal, offset, inlier mask) after
@@ -218,6 +232,7 @@ def _best_plane(cols: np.ndarray, tolerance: float, probability: float, max_iter
     # Scoring only ranks hypotheses: float32 halves its memory traffic, and the rounding (~1e-7 of
     # the centred coordinates) only matters for points within a hair of t.
     subset32 = subset.astype(np.float32)
+    sub_tolerance = tolerance if pick is None else _at(tolerance, pick)
     best_normals = np.empty((0, 3))
     best_offsets = np.empty(0)
     best_counts = np.empty(0, dtype=np.int64)
@@ -229,7 +244,7 @@ def _best_plane(cols: np.ndarray, tolerance: float, probability: float, max_iter
         iterations += batch
         if len(normals) == 0:
             continue
-        near = _distances(subset32, normals.astype(np.float32), offsets.astype(np.float32)) <= tolerance
+        near = _distances(subset32, normals.astype(np.float32), offsets.astype(np.float32)) <= sub_tolerance
         if point_normals is not None:
             coherent = np.abs(normals.astype(np.float32) @ sub_normals) >= min_cos
             coherent |= unknown
@@ -270,7 +285,7 @@ def _best_plane(cols: np.ndarray, tolerance: float, probability: float, max_iter
     return normal, offset, inliers
 
 
-def _best_region(cols: np.ndarray, tolerance: float, normals: np.ndarray, offsets: np.ndarray, dist: np.ndarray,
+def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, offsets: np.ndarray, dist: np.ndarray,
                  keep: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> tuple[np.ndarray, float, np.ndarray]:
     """Of the confirmed hypotheses (distances ``dist`` (h, m)), the one whose largest region is
     largest (ties: MSAC); then refit on the region and take the region again, at most 3 times."""
@@ -306,7 +321,8 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
                   min_inliers: int | float = 0.02, probability: float = 0.99,
                   max_iterations: int = 1000, seed: int | np.random.Generator | None = None,
                   ransac_points: int | None = RANSAC_POINTS, shape: tuple[int, int] | None = None,
-                  connectivity: bool = True, graph: SearchGraph | None = None) -> Segmentation:
+                  connectivity: bool = True, graph: SearchGraph | None = None, noise_model: str = 'constant',
+                  noise_reference: float = NOISE_REFERENCE) -> Segmentation:
     """Find planes one by one with RANSAC, removing each plane's points before the next search.
 
     With ``connectivity`` (the default) a plane is a connected planar region: each candidate's
@@ -330,6 +346,8 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
         sample of this many (min_inliers scaled to the sample); None = always on all points.
     graph: the :func:`search_graph` of these points, shape and ransac_points, to reuse across calls
         on one cloud (a tolerance sweep); None builds it here.
+    noise_model: 'constant', or 'depth_quadratic': a point at range r from the origin (the sensor) is
+        within t * max(1, (r / noise_reference)^2) of a plane (:mod:`.noise`).
 
     Each plane found is then refitted by least squares on the searched points nearest to it
     (within ``tolerance``), and every valid point is labelled with the nearest plane within
@@ -351,12 +369,16 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
         raise ValueError(f'ransac_points must be None or an integer >= 3, got {ransac_points!r}')
     if shape is not None:
         shape = check_shape(shape, len(pts))
+    scale = tolerance_scale(pts, noise_model, noise_reference)
+    model = dict(noise_model=noise_model, noise_reference=float(noise_reference))
+    point_tolerance = tolerance if scale is None else tolerance * scale  # (N,) with a noise model
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     if connectivity:
         if graph is not None and graph.n_points != len(pts):
             raise ValueError(f'graph was built for {graph.n_points} points, not {len(pts)}')
-        return _detect_regions(pts, tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
-                               ransac_points, shape, graph)
+        seg = _detect_regions(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
+                              ransac_points, shape, graph)
+        return dataclasses.replace(seg, tolerance=tolerance, **model)
 
     cols = np.ascontiguousarray(pts.T)
     finite = np.isfinite(cols).all(axis=0)
@@ -370,23 +392,27 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     valid -= center[:, None]
 
     search, search_min = valid, min_count
+    valid_tolerance = _at(point_tolerance, valid_idx)
+    search_tolerance = valid_tolerance
     if ransac_points is not None and n_valid > ransac_points:
-        search = valid[:, np.sort(rng.choice(n_valid, int(ransac_points), replace=False))]
+        sample = np.sort(rng.choice(n_valid, int(ransac_points), replace=False))
+        search, search_tolerance = valid[:, sample], _at(valid_tolerance, sample)
         search_min = max(3, int(np.ceil(min_count * ransac_points / n_valid)))
-    found, reason, _ = _sequential(search, tolerance, max_planes, search_min, probability, int(max_iterations), rng,
-                                   n_total=n_valid)
+    found, reason, _ = _sequential(search, search_tolerance, max_planes, search_min, probability,
+                                   int(max_iterations), rng, n_total=n_valid)
     labels = np.full(len(pts), -1, dtype=np.int32)
-    planes = _label_all(valid, search, valid_idx, center, labels, found, tolerance)
+    tolerances = (valid_tolerance, search_tolerance)
+    planes = _label_all(valid, search, valid_idx, center, labels, found, tolerances)
     small = [j for j, plane in enumerate(planes) if len(plane.inliers) < min_count]
     if small:  # a sample's count is only an estimate (or a neighbour took the points): check all
         found = [plane for j, plane in enumerate(found) if j not in small]
-        planes = _label_all(valid, search, valid_idx, center, labels, found, tolerance)
+        planes = _label_all(valid, search, valid_idx, center, labels, found, tolerances)
         reason += (f'; dropped {len(small)} plane(s) left with fewer than min_inliers={min_count} points '
                    'once every point was labelled')
-    return Segmentation(labels=labels, planes=planes, tolerance=tolerance, n_valid=n_valid, reason=reason)
+    return Segmentation(labels=labels, planes=planes, tolerance=tolerance, n_valid=n_valid, reason=reason, **model)
 
 
-def _sequential(cols: np.ndarray, tolerance: float, max_planes: int, min_count: int, probability: float,
+def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_count: int, probability: float,
                 max_iterations: int, rng: np.random.Generator, n_total: int,
                 neighbours: Neighbours | None = None) -> tuple[list, str, np.ndarray | None]:
     """Sequential RANSAC on the points ``cols`` (3, n): the planes [(normal, offset)] in
@@ -398,6 +424,7 @@ def _sequential(cols: np.ndarray, tolerance: float, max_planes: int, min_count: 
     if neighbours is not None and neighbours.usable is not None:  # only points that can join a region
         rest_idx = np.flatnonzero(neighbours.usable[neighbours.pixel])
         rest = cols[:, rest_idx]
+        tolerance = _at(tolerance, rest_idx)
     region = None if neighbours is None else np.full(n, -1, dtype=np.int64)
     region_of = None
     found: list[tuple[np.ndarray, float]] = []
@@ -429,10 +456,11 @@ def _sequential(cols: np.ndarray, tolerance: float, max_planes: int, min_count: 
             rest_idx = rest_idx[~inliers]
         found.append((normal, offset))
         rest = np.compress(~inliers, rest, axis=1)
+        tolerance = _at(tolerance, ~inliers)
     return found, reason, region
 
 
-def _nearest(cols: np.ndarray, found: list[tuple[np.ndarray, float]], tolerance: float
+def _nearest(cols: np.ndarray, found: list[tuple[np.ndarray, float]], tolerance: Tolerance
              ) -> tuple[np.ndarray, np.ndarray]:
     """Label each point of ``cols`` (3, n) with the nearest plane within ``tolerance`` (ties to
     the earlier plane; -1 when none). Returns (labels (n,) int32, distance to that plane (n,))."""
@@ -448,19 +476,19 @@ def _nearest(cols: np.ndarray, found: list[tuple[np.ndarray, float]], tolerance:
 
 
 def _label_all(valid: np.ndarray, search: np.ndarray, valid_idx: np.ndarray, center: np.ndarray,
-               labels: np.ndarray, found: list[tuple[np.ndarray, float]], tolerance: float) -> tuple[Plane, ...]:
+               labels: np.ndarray, found: list[tuple[np.ndarray, float]], tolerances: tuple) -> tuple[Plane, ...]:
     """Refit each plane on the searched points ``search`` (3, m) nearest to it, then label every
     valid point (``valid`` (3, n); both centred on ``center``) with its nearest plane within
-    ``tolerance``; fills ``labels`` (N,) at ``valid_idx`` and returns the planes in the caller's
-    coordinates."""
+    tolerance (``tolerances``: for ``valid`` and for ``search``); fills ``labels`` (N,) at ``valid_idx``
+    and returns the planes in the caller's coordinates."""
     if not found:
         return ()
-    own, _ = _nearest(search, found, tolerance)
+    own, _ = _nearest(search, found, tolerances[1])
     # Each plane's first fit saw the edge bands of the planes found after it: refit on the points
     # nearest to it (on the search sample when there is one: as precise, and 4x fewer points).
     found = [_fit_columns(np.compress(own == j, search, axis=1)) if np.count_nonzero(own == j) >= 3 else plane
              for j, plane in enumerate(found)]
-    own, dist = _nearest(valid, found, tolerance)
+    own, dist = _nearest(valid, found, tolerances[0])
     labels[valid_idx] = own
     k = len(found)
     dist *= dist
@@ -534,7 +562,7 @@ def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
     return SearchGraph(n_points=len(pts), search_idx=search_idx, step=step, center=center, neighbours=neighbours)
 
 
-def _detect_regions(pts: np.ndarray, tolerance: float, max_planes: int, min_inliers: int | float,
+def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
                     probability: float, max_iterations: int, rng: np.random.Generator,
                     ransac_points: int | None, shape: tuple[int, int] | None,
                     graph: SearchGraph | None) -> Segmentation:
@@ -548,14 +576,15 @@ def _detect_regions(pts: np.ndarray, tolerance: float, max_planes: int, min_inli
     search_idx, step, center, neighbours = graph.search_idx, graph.step, graph.center, graph.neighbours
     search = np.ascontiguousarray((pts[search_idx] - center).T)
     search_min = max(3, int(np.ceil(min_count * len(search_idx) / max(n_valid, 1))))
-    found, reason, region = _sequential(search, tolerance, max_planes, search_min, probability, max_iterations,
+    search_tolerance = _at(tolerance, search_idx)
+    found, reason, region = _sequential(search, search_tolerance, max_planes, search_min, probability, max_iterations,
                                         rng, n_total=n_valid, neighbours=neighbours)
     labels = np.full(len(pts), -1, dtype=np.int32)
     if not found:
         return Segmentation(labels=labels, planes=(), tolerance=tolerance, n_valid=n_valid, reason=reason)
     # each region's plane refitted on its own points, then the borders settled by nearest plane
     found = _refit(search, region, found)
-    region = _compete(search, region, found, tolerance, neighbours)
+    region = _compete(search, region, found, search_tolerance, neighbours)
     found = _refit(search, region, found)
     residual = None
     if shape is not None:
@@ -565,10 +594,11 @@ def _detect_regions(pts: np.ndarray, tolerance: float, max_planes: int, min_inli
         own = np.where(region >= 0, region, 0)
         normals = np.array([n for n, _ in found])
         offsets = np.array([d for _, d in found])
-        near = np.abs(np.einsum('ji,ij->j', normals[own], search) + offsets[own]) <= tolerance
+        near = np.abs(np.einsum('ji,ij->j', normals[own], search) + offsets[own]) <= search_tolerance
         labels[search_idx] = np.where((region >= 0) & near, region, -1)  # within t of the refitted plane
     else:
-        labels[valid_idx] = _spread_nearest(pts[valid_idx] - center, search, region, found, tolerance)
+        labels[valid_idx] = _spread_nearest(pts[valid_idx] - center, search, region, found,
+                                            _at(tolerance, valid_idx))
     counts = np.bincount(labels[labels >= 0], minlength=len(found))
     small = np.flatnonzero(counts < min_count)
     if len(small):
@@ -602,7 +632,7 @@ def _refit(search: np.ndarray, region: np.ndarray, found: list) -> list:
 COMPETE_ROUNDS = 6
 
 
-def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: float,
+def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance,
              neighbours: Neighbours) -> np.ndarray:
     """Settle the borders between regions: each searched point (3, m) takes, of its own region and
     its neighbours' regions, the one whose plane is nearest within ``tolerance`` (so a strip that an
@@ -652,7 +682,7 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: flo
 
 
 def _spread_grid(pts: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray, neighbours: Neighbours,
-                 planes: list, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+                 planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
     """Labels (N,) of every pixel of the image ``pts`` (N, 3) from the regions of the searched
     sub-grid: the region of the nearest sub-grid pixel when the pixel is within ``tolerance`` of its
     plane (``planes`` in the coordinates of ``pts``), else, of the 3 x 3 sub-grid pixels around it,
@@ -686,13 +716,13 @@ def _spread_grid(pts: np.ndarray, shape: tuple[int, int], step: int, region: np.
         r, c = np.divmod(todo, w)
         lab = sub[np.clip(near_r[r] + dr, 0, gh - 1), np.clip(near_c[c] + dc, 0, gw - 1)]
         d = flat[np.where(lab >= 0, lab, k) * n + todo]
-        better = (d <= tolerance) & (d < best[todo])
+        better = (d <= _at(tolerance, todo)) & (d < best[todo])
         out[todo[better]], best[todo[better]] = lab[better], d[better]
     return out, best
 
 
 def _spread_nearest(points: np.ndarray, search: np.ndarray, region: np.ndarray, found: list,
-                    tolerance: float) -> np.ndarray:
+                    tolerance: Tolerance) -> np.ndarray:
     """Labels of ``points`` (n, 3) from the region of their nearest searched point (``search``
     (3, m)), when within ``tolerance`` of that region's plane; -1 otherwise."""
     from scipy.spatial import cKDTree

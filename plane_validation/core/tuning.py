@@ -15,6 +15,7 @@ from scipy.spatial import cKDTree
 
 from .blas import single_blas_thread
 from .indices import ValidityIndices, validity_indices
+from .noise import NOISE_REFERENCE, noise_coefficient, tolerance_scale
 from .ransac import RANSAC_POINTS, Segmentation, as_points, check_shape, detect_planes, finite_rows, search_graph
 from .verdict import RELIABLE_GS_PLANES, SINGLE_PLANE_THICKNESS, judge, plane_thickness
 
@@ -62,7 +63,10 @@ class TuningResult:
     rows: every candidate, ascending tolerance. tolerance: the chosen ``t`` (meters).
     segmentation: the chosen ``t`` applied to the full-resolution cloud; indices: its indices.
     noise_estimate: half-width ``e`` of the sensor noise (meters), estimated from the residuals of
-    the chosen planes (for uniform noise on [-e, e] the residual RMS is e / sqrt(3)).
+    the chosen planes (for uniform noise on [-e, e] the residual RMS is e / sqrt(3)); with the
+    ``depth_quadratic`` model, of the residuals scaled to the reference range.
+    noise_model: the segmentation's (:mod:`.noise`); noise_coefficient: with ``depth_quadratic``, c
+    (1/m) of the depth noise sigma(r) = c r^2 fitted to the residuals (NaN with ``constant``).
     reliable: whether the planes are trustworthy; verdict: one line saying why.
     """
 
@@ -76,6 +80,8 @@ class TuningResult:
     reliable: bool
     verdict: str
     seconds: float
+    noise_model: str = 'constant'
+    noise_coefficient: float = float('nan')
 
     @property
     def tolerances(self) -> np.ndarray:
@@ -198,13 +204,22 @@ def _check_criterion(criterion: str) -> None:
         raise ValueError(f'unknown criterion {criterion!r}; choose one of {sorted(CRITERIA)}')
 
 
-def noise_from_segmentation(seg: Segmentation) -> float:
-    """Half-width e (meters) of uniform noise matching the pooled residual RMS of the planes."""
+def noise_from_segmentation(seg: Segmentation, points: np.ndarray | None = None) -> float:
+    """Half-width e (meters) of uniform noise matching the pooled residual RMS of the planes; with a
+    range-dependent noise model (``points`` (N, 3) then needed), of the residuals divided by the
+    model's tolerance factor, i.e. e at the reference range."""
     counts = np.array([len(p.inliers) for p in seg.planes])
     if counts.sum() == 0:
         return float('nan')
-    rms = np.array([p.rms for p in seg.planes])
-    return float(np.sqrt(3 * np.sum(counts * rms ** 2) / counts.sum()))
+    if seg.noise_model == 'constant' or points is None:
+        rms = np.array([p.rms for p in seg.planes])
+        return float(np.sqrt(3 * np.sum(counts * rms ** 2) / counts.sum()))
+    pts = as_points(points)
+    own = seg.labels >= 0
+    plane = seg.coefficients[seg.labels[own]]
+    residual = np.einsum('ij,ij->i', pts[own], plane[:, :3]) + plane[:, 3]
+    residual /= tolerance_scale(pts[own], seg.noise_model, seg.noise_reference)
+    return float(np.sqrt(3 * np.mean(residual ** 2)))
 
 
 @single_blas_thread
@@ -214,7 +229,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                    t_min: float | None = None, t_max: float | None = None, count: int = TUNE_CANDIDATES,
                    seed: int | None = None, progress: Callable[[int, int], None] | None = None,
                    ransac_points: int | None = RANSAC_POINTS, sampled_separation: bool = False,
-                   shape: tuple[int, int] | None = None, connectivity: bool = True) -> TuningResult:
+                   shape: tuple[int, int] | None = None, connectivity: bool = True,
+                   noise_model: str = 'constant', noise_reference: float = NOISE_REFERENCE) -> TuningResult:
     """Sweep the RANSAC tolerance and pick the best by ``criterion``.
 
     points: (N, 3) meters. tolerances: candidate ``t`` values in meters, or None for ``count``
@@ -230,6 +246,9 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     ransac_points, sampled_separation: passed to :func:`detect_planes` and :func:`validity_indices`;
     shape, connectivity: to :func:`detect_planes` (an organized cloud is swept on a regular
     sub-grid of about ``tune_points`` pixels, which keeps it organized).
+    noise_model, noise_reference: to :func:`detect_planes`; with ``depth_quadratic`` the candidates
+    are t0, the tolerance up to the reference range (derived bounds are divided by the median
+    tolerance factor of the cloud).
     """
     _check_criterion(criterion)
     start = time.perf_counter()
@@ -240,6 +259,11 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     rng = np.random.default_rng(seed)
     cand = default_tolerances(finite, count, lo=t_min, hi=t_max, seed=rng) if tolerances is None \
         else np.asarray(tolerances, dtype=float)
+    scale = tolerance_scale(finite, noise_model, noise_reference)
+    if scale is not None and tolerances is None:  # the derived bounds are tolerances at typical range
+        factor = float(np.median(scale))
+        cand = np.geomspace(cand[0] / factor if t_min is None else cand[0],
+                            cand[-1] / factor if t_max is None else cand[-1], len(cand))
     cand = np.unique(cand)
     if cand.size == 0 or not np.all(np.isfinite(cand)) or cand[0] <= 0:
         raise ValueError('tolerances must be finite and > 0')
@@ -256,7 +280,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     n_sweep = int(np.count_nonzero(finite_rows(sweep_pts)))
     ransac_seed, index_seed = rng.integers(0, 2**63, size=2)
     opts = dict(max_planes=max_planes, min_inliers=min_inliers, probability=probability,
-                max_iterations=max_iterations, ransac_points=ransac_points, connectivity=connectivity)
+                max_iterations=max_iterations, ransac_points=ransac_points, connectivity=connectivity,
+                noise_model=noise_model, noise_reference=noise_reference)
     # a count means the same share of the cloud on the subsample (as ransac_points scales it)
     sweep_opts = dict(opts, min_inliers=_scaled_min_inliers(min_inliers, n_sweep, len(finite)), shape=sweep_shape)
     if connectivity:  # the same neighbourhood graph for every candidate (None when it would be sampled)
@@ -291,8 +316,10 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                                         sampled_separation=sampled_separation)
     reliable, verdict = judge(pts, final, final_scores)
     return TuningResult(rows=tuple(rows), criterion=criterion, best=best, tolerance=t_best, segmentation=final,
-                        indices=final_scores, noise_estimate=noise_from_segmentation(final), reliable=reliable,
-                        verdict=verdict, seconds=time.perf_counter() - start)
+                        indices=final_scores, noise_estimate=noise_from_segmentation(final, pts), reliable=reliable,
+                        verdict=verdict, seconds=time.perf_counter() - start, noise_model=noise_model,
+                        noise_coefficient=noise_coefficient(pts, final.labels, final.coefficients)
+                        if noise_model == 'depth_quadratic' else float('nan'))
 
 
 def _scaled_min_inliers(min_inliers: int | float, n_sample: int, n_valid: int) -> int | float:
