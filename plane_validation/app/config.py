@@ -10,6 +10,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..core.noise import NOISE_MODELS, NOISE_REFERENCE
 from ..core.ransac import RANSAC_POINTS
 from ..core.tuning import CRITERIA, DEFAULT_CRITERION, TUNE_CANDIDATES, TUNE_POINTS
 
@@ -92,6 +93,11 @@ class PipelineConfig:
                             'every point; 0 = all', low=1000, high=100_000_000, special=0)
     connectivity: bool = _p(True, 'a plane is a connected region (organized clouds: image neighbours without a depth '
                             'jump); false = every point within t of an infinite plane (the paper)')
+    noise_model: str = _p('constant', 'how t grows with range r from the sensor: constant, or depth_quadratic '
+                          '(t * max(1, (r / noise_reference)^2), a depth camera; t is then the tolerance up to '
+                          'noise_reference)', choices=NOISE_MODELS)
+    noise_reference: float = _p(NOISE_REFERENCE, 'range up to which depth_quadratic keeps t', low=0.01, high=100.0,
+                                unit='m')
     voxel_size: float = _p(0.0, 'voxel grid applied before detection; 0 = off', low=1e-6, high=10.0, special=0.0,
                            unit='m')
     seed: int = _p(0, 'random seed; frames are seeded by (seed, header stamp); -1 = fresh entropy every frame',

@@ -41,9 +41,9 @@ class Detection:
 
 def detect(points: np.ndarray, tolerance: float | None = None, *, seed: int = 0, max_planes: int = 10,
            min_inliers: int | float = 0.02, progress: Callable[[int, int], None] | None = None,
-           shape: tuple[int, int] | None = None) -> Detection:
+           shape: tuple[int, int] | None = None, noise_model: str = 'constant') -> Detection:
     """Planes of (N, 3) ``points`` at ``tolerance`` meters, or at the auto-tuned t when None;
-    ``shape`` (H, W) for an organized cloud.
+    ``shape`` (H, W) for an organized cloud; ``noise_model`` as in :func:`detect_planes`.
 
     Equivalent Python API calls (same results): fixed t -> ``detect_planes(points, t, seed=seed,
     max_planes=..., min_inliers=...)`` and ``validity_indices(points, labels, seed=seed)``; auto ->
@@ -53,14 +53,15 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, seed: int = 0,
     start = time.perf_counter()
     if tolerance is None:
         tuned = tune_tolerance(pts, seed=seed, max_planes=max_planes, min_inliers=min_inliers, progress=progress,
-                               shape=shape)
+                               shape=shape, noise_model=noise_model)
         return Detection(points=pts, segmentation=tuned.segmentation, indices=tuned.indices,
                          tolerance=tuned.tolerance, tolerance_source='auto', reliable=tuned.reliable,
                          verdict=tuned.verdict, noise_estimate=tuned.noise_estimate, seed=seed,
                          seconds=time.perf_counter() - start, tuning=tuned)
-    seg = detect_planes(pts, tolerance, seed=seed, max_planes=max_planes, min_inliers=min_inliers, shape=shape)
+    seg = detect_planes(pts, tolerance, seed=seed, max_planes=max_planes, min_inliers=min_inliers, shape=shape,
+                        noise_model=noise_model)
     scores = validity_indices(pts, seg.labels, seed=seed)
     reliable, verdict = judge(pts, seg, scores)
     return Detection(points=pts, segmentation=seg, indices=scores, tolerance=float(tolerance),
                      tolerance_source='fixed', reliable=reliable, verdict=verdict,
-                     noise_estimate=noise_from_segmentation(seg), seed=seed, seconds=time.perf_counter() - start)
+                     noise_estimate=noise_from_segmentation(seg, pts), seed=seed, seconds=time.perf_counter() - start)

@@ -16,6 +16,7 @@ import numpy as np
 from ..core.blas import limit_blas_threads
 from ..core.geometry import voxel_downsample
 from ..core.indices import ValidityIndices, validity_indices
+from ..core.noise import noise_coefficient
 from ..core.ransac import Segmentation, as_points, detect_planes, finite_rows
 from ..core.tuning import TuningResult, noise_from_segmentation, quick_tolerance, tune_tolerance
 from ..core.verdict import judge
@@ -32,7 +33,7 @@ OK, WARN, ERROR = Level.OK, Level.WARN, Level.ERROR
 #: Configuration fields whose change voids the tuned tolerance (and a sweep in progress).
 TUNING_FIELDS = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points', 'criterion', 'max_planes',
                  'min_inliers', 'voxel_size', 'probability', 'max_iterations', 'index_sample_size',
-                 'exact_indices', 'ransac_points', 'connectivity')
+                 'exact_indices', 'ransac_points', 'connectivity', 'noise_model', 'noise_reference')
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,7 +169,8 @@ class FramePipeline:
                               tune_points=cfg.tune_points, t_min=cfg.tune_min or None, t_max=cfg.tune_max or None,
                               count=cfg.tune_count, seed=frame_seed(cfg.seed, stamp_ns),
                               ransac_points=cfg.ransac_points or None, sampled_separation=not cfg.exact_indices,
-                              shape=shape, connectivity=cfg.connectivity)
+                              shape=shape, connectivity=cfg.connectivity, noise_model=cfg.noise_model,
+                              noise_reference=cfg.noise_reference)
 
     def process_cloud(self, msg, *, tune_inline: bool = True) -> FrameResult:
         """One sensor_msgs/PointCloud2 (rclpy or rosbags) through :meth:`process`; a malformed
@@ -240,7 +242,8 @@ class FramePipeline:
                                     min_inliers=min_inliers_value(cfg.min_inliers), probability=cfg.probability,
                                     max_iterations=cfg.max_iterations, seed=seed,
                                     ransac_points=cfg.ransac_points or None, shape=shape,
-                                    connectivity=cfg.connectivity)
+                                    connectivity=cfg.connectivity, noise_model=cfg.noise_model,
+                                    noise_reference=cfg.noise_reference)
                 scores = validity_indices(work, seg.labels, sample_size=cfg.index_sample_size, seed=seed,
                                           sampled_separation=not cfg.exact_indices)
                 reliable, verdict = judge(work, seg, scores)
@@ -254,7 +257,7 @@ class FramePipeline:
             level, message = WARN, f'{tune_problem}; detected with {used} t={tolerance:.4g} m: {message}'
         counts = np.bincount(labels[labels >= 0], minlength=seg.n_planes)
         values = _values(cfg, tolerance, source, n_input, len(valid), int(np.sum(labels < 0)), seg, counts, scores,
-                         noise_from_segmentation(seg))
+                         noise_from_segmentation(seg, work), work)
         seconds = time.perf_counter() - start
         values += (('processing_ms', f'{1000 * seconds:.1f}'),)
         return FrameResult(points=valid, labels=labels, segmentation=seg, indices=scores, tolerance=tolerance,
@@ -264,7 +267,7 @@ class FramePipeline:
 
 def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_valid: int, n_unassigned: int,
             seg: Segmentation, counts: np.ndarray, scores: ValidityIndices,
-            noise: float) -> tuple[tuple[str, str], ...]:
+            noise: float, work: np.ndarray) -> tuple[tuple[str, str], ...]:
     values = [('tolerance', fmt(tolerance)), ('tolerance_source', source), ('criterion', cfg.criterion),
               ('planes', str(seg.n_planes)), ('input_points', str(n_input)), ('valid_points', str(n_valid)),
               ('unassigned_points', str(n_unassigned)),
@@ -274,8 +277,10 @@ def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_
               ('silhouette', fmt(scores.silhouette)), ('silhouette_se', fmt(scores.silhouette_se)),
               ('plane_silhouette', fmt(scores.plane_silhouette)),
               ('index_sample_size', str(scores.sample_size)), ('dunn_db_points', str(scores.separation_size)),
-              ('noise_estimate', fmt(noise)),
+              ('noise_model', cfg.noise_model), ('noise_estimate', fmt(noise)),
               ('stop_reason', seg.reason)]
+    if cfg.noise_model == 'depth_quadratic':  # sigma(r) = c r^2
+        values.append(('noise_coefficient', fmt(noise_coefficient(work, seg.labels, seg.coefficients))))
     for k, plane in enumerate(seg.planes):
         values += [(f'plane_{k}_inliers', str(int(counts[k]))), (f'plane_{k}_rms', fmt(plane.rms))]
     return tuple(values)

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..core.indices import ValidityIndices
+from ..core.noise import noise_coefficient
 from ..core.ransac import Segmentation
 from ..core.tuning import CRITERIA, PlaneCountResult, TuningResult
 from .detection import Detection
@@ -87,8 +88,16 @@ def detection_document(source: str, det: Detection, *, max_planes: int, min_inli
         'planes': planes_json(seg), 'stop_reason': seg.reason,
         'indices': indices_json(det.indices),
         'reliable': det.reliable, 'verdict': det.verdict, 'noise_estimate': det.noise_estimate,
-        'tuning': tuning, 'output': output, 'seconds': det.seconds,
+        **_noise_model(seg, det.points), 'tuning': tuning, 'output': output, 'seconds': det.seconds,
     })
+
+
+def _noise_model(seg: Segmentation, points: np.ndarray) -> dict:
+    """noise_model, and with depth_quadratic its reference range and fitted sigma(r) = c r^2 coefficient c."""
+    if seg.noise_model == 'constant':
+        return {'noise_model': seg.noise_model}
+    return {'noise_model': seg.noise_model, 'noise_reference': seg.noise_reference,
+            'noise_coefficient': noise_coefficient(points, seg.labels, seg.coefficients)}
 
 
 def _sweep_row(row, chosen: bool) -> dict:
@@ -107,7 +116,7 @@ def sweep_document(source: str, points: np.ndarray, result: TuningResult, *, see
         'sweep': [_sweep_row(r, i == result.best) for i, r in enumerate(result.rows)],
         'planes': planes_json(seg), 'indices': indices_json(result.indices),
         'reliable': result.reliable, 'verdict': result.verdict, 'noise_estimate': result.noise_estimate,
-        'seconds': result.seconds,
+        **_noise_model(seg, points), 'seconds': result.seconds,
     })
 
 

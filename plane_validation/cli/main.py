@@ -96,7 +96,8 @@ def cmd_detect(args: argparse.Namespace) -> int:
     tolerance = None if args.auto else args.tolerance
     with progress_bar('tuning t', quiet=args.json) as progress:
         det = detect(points, tolerance, seed=_seed(args.seed), max_planes=args.max_planes,
-                     min_inliers=min_inliers_value(args.min_inliers), progress=progress, shape=shape)
+                     min_inliers=min_inliers_value(args.min_inliers), progress=progress, shape=shape,
+                     noise_model=args.noise_model)
     written = []
     if args.out:
         from ..formats.files import save_points
@@ -136,7 +137,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     with progress_bar('sweeping t', quiet=args.json) as progress:
         result = tune_tolerance(points, tolerances=args.tolerances, criterion=args.criterion, seed=_seed(args.seed),
                                 max_planes=args.max_planes, min_inliers=min_inliers_value(args.min_inliers),
-                                progress=progress, shape=shape)
+                                progress=progress, shape=shape, noise_model=args.noise_model)
     written = []
     if args.csv:
         written.append(write_sweep_csv(args.csv, result))
@@ -165,10 +166,11 @@ def cmd_planes(args: argparse.Namespace) -> int:
     if tolerance is None:
         with progress_bar('tuning t', quiet=args.json) as progress:
             tolerance = tune_tolerance(points, seed=_seed(args.seed), max_planes=args.max_planes,
-                                       min_inliers=min_inliers, progress=progress, shape=shape).tolerance
+                                       min_inliers=min_inliers, progress=progress, shape=shape,
+                                       noise_model=args.noise_model).tolerance
         source = 'auto'
     result = select_plane_count(points, tolerance, args.max_planes, min_inliers=min_inliers, seed=_seed(args.seed),
-                                shape=shape)
+                                shape=shape, noise_model=args.noise_model)
     written = []
     if args.plot:
         from ..app.plot import plot_plane_count
@@ -335,9 +337,10 @@ def _seed(value: int) -> int | None:
 
 
 def _add_detection_options(parser: argparse.ArgumentParser) -> None:
-    """--seed, --max-planes, --min-inliers for the file commands (type, range and default from the table)."""
+    """--seed, --max-planes, --min-inliers, --noise-model for the file commands (type, range and default
+    from the table)."""
     from ..app.config import PARAMETERS
-    for name, metavar in (('seed', 'S'), ('max_planes', 'K'), ('min_inliers', 'M')):
+    for name, metavar in (('seed', 'S'), ('max_planes', 'K'), ('min_inliers', 'M'), ('noise_model', 'MODEL')):
         spec = PARAMETERS[name]
         parser.add_argument('--' + name.replace('_', '-'), dest=name, type=_table_type(name), default=spec.default,
                             metavar=metavar, help=f'{spec.description} (default {spec.default})')

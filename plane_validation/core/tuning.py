@@ -364,21 +364,24 @@ def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 1
                        criterion: str = 'gs_planes', *, min_inliers: int | float = 0.02, probability: float = 0.99,
                        max_iterations: int = 1000, sample_size: int | None = 2000,
                        seed: int | None = None, shape: tuple[int, int] | None = None,
-                       connectivity: bool = True) -> PlaneCountResult:
+                       connectivity: bool = True, noise_model: str = 'constant',
+                       noise_reference: float = NOISE_REFERENCE) -> PlaneCountResult:
     """Score the first k planes (the rest unassigned) for k = 1..K and pick k (paper Fig. 2).
 
     One sequential RANSAC run with ``max_planes`` finds up to K planes at ``tolerance`` meters;
     labels of planes k.. are set to -1 before scoring. Returns every k's indices. For gs, dunn,
     silhouette and davies_bouldin k is the index's optimum (``best_by``); for gs_planes it is the
     largest k whose planes all keep a mean silhouette S_j >= MIN_PLANE_SILHOUETTE (see
-    :func:`_well_assigned_count` for why not the plain argmax).
+    :func:`_well_assigned_count` for why not the plain argmax). shape, connectivity, noise_model,
+    noise_reference: to :func:`detect_planes`.
     """
     _check_criterion(criterion)
     rng = np.random.default_rng(seed)
     ransac_seed, index_seed = rng.integers(0, 2**63, size=2)
     seg = detect_planes(points, tolerance, max_planes=max_planes, min_inliers=min_inliers,
                         probability=probability, max_iterations=max_iterations, seed=int(ransac_seed),
-                        shape=shape, connectivity=connectivity)
+                        shape=shape, connectivity=connectivity, noise_model=noise_model,
+                        noise_reference=noise_reference)
     pts = as_points(points)
     counts, scores = [], []
     for k in range(1, seg.n_planes + 1):

@@ -1,0 +1,82 @@
+"""The depth_quadratic noise model: per-point tolerance, tuning of t0 and the fitted sigma(r) = c r^2."""
+import numpy as np
+import pytest
+
+import plane_validation as pv
+from plane_validation import scenes
+from plane_validation.app.pipeline import FramePipeline, PipelineConfig
+from plane_validation.core.noise import noise_coefficient, tolerance_scale
+from plane_validation.core.scoring import segmentation_quality
+
+
+def _near_and_far_walls(seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Two parallel walls facing the sensor, 1 m and 3 m away, with depth noise sigma = 0.002 r^2
+    along each ray (2 mm near, 18 mm far): (points (N, 3), true wall per point)."""
+    rng = np.random.default_rng(seed)
+    parts, truth = [], []
+    for k, (z, x0) in enumerate(((1.0, -0.6), (3.0, 0.1))):
+        p = np.column_stack([rng.uniform(x0, x0 + 0.5, 4000) * z, rng.uniform(-0.3, 0.3, 4000) * z,
+                             np.full(4000, z)])
+        r = np.linalg.norm(p, axis=1)
+        parts.append(p * (1 + rng.normal(0, 0.002, len(p)) * r)[:, None])  # dr = 0.002 r^2 N(0, 1)
+        truth.append(np.full(4000, k))
+    return np.vstack(parts), np.concatenate(truth)
+
+
+def test_tolerance_grows_as_range_squared_beyond_the_reference():
+    pts = np.array([[0, 0, 0.5], [0, 0, 1.0], [0, 3.0, 4.0], [np.nan, 0, 0]])
+    assert tolerance_scale(pts) is None  # constant
+    scale = tolerance_scale(pts, 'depth_quadratic')
+    assert np.allclose(scale[:3], [1.0, 1.0, 25.0]) and np.isnan(scale[3])
+    assert np.allclose(tolerance_scale(pts[:3], 'depth_quadratic', 2.5), [1.0, 1.0, 4.0])
+    with pytest.raises(ValueError, match='unknown noise_model'):
+        pv.detect_planes(pts, 0.01, noise_model='quadratic')
+    with pytest.raises(ValueError, match='noise_reference'):
+        pv.detect_planes(pts, 0.01, noise_model='depth_quadratic', noise_reference=0.0)
+
+
+@pytest.mark.parametrize('connectivity', [True, False])
+def test_one_t0_fits_a_near_and_a_far_wall_where_one_t_cannot(connectivity):
+    pts, truth = _near_and_far_walls()
+    # 5 mm: about 2.5 sigma at 1 m but only 0.3 sigma at 3 m
+    constant = pv.detect_planes(pts, 0.005, seed=0, min_inliers=1000, connectivity=connectivity)
+    model = pv.detect_planes(pts, 0.005, seed=0, min_inliers=1000, connectivity=connectivity,
+                             noise_model='depth_quadratic')
+    q_constant, q_model = segmentation_quality(constant.labels, truth), segmentation_quality(model.labels, truth)
+    assert q_model.correct == 2 and q_model.f1 > 0.95, q_model
+    assert q_constant.correct < 2 and q_constant.f1 < q_model.f1 - 0.1, q_constant
+    assert model.tolerance == 0.005 and model.noise_model == 'depth_quadratic'
+    far = model.planes[int(np.argmax([abs(p.offset) for p in model.planes]))]
+    assert abs(abs(far.offset) - 3.0) < 0.01
+
+
+def test_noise_coefficient_is_fitted_from_plane_residuals():
+    pts, truth = _near_and_far_walls(seed=1)
+    coefficients = np.array([[0, 0, 1, -1.0], [0, 0, 1, -3.0]])
+    assert noise_coefficient(pts, truth, coefficients) == pytest.approx(0.002, rel=0.05)
+    assert np.isnan(noise_coefficient(pts, np.full(len(pts), -1), coefficients))
+
+
+def test_tuning_with_the_depth_model_recovers_the_camera_noise():
+    scene = scenes.depth_camera('room', width=320, height=240, seed=3)  # sigma(z) = 0.0015 z^2
+    result = pv.tune_tolerance(scene.points, seed=0, shape=scene.shape, max_planes=12, min_inliers=0.005,
+                               noise_model='depth_quadratic')
+    assert result.noise_model == 'depth_quadratic' and result.segmentation.noise_model == 'depth_quadratic'
+    assert result.noise_coefficient == pytest.approx(scene.noise, rel=0.3)
+    assert segmentation_quality(result.segmentation.labels, scene.labels).correct >= 6
+    constant = pv.tune_tolerance(scene.points, seed=0, shape=scene.shape, max_planes=12, min_inliers=0.005)
+    assert np.isnan(constant.noise_coefficient)
+    assert result.tolerance < constant.tolerance  # t0 holds up to 1 m; the room is 2-6 m away
+
+
+def test_the_pipeline_reports_the_model_and_its_coefficient():
+    scene = scenes.depth_camera('table', width=160, height=120, seed=2)
+    cfg = PipelineConfig(auto_tune=False, tolerance=0.003, noise_model='depth_quadratic', max_planes=8,
+                         min_inliers=0.01)
+    result = FramePipeline(cfg).process(scene.points, shape=scene.shape)
+    values = dict(result.values)
+    assert values['noise_model'] == 'depth_quadratic'
+    assert float(values['noise_coefficient']) == pytest.approx(scene.noise, rel=0.3)
+    assert 'noise_coefficient' not in dict(FramePipeline(PipelineConfig(auto_tune=False)).process(scene.points).values)
+    with pytest.raises(ValueError, match='noise_model must be one of'):
+        PipelineConfig(noise_model='linear').validate()
