@@ -68,17 +68,23 @@ class Neighbours:
         outside the mask, components 0..c-1; c)."""
         if self.shape is not None:
             return self._grid_components(mask)
-        src, dst = self.edges.T  # sorted by source (graph_neighbours): the CSR rows need no sort
-        inside = mask[src] & mask[dst]
-        indptr = np.zeros(self.n + 1, np.int64)
-        np.cumsum(np.bincount(src[inside], minlength=self.n), out=indptr[1:])
-        graph = csr_matrix((np.ones(np.count_nonzero(inside)), dst[inside], indptr), shape=(self.n, self.n))
-        count, labels = connected_components(graph, directed=True, connection='weak')
-        sizes = np.bincount(labels[mask], minlength=count)
+        labels, sizes = self._graph_components(mask)
         used = np.flatnonzero(sizes)
         dense = np.full(len(sizes), -1, dtype=np.int64)
         dense[used] = np.arange(len(used))
         return np.where(mask, dense[labels], -1), len(used)
+
+    def _graph_components(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Graph form: (component of every point (n,), masked points per component); the points
+        outside the mask are components of their own, of size 0."""
+        src, dst = self.edges.T  # sorted by source (graph_neighbours): the CSR rows need no sort
+        inside = mask[src] & mask[dst]
+        indptr = np.zeros(self.n + 1, np.int64)
+        np.cumsum(np.bincount(src[inside], minlength=self.n), out=indptr[1:])
+        graph = csr_matrix((np.ones(np.count_nonzero(inside)), dst[inside], indptr),
+                           shape=(self.n, self.n))
+        count, labels = connected_components(graph, directed=True, connection='weak')
+        return labels, np.bincount(labels[mask], minlength=count)
 
     def _grid_components(self, mask: np.ndarray) -> tuple[np.ndarray, int]:
         image = np.zeros(self.shape[0] * self.shape[1], bool)
@@ -89,6 +95,9 @@ class Neighbours:
 
     def largest(self, mask: np.ndarray) -> np.ndarray:
         """(n,) bool: the largest connected component of ``mask`` (empty when ``mask`` is)."""
+        if self.shape is None:
+            labels, sizes = self._graph_components(mask)
+            return mask & (labels == int(np.argmax(sizes))) if sizes.max(initial=0) > 0 else np.zeros(self.n, bool)
         labels, count = self.components(mask)
         if count == 0:
             return np.zeros(self.n, bool)

@@ -29,6 +29,8 @@ TUNE_POINTS = 20000
 #: Index name -> True when larger is better.
 CRITERIA = {'gs_planes': True, 'gs': True, 'silhouette': True, 'dunn': True, 'davies_bouldin': False,
             'davies_bouldin_classic': False, 'plane_silhouette': True}
+#: Criteria computed from cluster separations (exact on all points unless sampled_separation).
+SEPARATION_CRITERIA = ('dunn', 'davies_bouldin', 'davies_bouldin_classic')
 #: The criterion tune_tolerance uses unless told (chosen on benchmarks/quality.py; the paper's is gs_planes).
 DEFAULT_CRITERION = 'plane_silhouette'
 
@@ -243,7 +245,9 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     max(3 SE, 0.01) of the best (indistinguishable given the silhouette sampling), the smallest
     ``t`` wins; see :func:`_choose` for the single-plane case.
     progress: called as ``progress(done, total)`` after each candidate (e.g. to drive a progress bar).
-    ransac_points, sampled_separation: passed to :func:`detect_planes` and :func:`validity_indices`;
+    ransac_points, sampled_separation: passed to :func:`detect_planes` and :func:`validity_indices`
+    (the candidates' Dunn and Davies-Bouldin are computed on the index sample unless one of them is
+    the criterion: they cannot change the choice; the chosen segmentation's follow ``sampled_separation``);
     shape, connectivity: to :func:`detect_planes` (an organized cloud is swept on a regular
     sub-grid of about ``tune_points`` pixels, which keeps it organized).
     noise_model, noise_reference: to :func:`detect_planes`; with ``depth_quadratic`` the candidates
@@ -287,6 +291,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     if connectivity:  # the same neighbourhood graph for every candidate (None when it would be sampled)
         sweep_opts['graph'] = search_graph(sweep_pts, sweep_shape, ransac_points)
 
+    sweep_sampled = sampled_separation or criterion not in SEPARATION_CRITERIA
     rows: list[TuningRow] = []
     previous: tuple[np.ndarray, ValidityIndices] | None = None
     for t in cand:
@@ -296,7 +301,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
             scores = previous[1]  # same partition as the last candidate: same indices
         else:
             scores = validity_indices(sweep_pts, seg.labels, sample_size=sample_size, seed=int(index_seed),
-                                      sampled_separation=sampled_separation)
+                                      sampled_separation=sweep_sampled)
         previous = (seg.labels, scores)
         thickness = plane_thickness(sweep_pts, seg)
         rows.append(TuningRow(tolerance=float(t), n_planes=seg.n_planes,
@@ -309,7 +314,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     best = _choose(rows, criterion, n_sweep)
     t_best = rows[best].tolerance
     final = detect_planes(pts, t_best, seed=int(ransac_seed), shape=shape, **opts)
-    if sweep_pts is finite and len(finite) == len(pts) and shape is None:
+    if sweep_pts is finite and len(finite) == len(pts) and shape is None and sweep_sampled == sampled_separation:
         final_scores = rows[best].indices  # the sweep already scored this very segmentation
     else:
         final_scores = validity_indices(pts, final.labels, sample_size=sample_size, seed=int(index_seed),

@@ -1,0 +1,58 @@
+"""Auto-tuning a large many-plane scan: 250,000 unorganized points on 38 planes (issue 13's speed
+figure for a SynPEB-sized scan, which we do not ship), tune_tolerance with library defaults but
+max_planes=60 and min_inliers=0.002, against the best fixed t over a grid.
+
+Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_many_planes.py [--repeat 3]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+
+import plane_validation as pv
+from plane_validation.core import scenes
+from plane_validation.core.scoring import segmentation_quality
+
+
+def warehouse(n_points: int = 250_000, noise: float = 0.003, seed: int = 0) -> scenes.Scene:
+    """A 12 x 8 x 4 m hall (6 faces), six crates (5 faces each) and two hanging panels: 38 planes."""
+    rects = scenes._box_faces((0, 0, 0), (12.0, 8.0, 4.0))
+    for k in range(6):
+        x0, y0 = 1.0 + 1.8 * k, 1.0 + (k % 3) * 2.0
+        rects += scenes._box_faces((x0, y0, 0.0), (x0 + 1.2, y0 + 0.9 + 0.1 * k, 0.6 + 0.2 * k), bottom=False)
+    rects += [scenes._Rect((2.0, 7.0, 2.5), scenes.X, scenes.Y, 3.0, 0.6),
+              scenes._Rect((7.0, 7.0, 3.0), scenes.X, scenes.Y, 3.0, 0.6)]
+    return scenes._compose('warehouse', rects, n_points, noise, 0.02, 1.0, seed)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--repeat', type=int, default=3)
+    args = parser.parse_args()
+    scene = warehouse()
+    params = dict(max_planes=60, min_inliers=0.002)
+    print(f'{scene.name}: {len(scene.points)} points, {len(scene.planes)} planes, noise ±{1000 * scene.noise:.0f} mm')
+    times, result = [], None
+    for i in range(args.repeat):
+        start = time.perf_counter()
+        result = pv.tune_tolerance(scene.points, seed=i, **params)
+        times.append(time.perf_counter() - start)
+    q = segmentation_quality(result.segmentation.labels, scene.labels)
+    print(f'tune_tolerance: median {statistics.median(times):.2f} s (min {min(times):.2f}, max {max(times):.2f}) over '
+          f'{args.repeat} runs; t = {1000 * result.tolerance:.3g} mm, {q.correct}/{q.true_planes} correct, '
+          f'F1 {q.f1:.3f}, {"reliable" if result.reliable else "not reliable"} (PS {result.indices.plane_silhouette:.2f})')
+    best = None
+    for t in np.geomspace(0.001, 0.05, 10):
+        seg = pv.detect_planes(scene.points, t, seed=0, **params)
+        qt = segmentation_quality(seg.labels, scene.labels)
+        if best is None or (qt.correct, qt.f1) > (best[1].correct, best[1].f1):
+            best = (t, qt)
+    print(f'best fixed t over 10 from 1 to 50 mm: {1000 * best[0]:.3g} mm, {best[1].correct}/{best[1].true_planes} '
+          f'correct, F1 {best[1].f1:.3f}; auto / best F1 = {q.f1 / best[1].f1:.3f}')
+
+
+if __name__ == '__main__':
+    main()
