@@ -43,7 +43,8 @@ def main() -> None:
     q = segmentation_quality(result.segmentation.labels, scene.labels)
     print(f'tune_tolerance: median {statistics.median(times):.2f} s (min {min(times):.2f}, max {max(times):.2f}) over '
           f'{args.repeat} runs; t = {1000 * result.tolerance:.3g} mm, {q.correct}/{q.true_planes} correct, '
-          f'F1 {q.f1:.3f}, {"reliable" if result.reliable else "not reliable"} (PS {result.indices.plane_silhouette:.2f})')
+          f'F1 {q.f1:.3f}, {"reliable" if result.reliable else "not reliable"} '
+          f'(PS {result.indices.plane_silhouette:.2f})')
     best = None
     for t in np.geomspace(0.001, 0.05, 10):
         seg = pv.detect_planes(scene.points, t, seed=0, **params)

@@ -5,7 +5,7 @@ import pytest
 import plane_validation as pv
 from plane_validation import scenes
 from plane_validation.core.tuning import CRITERIA, default_tolerances
-from plane_validation.core.verdict import RELIABLE_PS
+from plane_validation.core.verdict import RELIABLE_PS, judge
 
 
 @pytest.fixture(scope='module')
@@ -191,3 +191,22 @@ def test_a_count_min_inliers_is_scaled_to_the_tuning_subsample():
     as_count = pv.tune_tolerance(scene.points, seed=1, tune_points=10000, min_inliers=400)
     as_share = pv.tune_tolerance(scene.points, seed=1, tune_points=10000, min_inliers=0.01)
     assert [r.n_planes for r in as_count.rows] == [r.n_planes for r in as_share.rows]
+
+
+def test_a_narrow_noisy_strip_is_a_plane_and_a_curved_slab_is_not():
+    from plane_validation.core.ransac import Plane, Segmentation
+    from plane_validation.core.verdict import MAX_THICKNESS, MIN_CURVATURE, plane_curvature, plane_thickness
+    rng = np.random.default_rng(0)
+    u, v = rng.uniform(-0.6, 0.6, 4000), rng.uniform(-0.08, 0.08, 4000)
+    strip = np.column_stack([u, v, rng.normal(0, 0.012, 4000)])  # a far stair riser: 16 cm tall, 12 mm noise
+    curved = np.column_stack([u, v, 8.0 * v ** 2 + rng.normal(0, 0.002, 4000)])  # half of a 6 cm pipe
+    for pts, flat in ((strip, True), (curved, False)):
+        rows = np.arange(len(pts))
+        seg = Segmentation(labels=np.zeros(len(pts), np.int32), reason='',
+                           planes=(Plane(normal=np.array([0.0, 0.0, 1.0]), offset=0.0, inliers=rows, rms=0.01),),
+                           tolerance=0.03, n_valid=len(pts))
+        assert plane_thickness(pts, seg)[0] > MAX_THICKNESS  # both are thick for their width
+        assert (plane_curvature(pts, rows) < MIN_CURVATURE) == flat
+        scores = pv.validity_indices(pts, seg.labels, seed=0)
+        reliable, verdict = judge(pts, seg, scores)
+        assert ('slab' in verdict) != flat and ('curved slab' in verdict) != flat, verdict

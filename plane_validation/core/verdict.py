@@ -9,7 +9,8 @@ import numpy as np
 from .indices import ValidityIndices
 from .ransac import Segmentation, as_points
 
-__all__ = ['judge', 'plane_thickness', 'RELIABLE_PS', 'RELIABLE_GS_PLANES', 'MAX_THICKNESS', 'SINGLE_PLANE_THICKNESS']
+__all__ = ['judge', 'plane_thickness', 'plane_curvature', 'RELIABLE_PS', 'RELIABLE_GS_PLANES', 'MAX_THICKNESS',
+           'MIN_CURVATURE', 'SINGLE_PLANE_THICKNESS']
 
 #: Below this plane silhouette (PS, core/plane_silhouette.py) the planes are not reported as
 #: reliable. Calibrated on benchmarks/quality.py and the Kinect frames (benchmarks/README.md): good
@@ -23,6 +24,10 @@ RELIABLE_PS = 0.7
 RELIABLE_GS_PLANES = 0.15
 #: Largest RMS-thickness / in-plane-spread ratio of a plane called reliable (see plane_thickness).
 MAX_THICKNESS = 0.2
+#: ... and whose residuals a quadric surface explains at least this share of (see plane_curvature):
+#: a slab cut out of a curved surface (sphere 0.98, the bunny's slabs 0.30-0.96), not a narrow strip
+#: or a noisy plane (far stair risers: at most 0.18 on the depth-camera stairs; benchmarks/README.md).
+MIN_CURVATURE = 0.25
 #: ... unless the thicker planes hold less than this share of the planes' points (a few stray
 #: points found as a small plane do not make a good segmentation unreliable).
 THICK_SHARE = 0.1
@@ -39,10 +44,7 @@ def plane_thickness(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     ~0.3 for a slab cut out of a sphere."""
     out = []
     for plane in seg.planes:
-        rows = plane.inliers
-        if len(rows) > THICKNESS_POINTS:  # a fixed random subset: the ratio is a robust statistic
-            rows = rows[np.random.default_rng(len(rows)).integers(0, len(rows), THICKNESS_POINTS)]
-        inl = points[rows]
+        inl = _inlier_sample(points, plane.inliers)
         if len(inl) < 3:
             out.append(np.inf)
             continue
@@ -52,23 +54,50 @@ def plane_thickness(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     return np.array(out)
 
 
+def _inlier_sample(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    if len(rows) > THICKNESS_POINTS:  # a fixed random subset: the ratios are robust statistics
+        rows = rows[np.random.default_rng(len(rows)).integers(0, len(rows), THICKNESS_POINTS)]
+    return points[rows]
+
+
+def plane_curvature(points: np.ndarray, plane_rows: np.ndarray) -> float:
+    """Share (0..1) of the variance of a plane's residuals that a quadric surface w = q(u, v) over its
+    in-plane coordinates explains: near 0 when they are noise, near 1 on a patch of a curved surface.
+    plane_rows: the plane's inlier rows of ``points`` (N, 3)."""
+    inl = _inlier_sample(points, plane_rows)
+    if len(inl) < 6:
+        return 0.0
+    centered = inl - inl.mean(axis=0)
+    _, axes = np.linalg.eigh(centered.T @ centered)
+    w, u, v = (centered @ axes).T
+    design = np.column_stack([u * u, u * v, v * v, u, v, np.ones_like(u)])
+    coef, *_ = np.linalg.lstsq(design, w, rcond=None)
+    total = float(np.var(w))
+    return float(1 - np.var(w - design @ coef) / total) if total > 0 else 0.0
+
+
 def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices) -> tuple[bool, str]:
     """Whether the planes of ``seg`` are reliable, with a one-line reason.
 
-    Reliable needs at least one plane, the planes flat (those with a thickness ratio above
-    MAX_THICKNESS, see :func:`plane_thickness`, hold less than THICK_SHARE of their points) and a
-    plane silhouette PS >= RELIABLE_PS: the points lie on their
+    Reliable needs at least one plane, the planes flat (curved slabs, planes with a thickness ratio
+    above MAX_THICKNESS, see :func:`plane_thickness`, whose residuals are at least MIN_CURVATURE
+    explained by curvature, see :func:`plane_curvature`, hold less than THICK_SHARE of their
+    points) and a plane silhouette PS >= RELIABLE_PS: the points lie on their
     planes and clear of the other regions. On plane-free clouds (sphere, bunny) the "planes" are
     thick slabs or patches whose points lie near their neighbours' planes.
     """
     if seg.n_planes == 0:
         return False, f'no plane found ({seg.reason})'
-    thickness = plane_thickness(as_points(points), seg)
+    pts = as_points(points)
+    thickness = plane_thickness(pts, seg)
     sizes = np.array([len(p.inliers) for p in seg.planes], dtype=float)
-    thick = thickness > MAX_THICKNESS
-    if sizes[thick].sum() >= THICK_SHARE * sizes.sum():
-        worst = int(np.argmax(np.where(thick, sizes, -1)))
-        return False, f'plane {worst} is a thick slab (thickness ratio {thickness[worst]:.2f} > {MAX_THICKNESS})'
+    curvature = np.array([plane_curvature(pts, p.inliers) if t > MAX_THICKNESS else 0.0
+                          for p, t in zip(seg.planes, thickness)])
+    slab = (thickness > MAX_THICKNESS) & (curvature >= MIN_CURVATURE)
+    if sizes[slab].sum() >= THICK_SHARE * sizes.sum():
+        worst = int(np.argmax(np.where(slab, sizes, -1)))
+        return False, (f'plane {worst} is a curved slab (thickness ratio {thickness[worst]:.2f} > {MAX_THICKNESS}, '
+                       f'{curvature[worst]:.0%} of its residual variance is curvature)')
     if scores.plane_silhouette < RELIABLE_PS:
         return False, (f'{seg.n_planes} plane(s) but PS {scores.plane_silhouette:.2f} < {RELIABLE_PS}: the points '
                        'do not sit clearly on their planes')

@@ -1,0 +1,64 @@
+"""The verdict's calibration table: every labelled and synthetic cloud of quality.py, plane-free clouds
+and the Kinect frames of ../shared/data, auto-tuned with the library defaults (quality.py's
+max_planes/min_inliers for the labelled ones), with the indices the verdict reads and its answer.
+
+Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/verdict.py
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import quality  # noqa: E402
+
+import plane_validation as pv  # noqa: E402
+from plane_validation.core import scenes  # noqa: E402
+from plane_validation.core.scoring import segmentation_quality  # noqa: E402
+from plane_validation.core.verdict import MAX_THICKNESS, plane_curvature, plane_thickness  # noqa: E402
+from plane_validation.formats.files import load_cloud  # noqa: E402
+
+DATA = quality.GT.parent
+KINECT = ('kinect_frame_142255', 'milk_cartoon_all_small_clorox', 'five_people', 'office1',
+          'table_scene_mug_stereo_textured')
+
+
+def row(name: str, kind: str, points: np.ndarray, result, truth: np.ndarray | None) -> str:
+    seg = result.segmentation
+    thickness = plane_thickness(points, seg)
+    curved = [plane_curvature(points, p.inliers) for p, t in zip(seg.planes, thickness) if t > MAX_THICKNESS]
+    f1 = f'{segmentation_quality(seg.labels, truth).f1:.3f}' if truth is not None else '—'
+    x = result.indices
+    return (f'| {name} | {kind} | {f1} | {1000 * result.tolerance:.3g} | {seg.n_planes} | {x.plane_silhouette:.2f} | '
+            f'{x.gs_planes:.2f} | {max(thickness, default=0):.2f} | {max(curved, default=0):.2f} | '
+            f'{"**reliable**" if result.reliable else "not reliable"} | {result.verdict} |')
+
+
+def main() -> None:
+    from plane_validation.core.blas import limit_blas_threads
+    limit_blas_threads()
+    print('| cloud | kind | F1 | t (mm) | planes | PS | GSplanes | max thickness | max curvature of a thick plane | '
+          'verdict | why |')
+    print('|---|---|--:|--:|--:|--:|--:|--:|--:|---|---|')
+    for c in quality.load_clouds():
+        result = pv.tune_tolerance(c.points, seed=0, shape=c.shape, **quality._params(c))
+        print(row(c.name, 'labelled', c.points, result, c.labels), flush=True)
+    free = {'sphere, e = 1 cm': scenes.sphere(5000, 0.01, seed=0).points,
+            'sphere, noise-free': scenes.sphere(20000, 0.0, seed=0).points,
+            'uniform cube': np.random.default_rng(0).uniform(0, 1, (5000, 3))}
+    for name in ('bun_zipper.ply', 'bunny.pcd'):
+        if (DATA / name).exists():
+            free[name] = load_cloud(DATA / name)[0]
+    for name, points in free.items():
+        print(row(name, 'plane-free', points, pv.tune_tolerance(points, seed=0), None), flush=True)
+    for name in KINECT:
+        if (DATA / f'{name}.pcd').exists():
+            points, shape = load_cloud(DATA / f'{name}.pcd')
+            print(row(name, 'Kinect, unlabelled', points, pv.tune_tolerance(points, seed=0, shape=shape), None),
+                  flush=True)
+
+
+if __name__ == '__main__':
+    main()
