@@ -288,8 +288,10 @@ def _box_distance(q: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return np.sqrt((gap ** 2).sum(axis=1))
 
 
-def _min_distance(small: np.ndarray, big: np.ndarray, t_small: cKDTree, t_big: cKDTree) -> float:
-    """Exact min distance between point sets ``small`` and ``big`` (both non-empty).
+def _min_distance(small: np.ndarray, big: np.ndarray, t_small: cKDTree, t_big: cKDTree,
+                  boxes: tuple[tuple[np.ndarray, np.ndarray], ...] | None = None) -> float:
+    """Exact min distance between point sets ``small`` and ``big`` (both non-empty); ``boxes``:
+    their (min, max) corners when known.
 
     A few alternating nearest-neighbour hops from spread-out seeds give an upper bound ``ub``
     achieved by a real pair; then only the points of ``small`` within ``ub`` of the bounding box
@@ -305,7 +307,10 @@ def _min_distance(small: np.ndarray, big: np.ndarray, t_small: cKDTree, t_big: c
         seeds = small[np.unique(i)]
     if ub == 0.0:
         return 0.0
-    near = small[_box_distance(small, big.min(axis=0), big.max(axis=0)) < ub]
+    (s_lo, s_hi), (lo, hi) = boxes or ((small.min(axis=0), small.max(axis=0)), (big.min(axis=0), big.max(axis=0)))
+    if np.linalg.norm(np.maximum(np.maximum(lo - s_hi, s_lo - hi), 0.0)) >= ub:  # boxes ub apart: no closer pair
+        return ub
+    near = small[_box_distance(small, lo, hi) < ub]
     if len(near):
         d, _ = t_big.query(near, k=1, distance_upper_bound=ub)
         ub = min(ub, float(d.min()))
@@ -315,11 +320,14 @@ def _min_distance(small: np.ndarray, big: np.ndarray, t_small: cKDTree, t_big: c
 def _distances(cl: _Clusters) -> np.ndarray:
     k = cl.k
     out = np.zeros((k, k))
-    trees = [cKDTree(cl.members(c)) for c in range(k)] if k > 1 else []
+    members = [cl.members(c) for c in range(k)]
+    trees = [cKDTree(m) for m in members] if k > 1 else []
+    boxes = [(m.min(axis=0), m.max(axis=0)) for m in members]
     for i in range(k):
         for j in range(i + 1, k):
             a, b = (i, j) if cl.sizes[i] <= cl.sizes[j] else (j, i)
-            out[i, j] = out[j, i] = _min_distance(cl.members(a), cl.members(b), trees[a], trees[b])
+            out[i, j] = out[j, i] = _min_distance(members[a], members[b], trees[a], trees[b],
+                                                  (boxes[a], boxes[b]))
     return out
 
 

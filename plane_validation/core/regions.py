@@ -47,7 +47,7 @@ NORMAL_REACH = 3
 class Neighbours:
     """Adjacency of n points. Grid form: ``shape`` (h, w) with point i at flat pixel ``pixel[i]``,
     ``usable`` (h * w,) the pixels that may join a region (valid, at no depth jump); graph form:
-    ``edges`` (e, 2) point pairs, sorted by the first."""
+    ``edges`` (e, 2) point pairs, each pair once with the smaller index first, sorted."""
 
     n: int
     shape: tuple[int, int] | None = None
@@ -210,6 +210,7 @@ def graph_neighbours(points: np.ndarray) -> Neighbours:
             first = np.argmax(across, axis=1)
             has = across[np.arange(len(rows_l)), first]
             edges.append(np.column_stack([rows_l[has], idx[rows_l[has], k + first[has]]]))
-    edges = np.concatenate(edges)
-    return Neighbours(n=n, edges=np.ascontiguousarray(edges[np.lexsort((edges[:, 1], edges[:, 0]))].T).T,
-                      normals=normals)
+    edges = np.sort(np.concatenate(edges), axis=1)  # each joined pair once, smaller index first
+    key = np.unique(edges[:, 0] * n + edges[:, 1])  # sorted by source, then destination
+    edges = np.ascontiguousarray(np.stack([key // n, key % n]))  # (2, e): each row contiguous
+    return Neighbours(n=n, edges=edges.T, normals=normals)
