@@ -497,3 +497,15 @@ def test_sampled_silhouettes_survive_a_float_max_row_and_wide_clouds():
     fast = pi.validity_indices(pts, lab, seed=0)
     near = pi.validity_indices(np.vstack([a.points, b.points + [10.0, 0, 0]]), lab, seed=0)
     assert fast.gs_planes == pytest.approx(near.gs_planes, abs=1e-3)
+
+
+def test_cluster_distances_are_the_same_from_all_pairs_and_from_kd_trees(monkeypatch):
+    from plane_validation.core import indices
+    rng = np.random.default_rng(5)
+    pts = np.vstack([rng.normal(c, 0.3, (250, 3)) for c in rng.uniform(-3, 3, (12, 3))])
+    labels = np.repeat(np.arange(-1, 11), 250)
+    brute = indices.cluster_distances(pts, labels)  # 3000 points, 12 clusters: all pairs
+    monkeypatch.setattr(indices, 'BRUTE_DISTANCES', 0)
+    trees = indices.cluster_distances(pts, labels)
+    assert brute.shape == (12, 12) and np.all(np.diag(brute) == 0) and np.all(brute[~np.eye(12, dtype=bool)] > 0)
+    assert np.array_equal(brute, trees)

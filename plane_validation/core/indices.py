@@ -317,8 +317,16 @@ def _min_distance(small: np.ndarray, big: np.ndarray, t_small: cKDTree, t_big: c
     return ub
 
 
+#: Up to this many points and from this many clusters on, the cluster distances come from all
+#: pairwise distances in row blocks (one pass, instead of two kd-tree searches per cluster pair).
+BRUTE_DISTANCES = 4096
+BRUTE_MIN_CLUSTERS = 8
+
+
 def _distances(cl: _Clusters) -> np.ndarray:
     k = cl.k
+    if cl.n <= BRUTE_DISTANCES and k >= BRUTE_MIN_CLUSTERS:
+        return _brute_distances(cl)
     out = np.zeros((k, k))
     members = [cl.members(c) for c in range(k)]
     trees = [cKDTree(m) for m in members] if k > 1 else []
@@ -328,6 +336,18 @@ def _distances(cl: _Clusters) -> np.ndarray:
             a, b = (i, j) if cl.sizes[i] <= cl.sizes[j] else (j, i)
             out[i, j] = out[j, i] = _min_distance(members[a], members[b], trees[a], trees[b],
                                                   (boxes[a], boxes[b]))
+    return out
+
+
+def _brute_distances(cl: _Clusters) -> np.ndarray:
+    """_distances from every point pair: each block of rows gives its min per cluster (columns),
+    then the rows' minima are reduced per cluster."""
+    out = np.full((cl.k, cl.k), np.inf)
+    for start in range(0, cl.n, 512):
+        block = cdist(cl.points[start:start + 512], cl.points)
+        per_cluster = np.minimum.reduceat(block, cl.starts, axis=1)  # (rows, k)
+        np.minimum.at(out, cl.codes[start:start + 512], per_cluster)
+    np.fill_diagonal(out, 0.0)
     return out
 
 

@@ -434,7 +434,12 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
         if why is not None:
             reason = why if rest.shape[1] < n or n_total < 3 else f'no plane: {why}'
             break
-        if neighbours is not None:
+        if neighbours is not None and neighbours.shape is None:  # the graph of the points left
+            local = neighbours.subgraph(rest_idx)
+
+            def region_of(mask: np.ndarray, normal: np.ndarray, local: Neighbours = local) -> np.ndarray:
+                return local.largest(mask & local.coherent(normal))
+        elif neighbours is not None:
             def region_of(mask: np.ndarray, normal: np.ndarray, rest_idx=rest_idx) -> np.ndarray:
                 full = np.zeros(n, bool)
                 full[rest_idx[mask]] = True

@@ -63,6 +63,16 @@ class Neighbours:
         cos = np.abs(self.normals @ normal)
         return ~(cos < np.cos(np.radians(NORMAL_ANGLE_DEG)))  # NaN (unknown) counts as coherent
 
+    def subgraph(self, keep: np.ndarray) -> Neighbours:
+        """Graph form: the neighbourhood of the points ``keep`` (ascending indices), renumbered
+        0..len(keep)-1. Components of points among them are the same as in the whole graph."""
+        position = np.full(self.n, -1, dtype=np.int64)
+        position[keep] = np.arange(len(keep))
+        src, dst = position[self.edges.T]
+        both = (src >= 0) & (dst >= 0)
+        edges = np.ascontiguousarray(np.stack([src[both], dst[both]]))  # still sorted: keep ascends
+        return Neighbours(n=len(keep), edges=edges.T, normals=None if self.normals is None else self.normals[keep])
+
     def components(self, mask: np.ndarray) -> tuple[np.ndarray, int]:
         """Connected components of the points where ``mask`` (n,) is True: (labels (n,) int, -1
         outside the mask, components 0..c-1; c)."""
