@@ -427,6 +427,7 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
         tolerance = _at(tolerance, rest_idx)
     region = None if neighbours is None else np.full(n, -1, dtype=np.int64)
     region_of = None
+    local = None if neighbours is None or neighbours.shape is not None else neighbours.subgraph(rest_idx)
     found: list[tuple[np.ndarray, float]] = []
     reason = f'reached max_planes={max_planes}'
     while len(found) < max_planes:
@@ -434,9 +435,7 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
         if why is not None:
             reason = why if rest.shape[1] < n or n_total < 3 else f'no plane: {why}'
             break
-        if neighbours is not None and neighbours.shape is None:  # the graph of the points left
-            local = neighbours.subgraph(rest_idx)
-
+        if local is not None:  # the graph of the points left
             def region_of(mask: np.ndarray, normal: np.ndarray, local: Neighbours = local) -> np.ndarray:
                 return local.largest(mask & local.coherent(normal))
         elif neighbours is not None:
@@ -459,6 +458,7 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
         if region is not None:
             region[rest_idx[inliers]] = len(found)
             rest_idx = rest_idx[~inliers]
+            local = None if local is None else local.subgraph(np.flatnonzero(~inliers))
         found.append((normal, offset))
         rest = np.compress(~inliers, rest, axis=1)
         tolerance = _at(tolerance, ~inliers)

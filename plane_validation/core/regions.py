@@ -194,7 +194,7 @@ def graph_neighbours(points: np.ndarray) -> Neighbours:
     if k < 2:
         return Neighbours(n=n, edges=np.empty((0, 2), np.int64))
     tree = cKDTree(points)
-    dist, idx = tree.query(points, k=min(ACROSS_CANDIDATES, n))
+    dist, idx = tree.query(points, k=k)
     missing = idx >= n  # far-out coordinates (a driver's FLT_MAX rows) find no neighbour
     idx = np.where(missing, np.arange(n)[:, None], idx)
     dist = np.where(missing, np.inf, dist)
@@ -210,16 +210,19 @@ def graph_neighbours(points: np.ndarray) -> Neighbours:
         line = values[:, 1] < 0.05 * values[:, 2]  # neighbours along a line: no normal, a ring
         normals[line] = np.nan
         normals[values[:, 0] > 0.1 * values[:, 1]] = np.nan  # noise above the spacing: no normal either
-        if line.any() and idx.shape[1] > k:
+        if line.any() and min(ACROSS_CANDIDATES, n) > k:
             rows_l = np.flatnonzero(line)
             direction = vectors[rows_l, :, 2]
-            offs = points[idx[rows_l, k:]] - points[rows_l, None, :]
+            _, far = tree.query(points[rows_l], k=min(ACROSS_CANDIDATES, n))
+            far = far[:, k:]
+            safe = np.where(far < n, far, rows_l[:, None])  # no neighbour found: the point itself
+            offs = points[safe] - points[rows_l, None, :]
             with np.errstate(invalid='ignore', divide='ignore'):
                 cos = np.abs(np.einsum('nkd,nd->nk', offs, direction)) / np.linalg.norm(offs, axis=-1)
-            across = cos < 0.7
+            across = cos < 0.7  # NaN (the point itself) is not across
             first = np.argmax(across, axis=1)
             has = across[np.arange(len(rows_l)), first]
-            edges.append(np.column_stack([rows_l[has], idx[rows_l[has], k + first[has]]]))
+            edges.append(np.column_stack([rows_l[has], safe[has, first[has]]]))
     edges = np.sort(np.concatenate(edges), axis=1)  # each joined pair once, smaller index first
     key = np.unique(edges[:, 0] * n + edges[:, 1])  # sorted by source, then destination
     edges = np.ascontiguousarray(np.stack([key // n, key % n]))  # (2, e): each row contiguous
