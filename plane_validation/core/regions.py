@@ -33,8 +33,10 @@ JUMP = 4.0
 NEIGHBOURS = 10
 #: ... that lie within this many median k-th-neighbour distances.
 RADIUS = 2.0
-#: Points whose neighbours lie along a line are also joined across it, to the nearest of this many.
+#: Points whose neighbours lie along a line are also joined across it, to the nearest of this many;
+#: those with none off the line (a far lidar ring on the ground) look again among ACROSS_FAR.
 ACROSS_CANDIDATES = 48
+ACROSS_FAR = 512
 #: A point whose local surface normal is farther than this from a candidate plane's normal does not
 #: count towards that plane's region (a plane slanted across the nosings of a staircase keeps only
 #: strips of the treads, not the risers that would join them into one region).
@@ -185,6 +187,21 @@ def _grid_normals(image_points: np.ndarray, valid: np.ndarray) -> np.ndarray:
         return n / np.sqrt(np.einsum('...i,...i->...', n, n))[..., None]
 
 
+def _across(tree: cKDTree, points: np.ndarray, rows: np.ndarray, direction: np.ndarray, skip: int,
+            candidates: int) -> tuple[np.ndarray, np.ndarray]:
+    """For the points ``rows`` whose neighbours lie along ``direction`` (m, 3): whether one of their
+    ``candidates`` nearest (after the first ``skip``) lies off that line, and the nearest such one."""
+    _, near = tree.query(points[rows], k=candidates)
+    near = near[:, skip:]
+    near = np.where(near < len(points), near, rows[:, None])  # no neighbour found: the point itself
+    offs = points[near] - points[rows, None, :]
+    with np.errstate(invalid='ignore', divide='ignore'):
+        cos = np.abs(np.einsum('nkd,nd->nk', offs, direction)) / np.linalg.norm(offs, axis=-1)
+    across = cos < 0.7  # NaN (the point itself) is not across
+    first = np.argmax(across, axis=1)
+    return across[np.arange(len(rows)), first], near[np.arange(len(rows)), first]
+
+
 def graph_neighbours(points: np.ndarray) -> Neighbours:
     """Neighbours of unorganized (n, 3) points: each joined to its NEIGHBOURS nearest within RADIUS
     median NEIGHBOURS-th-neighbour distances and, where those lie along a line (a lidar ring), to
@@ -210,19 +227,13 @@ def graph_neighbours(points: np.ndarray) -> Neighbours:
         line = values[:, 1] < 0.05 * values[:, 2]  # neighbours along a line: no normal, a ring
         normals[line] = np.nan
         normals[values[:, 0] > 0.1 * values[:, 1]] = np.nan  # noise above the spacing: no normal either
-        if line.any() and min(ACROSS_CANDIDATES, n) > k:
-            rows_l = np.flatnonzero(line)
-            direction = vectors[rows_l, :, 2]
-            _, far = tree.query(points[rows_l], k=min(ACROSS_CANDIDATES, n))
-            far = far[:, k:]
-            safe = np.where(far < n, far, rows_l[:, None])  # no neighbour found: the point itself
-            offs = points[safe] - points[rows_l, None, :]
-            with np.errstate(invalid='ignore', divide='ignore'):
-                cos = np.abs(np.einsum('nkd,nd->nk', offs, direction)) / np.linalg.norm(offs, axis=-1)
-            across = cos < 0.7  # NaN (the point itself) is not across
-            first = np.argmax(across, axis=1)
-            has = across[np.arange(len(rows_l)), first]
-            edges.append(np.column_stack([rows_l[has], safe[has, first[has]]]))
+        rows_l = np.flatnonzero(line)
+        for candidates in (ACROSS_CANDIDATES, ACROSS_FAR):
+            if len(rows_l) == 0 or min(candidates, n) <= k:
+                break
+            found, target = _across(tree, points, rows_l, vectors[rows_l, :, 2], k, min(candidates, n))
+            edges.append(np.column_stack([rows_l[found], target[found]]))
+            rows_l = rows_l[~found]
     edges = np.sort(np.concatenate(edges), axis=1)  # each joined pair once, smaller index first
     key = np.unique(edges[:, 0] * n + edges[:, 1])  # sorted by source, then destination
     edges = np.ascontiguousarray(np.stack([key // n, key % n]))  # (2, e): each row contiguous
