@@ -21,7 +21,10 @@ _active = 0
 _restore = None
 
 
+@functools.cache
 def _controller():
+    """The process's thread pools, found once: scanning the loaded libraries costs about as much as
+    a small frame's RANSAC, and the BLAS libraries are loaded by the time the hot code runs."""
     from threadpoolctl import ThreadpoolController
     return ThreadpoolController()
 

@@ -594,7 +594,7 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
     residual = None
     if shape is not None:
         uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]
-        labels, residual = _spread_grid(pts, shape, step, region, neighbours, uncentred, tolerance)
+        labels, residual = _spread_grid(pts, finite, shape, step, region, neighbours, uncentred, tolerance)
     elif len(search_idx) == n_valid:
         own = np.where(region >= 0, region, 0)
         normals = np.array([n for n, _ in found])
@@ -686,13 +686,13 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
     return np.where(region < k, region, -1)
 
 
-def _spread_grid(pts: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray, neighbours: Neighbours,
-                 planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
-    """Labels (N,) of every pixel of the image ``pts`` (N, 3) from the regions of the searched
-    sub-grid: the region of the nearest sub-grid pixel when the pixel is within ``tolerance`` of its
-    plane (``planes`` in the coordinates of ``pts``), else, of the 3 x 3 sub-grid pixels around it,
-    the region whose plane is nearest within ``tolerance``; -1 otherwise. Also the distance (N,) to
-    the chosen plane (inf when none)."""
+def _spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
+                 neighbours: Neighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+    """Labels (N,) of every pixel of the image ``pts`` (N, 3; ``valid`` (N,): its finite rows) from
+    the regions of the searched sub-grid: the region of the nearest sub-grid pixel when the pixel is
+    within ``tolerance`` of its plane (``planes`` in the coordinates of ``pts``), else, of the 3 x 3
+    sub-grid pixels around it, the region whose plane is nearest within ``tolerance``; -1 otherwise.
+    Also the distance (N,) to the chosen plane (inf when none)."""
     h, w = shape
     gh, gw = neighbours.shape
     sub = np.full(gh * gw, -1, dtype=np.int64)
@@ -715,13 +715,15 @@ def _spread_grid(pts: np.ndarray, shape: tuple[int, int], step: int, region: np.
     take = d <= tolerance
     out = np.where(take, lab, -1).astype(np.int32)
     best = np.where(take, d, np.inf)
-    todo = np.flatnonzero(~take & np.isfinite(dist[:k].min(axis=0)))  # valid pixels left
+    todo = np.flatnonzero(~take & valid)  # valid pixels left
+    todo_tolerance = _at(tolerance, todo)
+    r, c = np.divmod(todo, w)
+    r, c = near_r[r], near_c[c]
     offsets = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
     for dr, dc in offsets:  # the rest: the eight sub-grid pixels around the nearest one
-        r, c = np.divmod(todo, w)
-        lab = sub[np.clip(near_r[r] + dr, 0, gh - 1), np.clip(near_c[c] + dc, 0, gw - 1)]
+        lab = sub[np.clip(r + dr, 0, gh - 1), np.clip(c + dc, 0, gw - 1)]
         d = flat[np.where(lab >= 0, lab, k) * n + todo]
-        better = (d <= _at(tolerance, todo)) & (d < best[todo])
+        better = (d <= todo_tolerance) & (d < best[todo])
         out[todo[better]], best[todo[better]] = lab[better], d[better]
     return out, best
 
