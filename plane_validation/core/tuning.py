@@ -31,6 +31,8 @@ CRITERIA = {'gs_planes': True, 'gs': True, 'silhouette': True, 'dunn': True, 'da
             'davies_bouldin_classic': False, 'plane_silhouette': True}
 #: Criteria computed from cluster separations (exact on all points unless sampled_separation).
 SEPARATION_CRITERIA = ('dunn', 'davies_bouldin', 'davies_bouldin_classic')
+#: tune_tolerance computes the chosen planes' Dunn and Davies-Bouldin exactly up to this many points.
+EXACT_SEPARATION_POINTS = 50_000
 #: The criterion tune_tolerance uses unless told (chosen on benchmarks/quality.py; the paper's is gs_planes).
 DEFAULT_CRITERION = 'plane_silhouette'
 
@@ -230,7 +232,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                    max_iterations: int = 1000, sample_size: int | None = 2000, tune_points: int | None = TUNE_POINTS,
                    t_min: float | None = None, t_max: float | None = None, count: int = TUNE_CANDIDATES,
                    seed: int | None = None, progress: Callable[[int, int], None] | None = None,
-                   ransac_points: int | None = RANSAC_POINTS, sampled_separation: bool = False,
+                   ransac_points: int | None = RANSAC_POINTS, sampled_separation: bool | None = None,
                    shape: tuple[int, int] | None = None, connectivity: bool = True,
                    noise_model: str = 'constant', noise_reference: float = NOISE_REFERENCE) -> TuningResult:
     """Sweep the RANSAC tolerance and pick the best by ``criterion``.
@@ -245,9 +247,11 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     max(3 SE, 0.01) of the best (indistinguishable given the silhouette sampling), the smallest
     ``t`` wins; see :func:`_choose` for the single-plane case.
     progress: called as ``progress(done, total)`` after each candidate (e.g. to drive a progress bar).
-    ransac_points, sampled_separation: passed to :func:`detect_planes` and :func:`validity_indices`
-    (the candidates' Dunn and Davies-Bouldin are computed on the index sample unless one of them is
-    the criterion: they cannot change the choice; the chosen segmentation's follow ``sampled_separation``);
+    ransac_points, sampled_separation: passed to :func:`detect_planes` and :func:`validity_indices`;
+    sampled_separation None (the default) means exact up to EXACT_SEPARATION_POINTS valid points and
+    on the index sample beyond (exact minimum distances between large planes far apart cost seconds).
+    The candidates' Dunn and Davies-Bouldin are computed on the index sample unless one of them is
+    the criterion (they cannot change the choice);
     shape, connectivity: to :func:`detect_planes` (an organized cloud is swept on a regular
     sub-grid of about ``tune_points`` pixels, which keeps it organized).
     noise_model, noise_reference: to :func:`detect_planes`; with ``depth_quadratic`` the candidates
@@ -291,6 +295,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     if connectivity:  # the same neighbourhood graph for every candidate (None when it would be sampled)
         sweep_opts['graph'] = search_graph(sweep_pts, sweep_shape, ransac_points)
 
+    if sampled_separation is None:
+        sampled_separation = len(finite) > EXACT_SEPARATION_POINTS
     sweep_sampled = sampled_separation or criterion not in SEPARATION_CRITERIA
     rows: list[TuningRow] = []
     previous: tuple[np.ndarray, ValidityIndices] | None = None
