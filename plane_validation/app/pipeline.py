@@ -244,7 +244,8 @@ class FramePipeline:
                                     ransac_points=cfg.ransac_points or None, shape=shape,
                                     connectivity=cfg.connectivity, noise_model=cfg.noise_model,
                                     noise_reference=cfg.noise_reference)
-                scores = validity_indices(work, seg.labels, sample_size=cfg.index_sample_size, seed=seed,
+                scored = (valid, seg.labels[finite]) if shape is not None else (work, seg.labels)  # same values
+                scores = validity_indices(*scored, sample_size=cfg.index_sample_size, seed=seed,
                                           sampled_separation=not cfg.exact_indices)
                 reliable, verdict = judge(work, seg, scores)
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
