@@ -25,15 +25,12 @@ from plane_validation.formats.files import load_cloud  # noqa: E402
 DATA = Path(__file__).resolve().parents[2] / 'shared' / 'data'
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('clouds', nargs='*', default=[str(p) for p in sorted(DATA.glob('*.pcd'))])
-    parser.add_argument('--repeat', type=int, default=5)
-    args = parser.parse_args()
-    print('| frame | auto-tune, organized (s) | auto-tune, unorganized (s) | Open3D 5 planes (s) | '
-          'organized / Open3D | unorganized / Open3D | tuned t (mm), planes |')
-    print('|---|--:|--:|--:|--:|--:|---|')
-    for path in args.clouds:
+def table(paths: list[str], repeat: int) -> list[str]:
+    """The Markdown rows (header first) for the 640x480 frames among ``paths``."""
+    rows = ['| frame | auto-tune, organized (s) | auto-tune, unorganized (s) | Open3D 5 planes (s) | '
+            'organized / Open3D | unorganized / Open3D | tuned t (mm), planes |', '|---|--:|--:|--:|--:|--:|---|']
+    print(*rows, sep='\n', flush=True)
+    for path in paths:
         points, shape = load_cloud(path)
         if shape != (480, 640):
             continue
@@ -41,7 +38,7 @@ def main() -> None:
         cloud = open3d_ref.to_cloud(valid) if open3d_ref.available() else None
         times: dict[str, list[float]] = {'organized': [], 'unorganized': [], 'open3d': []}
         result = None
-        for i in range(args.repeat):
+        for i in range(repeat):
             start = time.perf_counter()
             result = pv.tune_tolerance(points, seed=i, shape=shape)
             times['organized'].append(time.perf_counter() - start)
@@ -53,9 +50,20 @@ def main() -> None:
                 open3d_ref.sequential_planes(cloud, len(valid), 0.01, planes=5, seed=i)
                 times['open3d'].append(time.perf_counter() - start)
         med = {k: statistics.median(v) if v else float('nan') for k, v in times.items()}
-        print(f'| {Path(path).name} | {med["organized"]:.2f} | {med["unorganized"]:.2f} | {med["open3d"]:.3f} | '
-              f'{med["organized"] / med["open3d"]:.1f} | {med["unorganized"] / med["open3d"]:.1f} | '
-              f'{1000 * result.tolerance:.3g}, {result.segmentation.n_planes} |', flush=True)
+        rows.append(f'| {Path(path).name} | {med["organized"]:.2f} | {med["unorganized"]:.2f} | '
+                    f'{med["open3d"]:.3f} | {med["organized"] / med["open3d"]:.1f} | '
+                    f'{med["unorganized"] / med["open3d"]:.1f} | {1000 * result.tolerance:.3g}, '
+                    f'{result.segmentation.n_planes} |')
+        print(rows[-1], flush=True)
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('clouds', nargs='*', default=[str(p) for p in sorted(DATA.glob('*.pcd'))])
+    parser.add_argument('--repeat', type=int, default=5)
+    args = parser.parse_args()
+    table(args.clouds, args.repeat)
 
 
 if __name__ == '__main__':

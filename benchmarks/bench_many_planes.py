@@ -28,31 +28,40 @@ def warehouse(n_points: int = 250_000, noise: float = 0.003, seed: int = 0) -> s
     return scenes._compose('warehouse', rects, n_points, noise, 0.02, 1.0, seed)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--repeat', type=int, default=3)
-    args = parser.parse_args()
+def measure(repeat: int) -> list[str]:
+    """Time tune_tolerance on the warehouse ``repeat`` times and compare with the best fixed t; the
+    lines printed."""
     scene = warehouse()
     params = dict(max_planes=60, min_inliers=0.002)
-    print(f'{scene.name}: {len(scene.points)} points, {len(scene.planes)} planes, noise ±{1000 * scene.noise:.0f} mm')
+    lines = [f'{scene.name}: {len(scene.points)} points, {len(scene.planes)} planes, '
+             f'noise ±{1000 * scene.noise:.0f} mm']
     times, result = [], None
-    for i in range(args.repeat):
+    for i in range(repeat):
         start = time.perf_counter()
         result = pv.tune_tolerance(scene.points, seed=i, **params)
         times.append(time.perf_counter() - start)
     q = segmentation_quality(result.segmentation.labels, scene.labels)
-    print(f'tune_tolerance: median {statistics.median(times):.2f} s (min {min(times):.2f}, max {max(times):.2f}) over '
-          f'{args.repeat} runs; t = {1000 * result.tolerance:.3g} mm, {q.correct}/{q.true_planes} correct, '
-          f'F1 {q.f1:.3f}, {"reliable" if result.reliable else "not reliable"} '
-          f'(PS {result.indices.plane_silhouette:.2f})')
+    lines.append(f'tune_tolerance: median {statistics.median(times):.2f} s (min {min(times):.2f}, '
+                 f'max {max(times):.2f}) over {repeat} runs; t = {1000 * result.tolerance:.3g} mm, '
+                 f'{q.correct}/{q.true_planes} correct, '
+                 f'F1 {q.f1:.3f}, {"reliable" if result.reliable else "not reliable"} '
+                 f'(PS {result.indices.plane_silhouette:.2f})')
     best = None
     for t in np.geomspace(0.001, 0.05, 10):
         seg = pv.detect_planes(scene.points, t, seed=0, **params)
         qt = segmentation_quality(seg.labels, scene.labels)
         if best is None or (qt.correct, qt.f1) > (best[1].correct, best[1].f1):
             best = (t, qt)
-    print(f'best fixed t over 10 from 1 to 50 mm: {1000 * best[0]:.3g} mm, {best[1].correct}/{best[1].true_planes} '
-          f'correct, F1 {best[1].f1:.3f}; auto / best F1 = {q.f1 / best[1].f1:.3f}')
+    lines.append(f'best fixed t over 10 from 1 to 50 mm: {1000 * best[0]:.3g} mm, {best[1].correct}/'
+                 f'{best[1].true_planes} correct, F1 {best[1].f1:.3f}; auto / best F1 = {q.f1 / best[1].f1:.3f}')
+    print(*lines, sep='\n', flush=True)
+    return lines
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--repeat', type=int, default=3)
+    measure(parser.parse_args().repeat)
 
 
 if __name__ == '__main__':

@@ -1,7 +1,7 @@
 """The benchmark suite of plane_validation: speed, memory and quality, side by side with Open3D.
 
     .venv/bin/pip install -r benchmarks/requirements.txt     # Open3D and pyinstrument (optional)
-    .venv/bin/python benchmarks/suite.py [--quick] [--skip-node] [FILE ...]
+    .venv/bin/python benchmarks/suite.py [--quick] [--skip-node] [--skip-quality] [--skip-tuning] [FILE ...]
 
 FILE: extra frames (.pcd, .ply, .npy, text, or a bag's first cloud), e.g. the Kinect frames in
 ../shared/data. Synthetic 640 x 480 depth-camera frames with ground truth are always included
@@ -32,8 +32,12 @@ from pvbench.node_e2e import domain_environment  # noqa: E402
 domain_environment()
 os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(ROOT / 'config' / 'fastdds_large_clouds.xml'))
 
+import bench_autotune  # noqa: E402
+import bench_many_planes  # noqa: E402
 import numpy as np  # noqa: E402
+import quality as gt_quality  # noqa: E402  (benchmarks/quality.py, not pvbench.quality)
 import scipy  # noqa: E402
+import verdict  # noqa: E402
 from pvbench import open3d_ref, quality  # noqa: E402
 from pvbench.frames import Frame, load_frames, resampled, synthetic_frames  # noqa: E402
 from pvbench.node_e2e import NodeBench, NodeRun, cloud_message  # noqa: E402
@@ -461,6 +465,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--skip-scaling', action='store_true', help='skip figure (6)')
     parser.add_argument('--skip-sweep', action='store_true', help='skip figure (2)')
     parser.add_argument('--rss-frames', type=int, default=None, help='frames of figure (5) (1000; --quick 200)')
+    parser.add_argument('--skip-quality', action='store_true',
+                        help='skip (7) quality against ground truth and (9) the verdict calibration')
+    parser.add_argument('--skip-tuning', action='store_true', help='skip (8) auto-tuning speed against Open3D')
     args = parser.parse_args(argv)
     limit = getattr(pv_pipeline, 'limit_blas_threads', None)
     if limit:
@@ -513,6 +520,18 @@ def main(argv: list[str] | None = None) -> int:
     if not args.skip_node:
         run_node(fig, args.quick, rss_frames)
         print_node(fig.rates, fig.retune, fig.memory, ref)
+
+    if not args.skip_quality:
+        print('\n## (7) segmentation quality against ground truth — benchmarks/quality.py\n')
+        gt_quality.run(gt_quality.load_clouds(), 6 if args.quick else 14, with_auto=not args.quick)
+    if not args.skip_tuning:
+        print('\n## (8) auto-tuning speed — benchmarks/bench_autotune.py, bench_many_planes.py\n')
+        bench_autotune.table([str(p) for p in sorted(bench_autotune.DATA.glob('*.pcd'))], 1 if args.quick else 3)
+        print()
+        bench_many_planes.measure(1 if args.quick else 3)
+    if not args.skip_quality and not args.quick:
+        print('\n## (9) verdict calibration — benchmarks/verdict.py\n')
+        verdict.table()
 
     print_summary(fig)
     print('\n## Targets (issue 7)\n')

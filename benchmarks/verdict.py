@@ -39,6 +39,11 @@ def row(name: str, kind: str, points: np.ndarray, result, truth: np.ndarray | No
 def main() -> None:
     from plane_validation.core.blas import limit_blas_threads
     limit_blas_threads()
+    table()
+
+
+def table() -> None:
+    """Print the calibration table."""
     print('| cloud | kind | F1 | t (mm) | planes | PS | GSplanes | max thickness | max curvature of a thick plane | '
           'verdict | why |')
     print('|---|---|--:|--:|--:|--:|--:|--:|--:|---|---|')

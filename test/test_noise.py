@@ -80,3 +80,27 @@ def test_the_pipeline_reports_the_model_and_its_coefficient():
     assert 'noise_coefficient' not in dict(FramePipeline(PipelineConfig(auto_tune=False)).process(scene.points).values)
     with pytest.raises(ValueError, match='noise_model must be one of'):
         PipelineConfig(noise_model='linear').validate()
+
+
+def test_a_far_out_row_is_no_inlier_and_the_frame_still_works():
+    rng = np.random.default_rng(0)
+    plane = np.column_stack([rng.uniform(-1, 1, 3000), rng.uniform(-1, 1, 3000), 2 + rng.normal(0, 0.002, 3000)])
+    with_sentinel = np.vstack([plane, [[3.4e38] * 3]])  # a driver's FLT_MAX row
+    with np.errstate(over='ignore'):
+        seg = pv.detect_planes(with_sentinel, 0.01, seed=0, connectivity=False, noise_model='depth_quadratic')
+    assert seg.n_planes == 1 and seg.labels[-1] == -1 and np.count_nonzero(seg.labels == 0) > 2900
+    for auto in (False, True):
+        cfg = PipelineConfig(noise_model='depth_quadratic', auto_tune=auto, connectivity=False, tolerance=0.01)
+        result = FramePipeline(cfg).process(with_sentinel, 1)
+        assert result.n_planes == 1, result.message
+        assert float(dict(result.values)['noise_coefficient']) == pytest.approx(0.0005, rel=0.5)
+    far = np.vstack([plane[:2000], [[60.0, 80.0, 40.0]]])  # 38 m off the plane, 108 m away
+    assert pv.detect_planes(far, 0.01, seed=0, noise_model='depth_quadratic', ransac_points=500).labels[-1] == -1
+    assert tolerance_scale(far[-1:], 'depth_quadratic')[0] == 100.0  # capped
+
+
+def test_a_tuning_range_the_model_cannot_honour_is_an_error():
+    rng = np.random.default_rng(0)
+    wall = np.column_stack([rng.uniform(-2, 2, 3000), rng.uniform(-1, 1, 3000), 6 + rng.normal(0, 0.01, 3000)])
+    with pytest.raises(ValueError, match='t_min'):
+        pv.tune_tolerance(wall, count=6, noise_model='depth_quadratic', t_min=0.01, seed=0)

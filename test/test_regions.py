@@ -117,3 +117,16 @@ def test_a_prebuilt_search_graph_gives_the_same_planes_as_building_it_per_call()
     assert search_graph(unorganized, ransac_points=1000) is None  # it would be a random sample: not fixed
     with pytest.raises(ValueError, match='built for'):
         pv.detect_planes(pts[:-1], 0.01, graph=search_graph(pts, (120, 160)))
+
+
+def test_a_search_graph_of_another_layout_is_refused():
+    from plane_validation.core.ransac import search_graph
+    pts, _ = _wall_with_box()
+    graph = search_graph(pts, (120, 160))
+    for kwargs in (dict(), dict(shape=(160, 120)), dict(shape=(120, 160), ransac_points=1000)):
+        with pytest.raises(ValueError, match='built for'):
+            pv.detect_planes(pts, 0.01, graph=graph, **kwargs)
+    other = pts.copy()
+    other[:50] = np.nan  # same size, other holes
+    with pytest.raises(ValueError, match='other valid'):
+        pv.detect_planes(other, 0.01, shape=(120, 160), graph=graph)

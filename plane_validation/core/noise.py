@@ -12,11 +12,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ['NOISE_MODELS', 'NOISE_REFERENCE', 'check_noise_model', 'tolerance_scale', 'noise_coefficient']
+__all__ = ['NOISE_MODELS', 'NOISE_REFERENCE', 'MAX_SCALE', 'check_noise_model', 'tolerance_scale',
+           'noise_coefficient']
 
 NOISE_MODELS = ('constant', 'depth_quadratic')
 #: Range (meters) up to which depth_quadratic keeps t0; beyond it the tolerance grows as range^2.
 NOISE_REFERENCE = 1.0
+#: ... up to this factor (10 reference ranges): a depth camera sees no farther, and a far-out row (a
+#: driver's FLT_MAX) must not become an inlier of every plane.
+MAX_SCALE = 100.0
 
 
 def check_noise_model(noise_model: str, reference: float) -> None:
@@ -30,12 +34,14 @@ def check_noise_model(noise_model: str, reference: float) -> None:
 def tolerance_scale(points: np.ndarray, noise_model: str = 'constant',
                     reference: float = NOISE_REFERENCE) -> np.ndarray | None:
     """(N,) factor the tolerance is multiplied by at each point of ``points`` (N, 3) meters, or None
-    for ``constant`` (a factor of 1 everywhere). NaN rows give NaN."""
+    for ``constant`` (a factor of 1 everywhere): max(1, (r / reference)^2), at most MAX_SCALE. NaN
+    rows give NaN."""
     check_noise_model(noise_model, reference)
     if noise_model == 'constant':
         return None
-    squared = np.einsum('ij,ij->i', points, points) / reference ** 2
-    return np.maximum(squared, 1.0, where=~np.isnan(squared), out=squared)
+    with np.errstate(over='ignore'):
+        squared = np.einsum('ij,ij->i', points, points) / reference ** 2
+    return np.clip(squared, 1.0, MAX_SCALE, where=~np.isnan(squared), out=squared)
 
 
 def noise_coefficient(points: np.ndarray, labels: np.ndarray, coefficients: np.ndarray) -> float:
@@ -47,7 +53,7 @@ def noise_coefficient(points: np.ndarray, labels: np.ndarray, coefficients: np.n
     least-squares fit of that over every plane point (grazing points, n . u ~ 0, weigh little).
     NaN without plane points.
     """
-    own = labels >= 0
+    own = (labels >= 0) & (labels < len(coefficients)) & np.isfinite(points).all(axis=1)
     if not own.any():
         return float('nan')
     pts = points[own]
@@ -56,5 +62,7 @@ def noise_coefficient(points: np.ndarray, labels: np.ndarray, coefficients: np.n
     ranges = np.sqrt(np.einsum('ij,ij->i', pts, pts))
     along = np.abs(np.einsum('ij,ij->i', pts, plane[:, :3])) / np.maximum(ranges, 1e-12)  # |n . u|
     model = ranges ** 2 * along
-    denominator = float(np.sum(model ** 2))
-    return float(np.sqrt(np.sum(residual ** 2) / denominator)) if denominator > 0 else float('nan')
+    with np.errstate(over='ignore', invalid='ignore'):
+        denominator = float(np.sum(model ** 2))
+        value = float(np.sqrt(np.sum(residual ** 2) / denominator)) if denominator > 0 else float('nan')
+    return value if np.isfinite(value) else float('nan')

@@ -374,8 +374,10 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     point_tolerance = tolerance if scale is None else tolerance * scale  # (N,) with a noise model
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     if connectivity:
-        if graph is not None and graph.n_points != len(pts):
-            raise ValueError(f'graph was built for {graph.n_points} points, not {len(pts)}')
+        if graph is not None and (graph.n_points, graph.shape, graph.ransac_points) != \
+                (len(pts), shape, ransac_points):
+            raise ValueError(f'graph was built for {graph.n_points} points, shape {graph.shape} and ransac_points '
+                             f'{graph.ransac_points}, not {len(pts)}, {shape} and {ransac_points}')
         seg = _detect_regions(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
                               ransac_points, shape, graph)
         return dataclasses.replace(seg, tolerance=tolerance, **model)
@@ -487,6 +489,7 @@ def _label_all(valid: np.ndarray, search: np.ndarray, valid_idx: np.ndarray, cen
     tolerance (``tolerances``: for ``valid`` and for ``search``); fills ``labels`` (N,) at ``valid_idx``
     and returns the planes in the caller's coordinates."""
     if not found:
+        labels[valid_idx] = -1  # also after every plane was dropped
         return ()
     own, _ = _nearest(search, found, tolerances[1])
     # Each plane's first fit saw the edge bands of the planes found after it: refit on the points
@@ -534,6 +537,9 @@ class SearchGraph:
     step: int
     center: np.ndarray
     neighbours: Neighbours
+    shape: tuple[int, int] | None = None
+    ransac_points: int | None = RANSAC_POINTS
+    n_valid: int = 0
 
 
 def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
@@ -564,7 +570,8 @@ def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
                 return None
             search_idx = valid_idx[np.sort(rng.choice(n_valid, int(ransac_points), replace=False))]
         neighbours = graph_neighbours(pts[search_idx] - center)
-    return SearchGraph(n_points=len(pts), search_idx=search_idx, step=step, center=center, neighbours=neighbours)
+    return SearchGraph(n_points=len(pts), search_idx=search_idx, step=step, center=center, neighbours=neighbours,
+                       shape=None if shape is None else (h, w), ransac_points=ransac_points, n_valid=n_valid)
 
 
 def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
@@ -578,6 +585,8 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
     min_count = resolve_min_inliers(min_inliers, n_valid)
     if graph is None:
         graph = search_graph(pts, shape, ransac_points, rng)
+    elif graph.n_valid != n_valid or not finite[graph.search_idx].all():
+        raise ValueError('graph was built for a cloud with other valid (finite) rows')
     search_idx, step, center, neighbours = graph.search_idx, graph.step, graph.center, graph.neighbours
     search = np.ascontiguousarray((pts[search_idx] - center).T)
     search_min = max(3, int(np.ceil(min_count * len(search_idx) / max(n_valid, 1))))

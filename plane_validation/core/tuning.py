@@ -270,8 +270,12 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     scale = tolerance_scale(finite, noise_model, noise_reference)
     if scale is not None and tolerances is None:  # the derived bounds are tolerances at typical range
         factor = float(np.median(scale))
-        cand = np.geomspace(cand[0] / factor if t_min is None else cand[0],
-                            cand[-1] / factor if t_max is None else cand[-1], len(cand))
+        lo = cand[0] / factor if t_min is None else cand[0]
+        hi = cand[-1] / factor if t_max is None else cand[-1]
+        if hi <= lo:
+            raise ValueError(f'the smallest candidate {lo:g} m (t_min, the node\'s tune_min) is not below the '
+                             f'largest t0 derived from this cloud, {hi:.3g} m: lower it or give t_max too')
+        cand = np.geomspace(lo, hi, len(cand))
     cand = np.unique(cand)
     if cand.size == 0 or not np.all(np.isfinite(cand)) or cand[0] <= 0:
         raise ValueError('tolerances must be finite and > 0')

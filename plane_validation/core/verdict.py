@@ -28,6 +28,8 @@ MAX_THICKNESS = 0.2
 #: a slab cut out of a curved surface (sphere 0.98, the bunny's slabs 0.30-0.96), not a narrow strip
 #: or a noisy plane (far stair risers: at most 0.18 on the depth-camera stairs; benchmarks/README.md).
 MIN_CURVATURE = 0.25
+#: ... measured on at least this many points (a quadric has 6 parameters).
+CURVATURE_POINTS = 30
 #: ... unless the thicker planes hold less than this share of the planes' points (a few stray
 #: points found as a small plane do not make a good segmentation unreliable).
 THICK_SHARE = 0.1
@@ -65,8 +67,8 @@ def plane_curvature(points: np.ndarray, plane_rows: np.ndarray) -> float:
     in-plane coordinates explains: near 0 when they are noise, near 1 on a patch of a curved surface.
     plane_rows: the plane's inlier rows of ``points`` (N, 3)."""
     inl = _inlier_sample(points, plane_rows)
-    if len(inl) < 6:
-        return 0.0
+    if len(inl) < CURVATURE_POINTS:
+        return 1.0  # too few to tell noise from curvature: a thick one counts against the verdict
     centered = inl - inl.mean(axis=0)
     _, axes = np.linalg.eigh(centered.T @ centered)
     w, u, v = (centered @ axes).T
