@@ -37,6 +37,8 @@ RADIUS = 2.0
 #: those with none off the line (a far lidar ring on the ground) look again among ACROSS_FAR.
 ACROSS_CANDIDATES = 48
 ACROSS_FAR = 512
+#: Neighbour indices held at once by that search (rows x candidates).
+ACROSS_BLOCK = 1 << 20
 #: A point whose local surface normal is farther than this from a candidate plane's normal does not
 #: count towards that plane's region (a plane slanted across the nosings of a staircase keeps only
 #: strips of the treads, not the risers that would join them into one region).
@@ -191,6 +193,11 @@ def _across(tree: cKDTree, points: np.ndarray, rows: np.ndarray, direction: np.n
             candidates: int) -> tuple[np.ndarray, np.ndarray]:
     """For the points ``rows`` whose neighbours lie along ``direction`` (m, 3): whether one of their
     ``candidates`` nearest (after the first ``skip``) lies off that line, and the nearest such one."""
+    if len(rows) * candidates > ACROSS_BLOCK:  # bounded memory: a block of rows at a time
+        step = max(1, ACROSS_BLOCK // candidates)
+        parts = [_across(tree, points, rows[i:i + step], direction[i:i + step], skip, candidates)
+                 for i in range(0, len(rows), step)]
+        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
     _, near = tree.query(points[rows], k=candidates)
     near = near[:, skip:]
     near = np.where(near < len(points), near, rows[:, None])  # no neighbour found: the point itself
