@@ -321,3 +321,20 @@ def test_file_commands_follow_the_parameter_table(corner_npy, tmp_path, capsys):
     # an output that cannot be written is refused before the work, and nothing is written
     assert main(['detect', str(corner_npy), '--out', str(tmp_path / 'labels.foo')]) == 2
     assert "cannot write '.foo' files" in capsys.readouterr().err and list(tmp_path.iterdir()) == []
+
+
+def test_the_depth_noise_model_is_named_and_its_coefficient_reported(tmp_path, capsys):
+    scene = scenes.depth_camera('table', width=160, height=120, seed=1)  # sigma(z) = 0.0015 z^2
+    cloud = tmp_path / 'table.npy'
+    np.save(cloud, scene.points)
+    args = ['--noise-model', 'depth_quadratic', '--noise-reference', '1.5']
+    assert main(['detect', str(cloud), '--tolerance', '0.003', *args]) == 0
+    text = capsys.readouterr().out
+    assert 'noise model depth_quadratic (t is t0 up to 1.5 m' in text and 'fitted sigma(r) = 0.001' in text
+    for command in (['sweep', str(cloud)], ['planes', str(cloud), '--tolerance', '0.003']):
+        assert main([*command, *args, '--json']) == 0
+        doc = json.loads(capsys.readouterr().out)
+        assert doc['noise_model'] == 'depth_quadratic' and doc['noise_reference'] == 1.5
+        assert doc['noise_coefficient'] == pytest.approx(scene.noise, rel=0.3)
+    assert main(['detect', str(cloud), '--tolerance', '0.003', '--json']) == 0
+    assert json.loads(capsys.readouterr().out)['noise_model'] == 'constant'

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..core.indices import ValidityIndices
 from ..core.noise import noise_coefficient
-from ..core.ransac import Segmentation
+from ..core.ransac import Segmentation, as_points
 from ..core.tuning import CRITERIA, PlaneCountResult, TuningResult
 from .detection import Detection
 
@@ -92,6 +92,15 @@ def detection_document(source: str, det: Detection, *, max_planes: int, min_inli
     })
 
 
+def noise_line(seg: Segmentation, points: np.ndarray) -> str:
+    """The noise model in words: 'constant' or 'depth_quadratic (t is t0 up to 1 m; sigma(r) = 0.0015 r^2)'."""
+    if seg.noise_model == 'constant':
+        return 'noise model constant'
+    c = noise_coefficient(as_points(points), seg.labels, seg.coefficients)
+    return (f'noise model {seg.noise_model} (t is t0 up to {seg.noise_reference:g} m, growing as range^2 beyond; '
+            f'fitted sigma(r) = {c:.3g} r^2)')
+
+
 def _noise_model(seg: Segmentation, points: np.ndarray) -> dict:
     """noise_model, and with depth_quadratic its reference range and fitted sigma(r) = c r^2 coefficient c."""
     if seg.noise_model == 'constant':
@@ -130,7 +139,7 @@ def plane_count_document(source: str, points: np.ndarray, result: PlaneCountResu
         'selected': result.n_planes,
         'best_by': {name: result.best_by(name) for name in CRITERIA} if result.counts else {},
         'counts': [{'k': k, **indices_json(x)} for k, x in zip(result.counts, result.indices)],
-        'planes': planes_json(seg),
+        'planes': planes_json(seg), **_noise_model(seg, points),
     })
 
 

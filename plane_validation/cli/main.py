@@ -88,7 +88,7 @@ def _emit_json(document: dict) -> None:
 
 def cmd_detect(args: argparse.Namespace) -> int:
     from ..app.detection import detect
-    from ..app.report import detection_document, format_indices
+    from ..app.report import detection_document, format_indices, noise_line
 
     if args.out:
         check_output(args.out)  # before the work, not after
@@ -97,7 +97,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
     with progress_bar('tuning t', quiet=args.json) as progress:
         det = detect(points, tolerance, seed=_seed(args.seed), max_planes=args.max_planes,
                      min_inliers=min_inliers_value(args.min_inliers), progress=progress, shape=shape,
-                     noise_model=args.noise_model)
+                     noise_model=args.noise_model, noise_reference=args.noise_reference)
     written = []
     if args.out:
         from ..formats.files import save_points
@@ -121,6 +121,8 @@ def cmd_detect(args: argparse.Namespace) -> int:
     print(format_planes(seg))
     print('indices:')
     print(format_indices(det.indices))
+    if seg.noise_model != 'constant':
+        print(noise_line(seg, points))
     print(f'noise estimate e = {det.noise_estimate:.3g} m; {"reliable" if det.reliable else "NOT reliable"}: '
           f'{det.verdict}')
     print(f'took {1000 * det.seconds:.0f} ms')
@@ -130,14 +132,15 @@ def cmd_detect(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from ..app.report import sweep_document, write_sweep_csv
+    from ..app.report import noise_line, sweep_document, write_sweep_csv
     from ..core.tuning import tune_tolerance
 
     points, shape = load_cloud(args.cloud)
     with progress_bar('sweeping t', quiet=args.json) as progress:
         result = tune_tolerance(points, tolerances=args.tolerances, criterion=args.criterion, seed=_seed(args.seed),
                                 max_planes=args.max_planes, min_inliers=min_inliers_value(args.min_inliers),
-                                progress=progress, shape=shape, noise_model=args.noise_model)
+                                progress=progress, shape=shape, noise_model=args.noise_model,
+                                noise_reference=args.noise_reference)
     written = []
     if args.csv:
         written.append(write_sweep_csv(args.csv, result))
@@ -148,6 +151,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         _emit_json(sweep_document(args.cloud, points, result, seed=args.seed))
         return 0
     print(result.table())
+    if result.noise_model != 'constant':
+        print(noise_line(result.segmentation, points))
     print(f'chosen t = {result.tolerance:.4g} m by {result.criterion}; {result.segmentation.n_planes} planes; '
           f'noise estimate {result.noise_estimate:.3g} m; {"reliable" if result.reliable else "NOT reliable"}: '
           f'{result.verdict}; {result.seconds:.1f} s')
@@ -167,10 +172,11 @@ def cmd_planes(args: argparse.Namespace) -> int:
         with progress_bar('tuning t', quiet=args.json) as progress:
             tolerance = tune_tolerance(points, seed=_seed(args.seed), max_planes=args.max_planes,
                                        min_inliers=min_inliers, progress=progress, shape=shape,
-                                       noise_model=args.noise_model).tolerance
+                                       noise_model=args.noise_model, noise_reference=args.noise_reference).tolerance
         source = 'auto'
     result = select_plane_count(points, tolerance, args.max_planes, min_inliers=min_inliers, seed=_seed(args.seed),
-                                shape=shape, noise_model=args.noise_model)
+                                shape=shape, noise_model=args.noise_model,
+                                noise_reference=args.noise_reference)
     written = []
     if args.plot:
         from ..app.plot import plot_plane_count
@@ -340,7 +346,8 @@ def _add_detection_options(parser: argparse.ArgumentParser) -> None:
     """--seed, --max-planes, --min-inliers, --noise-model for the file commands (type, range and default
     from the table)."""
     from ..app.config import PARAMETERS
-    for name, metavar in (('seed', 'S'), ('max_planes', 'K'), ('min_inliers', 'M'), ('noise_model', 'MODEL')):
+    for name, metavar in (('seed', 'S'), ('max_planes', 'K'), ('min_inliers', 'M'), ('noise_model', 'MODEL'),
+                          ('noise_reference', 'R')):
         spec = PARAMETERS[name]
         parser.add_argument('--' + name.replace('_', '-'), dest=name, type=_table_type(name), default=spec.default,
                             metavar=metavar, help=f'{spec.description} (default {spec.default})')
@@ -366,7 +373,7 @@ def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:
 def build_parser() -> argparse.ArgumentParser:
     from ..app.config import PARAMETERS
     from ..core.scenes import SCENES
-    from ..core.tuning import CRITERIA, TUNE_CANDIDATES
+    from ..core.tuning import CRITERIA, DEFAULT_CRITERION, TUNE_CANDIDATES
 
     parser = argparse.ArgumentParser(
         prog='plane-validation', description='Self-validating plane detection: sequential RANSAC planes scored by '
@@ -395,12 +402,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     detect = sub.add_parser('detect', help='detect planes in a cloud: planes, tolerance, every index, verdict',
                             description='Detect planes in one cloud and score them. Without --tolerance the '
-                            'tolerance is auto-tuned (GSplanes sweep).')
+                            f'tolerance is auto-tuned (a sweep chosen by {DEFAULT_CRITERION}).')
     detect.add_argument('cloud', metavar='CLOUD', help=CLOUD_HELP)
     which = detect.add_mutually_exclusive_group()
     which.add_argument('--tolerance', type=_positive_float, metavar='T', help='fixed RANSAC tolerance t in meters')
     which.add_argument('--auto', '--tune', dest='auto', action='store_true',
-                       help='auto-tune t by the GSplanes sweep (the default without --tolerance)')
+                       help=f'auto-tune t by a sweep chosen by {DEFAULT_CRITERION} (the default without --tolerance)')
     _add_detection_options(detect)
     detect.add_argument('--json', action='store_true', help='print one JSON document (schema in README) and nothing '
                         'else on stdout')
