@@ -380,7 +380,8 @@ def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 1
                        max_iterations: int = 1000, sample_size: int | None = 2000,
                        seed: int | None = None, shape: tuple[int, int] | None = None,
                        connectivity: bool = True, noise_model: str = 'constant',
-                       noise_reference: float = NOISE_REFERENCE) -> PlaneCountResult:
+                       noise_reference: float = NOISE_REFERENCE,
+                       sampled_separation: bool | None = None) -> PlaneCountResult:
     """Score the first k planes (the rest unassigned) for k = 1..K and pick k (paper Fig. 2).
 
     One sequential RANSAC run with ``max_planes`` finds up to K planes at ``tolerance`` meters;
@@ -388,7 +389,8 @@ def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 1
     silhouette and davies_bouldin k is the index's optimum (``best_by``); for gs_planes it is the
     largest k whose planes all keep a mean silhouette S_j >= MIN_PLANE_SILHOUETTE (see
     :func:`_well_assigned_count` for why not the plain argmax). shape, connectivity, noise_model,
-    noise_reference: to :func:`detect_planes`.
+    noise_reference: to :func:`detect_planes`; sampled_separation: to :func:`validity_indices`, None
+    meaning exact up to EXACT_SEPARATION_POINTS valid points (as in :func:`tune_tolerance`).
     """
     _check_criterion(criterion)
     rng = np.random.default_rng(seed)
@@ -398,11 +400,13 @@ def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 1
                         shape=shape, connectivity=connectivity, noise_model=noise_model,
                         noise_reference=noise_reference)
     pts = as_points(points)
+    sampled = sampled_separation if sampled_separation is not None else seg.n_valid > EXACT_SEPARATION_POINTS
     counts, scores = [], []
     for k in range(1, seg.n_planes + 1):
         labels = np.where(seg.labels < k, seg.labels, -1)
         counts.append(k)
-        scores.append(validity_indices(pts, labels, sample_size=sample_size, seed=int(index_seed)))
+        scores.append(validity_indices(pts, labels, sample_size=sample_size, seed=int(index_seed),
+                                       sampled_separation=sampled))
     if not counts:
         n_planes = 0
     elif criterion == 'gs_planes':
