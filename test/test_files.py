@@ -235,3 +235,16 @@ def test_point_file_outputs_are_complete_or_absent(tmp_path):
         save_points(tmp_path / 'bad.ply', POINTS, np.zeros(3))  # wrong label count: nothing written
     save_points(tmp_path / 'ok.pcd', POINTS, np.zeros(len(POINTS)))
     assert [p.name for p in tmp_path.iterdir()] == ['ok.pcd']  # no temporary leftovers
+
+
+def test_an_organized_cloud_is_written_and_read_back_organized(tmp_path):
+    from plane_validation.formats.files import load_cloud
+    scene = scenes.depth_camera('table', width=80, height=60, seed=1)  # NaN holes included
+    path = save_points(tmp_path / 'organized.pcd', scene.points, scene.labels, shape=scene.shape)
+    points, shape = load_cloud(path)
+    assert shape == (60, 80)
+    np.testing.assert_array_equal(np.isnan(points), np.isnan(scene.points))
+    np.testing.assert_allclose(points, scene.points.astype(np.float32), equal_nan=True)
+    assert load_cloud(save_points(tmp_path / 'flat.pcd', scene.points))[1] is None
+    with pytest.raises(ValueError, match='does not match'):
+        save_points(tmp_path / 'bad.pcd', scene.points, shape=(10, 10))

@@ -101,7 +101,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
     written = []
     if args.out:
         from ..formats.files import save_points
-        written.append(save_points(args.out, points, det.segmentation.labels))
+        written.append(save_points(args.out, points, det.segmentation.labels, shape=shape))
     if args.png:
         from ..app.plot import plot_planes
         valid = np.isfinite(points).all(axis=1)

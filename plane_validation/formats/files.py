@@ -91,7 +91,8 @@ def _pcd_shape(source: str | Path, n_points: int) -> tuple[int, int] | None:
     return (h, w) if h > 1 and h * w == n_points else None
 
 
-def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None = None) -> Path:
+def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None = None, *,
+                shape: tuple[int, int] | None = None) -> Path:
     """Write (N, 3) points and optional (N,) integer labels (-1 unassigned) to ``path``.
 
     The format follows the extension: .ply (float32 x y z, int32 vertex property ``plane_id``),
@@ -99,19 +100,23 @@ def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None 
     label as 4th column), .xyz/.txt/.csv (text columns), or a bag: a path without extension
     (rosbag2 directory) or ending in .mcap/.db3 (one PointCloud2 on /points, x y z float32 and
     int32 ``label``).
-    All rows are written, NaN rows included, so that row i stays point i.
+    All rows are written, NaN rows included, so that row i stays point i. ``shape`` (H, W): the
+    rows are an H x W image; a .pcd is then written organized (HEIGHT H), the other formats ignore it.
     """
     path = Path(path)
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     lab = None if labels is None else np.asarray(labels).astype(np.int32).reshape(-1)
     if lab is not None and len(lab) != len(pts):
         raise ValueError(f'{len(lab)} labels for {len(pts)} points')
+    if shape is not None and int(shape[0]) * int(shape[1]) != len(pts):
+        raise ValueError(f'shape {tuple(shape)} does not match {len(pts)} points')
     check_output(path)
     suffix = path.suffix.lower()
     from .bags import BAG_SUFFIXES, write_bag_points
     if suffix in BAG_SUFFIXES or suffix == '':
         return write_bag_points(path, pts, lab)
-    writers = {'.ply': _write_ply, '.pcd': _write_pcd, '.npy': _write_npy}
+    writers = {'.ply': _write_ply, '.npy': _write_npy,
+               '.pcd': lambda p, x, y: _write_pcd(p, x, y, shape)}
     with atomic_output(path) as tmp:
         writers.get(suffix, _write_text)(tmp, pts, lab)
     return path
@@ -283,8 +288,10 @@ def _read_pcd(path: Path) -> np.ndarray:
 # -- writers -------------------------------------------------------------------------------------
 
 
-def _write_pcd(path: Path, points: np.ndarray, labels: np.ndarray | None) -> None:
-    """Binary PCD v0.7, float32 x y z (+ int32 label), unorganized (HEIGHT 1)."""
+def _write_pcd(path: Path, points: np.ndarray, labels: np.ndarray | None,
+               shape: tuple[int, int] | None = None) -> None:
+    """Binary PCD v0.7, float32 x y z (+ int32 label); organized (HEIGHT H, WIDTH W) for a ``shape``."""
+    height, width = (int(shape[0]), int(shape[1])) if shape is not None else (1, len(points))
     names = ['x', 'y', 'z'] + ([] if labels is None else ['label'])
     dtype = np.dtype([(name, '<f4') for name in 'xyz'] + ([] if labels is None else [('label', '<i4')]))
     records = np.empty(len(points), dtype)
@@ -298,7 +305,7 @@ def _write_pcd(path: Path, points: np.ndarray, labels: np.ndarray | None) -> Non
               f'SIZE {" ".join("4" for _ in names)}\n'
               f'TYPE {" ".join("I" if n == "label" else "F" for n in names)}\n'
               f'COUNT {" ".join("1" for _ in names)}\n'
-              f'WIDTH {len(points)}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\n'
+              f'WIDTH {width}\nHEIGHT {height}\nVIEWPOINT 0 0 0 1 0 0 0\n'
               f'POINTS {len(points)}\nDATA binary\n')
     path.write_bytes(header.encode('ascii') + records.tobytes())
 
