@@ -215,7 +215,9 @@ def test_a_narrow_noisy_strip_is_a_plane_and_a_curved_slab_is_not():
 def test_dunn_and_db_of_the_chosen_planes_are_exact_on_small_clouds_and_sampled_on_large_ones():
     small = scenes.boxes(5000, noise=0.005, outlier_fraction=0.0, seed=1).points
     large = scenes.boxes(60000, noise=0.005, outlier_fraction=0.0, seed=1).points
-    assert pv.tune_tolerance(small, seed=0).indices.separation_size == len(small)
-    assert pv.tune_tolerance(large, seed=0).indices.separation_size == 2000  # the index sample
+    small_result, large_result = pv.tune_tolerance(small, seed=0), pv.tune_tolerance(large, seed=0)
+    assert small_result.indices.separation_size == len(small) and small_result.sweep_points == len(small)
+    assert large_result.indices.separation_size == 2000  # the index sample
+    assert large_result.sweep_points == 20000  # TUNE_POINTS
     exact = pv.tune_tolerance(large, seed=0, sampled_separation=False)
     assert exact.indices.separation_size == len(large)

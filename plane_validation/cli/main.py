@@ -151,6 +151,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         _emit_json(sweep_document(args.cloud, points, result, seed=args.seed))
         return 0
     print(result.table())
+    if result.sweep_points < result.segmentation.n_valid:
+        print(f'(candidates scored on a {result.sweep_points}-point subsample; the chosen t is then applied to all '
+              f'{result.segmentation.n_valid} valid points)')
     if result.noise_model != 'constant':
         print(noise_line(result.segmentation, points))
     print(f'chosen t = {result.tolerance:.4g} m by {result.criterion}; {result.segmentation.n_planes} planes; '

@@ -86,6 +86,7 @@ class TuningResult:
     seconds: float
     noise_model: str = 'constant'
     noise_coefficient: float = float('nan')
+    sweep_points: int = 0  # valid points the candidates were scored on (the subsample)
 
     @property
     def tolerances(self) -> np.ndarray:
@@ -334,7 +335,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                         indices=final_scores, noise_estimate=noise_from_segmentation(final, pts), reliable=reliable,
                         verdict=verdict, seconds=time.perf_counter() - start, noise_model=noise_model,
                         noise_coefficient=noise_coefficient(pts, final.labels, final.coefficients)
-                        if noise_model == 'depth_quadratic' else float('nan'))
+                        if noise_model == 'depth_quadratic' else float('nan'), sweep_points=n_sweep)
 
 
 def _scaled_min_inliers(min_inliers: int | float, n_sample: int, n_valid: int) -> int | float:
