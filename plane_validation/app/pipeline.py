@@ -244,14 +244,15 @@ class FramePipeline:
                                     ransac_points=cfg.ransac_points or None, shape=shape,
                                     connectivity=cfg.connectivity, noise_model=cfg.noise_model,
                                     noise_reference=cfg.noise_reference)
-                scored = (valid, seg.labels[finite]) if shape is not None else (work, seg.labels)  # same values
+                labels = seg.labels[inverse] if inverse is not None else seg.labels[finite] if shape else seg.labels
+                # an organized frame's indices from its valid rows: the same values, no second NaN filter
+                scored = (valid, labels) if shape is not None else (work, seg.labels)
                 scores = validity_indices(*scored, sample_size=cfg.index_sample_size, seed=seed,
                                           sampled_separation=not cfg.exact_indices)
                 reliable, verdict = judge(work, seg, scores)
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
             return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
                            (tolerance, source), n_input=n_input, n_valid=len(valid))
-        labels = seg.labels[inverse] if inverse is not None else seg.labels[finite] if shape else seg.labels
         level, message = (OK, verdict) if reliable else (WARN, f'no reliable planes: {verdict}')
         if tune_problem:
             used = source.split(' (')[0]

@@ -58,9 +58,10 @@ def noise_coefficient(points: np.ndarray, labels: np.ndarray, coefficients: np.n
         return float('nan')
     pts = points[own]
     plane = np.asarray(coefficients, float)[labels[own]]
-    residual = np.einsum('ij,ij->i', pts, plane[:, :3]) + plane[:, 3]
+    projection = np.einsum('ij,ij->i', pts, plane[:, :3])
+    residual = projection + plane[:, 3]
     ranges = np.sqrt(np.einsum('ij,ij->i', pts, pts))
-    along = np.abs(np.einsum('ij,ij->i', pts, plane[:, :3])) / np.maximum(ranges, 1e-12)  # |n . u|
+    along = np.abs(projection) / np.maximum(ranges, 1e-12)  # |n . u|
     model = ranges ** 2 * along
     with np.errstate(over='ignore', invalid='ignore'):
         denominator = float(np.sum(model ** 2))

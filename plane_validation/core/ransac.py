@@ -374,10 +374,6 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     point_tolerance = tolerance if scale is None else tolerance * scale  # (N,) with a noise model
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     if connectivity:
-        if graph is not None and (graph.n_points, graph.shape, graph.ransac_points) != \
-                (len(pts), shape, ransac_points):
-            raise ValueError(f'graph was built for {graph.n_points} points, shape {graph.shape} and ransac_points '
-                             f'{graph.ransac_points}, not {len(pts)}, {shape} and {ransac_points}')
         seg = _detect_regions(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
                               ransac_points, shape, graph)
         return dataclasses.replace(seg, tolerance=tolerance, **model)
@@ -537,9 +533,9 @@ class SearchGraph:
     step: int
     center: np.ndarray
     neighbours: Neighbours
-    shape: tuple[int, int] | None = None
-    ransac_points: int | None = RANSAC_POINTS
-    n_valid: int = 0
+    shape: tuple[int, int] | None
+    ransac_points: int | None
+    n_valid: int
 
 
 def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
@@ -549,12 +545,18 @@ def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
     ``ransac_points`` valid points is searched on a random sample drawn from ``rng``; without
     ``rng`` such a cloud has no fixed graph and None is returned."""
     pts = as_points(points)
-    finite = finite_rows(pts)
+    return _search_graph(pts, finite_rows(pts), None if shape is None else check_shape(shape, len(pts)),
+                         ransac_points, rng)
+
+
+def _search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | None, ransac_points: int | None,
+                  rng: np.random.Generator | None) -> SearchGraph | None:
+    """:func:`search_graph` of checked points ``pts`` with their finite rows ``finite`` (N,)."""
     valid_idx = np.flatnonzero(finite)
     n_valid = len(valid_idx)
     center = np.median(pts[valid_idx[::max(1, n_valid // 1024)]], axis=0) if n_valid else np.zeros(3)
     if shape is not None:
-        h, w = check_shape(shape, len(pts))
+        h, w = shape
         step = 1 if ransac_points is None or n_valid <= ransac_points else \
             int(np.ceil(np.sqrt(n_valid / ransac_points)))
         grid = pts.reshape(h, w, 3)[step // 2::step, step // 2::step]
@@ -571,7 +573,7 @@ def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
             search_idx = valid_idx[np.sort(rng.choice(n_valid, int(ransac_points), replace=False))]
         neighbours = graph_neighbours(pts[search_idx] - center)
     return SearchGraph(n_points=len(pts), search_idx=search_idx, step=step, center=center, neighbours=neighbours,
-                       shape=None if shape is None else (h, w), ransac_points=ransac_points, n_valid=n_valid)
+                       shape=shape, ransac_points=ransac_points, n_valid=n_valid)
 
 
 def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
@@ -584,7 +586,10 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
     n_valid = len(valid_idx)
     min_count = resolve_min_inliers(min_inliers, n_valid)
     if graph is None:
-        graph = search_graph(pts, shape, ransac_points, rng)
+        graph = _search_graph(pts, finite, shape, ransac_points, rng)
+    elif (graph.n_points, graph.shape, graph.ransac_points) != (len(pts), shape, ransac_points):
+        raise ValueError(f'graph was built for {graph.n_points} points, shape {graph.shape} and ransac_points '
+                         f'{graph.ransac_points}, not {len(pts)}, {shape} and {ransac_points}')
     elif graph.n_valid != n_valid or not finite[graph.search_idx].all():
         raise ValueError('graph was built for a cloud with other valid (finite) rows')
     search_idx, step, center, neighbours = graph.search_idx, graph.step, graph.center, graph.neighbours

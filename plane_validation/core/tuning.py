@@ -300,8 +300,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     if connectivity:  # the same neighbourhood graph for every candidate (None when it would be sampled)
         sweep_opts['graph'] = search_graph(sweep_pts, sweep_shape, ransac_points)
 
-    if sampled_separation is None:
-        sampled_separation = len(finite) > EXACT_SEPARATION_POINTS
+    sampled_separation = _sampled_separation(sampled_separation, len(finite))
     sweep_sampled = sampled_separation or criterion not in SEPARATION_CRITERIA
     rows: list[TuningRow] = []
     previous: tuple[np.ndarray, ValidityIndices] | None = None
@@ -336,6 +335,11 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                         verdict=verdict, seconds=time.perf_counter() - start, noise_model=noise_model,
                         noise_coefficient=noise_coefficient(pts, final.labels, final.coefficients)
                         if noise_model == 'depth_quadratic' else float('nan'), sweep_points=n_sweep)
+
+
+def _sampled_separation(sampled_separation: bool | None, n_valid: int) -> bool:
+    """The sampled_separation argument, None resolved: on the index sample beyond EXACT_SEPARATION_POINTS."""
+    return n_valid > EXACT_SEPARATION_POINTS if sampled_separation is None else sampled_separation
 
 
 def _scaled_min_inliers(min_inliers: int | float, n_sample: int, n_valid: int) -> int | float:
@@ -401,7 +405,7 @@ def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 1
                         shape=shape, connectivity=connectivity, noise_model=noise_model,
                         noise_reference=noise_reference)
     pts = as_points(points)
-    sampled = sampled_separation if sampled_separation is not None else seg.n_valid > EXACT_SEPARATION_POINTS
+    sampled = _sampled_separation(sampled_separation, seg.n_valid)
     counts, scores = [], []
     for k in range(1, seg.n_planes + 1):
         labels = np.where(seg.labels < k, seg.labels, -1)
