@@ -753,48 +753,83 @@ COMPETE_ROUNDS = 6
 def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance,
              neighbours: Neighbours) -> np.ndarray:
     """Settle the borders between regions: each searched point (3, m) takes, of its own region and
-    its neighbours' regions, the one whose plane is nearest within ``tolerance`` (so a strip that an
-    earlier plane took along an edge goes back to the surface it lies on, and unassigned points
-    next to a region join it when they fit its plane); repeated COMPETE_ROUNDS times."""
+    its neighbours' regions (8 image neighbours, or graph neighbours), the one whose plane is nearest
+    within ``tolerance`` (so a strip that an earlier plane took along an edge goes back to the
+    surface it lies on, and unassigned points next to a region join it when they fit its plane);
+    repeated COMPETE_ROUNDS times. Only points next to another region can change, and after the
+    first round only the neighbours of points that changed: only they are looked at."""
     k, m = len(found), search.shape[1]
     dist = np.empty((k + 1, m))
     dist[:k] = _distances(search, np.array([n for n, _ in found]), np.array([d for _, d in found]))
     dist[k] = np.inf
     dist[dist > tolerance] = np.inf  # only planes within t can be taken
     flat = dist.reshape(-1)
-    columns = np.arange(m)
-    if neighbours.shape is not None:  # one offer per point and direction: 8 image directions
-        gh, gw = neighbours.shape
-        node = np.pad(neighbours.node.reshape(gh, gw), 1, constant_values=-1)
-        groups = []
-        for dr in (-1, 0, 1):
-            for dc in (-1, 0, 1):
-                if dr or dc:
-                    src = node[1 + dr:gh + 1 + dr, 1 + dc:gw + 1 + dc]
-                    dst = node[1:-1, 1:-1]
-                    both = (src >= 0) & (dst >= 0)
-                    groups.append((src[both], dst[both]))
-    else:  # graph edges both ways; a destination may get several offers in a group
-        e = neighbours.edges
-        groups = [(e[:, 0], e[:, 1]), (e[:, 1], e[:, 0])]
     region = np.where(region >= 0, region, k)
+    best = flat[region * m + np.arange(m)]  # row k (no region) is inf
+    around = _around(neighbours)
+    dst, src = around(_bordering(neighbours, region))
     for _ in range(COMPETE_ROUNDS):
-        best = flat[region * m + columns]  # row k (no region) is inf
-        label = region.copy()
-        for src, dst in groups:
-            cand = region[src]
-            d = flat[cand * m + dst]
-            if neighbours.shape is None:  # several offers per destination: keep each one's nearest
-                nearest = np.full(m, np.inf)
-                np.minimum.at(nearest, dst, d)
-                keep = d == nearest[dst]
-                cand, d, dst = cand[keep], d[keep], dst[keep]
-            better = d < best[dst]
-            label[dst[better]], best[dst[better]] = cand[better], d[better]
-        if np.array_equal(label, region):
+        cand = region[src]
+        d = flat[cand * m + dst]
+        better = d < best[dst]
+        if not better.any():
             break
-        region = label
+        dst, cand, d = dst[better], cand[better], d[better]
+        order = np.lexsort((d, dst))  # per point its nearest offer
+        first = order[np.r_[True, dst[order[1:]] != dst[order[:-1]]]]
+        changed = dst[first]
+        region[changed], best[changed] = cand[first], d[first]  # the offers above read the old labels
+        src, dst = around(changed)  # their neighbours, offered the new labels
     return np.where(region < k, region, -1)
+
+
+#: The 8 image neighbours (row, column offsets).
+_EIGHT = np.array([(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc])
+
+
+def _around(neighbours: Neighbours) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """A function of points ``nodes`` (c,) giving every (node, neighbour) pair as two arrays: the 8
+    image neighbours on a grid (whatever their depth), graph neighbours otherwise."""
+    if neighbours.shape is not None:
+        gh, gw = neighbours.shape
+
+        def on_grid(nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            r, c = np.divmod(neighbours.pixel[nodes], gw)
+            r, c = r[:, None] + _EIGHT[:, 0], c[:, None] + _EIGHT[:, 1]
+            inside = (r >= 0) & (r < gh) & (c >= 0) & (c < gw)
+            near = np.where(inside, neighbours.node[np.where(inside, r * gw + c, 0)], -1)
+            ok = near >= 0
+            return np.broadcast_to(nodes[:, None], near.shape)[ok], near[ok]
+        return on_grid
+    indptr, indices = neighbours.adjacency if neighbours.adjacency is not None else \
+        (np.zeros(neighbours.n + 1, np.int64), np.empty(0, np.int64))
+
+    def on_graph(nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        degree = indptr[nodes + 1] - indptr[nodes]
+        start = np.repeat(indptr[nodes] - np.cumsum(degree) + degree, degree)
+        return np.repeat(nodes, degree), indices[start + np.arange(len(start))]
+    return on_graph
+
+
+def _bordering(neighbours: Neighbours, region: np.ndarray) -> np.ndarray:
+    """The points (ascending) with a neighbour (as in :func:`_around`) in another region than theirs."""
+    if neighbours.shape is None:
+        src, dst = neighbours.edges.T
+        differ = region[src] != region[dst]
+        out = np.zeros(neighbours.n, bool)
+        out[src[differ]] = out[dst[differ]] = True
+        return np.flatnonzero(out)
+    gh, gw = neighbours.shape
+    image = np.full(gh * gw, -1, dtype=np.int64)  # -1: no point
+    image[neighbours.pixel] = region
+    pad = np.pad(image.reshape(gh, gw), 1, constant_values=-1)
+    centre = pad[1:-1, 1:-1]
+    out = np.zeros((gh, gw), bool)
+    for dr, dc in _EIGHT:
+        other = pad[1 + dr:gh + 1 + dr, 1 + dc:gw + 1 + dc]
+        out |= (other != centre) & (other >= 0)
+    out &= centre >= 0
+    return neighbours.node[np.flatnonzero(out)]
 
 
 def _spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
