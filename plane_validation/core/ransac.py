@@ -730,8 +730,7 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
             continue
         joint = _distances(cols, normal[None, :], np.array([offset]))[0]
         on_i = region[members] == i
-        own = np.einsum('ij,ji->i', np.where(on_i[:, None], found[i][0], found[j][0]), cols) + \
-            np.where(on_i, found[i][1], found[j][1])
+        own = np.where(on_i, found[i][0] @ cols + found[i][1], found[j][0] @ cols + found[j][1])
         if np.count_nonzero(joint <= _at(tolerance, members)) >= MERGE_KEEP * cols.shape[1] and \
                 np.mean(joint ** 2) <= MERGE_SPREAD ** 2 * np.mean(own ** 2):
             region[region == j] = i
@@ -841,11 +840,11 @@ def _spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], ste
     Also the distance (N,) to the chosen plane (inf when none)."""
     h, w = shape
     gh, gw = neighbours.shape
-    sub = np.full(gh * gw, -1, dtype=np.int64)
-    sub[neighbours.pixel] = region
-    sub = sub.reshape(gh, gw)
     k, n = len(planes), len(pts)
-    dist = np.empty((k + 1, n))  # row k (label -1): no region; NaN rows compare False
+    sub = np.full(gh * gw, k, dtype=np.int64)  # k: no region
+    sub[neighbours.pixel] = np.where(region >= 0, region, k)
+    sub = sub.reshape(gh, gw)
+    dist = np.empty((k + 1, n))  # row k: no region; NaN rows compare False
     np.matmul(np.array([p[0] for p in planes]), pts.T, out=dist[:k])
     dist[:k] += np.array([p[1] for p in planes])[:, None]
     np.abs(dist[:k], out=dist[:k])
@@ -854,21 +853,19 @@ def _spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], ste
     near_r = np.clip(np.round((np.arange(h) - step // 2) / step).astype(np.int64), 0, gh - 1)
     near_c = np.clip(np.round((np.arange(w) - step // 2) / step).astype(np.int64), 0, gw - 1)
     # the nearest sub-grid pixel first, as whole images: most pixels take its region
-    lab = sub[near_r[:, None], near_c[None, :]].reshape(-1)
-    lab = np.where(lab >= 0, lab, k)
-    columns = np.arange(n)
-    d = flat[lab * n + columns]
+    lab = sub.take(near_r, axis=0).take(near_c, axis=1).reshape(-1)
+    d = flat[lab * n + np.arange(n)]
     take = d <= tolerance
     out = np.where(take, lab, -1).astype(np.int32)
     best = np.where(take, d, np.inf)
     todo = np.flatnonzero(~take & valid)  # valid pixels left
     todo_tolerance = _at(tolerance, todo)
     r, c = np.divmod(todo, w)
-    r, c = near_r[r], near_c[c]
-    offsets = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
-    for dr, dc in offsets:  # the rest: the eight sub-grid pixels around the nearest one
-        lab = sub[np.clip(r + dr, 0, gh - 1), np.clip(c + dc, 0, gw - 1)]
-        d = flat[np.where(lab >= 0, lab, k) * n + todo]
+    around = np.pad(sub, 1, constant_values=k).reshape(-1)  # off the image: no region
+    centre = (near_r[r] + 1) * (gw + 2) + near_c[c] + 1
+    for dr, dc in _EIGHT:  # the rest: the eight sub-grid pixels around the nearest one
+        lab = around[centre + dr * (gw + 2) + dc]
+        d = flat[lab * n + todo]
         better = (d <= todo_tolerance) & (d < best[todo])
         out[todo[better]], best[todo[better]] = lab[better], d[better]
     return out, best
