@@ -1,4 +1,5 @@
 """The per-frame pipeline shared by node and replay, without ROS: robustness and tuning set-up."""
+import dataclasses
 import threading
 
 import numpy as np
@@ -165,3 +166,18 @@ def test_a_failed_tune_detects_with_the_last_tuned_tolerance():
     assert dict(again.values)['tolerance_source'] == 'last tuned (tuning failed)'
     fresh = FramePipeline(PipelineConfig(seed=1, tune_min=5.0)).process(points, 3)  # nothing tuned yet
     assert fresh.level == WARN and fresh.tolerance == PipelineConfig().tolerance and fresh.n_planes == 3
+
+
+def test_frames_with_a_tuned_t_carry_the_sweeps_seed_agreement_into_their_verdict():
+    """A sweep whose planes other RANSAC seeds do not find again makes the tuned frames WARN."""
+    pipe = FramePipeline(PipelineConfig(auto_tune=True, seed=0))
+    cloud = corner()
+    first = pipe.process(cloud, 10**9)
+    values = dict(first.diagnostic.values)
+    assert first.tolerance_source.startswith('tuned') and float(values['seed_agreement']) >= 0.9
+    assert first.diagnostic.level == OK, first.diagnostic.message
+    # the same frame, as if its sweep had found other planes under other seeds
+    pipe.last_tuning = dataclasses.replace(pipe.last_tuning, seed_agreement=0.5)
+    again = pipe.process(cloud, 2 * 10**9)
+    assert again.diagnostic.level == WARN and 'seeds' in again.diagnostic.message
+    assert float(dict(again.diagnostic.values)['seed_agreement']) == 0.5

@@ -5,7 +5,7 @@ import pytest
 import plane_validation as pv
 from plane_validation import scenes
 from plane_validation.core.tuning import CRITERIA, default_tolerances
-from plane_validation.core.verdict import RELIABLE_PS, judge
+from plane_validation.core.verdict import MIN_SEED_AGREEMENT, RELIABLE_PS, judge, seed_agreement
 
 
 @pytest.fixture(scope='module')
@@ -69,6 +69,23 @@ def test_plane_free_cloud_is_not_reliable(scene):
     # with the paper's method and index the indices stay low, as the paper reports for the bunny
     paper = pv.tune_tolerance(scene.points, seed=0, criterion='gs_planes', connectivity=False)
     assert not paper.reliable and paper.indices.gs < 0.15
+
+
+def test_other_seeds_find_the_same_planes_but_other_patches_of_a_sphere():
+    """Stability under reseeding: the verdict needs other RANSAC seeds to find the same planes."""
+    planes = pv.tune_tolerance(scenes.cube(6000, 2.5, seed=3).points, seed=0)
+    assert planes.reliable and planes.seed_agreement >= MIN_SEED_AGREEMENT, planes.verdict
+    sphere = pv.tune_tolerance(scenes.sphere(5000, seed=1).points, seed=0)
+    assert sphere.seed_agreement < MIN_SEED_AGREEMENT - 0.2  # a curved surface is cut differently each time
+    # the same flat planes, were they not reproducible, are not reliable, and the verdict says why
+    pts = scenes.cube(6000, 2.5, seed=3).points
+    reliable, verdict = judge(pts, planes.segmentation, planes.indices, agreement=MIN_SEED_AGREEMENT - 0.1)
+    assert not reliable and 'seeds' in verdict, verdict
+    assert judge(pts, planes.segmentation, planes.indices, agreement=1.0)[0]
+    labels = planes.segmentation.labels
+    relabelled = np.where(labels >= 0, labels.max() - labels, -1)  # the same planes found in another order
+    assert seed_agreement(labels, [labels, relabelled]) == 1.0
+    assert seed_agreement(labels, [np.full_like(labels, -1)]) == 0.0
 
 
 def test_table_has_every_index_per_tolerance():

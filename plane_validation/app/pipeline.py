@@ -231,6 +231,9 @@ class FramePipeline:
         if tune_problem is None and self.tune_error is not None:
             tune_problem = f'cannot tune: {self.tune_error}'  # the last sweep (maybe in the background) failed
         tolerance, source = self.current_tolerance(tuning_failed=tune_problem is not None)
+        with self._lock:  # the sweep behind a tuned t: were its planes stable under other seeds?
+            sweep = self.last_tuning if source.startswith('tuned') else None
+        agreement = None if sweep is None else sweep.seed_agreement
         try:
             with np.errstate(over='ignore', invalid='ignore'):
                 if shape is not None:  # the organized rows, NaN holes and all
@@ -249,7 +252,7 @@ class FramePipeline:
                 scored = (valid, labels) if shape is not None else (work, seg.labels)
                 scores = validity_indices(*scored, sample_size=cfg.index_sample_size, seed=seed,
                                           sampled_separation=not cfg.exact_indices)
-                reliable, verdict = judge(work, seg, scores)
+                reliable, verdict = judge(work, seg, scores, agreement)
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
             return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
                            (tolerance, source), n_input=n_input, n_valid=len(valid))
@@ -260,6 +263,8 @@ class FramePipeline:
         counts = np.bincount(labels[labels >= 0], minlength=seg.n_planes)
         values = _values(cfg, tolerance, source, n_input, len(valid), int(np.sum(labels < 0)), seg, counts, scores,
                          noise_from_segmentation(seg, work), work)
+        if agreement is not None:
+            values += (('seed_agreement', fmt(agreement)),)
         seconds = time.perf_counter() - start
         values += (('processing_ms', f'{1000 * seconds:.1f}'),)
         return FrameResult(points=valid, labels=labels, segmentation=seg, indices=scores, tolerance=tolerance,

@@ -80,7 +80,8 @@ def detection_document(source: str, det: Detection, *, max_planes: int, min_inli
     tuning = None
     if det.tuning is not None:
         tuning = {'criterion': det.tuning.criterion, 'candidates': len(det.tuning.rows),
-                  't_min': det.tuning.rows[0].tolerance, 't_max': det.tuning.rows[-1].tolerance}
+                  't_min': det.tuning.rows[0].tolerance, 't_max': det.tuning.rows[-1].tolerance,
+                  'seed_agreement': det.tuning.seed_agreement}
     return jsonable({
         'file': source, **_counts(det.points, seg),
         'tolerance': det.tolerance, 'tolerance_source': det.tolerance_source, 'seed': det.seed,
@@ -124,8 +125,8 @@ def sweep_document(source: str, points: np.ndarray, result: TuningResult, *, see
         'tolerance': result.tolerance, 'chosen': result.best,
         'sweep': [_sweep_row(r, i == result.best) for i, r in enumerate(result.rows)],
         'planes': planes_json(seg), 'indices': indices_json(result.indices),
-        'reliable': result.reliable, 'verdict': result.verdict, 'noise_estimate': result.noise_estimate,
-        **_noise_model(seg, points), 'seconds': result.seconds,
+        'reliable': result.reliable, 'verdict': result.verdict, 'seed_agreement': result.seed_agreement,
+        'noise_estimate': result.noise_estimate, **_noise_model(seg, points), 'seconds': result.seconds,
     })
 
 

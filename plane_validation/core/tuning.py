@@ -17,7 +17,14 @@ from .blas import single_blas_thread
 from .indices import ValidityIndices, validity_indices
 from .noise import NOISE_REFERENCE, noise_coefficient, tolerance_scale
 from .ransac import RANSAC_POINTS, Segmentation, as_points, check_shape, detect_planes, finite_rows, search_graph
-from .verdict import RELIABLE_GS_PLANES, SINGLE_PLANE_THICKNESS, judge, plane_thickness
+from .verdict import (
+    RELIABLE_GS_PLANES,
+    SINGLE_PLANE_THICKNESS,
+    STABILITY_RESEEDS,
+    judge,
+    plane_thickness,
+    seed_agreement,
+)
 
 __all__ = ['CRITERIA', 'DEFAULT_CRITERION', 'TUNE_CANDIDATES', 'TUNE_POINTS',
            'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
@@ -72,6 +79,8 @@ class TuningResult:
     noise_model: the segmentation's (:mod:`.noise`); noise_coefficient: with ``depth_quadratic``, c
     (1/m) of the depth noise sigma(r) = c r^2 fitted to the residuals (NaN with ``constant``).
     reliable: whether the planes are trustworthy; verdict: one line saying why.
+    seed_agreement: mean point F1 between the sweep's planes at the chosen t and those of
+    STABILITY_RESEEDS other RANSAC seeds on the same points (core/verdict.py, a condition of reliable).
     """
 
     rows: tuple[TuningRow, ...]
@@ -87,6 +96,7 @@ class TuningResult:
     noise_model: str = 'constant'
     noise_coefficient: float = float('nan')
     sweep_points: int = 0  # valid points the candidates were scored on (the subsample)
+    seed_agreement: float = float('nan')
 
     @property
     def tolerances(self) -> np.ndarray:
@@ -303,6 +313,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     sampled_separation = _sampled_separation(sampled_separation, len(finite))
     sweep_sampled = sampled_separation or criterion not in SEPARATION_CRITERIA
     rows: list[TuningRow] = []
+    sweep_labels: list[np.ndarray] = []
     previous: tuple[np.ndarray, ValidityIndices] | None = None
     for t in cand:
         t0 = time.perf_counter()
@@ -313,6 +324,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
             scores = validity_indices(sweep_pts, seg.labels, sample_size=sample_size, seed=int(index_seed),
                                       sampled_separation=sweep_sampled)
         previous = (seg.labels, scores)
+        sweep_labels.append(seg.labels)
         thickness = plane_thickness(sweep_pts, seg)
         rows.append(TuningRow(tolerance=float(t), n_planes=seg.n_planes,
                               inlier_counts=tuple(len(p.inliers) for p in seg.planes), indices=scores,
@@ -329,12 +341,17 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     else:
         final_scores = validity_indices(pts, final.labels, sample_size=sample_size, seed=int(index_seed),
                                         sampled_separation=sampled_separation)
-    reliable, verdict = judge(pts, final, final_scores)
+    # stability under reseeding, on the sweep's points and graph (a fraction of the full cloud's cost)
+    reseeds = rng.integers(0, 2**63, size=STABILITY_RESEEDS)
+    agreement = seed_agreement(sweep_labels[best], [detect_planes(sweep_pts, t_best, seed=int(s), **sweep_opts).labels
+                                                    for s in reseeds])
+    reliable, verdict = judge(pts, final, final_scores, agreement)
     return TuningResult(rows=tuple(rows), criterion=criterion, best=best, tolerance=t_best, segmentation=final,
                         indices=final_scores, noise_estimate=noise_from_segmentation(final, pts), reliable=reliable,
                         verdict=verdict, seconds=time.perf_counter() - start, noise_model=noise_model,
                         noise_coefficient=noise_coefficient(pts, final.labels, final.coefficients)
-                        if noise_model == 'depth_quadratic' else float('nan'), sweep_points=n_sweep)
+                        if noise_model == 'depth_quadratic' else float('nan'), sweep_points=n_sweep,
+                        seed_agreement=agreement)
 
 
 def _sampled_separation(sampled_separation: bool | None, n_valid: int) -> bool:
