@@ -504,7 +504,7 @@ def test_cluster_distances_are_the_same_from_all_pairs_and_from_kd_trees(monkeyp
     rng = np.random.default_rng(5)
     pts = np.vstack([rng.normal(c, 0.3, (250, 3)) for c in rng.uniform(-3, 3, (12, 3))])
     labels = np.repeat(np.arange(-1, 11), 250)
-    brute = indices.cluster_distances(pts, labels)  # 3000 points, 12 clusters: all pairs
+    brute = indices.cluster_distances(pts, labels)  # 3000 points: every point queried
     monkeypatch.setattr(indices, 'BRUTE_DISTANCES', 0)
     trees = indices.cluster_distances(pts, labels)
     assert brute.shape == (12, 12) and np.all(np.diag(brute) == 0) and np.all(brute[~np.eye(12, dtype=bool)] > 0)

@@ -317,16 +317,15 @@ def _min_distance(small: np.ndarray, big: np.ndarray, t_small: cKDTree, t_big: c
     return ub
 
 
-#: Up to this many points and from this many clusters on, the cluster distances come from all
-#: pairwise distances in row blocks (one pass, instead of two kd-tree searches per cluster pair).
+#: Up to this many points the cluster distances come from one kd-tree query per cluster of all the
+#: points of the later clusters (instead of two kd-tree searches per cluster pair).
 BRUTE_DISTANCES = 4096
-BRUTE_MIN_CLUSTERS = 8
 
 
 def _distances(cl: _Clusters) -> np.ndarray:
     k = cl.k
-    if cl.n <= BRUTE_DISTANCES and k >= BRUTE_MIN_CLUSTERS:
-        return _brute_distances(cl)
+    if cl.n <= BRUTE_DISTANCES:
+        return _all_point_distances(cl)
     out = np.zeros((k, k))
     members = [cl.members(c) for c in range(k)]
     trees = [cKDTree(m) for m in members] if k > 1 else []
@@ -339,15 +338,15 @@ def _distances(cl: _Clusters) -> np.ndarray:
     return out
 
 
-def _brute_distances(cl: _Clusters) -> np.ndarray:
-    """_distances from every point pair: each block of rows gives its min per cluster (columns),
-    then the rows' minima are reduced per cluster."""
-    out = np.full((cl.k, cl.k), np.inf)
-    for start in range(0, cl.n, 512):
-        block = cdist(cl.points[start:start + 512], cl.points)
-        per_cluster = np.minimum.reduceat(block, cl.starts, axis=1)  # (rows, k)
-        np.minimum.at(out, cl.codes[start:start + 512], per_cluster)
-    np.fill_diagonal(out, 0.0)
+def _all_point_distances(cl: _Clusters) -> np.ndarray:
+    """_distances from each point's nearest neighbour in every earlier cluster: cluster c's kd-tree
+    is queried with all the points of the clusters after it (contiguous), and each cluster's
+    minimum is read per cluster."""
+    out = np.zeros((cl.k, cl.k))
+    for c in range(cl.k - 1):
+        later = cl.points[cl.starts[c + 1]:]
+        nearest, _ = cKDTree(cl.members(c)).query(later, k=1)
+        out[c, c + 1:] = out[c + 1:, c] = np.minimum.reduceat(nearest, cl.starts[c + 1:] - cl.starts[c + 1])
     return out
 
 

@@ -665,7 +665,8 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
         found = [found[j] for j in keep]
         reason += (f'; dropped {len(small)} region(s) left with fewer than min_inliers={min_count} points '
                    'once every point was labelled')
-    order = np.argsort(labels, kind='stable')
+    # numpy sorts 8-bit keys by radix (several times faster than a 32-bit sort of an image's labels)
+    order = np.argsort(labels.astype(np.int8) if len(found) < 128 else labels, kind='stable')
     bounds = np.searchsorted(labels[order], np.arange(len(found) + 1))
     planes = []
     for j, (normal, offset) in enumerate(found):
