@@ -464,11 +464,12 @@ def _cluster_distance_sums(cl: _Clusters, rows: np.ndarray, onehot: np.ndarray, 
             a, b = points - centroid, members - centroid
             if max(np.abs(a).max(), np.abs(b).max()) > FAST_SILHOUETTE_RANGE:
                 break
-            a, b = a.astype(np.float32), b.astype(np.float32)
-            d = a @ b.T
-            d *= -2.0
-            d += np.einsum('ij,ij->i', a, a)[:, None]
-            d += np.einsum('ij,ij->i', b, b)[None, :]
+            # |a|^2 + |b|^2 - 2 a.b as one product: [a, |a|^2, 1] . [-2 b, 1, |b|^2]
+            left = np.empty((len(a), 5), np.float32)
+            left[:, :3], left[:, 3], left[:, 4] = a, np.einsum('ij,ij->i', a, a), 1.0
+            right = np.empty((5, len(b)), np.float32)
+            right[:3], right[3], right[4] = -2.0 * b.T, 1.0, np.einsum('ij,ij->i', b, b)
+            d = left @ right
             np.maximum(d, 0.0, out=d)
             np.sqrt(d, out=d)
             sums[:, c] = d.sum(axis=1, dtype=np.float64)
