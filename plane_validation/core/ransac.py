@@ -714,10 +714,12 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
     touch = (a >= 0) & (b >= 0) & (a != b)
     if not touch.any():
         return region, found
-    src, dst, pairs = src[touch], dst[touch], np.sort(np.column_stack([a[touch], b[touch]]), axis=1)
-    root = np.arange(len(found))
+    src, dst, a, b = src[touch], dst[touch], a[touch], b[touch]
+    k = len(found)
+    pairs = np.unique(np.minimum(a, b) * k + np.maximum(a, b))  # each touching pair of regions once, sorted
+    root = np.arange(k)
     found = list(found)
-    for i, j in np.unique(pairs, axis=0):
+    for i, j in zip(*np.divmod(pairs, k)):
         i, j = root[i], root[j]
         if i == j:
             continue
@@ -725,10 +727,10 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
         members = (region == i) | (region == j)
         cols = np.compress(members, search, axis=1)
         normal, offset = _fit_columns(cols.copy())
-        contact = (region[src] == i) & (region[dst] == j) | (region[src] == j) & (region[dst] == i)
-        coherent = neighbours.coherent(normal)
-        if not (coherent[src[contact]] & coherent[dst[contact]]).any():  # they touch where normals disagree only
-            continue
+        at_src, at_dst = region[src], region[dst]
+        contact = (at_src == i) & (at_dst == j) | (at_src == j) & (at_dst == i)
+        if not (neighbours.coherent(normal, src[contact]) & neighbours.coherent(normal, dst[contact])).any():
+            continue  # they touch where normals disagree only
         joint = _distances(cols, normal[None, :], np.array([offset]))[0]
         on_i = region[members] == i
         own = np.where(on_i, found[i][0] @ cols + found[i][1], found[j][0] @ cols + found[j][1])

@@ -91,11 +91,12 @@ class Neighbours:
             at = np.where(move, indices[np.where(move, step, 0)], at)
         return at
 
-    def coherent(self, normal: np.ndarray) -> np.ndarray:
-        """(n,) bool: points whose local normal is within NORMAL_ANGLE_DEG of ``normal`` (or unknown)."""
+    def coherent(self, normal: np.ndarray, at: np.ndarray | None = None) -> np.ndarray:
+        """(n,) bool: points whose local normal is within NORMAL_ANGLE_DEG of ``normal`` (or unknown);
+        only for the points ``at`` (m,) when given."""
         if self.normals is None:
-            return np.ones(self.n, bool)
-        cos = np.abs(self.normals @ normal)
+            return np.ones(self.n if at is None else len(at), bool)
+        cos = np.abs((self.normals if at is None else self.normals[at]) @ normal)
         return ~(cos < np.cos(np.radians(NORMAL_ANGLE_DEG)))  # NaN (unknown) counts as coherent
 
     def subgraph(self, keep: np.ndarray) -> Neighbours:
