@@ -181,3 +181,12 @@ def test_frames_with_a_tuned_t_carry_the_sweeps_seed_agreement_into_their_verdic
     again = pipe.process(cloud, 2 * 10**9)
     assert again.diagnostic.level == WARN and 'seeds' in again.diagnostic.message
     assert float(dict(again.diagnostic.values)['seed_agreement']) == 0.5
+
+
+def test_a_sweep_without_planes_does_not_blame_the_seeds_on_later_frames():
+    pipe = FramePipeline(PipelineConfig(auto_tune=True, seed=0))
+    line = pipe.process(np.outer(np.linspace(0.0, 100.0, 400), [1.0, 0.5, 0.25]), 10**9)  # collinear: no plane
+    assert line.diagnostic.level == WARN and 'seed_agreement' not in dict(line.diagnostic.values)
+    planes = pipe.process(scenes.corner(3000, 0.0, seed=1).points, 2 * 10**9)  # with that sweep's t
+    assert planes.tolerance_source.startswith('tuned') and planes.n_planes == 3
+    assert planes.diagnostic.level == OK and 'seed_agreement' not in dict(planes.diagnostic.values)

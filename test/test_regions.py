@@ -193,3 +193,19 @@ def test_touching_regions_of_one_surface_are_merged_and_others_are_not():
     assert len(planes) == 3  # the two floor halves are one region; the wall and the far patch stay apart
     assert np.array_equal(merged, np.concatenate([np.zeros(4000), np.ones(2000), np.full(1000, 2)]))
     assert abs(abs(planes[0][0][2]) - 1) < 1e-3
+
+
+def test_border_settling_breaks_exact_ties_towards_the_smaller_index_neighbour():
+    # a point between two regions whose planes are exactly as far: the graph neighbour with the
+    # smaller index wins (as before border settling looked only at changed points)
+    from plane_validation.core.ransac import _compete
+    from plane_validation.core.regions import Neighbours
+    edges = np.array([[0, 1], [1, 2]])
+    both = np.concatenate([edges.T, edges.T[::-1]], axis=1)
+    indptr = np.zeros(4, np.int64)
+    np.cumsum(np.bincount(both[0], minlength=3), out=indptr[1:])
+    nb = Neighbours(n=3, edges=edges, adjacency=(indptr, both[1][np.argsort(both[0], kind='stable')]))
+    search = np.array([[-1.0, 0.0, 1.0], [0.0, 0.5, 1.0], [0.0, 0.0, 0.0]])  # y = 0, 0.5, 1
+    planes = [(np.array([0.0, 1.0, 0.0]), 0.0), (np.array([0.0, 1.0, 0.0]), -1.0)]  # y = 0 and y = 1
+    assert _compete(search, np.array([0, -1, 1]), planes, 0.6, nb).tolist() == [0, 0, 1]
+    assert _compete(search, np.array([1, -1, 0]), planes[::-1], 0.6, nb).tolist() == [1, 1, 0]

@@ -86,6 +86,9 @@ def test_other_seeds_find_the_same_planes_but_other_patches_of_a_sphere():
     relabelled = np.where(labels >= 0, labels.max() - labels, -1)  # the same planes found in another order
     assert seed_agreement(labels, [labels, relabelled]) == 1.0
     assert seed_agreement(labels, [np.full_like(labels, -1)]) == 0.0
+    # no plane to find again: not measured, and the verdict does not blame the seeds
+    assert np.isnan(seed_agreement(np.full_like(labels, -1), [labels]))
+    assert judge(pts, planes.segmentation, planes.indices, agreement=float('nan'))[0]
 
 
 def test_table_has_every_index_per_tolerance():

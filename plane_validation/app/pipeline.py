@@ -114,17 +114,22 @@ class FramePipeline:
     def current_tolerance(self, *, tuning_failed: bool = False) -> tuple[float, str]:
         """(tolerance in meters, where it came from): the fixed parameter, the tuned value, else
         the last tuned value, the quick estimate, or the parameter until a sweep succeeds."""
+        return self._tolerance_and_sweep(tuning_failed)[:2]
+
+    def _tolerance_and_sweep(self, tuning_failed: bool = False) -> tuple[float, str, TuningResult | None]:
+        """current_tolerance and, when it is the tuned value, the sweep that chose it (read together:
+        a background retune may replace both at any time)."""
         with self._lock:
             if not self.config.auto_tune:
-                return self.config.tolerance, 'fixed'
+                return self.config.tolerance, 'fixed', None
             if self.tolerance is not None and not tuning_failed:
-                return self.tolerance, f'tuned at t={self.tuned_at:.3f}s'
+                return self.tolerance, f'tuned at t={self.tuned_at:.3f}s', self.last_tuning
             why = 'tuning failed' if tuning_failed else 'sweep pending'
             if self.last_good is not None:
-                return self.last_good, f'last tuned ({why})'
+                return self.last_good, f'last tuned ({why})', None
             if self.quick is not None:
-                return self.quick, f'quick estimate ({why})'
-            return self.config.tolerance, 'parameter (tuning failed)' if tuning_failed else 'parameter (not tuned yet)'
+                return self.quick, f'quick estimate ({why})', None
+            return self.config.tolerance, f'parameter ({"tuning failed" if tuning_failed else "not tuned yet"})', None
 
     def retune_due(self, stamp: float) -> bool:
         """Whether a frame stamped ``stamp`` seconds should trigger a retune."""
@@ -230,10 +235,9 @@ class FramePipeline:
             self.quick = float(np.clip(quick, cfg.tune_min or quick, cfg.tune_max or quick))
         if tune_problem is None and self.tune_error is not None:
             tune_problem = f'cannot tune: {self.tune_error}'  # the last sweep (maybe in the background) failed
-        tolerance, source = self.current_tolerance(tuning_failed=tune_problem is not None)
-        with self._lock:  # the sweep behind a tuned t: were its planes stable under other seeds?
-            sweep = self.last_tuning if source.startswith('tuned') else None
-        agreement = None if sweep is None else sweep.seed_agreement
+        tolerance, source, sweep = self._tolerance_and_sweep(tuning_failed=tune_problem is not None)
+        # the sweep behind a tuned t: were its planes stable under other seeds? (NaN: not measured)
+        agreement = None if sweep is None or np.isnan(sweep.seed_agreement) else sweep.seed_agreement
         try:
             with np.errstate(over='ignore', invalid='ignore'):
                 if shape is not None:  # the organized rows, NaN holes and all

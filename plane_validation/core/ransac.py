@@ -776,8 +776,12 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
         better = d < best[dst]
         if not better.any():
             break
-        dst, cand, d = dst[better], cand[better], d[better]
-        order = np.lexsort((d, dst))  # per point its nearest offer
+        dst, src, cand, d = dst[better], src[better], cand[better], d[better]
+        # per point its nearest offer; equal distances: on a grid the first image direction (the
+        # order of _EIGHT, which is ascending src), on a graph a smaller-index neighbour, then the
+        # largest one
+        ties = (src,) if neighbours.shape is not None else (-src, src > dst)
+        order = np.lexsort(ties + (d, dst))
         first = order[np.r_[True, dst[order[1:]] != dst[order[:-1]]]]
         changed = dst[first]
         region[changed], best[changed] = cand[first], d[first]  # the offers above read the old labels

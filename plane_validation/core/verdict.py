@@ -55,7 +55,10 @@ MIN_SEED_AGREEMENT = 0.9
 def seed_agreement(reference: np.ndarray, others) -> float:
     """Mean over ``others`` of the point F1 (core/scoring.py, one-to-one matched planes) between each
     labeling and ``reference`` (labels (N,), -1 unassigned; F1 is symmetric in the two): 1 when every
-    run finds the same planes with the same points. NaN without others."""
+    run finds the same planes with the same points. NaN (not measured) without others or when
+    ``reference`` has no plane."""
+    if not (np.asarray(reference) >= 0).any():
+        return float('nan')
     scores = [segmentation_quality(other, reference).f1 for other in others]
     return float(np.mean(scores)) if scores else float('nan')
 
@@ -109,7 +112,8 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     planes and clear of the other regions. On plane-free clouds (sphere, bunny) the "planes" are
     thick slabs or patches whose points lie near their neighbours' planes. With ``agreement`` (see
     :func:`seed_agreement`; tune_tolerance gives it) it must also reach MIN_SEED_AGREEMENT: other
-    RANSAC seeds find the same planes (a curved surface is cut into different patches each time).
+    RANSAC seeds find the same planes (a curved surface is cut into different patches each time);
+    NaN (not measured) skips this test.
     """
     if seg.n_planes == 0:
         return False, f'no plane found ({seg.reason})'
@@ -126,7 +130,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     if scores.plane_silhouette < RELIABLE_PS:
         return False, (f'{seg.n_planes} plane(s) but PS {scores.plane_silhouette:.2f} < {RELIABLE_PS}: the points '
                        'do not sit clearly on their planes')
-    if agreement is not None and not agreement >= MIN_SEED_AGREEMENT:  # NaN fails too
+    if agreement is not None and agreement < MIN_SEED_AGREEMENT:  # NaN: not measured
         return False, (f'{seg.n_planes} plane(s) but other RANSAC seeds find other planes (agreement '
                        f'{agreement:.2f} < {MIN_SEED_AGREEMENT}): no stable planes')
     return True, f'{seg.n_planes} plane(s), PS {scores.plane_silhouette:.2f}'
