@@ -299,12 +299,14 @@ def _min_distance(small: np.ndarray, big: np.ndarray, t_small: cKDTree, t_big: c
     """
     seeds = small[np.linspace(0, len(small) - 1, min(len(small), 16)).astype(int)]
     ub = np.inf
-    for _ in range(3):
+    for _ in range(3):  # (an index == size: no neighbour at a finite distance, coordinates near 1e154+)
         d, j = t_big.query(seeds, k=1)
         ub = min(ub, float(d.min()))
-        d, i = t_small.query(big[j], k=1)
-        ub = min(ub, float(d.min()))
-        seeds = small[np.unique(i)]
+        d, i = t_small.query(big[j[j < len(big)]], k=1)
+        ub = min(ub, float(d.min(initial=np.inf)))
+        seeds = small[np.unique(i[i < len(small)])]
+        if len(seeds) == 0:
+            break
     if ub == 0.0:
         return 0.0
     (s_lo, s_hi), (lo, hi) = boxes or ((small.min(axis=0), small.max(axis=0)), (big.min(axis=0), big.max(axis=0)))
