@@ -123,14 +123,26 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     curvature = np.array([plane_curvature(pts, p.inliers) if t > MAX_THICKNESS else 0.0
                           for p, t in zip(seg.planes, thickness)])
     slab = (thickness > MAX_THICKNESS) & (curvature >= MIN_CURVATURE)
+    problems = []  # every test that fails, so that fixing one cause does not reveal another
     if sizes[slab].sum() >= THICK_SHARE * sizes.sum():
         worst = int(np.argmax(np.where(slab, sizes, -1)))
-        return False, (f'plane {worst} is a curved slab (thickness ratio {thickness[worst]:.2f} > {MAX_THICKNESS}, '
-                       f'{curvature[worst]:.0%} of its residual variance is curvature)')
+        problems.append(f'plane {worst} is a curved slab (thickness ratio {_up(thickness[worst])} > {MAX_THICKNESS}, '
+                        f'{curvature[worst]:.0%} of its residual variance is curvature)')
     if scores.plane_silhouette < RELIABLE_PS:
-        return False, (f'{seg.n_planes} plane(s) but PS {scores.plane_silhouette:.2f} < {RELIABLE_PS}: the points '
-                       'do not sit clearly on their planes')
+        problems.append(f'PS {_down(scores.plane_silhouette)} < {RELIABLE_PS}: the points do not sit clearly on '
+                        'their planes')
     if agreement is not None and agreement < MIN_SEED_AGREEMENT:  # NaN: not measured
-        return False, (f'{seg.n_planes} plane(s) but other RANSAC seeds find other planes (agreement '
-                       f'{agreement:.2f} < {MIN_SEED_AGREEMENT}): no stable planes')
+        problems.append(f'other RANSAC seeds find other planes (agreement {_down(agreement)} < {MIN_SEED_AGREEMENT})')
+    if problems:
+        return False, f'{seg.n_planes} plane(s) but ' + '; '.join(problems)
     return True, f'{seg.n_planes} plane(s), PS {scores.plane_silhouette:.2f}'
+
+
+def _up(value: float) -> str:
+    """``value`` to 2 decimals, rounded up: a value just above a limit never prints as the limit."""
+    return f'{np.ceil(value * 100) / 100:.2f}'
+
+
+def _down(value: float) -> str:
+    """``value`` to 2 decimals, rounded down: a value just below a limit never prints as the limit."""
+    return f'{np.floor(value * 100) / 100:.2f}'
