@@ -343,9 +343,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                                         sampled_separation=sampled_separation)
     # stability under reseeding, on the sweep's points and graph (a fraction of the full cloud's cost)
     reseeds = rng.integers(0, 2**63, size=STABILITY_RESEEDS)
-    reruns = [detect_planes(sweep_pts, t_best, seed=int(s), **sweep_opts).labels for s in reseeds] \
-        if rows[best].n_planes else []  # without planes there is nothing to find again (NaN)
-    agreement = seed_agreement(sweep_labels[best], reruns)
+    reruns = (detect_planes(sweep_pts, t_best, seed=int(s), **sweep_opts).labels for s in reseeds)
+    agreement = seed_agreement(sweep_labels[best], reruns)  # runs them only when there are planes to find again
     reliable, verdict = judge(pts, final, final_scores, agreement)
     return TuningResult(rows=tuple(rows), criterion=criterion, best=best, tolerance=t_best, segmentation=final,
                         indices=final_scores, noise_estimate=noise_from_segmentation(final, pts), reliable=reliable,

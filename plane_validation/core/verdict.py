@@ -56,7 +56,7 @@ def seed_agreement(reference: np.ndarray, others) -> float:
     """Mean over ``others`` of the point F1 (core/scoring.py, one-to-one matched planes) between each
     labeling and ``reference`` (labels (N,), -1 unassigned; F1 is symmetric in the two): 1 when every
     run finds the same planes with the same points. NaN (not measured) without others or when
-    ``reference`` has no plane."""
+    ``reference`` has no plane; ``others`` (an iterable) is then not consumed."""
     if not (np.asarray(reference) >= 0).any():
         return float('nan')
     scores = [segmentation_quality(other, reference).f1 for other in others]
