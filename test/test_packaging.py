@@ -45,6 +45,7 @@ ROSDEP_KEYS = {
     'PIL': 'python3-pil',
     'plyfile': 'python3-plyfile',
     'threadpoolctl': 'python3-threadpoolctl',
+    'joblib': 'python3-joblib',
     'yaml': 'python3-yaml',
     'sklearn': 'python3-sklearn',
     'hypothesis': 'python3-hypothesis',

@@ -168,6 +168,16 @@ def test_a_failed_tune_detects_with_the_last_tuned_tolerance():
     assert fresh.level == WARN and fresh.tolerance == PipelineConfig().tolerance and fresh.n_planes == 3
 
 
+def test_tune_jobs_runs_the_sweep_in_worker_processes_with_the_same_result():
+    cloud = corner()
+    one = FramePipeline(PipelineConfig(seed=2)).process(cloud, 10**9)
+    two = FramePipeline(PipelineConfig(seed=2, tune_jobs=2)).process(cloud, 10**9)
+    assert two.tolerance == one.tolerance and two.tolerance_source == one.tolerance_source
+    np.testing.assert_array_equal(two.labels, one.labels)
+    untimed = [[kv for kv in r.diagnostic.values if not kv[0].endswith('_ms')] for r in (one, two)]
+    assert untimed[0] == untimed[1] and len(untimed[0]) > 20
+
+
 def test_frames_with_a_tuned_t_carry_the_sweeps_seed_agreement_into_their_verdict():
     """A sweep whose planes other RANSAC seeds do not find again makes the tuned frames WARN."""
     pipe = FramePipeline(PipelineConfig(auto_tune=True, seed=0))

@@ -149,8 +149,22 @@ def test_seeded_tuning_is_reproducible():
     np.testing.assert_array_equal(a.scores(), b.scores())
 
 
+def test_worker_processes_give_the_same_tuning_as_one_process():
+    scene = scenes.cube(6000, 2.5, seed=6)
+    done = []
+    one = pv.tune_tolerance(scene.points, seed=11, tune_points=3000)
+    two = pv.tune_tolerance(scene.points, seed=11, tune_points=3000, jobs=2,
+                            progress=lambda i, n: done.append((i, n)))
+    assert done == [(i, len(one.rows)) for i in range(1, len(one.rows) + 1)]
+    assert two.tolerance == one.tolerance and two.verdict == one.verdict
+    assert [(r.n_planes, r.inlier_counts, r.indices) for r in two.rows] == \
+        [(r.n_planes, r.inlier_counts, r.indices) for r in one.rows]
+    np.testing.assert_array_equal(two.segmentation.labels, one.segmentation.labels)
+    assert two.seed_agreement == one.seed_agreement and one.seed_agreement > 0.9  # the reruns ran in workers too
+
+
 @pytest.mark.parametrize('kwargs', [{'criterion': 'entropy'}, {'tolerances': [0.0, 1.0]},
-                                    {'tolerances': [np.nan]}, {'tolerances': []}])
+                                    {'tolerances': [np.nan]}, {'tolerances': []}, {'jobs': -1}, {'jobs': 1.5}])
 def test_bad_tuning_arguments_raise(kwargs):
     with pytest.raises(ValueError):
         pv.tune_tolerance(scenes.corner(500, seed=0).points, **kwargs)

@@ -43,9 +43,10 @@ class Detection:
 def detect(points: np.ndarray, tolerance: float | None = None, *, seed: int = 0, max_planes: int = 10,
            min_inliers: int | float = 0.02, progress: Callable[[int, int], None] | None = None,
            shape: tuple[int, int] | None = None, noise_model: str = 'constant',
-           noise_reference: float = NOISE_REFERENCE) -> Detection:
+           noise_reference: float = NOISE_REFERENCE, jobs: int = 1) -> Detection:
     """Planes of (N, 3) ``points`` at ``tolerance`` meters, or at the auto-tuned t when None;
-    ``shape`` (H, W) for an organized cloud; ``noise_model`` as in :func:`detect_planes`.
+    ``shape`` (H, W) for an organized cloud; ``noise_model`` as in :func:`detect_planes`; ``jobs``
+    as in :func:`tune_tolerance`.
 
     Equivalent Python API calls (same results): fixed t -> ``detect_planes(points, t, seed=seed,
     max_planes=..., min_inliers=...)`` and ``validity_indices(points, labels, seed=seed)``; auto ->
@@ -55,7 +56,7 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, seed: int = 0,
     start = time.perf_counter()
     if tolerance is None:
         tuned = tune_tolerance(pts, seed=seed, max_planes=max_planes, min_inliers=min_inliers, progress=progress,
-                               shape=shape, noise_model=noise_model, noise_reference=noise_reference)
+                               shape=shape, noise_model=noise_model, noise_reference=noise_reference, jobs=jobs)
         return Detection(points=pts, segmentation=tuned.segmentation, indices=tuned.indices,
                          tolerance=tuned.tolerance, tolerance_source='auto', reliable=tuned.reliable,
                          verdict=tuned.verdict, noise_estimate=tuned.noise_estimate, seed=seed,

@@ -175,7 +175,7 @@ class FramePipeline:
                               count=cfg.tune_count, seed=frame_seed(cfg.seed, stamp_ns),
                               ransac_points=cfg.ransac_points or None, sampled_separation=not cfg.exact_indices,
                               shape=shape, connectivity=cfg.connectivity, noise_model=cfg.noise_model,
-                              noise_reference=cfg.noise_reference)
+                              noise_reference=cfg.noise_reference, jobs=cfg.tune_jobs)
 
     def process_cloud(self, msg, *, tune_inline: bool = True) -> FrameResult:
         """One sensor_msgs/PointCloud2 (rclpy or rosbags) through :meth:`process`; a malformed

@@ -97,7 +97,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
     with progress_bar('tuning t', quiet=args.json) as progress:
         det = detect(points, tolerance, seed=_seed(args.seed), max_planes=args.max_planes,
                      min_inliers=min_inliers_value(args.min_inliers), progress=progress, shape=shape,
-                     noise_model=args.noise_model, noise_reference=args.noise_reference)
+                     noise_model=args.noise_model, noise_reference=args.noise_reference, jobs=args.tune_jobs)
     written = []
     if args.out:
         from ..formats.files import save_points
@@ -140,7 +140,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         result = tune_tolerance(points, tolerances=args.tolerances, criterion=args.criterion, seed=_seed(args.seed),
                                 max_planes=args.max_planes, min_inliers=min_inliers_value(args.min_inliers),
                                 progress=progress, shape=shape, noise_model=args.noise_model,
-                                noise_reference=args.noise_reference)
+                                noise_reference=args.noise_reference, jobs=args.tune_jobs)
     written = []
     if args.csv:
         written.append(write_sweep_csv(args.csv, result))
@@ -175,7 +175,8 @@ def cmd_planes(args: argparse.Namespace) -> int:
         with progress_bar('tuning t', quiet=args.json) as progress:
             tolerance = tune_tolerance(points, seed=_seed(args.seed), max_planes=args.max_planes,
                                        min_inliers=min_inliers, progress=progress, shape=shape,
-                                       noise_model=args.noise_model, noise_reference=args.noise_reference).tolerance
+                                       noise_model=args.noise_model, noise_reference=args.noise_reference,
+                                       jobs=args.tune_jobs).tolerance
         source = 'auto'
     result = select_plane_count(points, tolerance, args.max_planes, min_inliers=min_inliers, seed=_seed(args.seed),
                                 shape=shape, noise_model=args.noise_model,
@@ -346,11 +347,11 @@ def _seed(value: int) -> int | None:
 
 
 def _add_detection_options(parser: argparse.ArgumentParser) -> None:
-    """--seed, --max-planes, --min-inliers, --noise-model for the file commands (type, range and default
+    """--seed, --max-planes, --min-inliers, --noise-model, --tune-jobs for the file commands (type, range and default
     from the table)."""
     from ..app.config import PARAMETERS
     for name, metavar in (('seed', 'S'), ('max_planes', 'K'), ('min_inliers', 'M'), ('noise_model', 'MODEL'),
-                          ('noise_reference', 'R')):
+                          ('noise_reference', 'R'), ('tune_jobs', 'N')):
         spec = PARAMETERS[name]
         parser.add_argument('--' + name.replace('_', '-'), dest=name, type=_table_type(name), default=spec.default,
                             metavar=metavar, help=f'{spec.description} (default {spec.default})')

@@ -6,8 +6,9 @@ segmentation for k = 1..K (the paper's Fig. 2). Pure numpy/scipy, no ROS import.
 """
 from __future__ import annotations
 
+import contextlib
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -245,7 +246,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                    seed: int | None = None, progress: Callable[[int, int], None] | None = None,
                    ransac_points: int | None = RANSAC_POINTS, sampled_separation: bool | None = None,
                    shape: tuple[int, int] | None = None, connectivity: bool = True,
-                   noise_model: str = 'constant', noise_reference: float = NOISE_REFERENCE) -> TuningResult:
+                   noise_model: str = 'constant', noise_reference: float = NOISE_REFERENCE,
+                   jobs: int = 1) -> TuningResult:
     """Sweep the RANSAC tolerance and pick the best by ``criterion``.
 
     points: (N, 3) meters. tolerances: candidate ``t`` values in meters, or None for ``count``
@@ -268,8 +270,12 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     noise_model, noise_reference: to :func:`detect_planes`; with ``depth_quadratic`` the candidates
     are t0, the tolerance up to the reference range (derived bounds are divided by the median
     tolerance factor of the cloud).
+    jobs: worker processes the candidates (and the reseeded reruns, beside the final detection)
+    run in; 1 = this process, 0 = one per CPU core. The result is the same for any value.
     """
     _check_criterion(criterion)
+    if int(jobs) != jobs or jobs < 0:
+        raise ValueError(f'jobs must be an integer >= 0 (0 = one per CPU core), got {jobs!r}')
     start = time.perf_counter()
     pts = as_points(points)
     finite = _finite(pts)
@@ -312,39 +318,29 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
 
     sampled_separation = _sampled_separation(sampled_separation, len(finite))
     sweep_sampled = sampled_separation or criterion not in SEPARATION_CRITERIA
-    rows: list[TuningRow] = []
-    sweep_labels: list[np.ndarray] = []
-    previous: tuple[np.ndarray, ValidityIndices] | None = None
-    for t in cand:
-        t0 = time.perf_counter()
-        seg = detect_planes(sweep_pts, t, seed=int(ransac_seed), **sweep_opts)
-        if previous is not None and np.array_equal(previous[0], seg.labels):
-            scores = previous[1]  # same partition as the last candidate: same indices
+    score = dict(sample_size=sample_size, seed=int(index_seed), sampled_separation=sweep_sampled)
+    with _workers(jobs) as run:
+        rows: list[TuningRow] = []
+        sweep_labels: list[np.ndarray] = []
+        for row, labels in run(_candidate, [(sweep_pts, t, int(ransac_seed), sweep_opts, score) for t in cand]):
+            rows.append(row)
+            sweep_labels.append(labels)
+            if progress is not None:
+                progress(len(rows), len(cand))
+        best = _choose(rows, criterion, n_sweep)
+        t_best = rows[best].tolerance
+        # stability under reseeding, on the sweep's points and graph (a fraction of the full cloud's cost);
+        # only when there are planes to find again. With workers they run beside the final detection.
+        reseeds = rng.integers(0, 2**63, size=STABILITY_RESEEDS)
+        reruns = run(_labels, [(sweep_pts, t_best, int(s), sweep_opts) for s in reseeds]) \
+            if rows[best].n_planes else iter(())
+        final = detect_planes(pts, t_best, seed=int(ransac_seed), shape=shape, **opts)
+        if sweep_pts is finite and len(finite) == len(pts) and shape is None and sweep_sampled == sampled_separation:
+            final_scores = rows[best].indices  # the sweep already scored this very segmentation
         else:
-            scores = validity_indices(sweep_pts, seg.labels, sample_size=sample_size, seed=int(index_seed),
-                                      sampled_separation=sweep_sampled)
-        previous = (seg.labels, scores)
-        sweep_labels.append(seg.labels)
-        thickness = plane_thickness(sweep_pts, seg)
-        rows.append(TuningRow(tolerance=float(t), n_planes=seg.n_planes,
-                              inlier_counts=tuple(len(p.inliers) for p in seg.planes), indices=scores,
-                              seconds=time.perf_counter() - t0,
-                              max_thickness=float(thickness.max()) if len(thickness) else 0.0))
-        if progress is not None:
-            progress(len(rows), len(cand))
-
-    best = _choose(rows, criterion, n_sweep)
-    t_best = rows[best].tolerance
-    final = detect_planes(pts, t_best, seed=int(ransac_seed), shape=shape, **opts)
-    if sweep_pts is finite and len(finite) == len(pts) and shape is None and sweep_sampled == sampled_separation:
-        final_scores = rows[best].indices  # the sweep already scored this very segmentation
-    else:
-        final_scores = validity_indices(pts, final.labels, sample_size=sample_size, seed=int(index_seed),
-                                        sampled_separation=sampled_separation)
-    # stability under reseeding, on the sweep's points and graph (a fraction of the full cloud's cost)
-    reseeds = rng.integers(0, 2**63, size=STABILITY_RESEEDS)
-    reruns = (detect_planes(sweep_pts, t_best, seed=int(s), **sweep_opts).labels for s in reseeds)
-    agreement = seed_agreement(sweep_labels[best], reruns)  # runs them only when there are planes to find again
+            final_scores = validity_indices(pts, final.labels, sample_size=sample_size, seed=int(index_seed),
+                                            sampled_separation=sampled_separation)
+        agreement = seed_agreement(sweep_labels[best], reruns)
     reliable, verdict = judge(pts, final, final_scores, agreement)
     return TuningResult(rows=tuple(rows), criterion=criterion, best=best, tolerance=t_best, segmentation=final,
                         indices=final_scores, noise_estimate=noise_from_segmentation(final, pts), reliable=reliable,
@@ -352,6 +348,36 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                         noise_coefficient=noise_coefficient(pts, final.labels, final.coefficients)
                         if noise_model == 'depth_quadratic' else float('nan'), sweep_points=n_sweep,
                         seed_agreement=agreement)
+
+
+def _candidate(points: np.ndarray, t: float, seed: int, opts: dict, score: dict) -> tuple[TuningRow, np.ndarray]:
+    """One sweep candidate: its row and labels (N,) for ``detect_planes(points, t, seed, **opts)``
+    scored by ``validity_indices(points, labels, **score)``."""
+    start = time.perf_counter()
+    seg = detect_planes(points, t, seed=seed, **opts)
+    scores = validity_indices(points, seg.labels, **score)
+    thickness = plane_thickness(points, seg)
+    return TuningRow(tolerance=float(t), n_planes=seg.n_planes, inlier_counts=tuple(len(p.inliers) for p in seg.planes),
+                     indices=scores, seconds=time.perf_counter() - start,
+                     max_thickness=float(thickness.max()) if len(thickness) else 0.0), seg.labels
+
+
+def _labels(points: np.ndarray, t: float, seed: int, opts: dict) -> np.ndarray:
+    """(N,) labels of ``detect_planes(points, t, seed=seed, **opts)``."""
+    return detect_planes(points, t, seed=seed, **opts).labels
+
+
+@contextlib.contextmanager
+def _workers(jobs: int) -> Iterator[Callable[[Callable, list[tuple]], Iterator]]:
+    """``run(func, argument_tuples)``: an iterator of the results in order. With ``jobs`` != 1 the
+    calls start at once in joblib's reusable worker processes (0 = one per core), and the iterator
+    waits for each; with 1 they are made here, one by one, as the iterator is read."""
+    if jobs == 1:
+        yield lambda func, calls: (func(*args) for args in calls)
+        return
+    from joblib import Parallel, delayed  # only for a parallel sweep: its import costs ~0.1 s
+    with Parallel(n_jobs=-1 if jobs == 0 else jobs, return_as='generator') as parallel:
+        yield lambda func, calls: parallel(delayed(func)(*args) for args in calls)
 
 
 def _sampled_separation(sampled_separation: bool | None, n_valid: int) -> bool:
