@@ -133,6 +133,17 @@ def test_silhouettes_are_chunked_exactly(monkeypatch):
 
 
 @pytest.mark.parametrize('seed', range(3))
+def test_float32_sampled_silhouettes_agree_with_float64(seed):
+    """The fast path (float32 products, each pair of clusters' block once, BLAS sums) against cdist."""
+    points, labels = blobs(seed, n=1800, unassigned=0.3)
+    cl = pi._clusters(points + [300.0, -40.0, 5.0], labels)
+    (fast, fast_planes), (exact, exact_planes) = pi._silhouettes(cl, fast=True), pi._silhouettes(cl, fast=False)
+    assert cl.k >= 4 and np.isnan(exact_planes).any()
+    np.testing.assert_allclose(fast, exact, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(fast_planes, exact_planes, rtol=0, atol=1e-5)  # NaN where NaN
+
+
+@pytest.mark.parametrize('seed', range(3))
 def test_davies_bouldin_classic_matches_sklearn(seed):
     points, labels = blobs(seed, unassigned=0.3, singleton=False)
     assert pi.davies_bouldin_classic(points, labels) == pytest.approx(
