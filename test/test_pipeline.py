@@ -168,6 +168,18 @@ def test_a_failed_tune_detects_with_the_last_tuned_tolerance():
     assert fresh.level == WARN and fresh.tolerance == PipelineConfig().tolerance and fresh.n_planes == 3
 
 
+def test_a_dead_sweep_worker_is_a_failed_tune_not_an_exception(monkeypatch):
+    from plane_validation.app import pipeline as pipeline_module
+    from plane_validation.core.tuning import TuningWorkerError
+
+    def dies(*args, **kwargs):
+        raise TuningWorkerError('a tuning worker process died (killed)')
+    monkeypatch.setattr(pipeline_module, 'tune_tolerance', dies)
+    result = FramePipeline(PipelineConfig(seed=1, tune_jobs=2)).process(corner(), 1)
+    assert result.level == WARN and 'cannot tune: a tuning worker process died' in result.message
+    assert result.n_planes == 3
+
+
 def test_tune_jobs_runs_the_sweep_in_worker_processes_with_the_same_result():
     cloud = corner()
     one = FramePipeline(PipelineConfig(seed=2)).process(cloud, 10**9)

@@ -258,3 +258,14 @@ def test_dunn_and_db_of_the_chosen_planes_are_exact_on_small_clouds_and_sampled_
     assert large_result.sweep_points == 20000  # TUNE_POINTS
     exact = pv.tune_tolerance(large, seed=0, sampled_separation=False)
     assert exact.indices.separation_size == len(large)
+
+
+def test_a_worker_process_that_dies_is_a_clear_error_and_later_sweeps_start_new_ones():
+    import os
+
+    from plane_validation.core.tuning import TuningWorkerError, _workers
+    with pytest.raises(TuningWorkerError, match='worker process died'):
+        with _workers(2) as run:
+            list(run(lambda code: os._exit(code), [(3,), (3,)]))
+    scene = scenes.corner(1500, 1.0, seed=2)
+    assert pv.tune_tolerance(scene.points, seed=0, jobs=2).segmentation.n_planes == 3

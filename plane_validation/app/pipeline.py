@@ -18,7 +18,7 @@ from ..core.geometry import voxel_downsample
 from ..core.indices import ValidityIndices, validity_indices
 from ..core.noise import noise_coefficient
 from ..core.ransac import Segmentation, as_points, detect_planes, finite_rows
-from ..core.tuning import TuningResult, noise_from_segmentation, quick_tolerance, tune_tolerance
+from ..core.tuning import TuningResult, TuningWorkerError, noise_from_segmentation, quick_tolerance, tune_tolerance
 from ..core.verdict import judge
 from ..formats.pointcloud2 import trailing_bytes, xyz_array
 from .config import PipelineConfig, min_inliers_value
@@ -29,6 +29,9 @@ __all__ = ['PipelineConfig', 'FrameResult', 'FramePipeline', 'header_stamp_ns', 
            'OK', 'WARN', 'ERROR']
 
 OK, WARN, ERROR = Level.OK, Level.WARN, Level.ERROR
+
+#: A sweep that raises one of these failed (the frame goes on with the last good t and says why).
+TUNE_FAILURES = (ValueError, np.linalg.LinAlgError, TuningWorkerError)
 
 #: Configuration fields whose change voids the tuned tolerance (and a sweep in progress).
 TUNING_FIELDS = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points', 'criterion', 'max_planes',
@@ -148,14 +151,14 @@ class FramePipeline:
                shape: tuple[int, int] | None = None) -> TuningResult:
         """Run a tolerance sweep on ``points`` (meters; all rows of an organized cloud of ``shape``,
         else its valid rows) and adopt its choice, unless the tuning set-up changed while it ran.
-        Raises ValueError when no sweep is possible."""
+        Raises one of TUNE_FAILURES when no sweep is possible."""
         with self._lock:
             cfg, generation = self.config, self._generation
         if cfg.voxel_size > 0:
             points, shape = voxel_downsample(points[finite_rows(points)], cfg.voxel_size)[0], None
         try:
             result = self._sweep(cfg, points, stamp_ns, shape)
-        except (ValueError, np.linalg.LinAlgError) as exc:
+        except TUNE_FAILURES as exc:
             with self._lock:
                 if generation == self._generation:  # a voided sweep's failure is not reported
                     self.tune_error, self.failed_at = str(exc), stamp
@@ -228,7 +231,7 @@ class FramePipeline:
         if tune_inline and self.retune_due(stamp):
             try:
                 self.retune(pts if shape else valid, stamp, stamp_ns, shape=shape)
-            except (ValueError, np.linalg.LinAlgError) as exc:
+            except TUNE_FAILURES as exc:
                 tune_problem = f'cannot tune: {exc}'
         elif self.config.auto_tune and self.tolerance is None and self.last_good is None and self.quick is None:
             quick = quick_tolerance(valid, seed=frame_seed(cfg.seed, stamp_ns))  # until the sweep ends

@@ -382,7 +382,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='plane-validation', description='Self-validating plane detection: sequential RANSAC planes scored by '
         'cluster validity indices (Dunn, Davies-Bouldin, GS, GSplanes). Coordinates are taken as meters.',
-        epilog='Exit status: 0 success, 2 bad usage or input, 130 interrupted, 143 SIGTERM, 129 SIGHUP.')
+        epilog='Exit status: 0 success, 1 a worker process of a parallel sweep died, 2 bad usage or input, '
+        '130 interrupted, 143 SIGTERM, 129 SIGHUP.')
     sub = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
 
     demo = sub.add_parser('demo', help='the main job: replay a bundled bag through the node over DDS')
@@ -510,6 +511,7 @@ def _terminate_cleanly() -> Iterator[None]:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from ..app.pipeline import limit_blas_threads
+    from ..core.tuning import TuningWorkerError
     limit_blas_threads()  # small matrix products; spinning BLAS threads only slow a busy machine down
     try:
         with _terminate_cleanly():
@@ -518,10 +520,10 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     except Terminated as exc:
         return 128 + exc.signum
-    except (ValueError, OSError) as exc:
+    except (ValueError, OSError, TuningWorkerError) as exc:
         message = ' '.join(str(exc).split()) or type(exc).__name__
         print(f'plane-validation: error: {message}', file=sys.stderr)
-        return EXIT_USAGE
+        return 1 if isinstance(exc, TuningWorkerError) else EXIT_USAGE
 
 
 if __name__ == '__main__':

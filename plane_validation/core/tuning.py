@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import time
 from collections.abc import Callable, Iterator
+from concurrent.futures import BrokenExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,7 +30,8 @@ from .verdict import (
 
 __all__ = ['CRITERIA', 'DEFAULT_CRITERION', 'TUNE_CANDIDATES', 'TUNE_POINTS',
            'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
-           'select_plane_count', 'noise_from_segmentation', 'local_noise', 'quick_tolerance', 'MIN_PLANE_SILHOUETTE']
+           'select_plane_count', 'noise_from_segmentation', 'local_noise', 'quick_tolerance', 'MIN_PLANE_SILHOUETTE',
+           'TuningWorkerError']
 
 #: Default number of tuning candidates and the subsample a sweep runs on (points).
 TUNE_CANDIDATES = 12
@@ -350,6 +352,10 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                         seed_agreement=agreement)
 
 
+class TuningWorkerError(RuntimeError):
+    """A worker process of a parallel sweep (``jobs`` != 1) died before it answered."""
+
+
 def _candidate(points: np.ndarray, t: float, seed: int, opts: dict, score: dict) -> tuple[TuningRow, np.ndarray]:
     """One sweep candidate: its row and labels (N,) for ``detect_planes(points, t, seed, **opts)``
     scored by ``validity_indices(points, labels, **score)``."""
@@ -376,8 +382,12 @@ def _workers(jobs: int) -> Iterator[Callable[[Callable, list[tuple]], Iterator]]
         yield lambda func, calls: (func(*args) for args in calls)
         return
     from joblib import Parallel, delayed  # only for a parallel sweep: its import costs ~0.1 s
-    with Parallel(n_jobs=-1 if jobs == 0 else jobs, return_as='generator') as parallel:
-        yield lambda func, calls: parallel(delayed(func)(*args) for args in calls)
+    try:
+        with Parallel(n_jobs=-1 if jobs == 0 else jobs, return_as='generator') as parallel:
+            yield lambda func, calls: parallel(delayed(func)(*args) for args in calls)
+    except BrokenExecutor as exc:  # a worker was killed (out of memory, a signal): not a bug of the cloud
+        raise TuningWorkerError(f'a tuning worker process died ({exc}); the next parallel sweep starts new '
+                                'ones') from exc
 
 
 def _sampled_separation(sampled_separation: bool | None, n_valid: int) -> bool:
