@@ -2,6 +2,7 @@
 
 For each Kinect frame of ../shared/data: tune_tolerance with the library defaults as a user's script
 calls it on a loaded file (organized: the shape load_cloud gives; and as an unorganized array),
+the organized one again with tune_jobs 0 (a worker process per core, started before the timing),
 then Open3D's 5 x segment_plane at t = 1 cm. Medians over --repeat runs, interleaved.
 
 Run: .venv/bin/python benchmarks/bench_autotune.py [PCD ...] [--repeat 5]
@@ -28,7 +29,9 @@ DATA = Path(__file__).resolve().parents[2] / 'shared' / 'data'
 def table(paths: list[str], repeat: int) -> list[str]:
     """The Markdown rows (header first) for the 640x480 frames among ``paths``."""
     rows = ['| frame | auto-tune, organized (s) | auto-tune, unorganized (s) | Open3D 5 planes (s) | '
-            'organized / Open3D | unorganized / Open3D | tuned t (mm), planes |', '|---|--:|--:|--:|--:|--:|---|']
+            'organized / Open3D | unorganized / Open3D | tuned t (mm), planes | organized, tune_jobs 0 (s) | '
+            'that / Open3D |', '|---|--:|--:|--:|--:|--:|---|--:|--:|']
+    pv.tune_tolerance(np.random.default_rng(0).random((500, 3)), seed=0, jobs=0)  # start the workers untimed
     print(*rows, sep='\n', flush=True)
     for path in paths:
         points, shape = load_cloud(path)
@@ -36,7 +39,7 @@ def table(paths: list[str], repeat: int) -> list[str]:
             continue
         valid = points[np.isfinite(points).all(axis=1)]
         cloud = open3d_ref.to_cloud(valid) if open3d_ref.available() else None
-        times: dict[str, list[float]] = {'organized': [], 'unorganized': [], 'open3d': []}
+        times: dict[str, list[float]] = {'organized': [], 'unorganized': [], 'open3d': [], 'parallel': []}
         result = None
         for i in range(repeat):
             start = time.perf_counter()
@@ -45,6 +48,9 @@ def table(paths: list[str], repeat: int) -> list[str]:
             start = time.perf_counter()
             pv.tune_tolerance(valid, seed=i)
             times['unorganized'].append(time.perf_counter() - start)
+            start = time.perf_counter()
+            pv.tune_tolerance(points, seed=i, shape=shape, jobs=0)
+            times['parallel'].append(time.perf_counter() - start)
             if cloud is not None:
                 start = time.perf_counter()
                 open3d_ref.sequential_planes(cloud, len(valid), 0.01, planes=5, seed=i)
@@ -53,7 +59,7 @@ def table(paths: list[str], repeat: int) -> list[str]:
         rows.append(f'| {Path(path).name} | {med["organized"]:.2f} | {med["unorganized"]:.2f} | '
                     f'{med["open3d"]:.3f} | {med["organized"] / med["open3d"]:.1f} | '
                     f'{med["unorganized"] / med["open3d"]:.1f} | {1000 * result.tolerance:.3g}, '
-                    f'{result.segmentation.n_planes} |')
+                    f'{result.segmentation.n_planes} | {med["parallel"]:.2f} | {med["parallel"] / med["open3d"]:.1f} |')
         print(rows[-1], flush=True)
     return rows
 

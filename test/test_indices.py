@@ -132,13 +132,30 @@ def test_silhouettes_are_chunked_exactly(monkeypatch):
                        rtol=0, atol=TOL)
 
 
-@pytest.mark.parametrize('seed', range(3))
-def test_float32_sampled_silhouettes_agree_with_float64(seed):
-    """The fast path (float32 products, each pair of clusters' block once, BLAS sums) against cdist."""
-    points, labels = blobs(seed, n=1800, unassigned=0.3)
-    cl = pi._clusters(points + [300.0, -40.0, 5.0], labels)
+def _spread_unassigned_near_compact_clusters():
+    """A 100 m line of unassigned points with two compact clusters 5 cm past its tip."""
+    rng = np.random.default_rng(3)
+    line = np.column_stack([np.linspace(0, 100, 1500), np.zeros(1500), np.zeros(1500)])
+    tip = [np.array([100.05, 0, dz]) + 1e-3 * rng.normal(size=(20, 3)) for dz in (0.0, 0.02)]
+    return (np.vstack([line + 1e-3 * rng.normal(size=line.shape), *tip]),
+            np.r_[np.full(1500, -1), np.zeros(20, int), np.ones(20, int)])
+
+
+@pytest.mark.parametrize('case', ['blobs far from the origin', 'spread unassigned', 'depth camera'])
+def test_float32_sampled_silhouettes_agree_with_float64(case):
+    """The fast path (float32 products centred on each target cluster, BLAS sums) against cdist."""
+    if case == 'blobs far from the origin':
+        points, labels = blobs(1, n=1800, unassigned=0.3)
+        points = points + [300.0, -40.0, 5.0]
+    elif case == 'spread unassigned':
+        points, labels = _spread_unassigned_near_compact_clusters()
+    else:
+        scene = scenes.depth_camera('room', seed=4)
+        keep = np.flatnonzero(np.isfinite(scene.points).all(axis=1))[::97][:2000]
+        points, labels = scene.points[keep], scene.labels[keep]
+    cl = pi._clusters(points, labels)
     (fast, fast_planes), (exact, exact_planes) = pi._silhouettes(cl, fast=True), pi._silhouettes(cl, fast=False)
-    assert cl.k >= 4 and np.isnan(exact_planes).any()
+    assert cl.k >= 3 and (case == 'depth camera' or np.isnan(exact_planes).any())  # with unassigned points
     np.testing.assert_allclose(fast, exact, rtol=0, atol=1e-5)
     np.testing.assert_allclose(fast_planes, exact_planes, rtol=0, atol=1e-5)  # NaN where NaN
 

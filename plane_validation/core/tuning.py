@@ -7,7 +7,9 @@ segmentation for k = 1..K (the paper's Fig. 2). Pure numpy/scipy, no ROS import.
 from __future__ import annotations
 
 import contextlib
+import threading
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from concurrent.futures import BrokenExecutor
 from dataclasses import dataclass
@@ -273,10 +275,11 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     are t0, the tolerance up to the reference range (derived bounds are divided by the median
     tolerance factor of the cloud).
     jobs: worker processes the candidates (and the reseeded reruns, beside the final detection)
-    run in; 1 = this process, 0 = one per CPU core. The result is the same for any value.
+    run in; 1 = this process, 0 = one per CPU core, and never more than the cores. The result is
+    the same for any value.
     """
     _check_criterion(criterion)
-    if int(jobs) != jobs or jobs < 0:
+    if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 0:
         raise ValueError(f'jobs must be an integer >= 0 (0 = one per CPU core), got {jobs!r}')
     start = time.perf_counter()
     pts = as_points(points)
@@ -356,6 +359,7 @@ class TuningWorkerError(RuntimeError):
     """A worker process of a parallel sweep (``jobs`` != 1) died before it answered."""
 
 
+@single_blas_thread  # also in a worker process, whose BLAS joblib would give cores / jobs threads
 def _candidate(points: np.ndarray, t: float, seed: int, opts: dict, score: dict) -> tuple[TuningRow, np.ndarray]:
     """One sweep candidate: its row and labels (N,) for ``detect_planes(points, t, seed, **opts)``
     scored by ``validity_indices(points, labels, **score)``."""
@@ -368,26 +372,45 @@ def _candidate(points: np.ndarray, t: float, seed: int, opts: dict, score: dict)
                      max_thickness=float(thickness.max()) if len(thickness) else 0.0), seg.labels
 
 
+@single_blas_thread
 def _labels(points: np.ndarray, t: float, seed: int, opts: dict) -> np.ndarray:
     """(N,) labels of ``detect_planes(points, t, seed=seed, **opts)``."""
     return detect_planes(points, t, seed=seed, **opts).labels
 
 
+#: One parallel sweep at a time per process: joblib's shared worker pool cannot be resized for a
+#: sweep with another worker count while one runs (the two would wait on each other).
+_PARALLEL = threading.Lock()
+
+
 @contextlib.contextmanager
 def _workers(jobs: int) -> Iterator[Callable[[Callable, list[tuple]], Iterator]]:
     """``run(func, argument_tuples)``: an iterator of the results in order. With ``jobs`` != 1 the
-    calls start at once in joblib's reusable worker processes (0 = one per core), and the iterator
-    waits for each; with 1 they are made here, one by one, as the iterator is read."""
+    calls start at once in joblib's reusable worker processes (0 = one per core, at most one per
+    core), and the iterator waits for each; with 1 they are made here, one by one, as it is read."""
+    if jobs != 1:
+        from joblib import Parallel, cpu_count, delayed  # only for a parallel sweep: its import costs ~0.1 s
+        jobs = cpu_count() if jobs == 0 else min(jobs, cpu_count())
     if jobs == 1:
         yield lambda func, calls: (func(*args) for args in calls)
         return
-    from joblib import Parallel, delayed  # only for a parallel sweep: its import costs ~0.1 s
+    started: list = []
+
+    def run(func: Callable, calls: list[tuple]) -> Iterator:
+        results = parallel(delayed(func)(*args) for args in calls)
+        started.append(results)
+        return results
     try:
-        with Parallel(n_jobs=-1 if jobs == 0 else jobs, return_as='generator') as parallel:
-            yield lambda func, calls: parallel(delayed(func)(*args) for args in calls)
+        with _PARALLEL, Parallel(n_jobs=jobs, return_as='generator') as parallel:
+            try:
+                yield run
+            finally:  # results left unread (an exception passes through) are cancelled quietly
+                with warnings.catch_warnings():
+                    warnings.simplefilter('ignore', UserWarning)
+                    for results in started:
+                        results.close()
     except BrokenExecutor as exc:  # a worker was killed (out of memory, a signal): not a bug of the cloud
-        raise TuningWorkerError(f'a tuning worker process died ({exc}); the next parallel sweep starts new '
-                                'ones') from exc
+        raise TuningWorkerError(f'a tuning worker process died ({type(exc).__name__})') from exc
 
 
 def _sampled_separation(sampled_separation: bool | None, n_valid: int) -> bool:
