@@ -389,7 +389,7 @@ def _workers(jobs: int) -> Iterator[Callable[[Callable, list[tuple]], Iterator]]
     calls start at once in joblib's reusable worker processes (0 = one per core, at most one per
     core), and the iterator waits for each; with 1 they are made here, one by one, as it is read."""
     if jobs != 1:
-        from joblib import Parallel, cpu_count, delayed  # only for a parallel sweep: its import costs ~0.1 s
+        from joblib import Parallel, cpu_count, delayed  # imported only for a parallel sweep: a heavy import
         jobs = cpu_count() if jobs == 0 else min(jobs, cpu_count())
     if jobs == 1:
         yield lambda func, calls: (func(*args) for args in calls)
