@@ -209,3 +209,28 @@ def test_border_settling_breaks_exact_ties_towards_the_smaller_index_neighbour()
     planes = [(np.array([0.0, 1.0, 0.0]), 0.0), (np.array([0.0, 1.0, 0.0]), -1.0)]  # y = 0 and y = 1
     assert _compete(search, np.array([0, -1, 1]), planes, 0.6, nb).tolist() == [0, 0, 1]
     assert _compete(search, np.array([1, -1, 0]), planes[::-1], 0.6, nb).tolist() == [1, 1, 0]
+
+
+@pytest.mark.parametrize('organized', [True, False])
+def test_skipping_hypotheses_by_their_coherent_inliers_keeps_the_same_planes(monkeypatch, organized):
+    """_best_region labels a hypothesis only when its inliers with agreeing normals could beat the
+    region found so far: the same planes as labelling every hypothesis."""
+    from plane_validation.core import ransac, regions
+    if organized:
+        scene = scenes.depth_camera('table', width=160, height=120, seed=3)
+        points, shape, t = scene.points, (120, 160), 0.02
+    else:
+        scene = scenes.room(6000, 0.01, seed=3)
+        points, shape, t = scene.points, None, 0.03
+    calls = []
+    largest = regions.Neighbours.largest
+    monkeypatch.setattr(regions.Neighbours, 'largest', lambda self, mask: calls.append(1) or largest(self, mask))
+    fast = pv.detect_planes(points, t, seed=5, shape=shape, max_planes=8)
+    n_fast, calls[:] = len(calls), []
+    best_region = ransac._best_region
+    monkeypatch.setattr(ransac, '_best_region', lambda *args: best_region(*args[:6]))  # without point normals
+    full = pv.detect_planes(points, t, seed=5, shape=shape, max_planes=8)
+    assert fast.n_planes >= 3 and np.array_equal(fast.labels, full.labels)
+    coefficients = [np.array([p.coefficients for p in seg.planes]) for seg in (fast, full)]
+    assert np.array_equal(*coefficients)
+    assert n_fast < len(calls)  # and fewer labellings

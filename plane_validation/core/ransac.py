@@ -286,7 +286,7 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
     # its inliers hug (a plane tilted across a small face and its neighbours' edges loses).
     dist = _distances(cols, best_normals, best_offsets)
     if region_of is not None:
-        return _best_region(cols, tolerance, best_normals, best_offsets, dist, region_of)
+        return _best_region(cols, tolerance, best_normals, best_offsets, dist, region_of, point_normals)
     np.minimum(dist, tolerance, out=dist)
     winner = int(np.argmin(np.einsum('ij,ij->i', dist, dist)))
     normal, offset = best_normals[winner], best_offsets[winner]
@@ -308,9 +308,11 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
 
 
 def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, offsets: np.ndarray, dist: np.ndarray,
-                 keep: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> tuple[np.ndarray, float, np.ndarray]:
+                 keep: Callable[[np.ndarray, np.ndarray], np.ndarray], point_normals: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, float, np.ndarray]:
     """Of the confirmed hypotheses (distances ``dist`` (h, m)), the one whose largest region is
-    largest (ties: MSAC); then refit on the region and take the region again, at most 3 times."""
+    largest (ties: MSAC); then refit on the region and take the region again, at most 3 times.
+    ``point_normals`` (3, m), NaN where unknown: a region keeps only points whose normal agrees."""
     inliers = dist <= tolerance
     counts = np.count_nonzero(inliers, axis=1)
     np.minimum(dist, tolerance, out=dist)
@@ -319,6 +321,10 @@ def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, of
     for h in np.lexsort((cost, -counts)):  # a hypothesis cannot keep more than its inliers: skip
         if counts[h] <= size:
             break
+        if size > 0 and point_normals is not None:  # nor more than its coherent inliers: skip without labelling
+            bound = np.count_nonzero(inliers[h] & ~(np.abs(normals[h] @ point_normals) < _COHERENT_BOUND))
+            if bound < size or (bound == size and cost[h] >= cost[winner]):
+                continue
         candidate = keep(inliers[h], normals[h])
         found = int(np.count_nonzero(candidate))
         if found > size or (found == size and cost[h] < cost[winner]):
@@ -337,6 +343,11 @@ def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, of
             break
         region = new_region
     return normal, offset, region
+
+
+#: A little below the cosine of NORMAL_ANGLE_DEG: counts at least the points a region may keep,
+#: whatever the rounding of the dot products.
+_COHERENT_BOUND = np.cos(np.radians(NORMAL_ANGLE_DEG)) - 1e-9
 
 
 def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
