@@ -115,6 +115,13 @@ def test_a_prebuilt_search_graph_gives_the_same_planes_as_building_it_per_call()
             shared = pv.detect_planes(cloud, t, seed=3, shape=shape, min_inliers=200, graph=graph)
             assert np.array_equal(own.labels, shared.labels) and own.n_planes == shared.n_planes >= 1
     assert search_graph(unorganized, ransac_points=1000) is None  # it would be a random sample: not fixed
+    # a sampled graph drawn from the generator detect_planes would draw it from (tune_tolerance builds
+    # the final detection's graph that way while its sweep runs)
+    rng = np.random.default_rng(3)
+    sampled = search_graph(unorganized, ransac_points=1000, rng=rng)
+    shared = pv.detect_planes(unorganized, 0.02, seed=rng, min_inliers=20, ransac_points=1000, graph=sampled)
+    own = pv.detect_planes(unorganized, 0.02, seed=3, min_inliers=20, ransac_points=1000)
+    assert np.array_equal(own.labels, shared.labels) and own.n_planes >= 1
     with pytest.raises(ValueError, match='built for'):
         pv.detect_planes(pts[:-1], 0.01, graph=search_graph(pts, (120, 160)))
 

@@ -327,7 +327,12 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     with _workers(jobs) as run:
         rows: list[TuningRow] = []
         sweep_labels: list[np.ndarray] = []
-        for row, labels in run(_candidate, [(sweep_pts, t, int(ransac_seed), sweep_opts, score) for t in cand]):
+        candidates = run(_candidate, [(sweep_pts, t, int(ransac_seed), sweep_opts, score) for t in cand])
+        # the final detection's graph does not depend on t: built while worker processes sweep, from
+        # the generator that detect_planes(seed=ransac_seed) would build it from (the same planes)
+        final_rng = np.random.default_rng(int(ransac_seed))
+        final_graph = search_graph(pts, shape, ransac_points, final_rng) if connectivity else None
+        for row, labels in candidates:
             rows.append(row)
             sweep_labels.append(labels)
             if progress is not None:
@@ -339,7 +344,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         reseeds = rng.integers(0, 2**63, size=STABILITY_RESEEDS)
         reruns = run(_labels, [(sweep_pts, t_best, int(s), sweep_opts) for s in reseeds]) \
             if rows[best].n_planes else iter(())
-        final = detect_planes(pts, t_best, seed=int(ransac_seed), shape=shape, **opts)
+        final = detect_planes(pts, t_best, seed=final_rng, shape=shape, graph=final_graph, **opts)
         if sweep_pts is finite and len(finite) == len(pts) and shape is None and sweep_sampled == sampled_separation:
             final_scores = rows[best].indices  # the sweep already scored this very segmentation
         else:
