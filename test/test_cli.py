@@ -168,6 +168,11 @@ def test_planes_command(corner_npy, tmp_path, capsys):
     expected = pv.select_plane_count(CORNER.points, doc['tolerance'], 5, seed=0)
     assert doc['best_by'] == {name: expected.best_by(name) for name in doc['best_by']}
     assert [c['gs_planes'] for c in doc['counts']] == pytest.approx([x.gs_planes for x in expected.indices])
+    # one plane: k = 1 is what is left, not a plane that passed the S_j rule (one plane has no silhouette)
+    plane = np.column_stack([np.random.default_rng(0).random((500, 2)), np.zeros(500)])
+    np.save(tmp_path / 'plane.npy', plane)
+    assert main(['planes', str(tmp_path / 'plane.npy'), '--tolerance', '0.01']) == 0
+    assert 'selected k = 1 (no k >= 2 has all its planes at S_j >= 0.05)' in capsys.readouterr().out
 
 
 # -- scene, and round trips through every output format --------------------------------------------
@@ -270,7 +275,9 @@ def test_usage_errors_and_bad_sources_in_process(corner_npy, tmp_path, capsys):
                         (['detect', f'{BAGS / "cube"}:/nope'], "no topic '/nope'"),
                         (['scene', 'corner', '--out', str(tmp_path / 'x.las')], "cannot write '.las'"),
                         (['scene', 'corner', '--out', str(tmp_path / 'no' / 'x.ply')], 'does not exist'),
-                        (['sweep', str(corner_npy), '--plot', str(tmp_path / 'no' / 'x.png')], 'No such file')):
+                        (['sweep', str(corner_npy), '--plot', str(tmp_path / 'no' / 'x.png')], 'does not exist'),
+                        (['detect', str(corner_npy), '--out', str(corner_npy)], 'would overwrite the input'),
+                        (['sweep', str(corner_npy), '--csv', str(corner_npy)], 'would overwrite the input')):
         assert main(argv) == 2, argv
         err = capsys.readouterr().err
         assert err.startswith('plane-validation: error: ') and words in err and err.count('\n') == 1, err
@@ -338,3 +345,9 @@ def test_the_depth_noise_model_is_named_and_its_coefficient_reported(tmp_path, c
         assert doc['noise_coefficient'] == pytest.approx(scene.noise, rel=0.3)
     assert main(['detect', str(cloud), '--tolerance', '0.003', '--json']) == 0
     assert json.loads(capsys.readouterr().out)['noise_model'] == 'constant'
+
+
+def test_demo_with_a_missing_bag_leaves_no_output_folder(tmp_path, capsys):
+    out = tmp_path / 'demo_out'
+    assert main(['demo', '--bag', str(tmp_path / 'nosuch'), '--out', str(out)]) == 2
+    assert 'no such bag' in capsys.readouterr().err and not out.exists()

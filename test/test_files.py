@@ -45,6 +45,12 @@ def test_text_and_npy(tmp_path):
     (b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n', 'no DATA'),
     (b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 10\nHEIGHT 1\nPOINTS 10\nDATA binary\n'
      + bytes(20), 'need'),
+    (b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 1\nPOINTS 3\nDATA ascii\n'
+     b'1 2 3\n4 5 6\n', 'has 2 rows, the header declares 3'),  # cut short
+    (b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n'
+     b'1 2 3\n4 5 6\n', 'has 2 rows, the header declares 1'),
+    (b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 2\nPOINTS 3\nDATA ascii\n'
+     b'1 2 3\n4 5 6\n7 8 9\n', 'WIDTH x HEIGHT = 4 but POINTS 3'),
 ])
 def test_malformed_pcd_is_a_clear_error(tmp_path, content, words):
     path = tmp_path / 'bad.pcd'
@@ -248,3 +254,22 @@ def test_an_organized_cloud_is_written_and_read_back_organized(tmp_path):
     assert load_cloud(save_points(tmp_path / 'flat.pcd', scene.points))[1] is None
     with pytest.raises(ValueError, match='does not match'):
         save_points(tmp_path / 'bad.pcd', scene.points, shape=(10, 10))
+
+
+@pytest.mark.parametrize('name', ['big.pcd', 'big.ply', 'big.mcap'])
+def test_coordinates_beyond_float32_are_written_as_float64_not_inf(tmp_path, name):
+    big = POINTS * 1e38  # up to about 1e38 m * 0.5: float32 ends at 3.4e38
+    big[0] = (5e38, -7e38, 1.0)
+    path = save_points(tmp_path / name, big, np.zeros(len(big), int))
+    np.testing.assert_allclose(load_points(path if path.suffix != '.mcap' else f'{path}:/points:0'), big, rtol=1e-12)
+    small = save_points(tmp_path / ('small' + Path(name).suffix), POINTS)  # meters stay float32
+    np.testing.assert_array_equal(load_points(small if small.suffix != '.mcap' else f'{small}:/points:0'),
+                                  POINTS.astype(np.float32).astype(np.float64))
+
+
+def test_an_empty_text_file_is_an_empty_cloud_without_warnings(tmp_path):
+    import warnings
+    (tmp_path / 'empty.xyz').write_text('')
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        assert load_points(tmp_path / 'empty.xyz').shape == (0, 3)

@@ -18,7 +18,8 @@ def corner(noise_cm: float = 0.5, n: int = 3000, seed: int = 1) -> np.ndarray:
 
 @pytest.mark.parametrize('points, level, words', [
     (np.full((100, 3), np.nan), WARN, 'too few'),
-    (np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), OK, '1 plane'),  # three points do make a plane
+    # three points do make a plane, but no evidence of one
+    (np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), WARN, '1 plane(s) but plane 0 rests on 3 points'),
     (np.array([[0.0, 0, 0], [0, 0, 0], [1, 1, 1]]), WARN, 'collinear'),
     (np.ones((10, 2)), ERROR, 'bad input'),
     (np.array([['a', 'b', 'c']]), ERROR, 'bad input'),
@@ -31,10 +32,19 @@ def test_bad_frames_give_a_result_not_an_exception(points, level, words, auto):
     assert words in result.message
 
 
-def test_huge_coordinates_are_an_error_not_an_exception():
-    result = FramePipeline(FIXED).process(corner() * 1e200, 0)
+@pytest.mark.parametrize('auto', [False, True])
+def test_huge_coordinates_are_an_error_not_an_exception(auto):
+    pipe = FramePipeline(PipelineConfig(auto_tune=auto, tolerance=0.01))
+    result = pipe.process(corner() * 1e200, 0)
     assert result.level == ERROR
-    assert 'numerical failure' in result.message
+    assert 'numerical failure' in result.message and 'a coordinate reaches 1e+200 m, beyond' in result.message
+
+
+def test_planes_on_a_handful_of_voxels_are_not_reliable():
+    """A voxel grid coarser than the scene leaves a few centroids: a 'plane' through them is no evidence."""
+    room = scenes.room(20000, 0.01, seed=1).points
+    result = FramePipeline(PipelineConfig(auto_tune=False, tolerance=0.05, voxel_size=10.0)).process(room, 0)
+    assert result.level == WARN and 'too few to tell a plane from chance' in result.message, result.message
 
 
 def test_one_far_outlier_does_not_hide_the_planes():

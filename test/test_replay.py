@@ -13,6 +13,7 @@ from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, W
 from rosbags.typesys import Stores, get_typestore
 
 from plane_validation import scenes
+from plane_validation.app.pipeline import PipelineConfig
 from plane_validation.cli import main as cli_main
 from plane_validation.formats.pointcloud2 import create_cloud, rosbags_types, structured_array
 from plane_validation.ros.replay import ReplayError, output_topics, replay_live, replay_offline
@@ -200,6 +201,22 @@ def test_cli_replay_prints_frames_and_summary(tmp_path, capsys):
     assert '5 frames from' in text
     assert cli_main(['replay', str(tmp_path / 'missing')]) == 2
     assert 'bag not found' in capsys.readouterr().err
+    # a tolerance on its own is used as is (auto-tuning off), as in detect
+    assert cli_main(['replay', str(BAGS / 'cube'), '--out', str(tmp_path / 'p'), '--tolerance', '0.005']) == 0
+    text = capsys.readouterr().out
+    assert text.count('tolerance 0.005 m  ') == 5, text  # the 5 frames (the summary names it once more)
+    with pytest.raises(SystemExit):
+        cli_main(['replay', str(BAGS / 'cube'), '--rate', '-5'])
+    assert 'must be a finite number > 0' in capsys.readouterr().err
+
+
+def test_an_output_topic_of_the_node_cannot_be_replayed_into_it(tmp_path):
+    first = tmp_path / 'first'
+    replay_offline(BAGS / 'cube', out=first, echo=None, config=PipelineConfig(auto_tune=False))
+    out = tmp_path / 'second'
+    with pytest.raises(ReplayError, match="one of the node's output topics"):
+        replay_offline(first, topic='/plane_validation/segmented', out=out, echo=None)
+    assert not out.exists() and not list(tmp_path.glob('.second*'))
 
 
 def _data_files(bag: Path) -> list[str]:

@@ -322,3 +322,24 @@ def test_a_worker_process_that_dies_is_a_clear_error_and_later_sweeps_start_new_
             list(run(lambda code: os._exit(code), [(3,), (3,)]))
     scene = scenes.corner(1500, 1.0, seed=2)
     assert pv.tune_tolerance(scene.points, seed=0, jobs=2).segmentation.n_planes == 3
+
+
+def test_coordinates_whose_squares_overflow_are_a_clear_error():
+    from plane_validation.core.ransac import MAX_COORDINATE
+    huge = scenes.cube(2000, 1.0, seed=0).points * 1e200
+    for call in (lambda: pv.tune_tolerance(huge, seed=0), lambda: pv.detect_planes(huge, 1e198, seed=0),
+                 lambda: pv.detect_planes(huge, 1e198, seed=0, connectivity=False)):
+        with pytest.raises(ValueError, match='a coordinate reaches .*e\\+202 m, beyond the 3.4e\\+38 m'):
+            call()
+    near = scenes.cube(2000, 1.0, seed=0).points * (MAX_COORDINATE / 200)  # the cube is 100 wide: up to 0.5x max
+    near[0] = np.nan
+    near[1] = np.inf  # not a point: does not count
+    assert pv.detect_planes(near, MAX_COORDINATE / 100, seed=0).n_planes >= 1
+
+
+def test_three_points_are_a_plane_but_not_a_reliable_one():
+    from plane_validation.core.verdict import MIN_PLANE_POINTS
+    three = np.random.default_rng(0).random((3, 3))
+    result = pv.tune_tolerance(three, seed=0)
+    assert result.segmentation.n_planes == 1 and not result.reliable
+    assert f'plane 0 rests on 3 points (< {MIN_PLANE_POINTS})' in result.verdict

@@ -86,15 +86,40 @@ def _emit_json(document: dict) -> None:
 # -- commands ------------------------------------------------------------------------------------
 
 
+def _check_outputs(args: argparse.Namespace, *names: str) -> None:
+    """Before the work, not after: the output options ``names`` that were given name a writable
+    place and not the input cloud (``--out`` also a point-file type)."""
+    for name in names:
+        path = getattr(args, name, None)
+        if path is None:
+            continue
+        if name == 'out':
+            check_output(path, inputs=(args.cloud,))
+        elif Path(path).resolve() == Path(str(args.cloud)).resolve():
+            raise ValueError(f'{path}: the output would overwrite the input; choose another name')
+        elif not Path(path).parent.is_dir():
+            raise ValueError(f'{path}: directory {Path(path).parent} does not exist')
+
+
+@contextmanager
+def _about(cloud: str) -> Iterator[None]:
+    """A ValueError raised inside names the cloud it is about (when it does not already)."""
+    try:
+        yield
+    except ValueError as exc:
+        if str(cloud) in str(exc):
+            raise
+        raise ValueError(f'{cloud}: {exc}') from exc
+
+
 def cmd_detect(args: argparse.Namespace) -> int:
     from ..app.detection import detect
     from ..app.report import detection_document, format_indices, noise_line
 
-    if args.out:
-        check_output(args.out)  # before the work, not after
-    points, shape = load_cloud(args.cloud)
+    _check_outputs(args, 'out', 'png')
     tolerance = None if args.auto else args.tolerance
-    with progress_bar('tuning t', quiet=args.json) as progress:
+    with _about(args.cloud), progress_bar('tuning t', quiet=args.json) as progress:
+        points, shape = load_cloud(args.cloud)
         det = detect(points, tolerance, seed=_seed(args.seed), max_planes=args.max_planes,
                      min_inliers=min_inliers_value(args.min_inliers), progress=progress, shape=shape,
                      noise_model=args.noise_model, noise_reference=args.noise_reference, jobs=args.tune_jobs)
@@ -135,8 +160,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from ..app.report import noise_line, sweep_document, write_sweep_csv
     from ..core.tuning import tune_tolerance
 
-    points, shape = load_cloud(args.cloud)
-    with progress_bar('sweeping t', quiet=args.json) as progress:
+    _check_outputs(args, 'plot', 'csv')
+    with _about(args.cloud), progress_bar('sweeping t', quiet=args.json) as progress:
+        points, shape = load_cloud(args.cloud)
         result = tune_tolerance(points, tolerances=args.tolerances, criterion=args.criterion, seed=_seed(args.seed),
                                 max_planes=args.max_planes, min_inliers=min_inliers_value(args.min_inliers),
                                 progress=progress, shape=shape, noise_model=args.noise_model,
@@ -168,19 +194,21 @@ def cmd_planes(args: argparse.Namespace) -> int:
     from ..app.report import plane_count_document, plane_count_table
     from ..core.tuning import MIN_PLANE_SILHOUETTE, select_plane_count, tune_tolerance
 
-    points, shape = load_cloud(args.cloud)
+    _check_outputs(args, 'plot')
     min_inliers = min_inliers_value(args.min_inliers)
     tolerance, source = args.tolerance, 'fixed'
-    if tolerance is None:
-        with progress_bar('tuning t', quiet=args.json) as progress:
-            tolerance = tune_tolerance(points, seed=_seed(args.seed), max_planes=args.max_planes,
-                                       min_inliers=min_inliers, progress=progress, shape=shape,
-                                       noise_model=args.noise_model, noise_reference=args.noise_reference,
-                                       jobs=args.tune_jobs).tolerance
-        source = 'auto'
-    result = select_plane_count(points, tolerance, args.max_planes, min_inliers=min_inliers, seed=_seed(args.seed),
-                                shape=shape, noise_model=args.noise_model,
-                                noise_reference=args.noise_reference)
+    with _about(args.cloud):
+        points, shape = load_cloud(args.cloud)
+        if tolerance is None:
+            with progress_bar('tuning t', quiet=args.json) as progress:
+                tolerance = tune_tolerance(points, seed=_seed(args.seed), max_planes=args.max_planes,
+                                           min_inliers=min_inliers, progress=progress, shape=shape,
+                                           noise_model=args.noise_model, noise_reference=args.noise_reference,
+                                           jobs=args.tune_jobs).tolerance
+            source = 'auto'
+        result = select_plane_count(points, tolerance, args.max_planes, min_inliers=min_inliers,
+                                    seed=_seed(args.seed), shape=shape, noise_model=args.noise_model,
+                                    noise_reference=args.noise_reference)
     written = []
     if args.plot:
         from ..app.plot import plot_plane_count
@@ -195,8 +223,10 @@ def cmd_planes(args: argparse.Namespace) -> int:
     print(plane_count_table(result))
     if result.counts:
         others = ', '.join(f'{name} {result.best_by(name)}' for name in ('gs', 'davies_bouldin', 'dunn', 'gs_planes'))
-        print(f'selected k = {result.n_planes} (largest k whose planes all have S_j >= {MIN_PLANE_SILHOUETTE}); '
-              f'each index\'s own optimum: {others}')
+        rule = f'largest k whose planes all have S_j >= {MIN_PLANE_SILHOUETTE}'
+        if result.n_planes == 1:  # one plane has no silhouette: 1 is what is left when no k >= 2 qualifies
+            rule = f'no k >= 2 has all its planes at S_j >= {MIN_PLANE_SILHOUETTE}'
+        print(f'selected k = {result.n_planes} ({rule}); each index\'s own optimum: {others}')
     else:
         print('no planes found')
     for path in written:
@@ -245,8 +275,8 @@ def _config(args: argparse.Namespace):
     """PipelineConfig from the pipeline options (only those given override the table's defaults)."""
     from ..app.config import PARAMETERS, PipelineConfig
     changes = {name: getattr(args, name) for name in PARAMETERS if getattr(args, name, None) is not None}
-    if getattr(args, 'fixed', False):
-        changes['auto_tune'] = False
+    if getattr(args, 'fixed', False) or ('tolerance' in changes and 'auto_tune' not in changes):
+        changes['auto_tune'] = False  # a tolerance given on its own is the t to use, as in detect
     return dataclasses.replace(PipelineConfig(), **changes).validate()
 
 
@@ -266,7 +296,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from ..app.pipeline import PipelineConfig
     from ..app.plot import plot_cloud_message
     from ..ros.replay import replay_live
+    if not Path(args.bag).exists():
+        raise ValueError(f'no such bag: {args.bag}')
     out_dir = Path(args.out)
+    made = not out_dir.exists()
     out_dir.mkdir(parents=True, exist_ok=True)
     out_bag = out_dir / f'{Path(args.bag).name}.planes'
     if out_bag.exists():
@@ -274,7 +307,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
         shutil.rmtree(out_bag)
     print(f'Replaying {args.bag} live over DDS into plane_validation_node (auto-tuned tolerance, seed 0)...')
     start = time.perf_counter()
-    summary = replay_live(args.bag, out=out_bag, rate=args.rate, config=PipelineConfig())
+    try:
+        summary = replay_live(args.bag, out=out_bag, rate=args.rate, config=PipelineConfig())
+    except BaseException:
+        if made and not any(out_dir.iterdir()):  # no folder left behind that this run made and never filled
+            out_dir.rmdir()
+        raise
     print(summary.line())
     png = out_dir / 'last_frame.png'
     if summary.last_segmented is not None:
@@ -371,7 +409,8 @@ def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:
         else:
             group.add_argument(flag, dest=name, type=_table_type(name), default=None, help=text,
                                metavar='{' + ','.join(spec.choices) + '}' if spec.choices else name.upper())
-    group.add_argument('--fixed', action='store_true', help='same as --no-auto-tune: use --tolerance as is')
+    group.add_argument('--fixed', action='store_true', help='same as --no-auto-tune: use --tolerance as is (a '
+                       '--tolerance without --auto-tune is fixed too)')
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -389,7 +428,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser('demo', help='the main job: replay a bundled bag through the node over DDS')
     demo.add_argument('--bag', default=DEMO_BAG)
     demo.add_argument('--out', default=DEMO_OUT, help='directory for the output bag and PNG')
-    demo.add_argument('--rate', type=float, default=0.25,
+    demo.add_argument('--rate', type=_positive_float, default=0.25,
                       help='playback speed (slow enough that the node answers every frame)')
     demo.set_defaults(func=cmd_demo)
 
@@ -398,7 +437,7 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument('--topic', help='PointCloud2 topic (auto-detected when there is one)')
     replay.add_argument('--out', help='output rosbag2 directory (default: <bag>.planes beside the bag)')
     replay.add_argument('--live', action='store_true', help='publish on ROS topics at the recorded timing')
-    replay.add_argument('--rate', type=float, default=1.0, help='playback speed factor for --live')
+    replay.add_argument('--rate', type=_positive_float, default=1.0, help='playback speed factor for --live')
     replay.add_argument('--no-node', action='store_true', help='with --live: do not start the node in-process')
     replay.add_argument('--storage', choices=('mcap', 'sqlite3'),
                         help='output bag storage (default: the input bag\'s; MCAP for a ROS 1 bag)')

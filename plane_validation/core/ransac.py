@@ -107,6 +107,23 @@ def finite_rows(points: np.ndarray) -> np.ndarray:
     return ok
 
 
+#: Largest coordinate magnitude accepted, meters: float32's largest, which hypotheses are scored in (a
+#: driver's FLT_MAX row is still a point, far from every plane).
+MAX_COORDINATE = float(np.finfo(np.float32).max)
+
+
+def check_magnitude(points: np.ndarray) -> None:
+    """ValueError when a finite coordinate of ``points`` (N, 3) exceeds MAX_COORDINATE in magnitude
+    (NaN and inf rows are ignored: they are no points)."""
+    flat = points.reshape(-1)
+    if len(flat) == 0 or max(np.fmax.reduce(flat), -np.fmin.reduce(flat)) <= MAX_COORDINATE:
+        return  # (all NaN compares False and takes the exact path below)
+    worst = float(np.abs(points[finite_rows(points)]).max(initial=0.0))
+    if worst > MAX_COORDINATE:
+        raise ValueError(f'a coordinate reaches {worst:.3g} m, beyond the {MAX_COORDINATE:.3g} m that can be '
+                         'processed (wrong units or a corrupt cloud?)')
+
+
 def resolve_min_inliers(min_inliers: int | float, n_valid: int) -> int:
     """An absolute count, or a fraction of ``n_valid`` when ``min_inliers`` is a float < 1."""
     if isinstance(min_inliers, (bool, np.bool_)) or not np.isfinite(min_inliers) or min_inliers < 0:
@@ -402,6 +419,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
         raise ValueError(f'ransac_points must be None or an integer >= 3, got {ransac_points!r}')
     if shape is not None:
         shape = check_shape(shape, len(pts))
+    check_magnitude(pts)
     scale = tolerance_scale(pts, noise_model, noise_reference)
     model = dict(noise_model=noise_model, noise_reference=float(noise_reference))
     point_tolerance = tolerance if scale is None else tolerance * scale  # (N,) with a noise model

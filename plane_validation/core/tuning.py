@@ -20,7 +20,16 @@ from scipy.spatial import cKDTree
 from .blas import single_blas_thread
 from .indices import ValidityIndices, validity_indices
 from .noise import NOISE_REFERENCE, noise_coefficient, tolerance_scale
-from .ransac import RANSAC_POINTS, Segmentation, as_points, check_shape, detect_planes, finite_rows, search_graph
+from .ransac import (
+    RANSAC_POINTS,
+    Segmentation,
+    as_points,
+    check_magnitude,
+    check_shape,
+    detect_planes,
+    finite_rows,
+    search_graph,
+)
 from .verdict import (
     RELIABLE_GS_PLANES,
     SINGLE_PLANE_THICKNESS,
@@ -151,6 +160,7 @@ def local_noise(points: np.ndarray, *, k: int = 16, queries: int = 2000, seed=No
     when only a 50k-point probe is searched.
     """
     pts = _finite(as_points(points))
+    check_magnitude(pts)
     rng = np.random.default_rng(seed)
     probe = pts if len(pts) <= 50000 else pts[rng.choice(len(pts), 50000, replace=False)]
     k = min(k, len(probe))
@@ -286,6 +296,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     finite = _finite(pts)
     if len(finite) < 3:
         raise ValueError(f'need at least 3 finite points to tune, got {len(finite)}')
+    check_magnitude(finite)
     rng = np.random.default_rng(seed)
     cand = default_tolerances(finite, count, lo=t_min, hi=t_max, seed=rng) if tolerances is None \
         else np.asarray(tolerances, dtype=float)

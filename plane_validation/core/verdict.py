@@ -11,7 +11,8 @@ from .ransac import Segmentation, as_points
 from .scoring import segmentation_quality
 
 __all__ = ['judge', 'plane_thickness', 'plane_curvature', 'RELIABLE_PS', 'RELIABLE_GS_PLANES', 'MAX_THICKNESS',
-           'MIN_CURVATURE', 'SINGLE_PLANE_THICKNESS', 'seed_agreement', 'MIN_SEED_AGREEMENT', 'STABILITY_RESEEDS']
+           'MIN_CURVATURE', 'SINGLE_PLANE_THICKNESS', 'seed_agreement', 'MIN_SEED_AGREEMENT', 'STABILITY_RESEEDS',
+           'MIN_PLANE_POINTS']
 
 #: Below this plane silhouette (PS, core/plane_silhouette.py) the planes are not reported as
 #: reliable. Calibrated on benchmarks/quality.py and the Kinect frames (benchmarks/README.md): good
@@ -39,6 +40,10 @@ THICK_SHARE = 0.1
 SINGLE_PLANE_THICKNESS = 0.05
 #: plane_thickness looks at a fixed random subset of this many inliers of a larger plane.
 THICKNESS_POINTS = 4096
+#: A plane judged on fewer points than this is not reliable: any 3 points are coplanar and a handful
+#: lie within t of a plane on any surface (3 random points, or a room in a few coarse voxels, scored
+#: PS 1.00).
+MIN_PLANE_POINTS = 10
 #: Stability under reseeding (Ben-Hur, Elisseeff & Guyon 2002; Lange et al. 2004): tune_tolerance
 #: detects again at the chosen t with this many other RANSAC seeds (on its sweep's points) ...
 STABILITY_RESEEDS = 3
@@ -105,11 +110,11 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
           agreement: float | None = None) -> tuple[bool, str]:
     """Whether the planes of ``seg`` are reliable, with a one-line reason.
 
-    Reliable needs at least one plane, the planes flat (curved slabs, planes with a thickness ratio
-    above MAX_THICKNESS, see :func:`plane_thickness`, whose residuals are at least MIN_CURVATURE
-    explained by curvature, see :func:`plane_curvature`, hold less than THICK_SHARE of their
-    points) and a plane silhouette PS >= RELIABLE_PS: the points lie on their
-    planes and clear of the other regions. On plane-free clouds (sphere, bunny) the "planes" are
+    Reliable needs at least one plane, each on at least MIN_PLANE_POINTS points, the planes flat
+    (curved slabs, planes with a thickness ratio above MAX_THICKNESS, see :func:`plane_thickness`,
+    whose residuals are at least MIN_CURVATURE explained by curvature, see :func:`plane_curvature`,
+    hold less than THICK_SHARE of their points) and a plane silhouette PS >= RELIABLE_PS: the points
+    lie on their planes and clear of the other regions. On plane-free clouds (sphere, bunny) the "planes" are
     thick slabs or patches whose points lie near their neighbours' planes. With ``agreement`` (see
     :func:`seed_agreement`; tune_tolerance gives it) it must also reach MIN_SEED_AGREEMENT: other
     RANSAC seeds find the same planes (a curved surface is cut into different patches each time);
@@ -124,6 +129,10 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
                           for p, t in zip(seg.planes, thickness)])
     slab = (thickness > MAX_THICKNESS) & (curvature >= MIN_CURVATURE)
     problems = []  # every test that fails, so that fixing one cause does not reveal another
+    if sizes.min() < MIN_PLANE_POINTS:
+        few = int(np.argmin(sizes))
+        problems.append(f'plane {few} rests on {int(sizes[few])} points (< {MIN_PLANE_POINTS}): too few to tell a '
+                        'plane from chance')
     if sizes[slab].sum() >= THICK_SHARE * sizes.sum():
         worst = int(np.argmax(np.where(slab, sizes, -1)))
         problems.append(f'plane {worst} is a curved slab (thickness ratio {_up(thickness[worst])} > {MAX_THICKNESS}, '

@@ -49,6 +49,8 @@ def open_bag(bag: Path):
     from rosbags.highlevel import AnyReader, AnyReaderError
     if not bag.exists():
         raise BagError(f'bag not found: {bag}')
+    if bag.is_dir() and not (bag / 'metadata.yaml').is_file() and bag_storage(bag) is None:
+        raise BagError(f'{bag}: a directory but not a rosbag2 bag (no metadata.yaml, no .mcap or .db3 file)')
     try:
         reader = AnyReader([bag], default_typestore=typestore())
         reader.open()
@@ -77,7 +79,7 @@ def pick_topic(reader, bag: Path, topic: str | None) -> list:
         if len(clouds) != 1:
             found = ', '.join(clouds) or 'none'
             raise BagError(f'{bag}: cannot pick the cloud topic automatically (PointCloud2 topics: {found}); '
-                           'pass --topic')
+                           'name one (replay --topic TOPIC, or BAG:TOPIC for a cloud file argument)')
         topic = clouds[0]
     conns = [c for c in reader.connections if c.topic == topic]
     if not conns:
@@ -206,7 +208,8 @@ def _xyz(source: BagSource, topic: str, msg, xyz_array) -> np.ndarray:
 
 def write_bag_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None = None, *,
                      topic: str = TOPIC) -> Path:
-    """Write (N, 3) points (meters) as one float32 x y z PointCloud2 into a new rosbag2 bag, with
+    """Write (N, 3) points (meters) as one float32 x y z PointCloud2 (float64 beyond float32's range)
+    into a new rosbag2 bag, with
     (N,) labels as an int32 field ``label`` when given.
 
     ``path`` without extension: a bag directory (MCAP storage); ``.mcap`` or ``.db3``: a single
@@ -214,6 +217,7 @@ def write_bag_points(path: str | Path, points: np.ndarray, labels: np.ndarray | 
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
 
+    from .files import coordinate_dtype
     from .pointcloud2 import create_cloud, rosbags_types
 
     path = Path(path)
@@ -228,7 +232,8 @@ def write_bag_points(path: str | Path, points: np.ndarray, labels: np.ndarray | 
         raise ValueError(f'{path}: directory {path.parent} does not exist')
     store = typestore()
     types = rosbags_types(store)
-    xyz = np.asarray(points, dtype=np.float32).reshape(-1, 3)
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    xyz = points.astype(coordinate_dtype(points))
     header = types.Header(stamp=types.Time(sec=STAMP_NS // 10**9, nanosec=STAMP_NS % 10**9), frame_id=FRAME_ID)
     columns = {'x': xyz[:, 0], 'y': xyz[:, 1], 'z': xyz[:, 2]}
     if labels is not None:

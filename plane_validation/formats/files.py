@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -122,9 +123,13 @@ def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None 
     return path
 
 
-def check_output(path: str | Path) -> None:
-    """ValueError unless :func:`save_points` can write ``path`` (known type, existing directory)."""
+def check_output(path: str | Path, *, inputs: tuple[str | Path, ...] = ()) -> None:
+    """ValueError unless :func:`save_points` can write ``path`` (known type, existing directory, not
+    one of the ``inputs``)."""
     path = Path(path)
+    for source in inputs:
+        if path.resolve() == Path(str(source)).resolve():
+            raise ValueError(f'{path}: the output would overwrite the input; choose another name')
     suffix = path.suffix.lower()
     if suffix not in ('.ply', '.pcd', '.npy', '.mcap', '.db3', '') + TEXT_SUFFIXES:
         raise ValueError(f'{path}: cannot write {suffix!r} files (use .ply, .pcd, .npy, .xyz, .txt, .csv, '
@@ -188,10 +193,12 @@ def _read_npy(path: Path) -> np.ndarray:
 
 def _read_text(path: Path) -> np.ndarray:
     try:
-        table = np.loadtxt(path, delimiter=',' if path.suffix.lower() == '.csv' else None, ndmin=2)
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore', UserWarning)  # "input contained no data": an empty cloud
+            table = np.loadtxt(path, delimiter=',' if path.suffix.lower() == '.csv' else None, ndmin=2)
     except Exception as exc:  # ValueError on non-numbers, UnicodeDecodeError on binary bytes
         raise ValueError(f'{path}: not a table of numbers ({_first_line(exc)})') from exc
-    return _xyz_columns(path, table)
+    return np.empty((0, 3)) if table.size == 0 else _xyz_columns(path, table)
 
 
 def _read_ply(path: Path) -> np.ndarray:
@@ -251,6 +258,12 @@ def _read_pcd(path: Path) -> np.ndarray:
         raise ValueError(f'{path}: PCD FIELDS, SIZE, TYPE and COUNT disagree in length')
     if n < 0:
         raise ValueError(f'{path}: PCD declares {n} points')
+    try:
+        image = int(header['WIDTH'][0]) * int(header['HEIGHT'][0]) if 'WIDTH' in header and 'HEIGHT' in header else n
+    except (IndexError, ValueError) as exc:
+        raise ValueError(f'{path}: malformed PCD header ({exc})') from exc
+    if image != n:
+        raise ValueError(f'{path}: PCD header says WIDTH x HEIGHT = {image} but POINTS {n}')
     if data == 'ascii':
         try:
             table = np.loadtxt(raw[offset:].decode('ascii', errors='replace').splitlines(), ndmin=2)
@@ -259,7 +272,10 @@ def _read_pcd(path: Path) -> np.ndarray:
         columns = np.cumsum([0] + counts)
         if table.size and table.shape[1] < columns[-1]:
             raise ValueError(f'{path}: ascii PCD rows have {table.shape[1]} values, the fields need {columns[-1]}')
-        if not table.size:
+        rows = len(table) if table.size else 0
+        if rows != n:
+            raise ValueError(f'{path}: ascii PCD data has {rows} rows, the header declares {n} points')
+        if not rows:
             return np.empty((0, 3))
         return np.column_stack([table[:, columns[fields.index(a)]] for a in 'xyz']).astype(np.float64)
     if data == 'binary':
@@ -288,12 +304,21 @@ def _read_pcd(path: Path) -> np.ndarray:
 # -- writers -------------------------------------------------------------------------------------
 
 
+def coordinate_dtype(points: np.ndarray) -> np.dtype:
+    """float32 for written coordinates, float64 when a finite one is beyond float32's range (it
+    would be written as inf)."""
+    finite = np.abs(points[np.isfinite(points)])
+    return np.dtype('<f8' if finite.size and finite.max() > np.finfo(np.float32).max else '<f4')
+
+
 def _write_pcd(path: Path, points: np.ndarray, labels: np.ndarray | None,
                shape: tuple[int, int] | None = None) -> None:
-    """Binary PCD v0.7, float32 x y z (+ int32 label); organized (HEIGHT H, WIDTH W) for a ``shape``."""
+    """Binary PCD v0.7, float32 x y z (float64 beyond float32's range) (+ int32 label); organized
+    (HEIGHT H, WIDTH W) for a ``shape``."""
     height, width = (int(shape[0]), int(shape[1])) if shape is not None else (1, len(points))
     names = ['x', 'y', 'z'] + ([] if labels is None else ['label'])
-    dtype = np.dtype([(name, '<f4') for name in 'xyz'] + ([] if labels is None else [('label', '<i4')]))
+    real = coordinate_dtype(points)
+    dtype = np.dtype([(name, real) for name in 'xyz'] + ([] if labels is None else [('label', '<i4')]))
     records = np.empty(len(points), dtype)
     for i, name in enumerate('xyz'):
         records[name] = points[:, i]
@@ -302,7 +327,7 @@ def _write_pcd(path: Path, points: np.ndarray, labels: np.ndarray | None,
     header = ('# .PCD v0.7 - Point Cloud Data file format (written by plane_validation)\n'
               'VERSION 0.7\n'
               f'FIELDS {" ".join(names)}\n'
-              f'SIZE {" ".join("4" for _ in names)}\n'
+              f'SIZE {" ".join("4" if n == "label" else str(real.itemsize) for n in names)}\n'
               f'TYPE {" ".join("I" if n == "label" else "F" for n in names)}\n'
               f'COUNT {" ".join("1" for _ in names)}\n'
               f'WIDTH {width}\nHEIGHT {height}\nVIEWPOINT 0 0 0 1 0 0 0\n'
@@ -311,12 +336,13 @@ def _write_pcd(path: Path, points: np.ndarray, labels: np.ndarray | None,
 
 
 def _write_ply(path: Path, points: np.ndarray, labels: np.ndarray | None) -> None:
-    """Binary little-endian PLY: vertex float32 x y z (+ int32 plane_id)."""
+    """Binary little-endian PLY: vertex float32 x y z (float64 beyond float32's range) (+ int32 plane_id)."""
     try:
         from plyfile import PlyData, PlyElement
     except ImportError as exc:
         raise ValueError(f'{path}: writing .ply needs plyfile (pip install plyfile)') from exc
-    dtype = [('x', '<f4'), ('y', '<f4'), ('z', '<f4')] + ([] if labels is None else [('plane_id', '<i4')])
+    real = coordinate_dtype(points).str
+    dtype = [('x', real), ('y', real), ('z', real)] + ([] if labels is None else [('plane_id', '<i4')])
     vertex = np.empty(len(points), dtype)
     for i, name in enumerate('xyz'):
         vertex[name] = points[:, i]

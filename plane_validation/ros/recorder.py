@@ -30,6 +30,9 @@ class BagRecorder:
 
         if storage not in STORAGES:
             raise BagError(f'unknown storage {storage!r}; choose one of {", ".join(STORAGES)}')
+        if input_topic in output_topics(node_name).values():
+            raise BagError(f'input topic {input_topic} is one of the node\'s output topics: its clouds and the '
+                           'node\'s would share it; replay the topic the node read instead')
         if path.exists():
             raise BagError(f'output {path} already exists; remove it or pass another --out')
         if not path.parent.is_dir():
