@@ -102,17 +102,23 @@ def _stages(msg, cfg: PipelineConfig, stamp_ns: int) -> tuple[float, float, floa
     """The pipeline's stages called one at a time (same input, parameters and seed as
     process_cloud): seconds of conversion, RANSAC, indices (+ verdict)."""
     t0 = time.perf_counter()
-    valid = _finite(as_points(xyz_array(msg)))
+    pts = as_points(xyz_array(msg))
+    finite = np.isfinite(pts).all(axis=1)
+    valid = pts[finite]
     t1 = time.perf_counter()
     seed = frame_seed(cfg.seed, stamp_ns)
-    seg = detect_planes(valid, cfg.tolerance, **_supported(
+    # an organized frame is searched as the pipeline searches it: with its image shape (connected regions)
+    organized = msg.height > 1 and getattr(cfg, 'connectivity', False)
+    seg = detect_planes(pts if organized else valid, cfg.tolerance, **_supported(
         detect_planes, max_planes=cfg.max_planes, min_inliers=cfg.min_inliers, probability=cfg.probability,
-        max_iterations=cfg.max_iterations, seed=seed, ransac_points=getattr(cfg, 'ransac_points', 0) or None))
+        max_iterations=cfg.max_iterations, seed=seed, ransac_points=getattr(cfg, 'ransac_points', 0) or None,
+        shape=(msg.height, msg.width) if organized else None))
+    labels = seg.labels[finite] if organized else seg.labels
     t2 = time.perf_counter()
-    scores = validity_indices(valid, seg.labels, **_supported(
+    scores = validity_indices(valid, labels, **_supported(
         validity_indices, sample_size=cfg.index_sample_size, seed=seed,
         sampled_separation=not getattr(cfg, 'exact_indices', True)))
-    judge(valid, seg, scores)
+    judge(pts if organized else valid, seg, scores)
     t3 = time.perf_counter()
     return t1 - t0, t2 - t1, t3 - t2
 

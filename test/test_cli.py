@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -281,6 +282,23 @@ def test_usage_errors_and_bad_sources_in_process(corner_npy, tmp_path, capsys):
         assert main(argv) == 2, argv
         err = capsys.readouterr().err
         assert err.startswith('plane-validation: error: ') and words in err and err.count('\n') == 1, err
+        assert err.count(Path(argv[1].split(':')[0]).name) <= 1, err  # the cloud named once at most
+    # relative paths and a bag with a topic are named once too
+    (tmp_path / 'bad.pcd').write_bytes(b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\n'
+                                       b'HEIGHT 1\nPOINTS 3\nDATA ascii\n1 2 3\n')
+    for argv in (['detect', 'bad.pcd', '--tolerance', '0.1'], ['detect', f'{BAGS / "cube"}:/nope']):
+        cwd = os.getcwd()
+        os.chdir(tmp_path)
+        try:
+            assert main(argv) == 2
+        finally:
+            os.chdir(cwd)
+        err = capsys.readouterr().err
+        assert err.count(Path(argv[1].split(':')[0]).name) == 1, err
+    assert main(['detect', f'{BAGS / "cube"}:/points', '--out', str(BAGS / 'cube')]) == 2
+    assert 'would overwrite the input' in capsys.readouterr().err
+    assert main(['sweep', str(corner_npy), '--plot', str(tmp_path / 'a.png'), '--csv', str(tmp_path / 'a.png')]) == 2
+    assert 'given to both --plot and --csv' in capsys.readouterr().err
 
 
 class _Terminal(io.StringIO):
@@ -347,7 +365,11 @@ def test_the_depth_noise_model_is_named_and_its_coefficient_reported(tmp_path, c
     assert json.loads(capsys.readouterr().out)['noise_model'] == 'constant'
 
 
-def test_demo_with_a_missing_bag_leaves_no_output_folder(tmp_path, capsys):
-    out = tmp_path / 'demo_out'
+def test_a_failed_demo_leaves_no_output_folder(tmp_path, capsys):
+    out = tmp_path / 'parent' / 'demo_out'
     assert main(['demo', '--bag', str(tmp_path / 'nosuch'), '--out', str(out)]) == 2
     assert 'no such bag' in capsys.readouterr().err and not out.exists()
+    (tmp_path / 'empty').mkdir()  # there, but not a bag: fails after the output folders were made
+    assert main(['demo', '--bag', str(tmp_path / 'empty'), '--out', str(out)]) == 2
+    assert 'not a rosbag2 bag' in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['empty']

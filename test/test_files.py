@@ -270,6 +270,9 @@ def test_coordinates_beyond_float32_are_written_as_float64_not_inf(tmp_path, nam
 def test_an_empty_text_file_is_an_empty_cloud_without_warnings(tmp_path):
     import warnings
     (tmp_path / 'empty.xyz').write_text('')
+    (tmp_path / 'empty.pcd').write_bytes(b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n'
+                                         b'WIDTH 0\nHEIGHT 1\nPOINTS 0\nDATA ascii\n')
     with warnings.catch_warnings():
         warnings.simplefilter('error')
         assert load_points(tmp_path / 'empty.xyz').shape == (0, 3)
+        assert load_points(tmp_path / 'empty.pcd').shape == (0, 3)

@@ -86,28 +86,36 @@ def _emit_json(document: dict) -> None:
 # -- commands ------------------------------------------------------------------------------------
 
 
+def _cloud_path(cloud: str) -> Path:
+    """The file or bag a CLOUD argument reads (``BAG[:TOPIC[:INDEX]]`` names its bag)."""
+    from ..formats.bags import parse_bag_source
+    bag = parse_bag_source(cloud)
+    return Path(cloud) if bag is None else bag.path
+
+
 def _check_outputs(args: argparse.Namespace, *names: str) -> None:
     """Before the work, not after: the output options ``names`` that were given name a writable
-    place and not the input cloud (``--out`` also a point-file type)."""
-    for name in names:
-        path = getattr(args, name, None)
-        if path is None:
-            continue
+    place, neither the input cloud nor each other (``--out`` also a point-file type)."""
+    given = [(name, getattr(args, name)) for name in names if getattr(args, name, None) is not None]
+    for i, (name, path) in enumerate(given):
         if name == 'out':
-            check_output(path, inputs=(args.cloud,))
-        elif Path(path).resolve() == Path(str(args.cloud)).resolve():
+            check_output(path, inputs=(_cloud_path(args.cloud),))
+        elif Path(path).resolve() == _cloud_path(args.cloud).resolve():
             raise ValueError(f'{path}: the output would overwrite the input; choose another name')
         elif not Path(path).parent.is_dir():
             raise ValueError(f'{path}: directory {Path(path).parent} does not exist')
+        for other, other_path in given[:i]:
+            if Path(path).resolve() == Path(other_path).resolve():
+                raise ValueError(f'{path}: given to both --{other} and --{name}; choose two names')
 
 
 @contextmanager
 def _about(cloud: str) -> Iterator[None]:
-    """A ValueError raised inside names the cloud it is about (when it does not already)."""
+    """A ValueError raised inside names the cloud it is about (when it does not name its file already)."""
     try:
         yield
     except ValueError as exc:
-        if str(cloud) in str(exc):
+        if _cloud_path(cloud).name in str(exc):
             raise
         raise ValueError(f'{cloud}: {exc}') from exc
 
@@ -299,7 +307,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     if not Path(args.bag).exists():
         raise ValueError(f'no such bag: {args.bag}')
     out_dir = Path(args.out)
-    made = not out_dir.exists()
+    made = [d for d in (out_dir, *out_dir.parents) if not d.exists()]  # the folders this run creates
     out_dir.mkdir(parents=True, exist_ok=True)
     out_bag = out_dir / f'{Path(args.bag).name}.planes'
     if out_bag.exists():
@@ -310,8 +318,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
     try:
         summary = replay_live(args.bag, out=out_bag, rate=args.rate, config=PipelineConfig())
     except BaseException:
-        if made and not any(out_dir.iterdir()):  # no folder left behind that this run made and never filled
-            out_dir.rmdir()
+        for folder in made:  # innermost first: no folders left behind that this run made and never filled
+            if any(folder.iterdir()):
+                break
+            folder.rmdir()
         raise
     print(summary.line())
     png = out_dir / 'last_frame.png'

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .noise import NOISE_REFERENCE, tolerance_scale
-from .regions import NORMAL_ANGLE_DEG, Neighbours, graph_neighbours, grid_neighbours
+from .regions import NORMAL_MIN_COS, Neighbours, graph_neighbours, grid_neighbours
 
 __all__ = ['Plane', 'Segmentation', 'SearchGraph', 'detect_planes', 'search_graph', 'fit_plane', 'as_points',
            'finite_rows', 'resolve_min_inliers']
@@ -35,6 +35,9 @@ RANSAC_POINTS = 32768
 SPREAD_POINTS = 1024
 #: A sample triple whose sine of the angle at its first point is below this is degenerate.
 MIN_SINE = 1e-6
+#: A little below NORMAL_MIN_COS: _best_region's count of the inliers whose normal agrees is at
+#: least what a region may keep (regions.Neighbours.coherent), whatever the rounding of the dot products.
+_COHERENT_BOUND = NORMAL_MIN_COS - 1e-9
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,9 +110,9 @@ def finite_rows(points: np.ndarray) -> np.ndarray:
     return ok
 
 
-#: Largest coordinate magnitude accepted, meters: float32's largest, which hypotheses are scored in (a
-#: driver's FLT_MAX row is still a point, far from every plane).
-MAX_COORDINATE = float(np.finfo(np.float32).max)
+#: Largest coordinate magnitude accepted, meters: squared distances of larger ones overflow float64 (a
+#: single far row below it, such as a driver's FLT_MAX, is a point far from every plane).
+MAX_COORDINATE = 1e150
 
 
 def check_magnitude(points: np.ndarray) -> None:
@@ -118,10 +121,11 @@ def check_magnitude(points: np.ndarray) -> None:
     flat = points.reshape(-1)
     if len(flat) == 0 or max(np.fmax.reduce(flat), -np.fmin.reduce(flat)) <= MAX_COORDINATE:
         return  # (all NaN compares False and takes the exact path below)
-    worst = float(np.abs(points[finite_rows(points)]).max(initial=0.0))
+    big = np.abs(flat[np.abs(flat) > MAX_COORDINATE])
+    worst = float(big[np.isfinite(big)].max(initial=0.0))
     if worst > MAX_COORDINATE:
-        raise ValueError(f'a coordinate reaches {worst:.3g} m, beyond the {MAX_COORDINATE:.3g} m that can be '
-                         'processed (wrong units or a corrupt cloud?)')
+        raise ValueError(f'a coordinate reaches {worst:.3g} m: beyond {MAX_COORDINATE:g} m squared distances '
+                         'overflow (wrong units or a corrupt cloud?)')
 
 
 def resolve_min_inliers(min_inliers: int | float, n_valid: int) -> int:
@@ -267,10 +271,12 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
         sub_normals = point_normals if pick is None else point_normals[:, pick]
         unknown = np.isnan(sub_normals[0])
         sub_normals = np.nan_to_num(sub_normals).astype(np.float32)
-        min_cos = np.float32(np.cos(np.radians(NORMAL_ANGLE_DEG)))
+        min_cos = np.float32(NORMAL_MIN_COS)
     # Scoring only ranks hypotheses: float32 halves its memory traffic, and the rounding (~1e-7 of
-    # the centred coordinates) only matters for points within a hair of t.
-    subset32 = subset.astype(np.float32)
+    # the centred coordinates) only matters for points within a hair of t. A row beyond float32's
+    # range becomes inf (its distances inf or NaN): never an inlier, as in float64.
+    with np.errstate(over='ignore'):
+        subset32 = subset.astype(np.float32)
     sub_tolerance = tolerance if pick is None else _at(tolerance, pick)
     best_normals = np.empty((0, 3))
     best_offsets = np.empty(0)
@@ -283,7 +289,8 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
         iterations += batch
         if len(normals) == 0:
             continue
-        near = _distances(subset32, normals.astype(np.float32), offsets.astype(np.float32)) <= sub_tolerance
+        with np.errstate(invalid='ignore'):
+            near = _distances(subset32, normals.astype(np.float32), offsets.astype(np.float32)) <= sub_tolerance
         if point_normals is not None:
             coherent = np.abs(normals.astype(np.float32) @ sub_normals) >= min_cos
             coherent |= unknown
@@ -362,11 +369,6 @@ def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, of
     return normal, offset, region
 
 
-#: A little below the cosine of NORMAL_ANGLE_DEG: counts at least the points a region may keep,
-#: whatever the rounding of the dot products.
-_COHERENT_BOUND = np.cos(np.radians(NORMAL_ANGLE_DEG)) - 1e-9
-
-
 def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
                   min_inliers: int | float = 0.02, probability: float = 0.99,
                   max_iterations: int = 1000, seed: int | np.random.Generator | None = None,
@@ -415,8 +417,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
         raise ValueError(f'probability must be in (0, 1), got {probability!r}')
     if int(max_iterations) != max_iterations or max_iterations < 1:
         raise ValueError(f'max_iterations must be an integer >= 1, got {max_iterations!r}')
-    if ransac_points is not None and (int(ransac_points) != ransac_points or ransac_points < 3):
-        raise ValueError(f'ransac_points must be None or an integer >= 3, got {ransac_points!r}')
+    _check_ransac_points(ransac_points)
     if shape is not None:
         shape = check_shape(shape, len(pts))
     check_magnitude(pts)
@@ -572,6 +573,11 @@ def _label_all(valid: np.ndarray, search: np.ndarray, valid_idx: np.ndarray, cen
     return tuple(planes)
 
 
+def _check_ransac_points(ransac_points) -> None:
+    if ransac_points is not None and (int(ransac_points) != ransac_points or ransac_points < 3):
+        raise ValueError(f'ransac_points must be None or an integer >= 3, got {ransac_points!r}')
+
+
 def check_shape(shape, n: int) -> tuple[int, int]:
     """``shape`` as (H, W) ints with H * W == n, or ValueError."""
     try:
@@ -610,6 +616,7 @@ def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
     ``ransac_points`` valid points is searched on a random sample drawn from ``rng``; without
     ``rng`` such a cloud has no fixed graph and None is returned."""
     pts = as_points(points)
+    _check_ransac_points(ransac_points)
     return _search_graph(pts, finite_rows(pts), None if shape is None else check_shape(shape, len(pts)),
                          ransac_points, rng)
 

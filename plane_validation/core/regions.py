@@ -24,7 +24,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-__all__ = ['Neighbours', 'grid_neighbours', 'graph_neighbours', 'JUMP', 'NEIGHBOURS', 'RADIUS']
+__all__ = ['Neighbours', 'grid_neighbours', 'graph_neighbours', 'JUMP', 'NEIGHBOURS', 'RADIUS', 'NORMAL_MIN_COS']
 
 #: A gap between grid neighbours this many times the gaps next to it along the image line (and
 #: this many typical pixel spacings at its range) is a depth jump.
@@ -45,6 +45,8 @@ ACROSS_BLOCK = 1 << 20
 #: count towards that plane's region (a plane slanted across the nosings of a staircase keeps only
 #: strips of the treads, not the risers that would join them into one region).
 NORMAL_ANGLE_DEG = 25.0
+#: ... its cosine.
+NORMAL_MIN_COS = float(np.cos(np.radians(NORMAL_ANGLE_DEG)))
 #: Grid normals from neighbours this many pixels away (smoother than adjacent pixels).
 NORMAL_REACH = 3
 #: Scales of :meth:`Neighbours.nearby`: a window of this many sub-grid pixels around the point
@@ -97,7 +99,7 @@ class Neighbours:
         if self.normals is None:
             return np.ones(self.n if at is None else len(at), bool)
         cos = np.abs((self.normals if at is None else self.normals[at]) @ normal)
-        return ~(cos < np.cos(np.radians(NORMAL_ANGLE_DEG)))  # NaN (unknown) counts as coherent
+        return ~(cos < NORMAL_MIN_COS)  # NaN (unknown) counts as coherent
 
     def subgraph(self, keep: np.ndarray) -> Neighbours:
         """Graph form: the neighbourhood of the points ``keep`` (ascending indices), renumbered

@@ -191,11 +191,16 @@ def _read_npy(path: Path) -> np.ndarray:
     return _xyz_columns(path, table)
 
 
+def _loadtxt(source, delimiter: str | None = None) -> np.ndarray:
+    """np.loadtxt as an (n, m) table; no data is an empty table, not a warning."""
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', UserWarning)  # "input contained no data"
+        return np.loadtxt(source, delimiter=delimiter, ndmin=2)
+
+
 def _read_text(path: Path) -> np.ndarray:
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter('ignore', UserWarning)  # "input contained no data": an empty cloud
-            table = np.loadtxt(path, delimiter=',' if path.suffix.lower() == '.csv' else None, ndmin=2)
+        table = _loadtxt(path, ',' if path.suffix.lower() == '.csv' else None)
     except Exception as exc:  # ValueError on non-numbers, UnicodeDecodeError on binary bytes
         raise ValueError(f'{path}: not a table of numbers ({_first_line(exc)})') from exc
     return np.empty((0, 3)) if table.size == 0 else _xyz_columns(path, table)
@@ -266,7 +271,7 @@ def _read_pcd(path: Path) -> np.ndarray:
         raise ValueError(f'{path}: PCD header says WIDTH x HEIGHT = {image} but POINTS {n}')
     if data == 'ascii':
         try:
-            table = np.loadtxt(raw[offset:].decode('ascii', errors='replace').splitlines(), ndmin=2)
+            table = _loadtxt(raw[offset:].decode('ascii', errors='replace').splitlines())
         except ValueError as exc:
             raise ValueError(f'{path}: bad ascii PCD data ({_first_line(exc)})') from exc
         columns = np.cumsum([0] + counts)
