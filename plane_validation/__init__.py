@@ -8,7 +8,7 @@ no rclpy), ``app`` (the per-frame pipeline, its parameters, diagnostics, reports
     import plane_validation as pv
     seg = pv.detect_planes(points, tolerance=0.02, seed=0)
     scores = pv.validity_indices(points, seg.labels)
-    tuned = pv.tune_tolerance(points)          # t chosen by GSplanes, plus the noise estimate
+    tuned = pv.tune_tolerance(points)          # t chosen by the plane silhouette PS, plus the verdict
 """
 import sys
 
