@@ -200,7 +200,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 def cmd_planes(args: argparse.Namespace) -> int:
     from ..app.report import plane_count_document, plane_count_table
-    from ..core.tuning import MIN_PLANE_SILHOUETTE, select_plane_count, tune_tolerance
+    from ..core.tuning import DEFAULT_CRITERION, MIN_PLANE_SILHOUETTE, select_plane_count, tune_tolerance
 
     _check_outputs(args, 'plot')
     min_inliers = min_inliers_value(args.min_inliers)
@@ -230,7 +230,8 @@ def cmd_planes(args: argparse.Namespace) -> int:
           'first k scored for each k')
     print(plane_count_table(result))
     if result.counts:
-        others = ', '.join(f'{name} {result.best_by(name)}' for name in ('gs', 'davies_bouldin', 'dunn', 'gs_planes'))
+        others = ', '.join(f'{name} {result.best_by(name)}' for name in
+                           (DEFAULT_CRITERION, 'gs', 'davies_bouldin', 'dunn', 'gs_planes'))
         rule = f'largest k whose planes all have S_j >= {MIN_PLANE_SILHOUETTE}'
         if result.n_planes == 1:  # one plane has no silhouette: 1 is what is left when no k >= 2 qualifies
             rule = f'no k >= 2 has all its planes at S_j >= {MIN_PLANE_SILHOUETTE}'
