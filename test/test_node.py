@@ -330,3 +330,25 @@ def test_a_tuning_range_the_cloud_cannot_honour_keeps_the_last_tuned_tolerance(r
         assert values['planes'] == '3'
     finally:
         harness.close()
+
+
+def test_a_node_stopped_during_a_sweep_stops_it_after_the_current_candidate(ros):
+    """Shutdown (Ctrl-C, ros2 launch's SIGTERM) does not wait for a whole sweep."""
+    from plane_validation.ros.node import SWEEP_STOP_S
+    params = {'auto_tune': True, 'seed': 3, 'tune_count': 100, 'tune_points': 60000}
+    node = PlaneValidationNode(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
+    h = Harness(node)
+    stopped = False
+    try:
+        first = h.send(xyz_cloud(scenes.room(60000, 0.01, seed=2).points, 7_000_000_000_000), timeout=60)
+        assert diag_values(first['diagnostics'])['tolerance_source'] == 'quick estimate (sweep pending)'
+        assert not node.wait_for_sweep(timeout=0.5)  # 100 candidates on 60,000 points: still running
+        start = time.perf_counter()
+        h.close()
+        stopped = True
+        assert time.perf_counter() - start < SWEEP_STOP_S + 5.0
+        assert node.wait_for_sweep(timeout=SWEEP_STOP_S)  # the sweep ended instead of running on
+        assert node.pipeline.tolerance is None  # and adopted nothing
+    finally:
+        if not stopped:
+            h.close()

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from plane_validation import scenes
-from plane_validation.app.pipeline import ERROR, OK, WARN, FramePipeline, PipelineConfig
+from plane_validation.app.pipeline import ERROR, OK, RETRY_AFTER_S, WARN, FramePipeline, PipelineConfig
 from plane_validation.core.geometry import voxel_downsample
 
 FIXED = PipelineConfig(auto_tune=False, tolerance=0.01, seed=1)
@@ -32,10 +32,10 @@ def test_bad_frames_give_a_result_not_an_exception(points, level, words, auto):
     assert words in result.message
 
 
-@pytest.mark.parametrize('auto', [False, True])
-def test_huge_coordinates_are_an_error_not_an_exception(auto):
+@pytest.mark.parametrize('auto, inline', [(False, True), (True, True), (True, False)])
+def test_huge_coordinates_are_an_error_not_an_exception(auto, inline):
     pipe = FramePipeline(PipelineConfig(auto_tune=auto, tolerance=0.01))
-    result = pipe.process(corner() * 1e200, 0)
+    result = pipe.process(corner() * 1e200, 0, tune_inline=inline)  # the node's first frame: a quick estimate
     assert result.level == ERROR
     assert 'numerical failure' in result.message and 'a coordinate reaches 1e+200 m: beyond' in result.message
 
@@ -215,10 +215,38 @@ def test_frames_with_a_tuned_t_carry_the_sweeps_seed_agreement_into_their_verdic
     assert float(dict(again.diagnostic.values)['seed_agreement']) == 0.5
 
 
-def test_a_sweep_without_planes_does_not_blame_the_seeds_on_later_frames():
+def test_a_sweep_without_planes_is_not_adopted_and_is_tried_again():
+    """A first frame without a plane (a line) tunes nothing; a later frame is swept again."""
     pipe = FramePipeline(PipelineConfig(auto_tune=True, seed=0))
     line = pipe.process(np.outer(np.linspace(0.0, 100.0, 400), [1.0, 0.5, 0.25]), 10**9)  # collinear: no plane
-    assert line.diagnostic.level == WARN and 'seed_agreement' not in dict(line.diagnostic.values)
-    planes = pipe.process(scenes.corner(3000, 0.0, seed=1).points, 2 * 10**9)  # with that sweep's t
+    assert line.diagnostic.level == WARN and 'the sweep found no plane in this frame' in line.message
+    assert pipe.tolerance is None and 'seed_agreement' not in dict(line.diagnostic.values)
+    corner = scenes.corner(3000, 0.0, seed=1).points
+    assert not pipe.retune_due(1.5) and pipe.retune_due(1.0 + RETRY_AFTER_S)  # retune_period 0: retried anyway
+    planes = pipe.process(corner, 2 * 10**9)
     assert planes.tolerance_source.startswith('tuned') and planes.n_planes == 3
-    assert planes.diagnostic.level == OK and 'seed_agreement' not in dict(planes.diagnostic.values)
+    assert planes.diagnostic.level == OK, planes.message
+
+
+@pytest.mark.parametrize('first', [np.ones((500, 3)), np.outer(np.linspace(0, 1, 200), [1.0, 2.0, 3.0])],
+                         ids=['identical', 'collinear'])
+def test_the_node_recovers_from_a_degenerate_first_frame(first):
+    """As the node runs it (sweeps in the background): a first frame without planes leaves neither
+    a useless quick estimate nor a tuned t behind, and the sweep is tried again."""
+    pipe = FramePipeline(PipelineConfig(auto_tune=True, seed=7))
+    assert pipe.process(first, 10**9, tune_inline=False).n_planes == 0
+    with pytest.raises(ValueError):
+        pipe.retune(first, 1.0)
+    corner = scenes.corner(3000, 1.0, scale=0.01, seed=1).points
+    good = pipe.process(corner, 2 * 10**9, tune_inline=False)  # the quick estimate of this frame
+    assert good.n_planes == 3 and good.tolerance_source.startswith('quick estimate (tuning failed)'), good.message
+    assert pipe.retune_due(2.0)
+    assert pipe.retune(corner, 2.0).segmentation.n_planes == 3
+    assert pipe.process(corner, 3 * 10**9, tune_inline=False).level == OK
+
+
+def test_a_sweep_asked_to_stop_adopts_nothing():
+    pipe = FramePipeline(PipelineConfig(auto_tune=True, seed=0))
+    asked = []
+    result = pipe.retune(scenes.corner(3000, 1.0, seed=1).points, 1.0, stop=lambda: asked.append(1) or True)
+    assert result is None and len(asked) == 1 and pipe.tolerance is None and pipe.tune_error is None

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -32,6 +33,10 @@ OK, WARN, ERROR = Level.OK, Level.WARN, Level.ERROR
 
 #: A sweep that raises one of these failed (the frame goes on with the last good t and says why).
 TUNE_FAILURES = (ValueError, np.linalg.LinAlgError, TuningWorkerError)
+
+#: Header time (s) after which a failed sweep is tried again, when retune_period does not retune
+#: sooner: a sensor's first frames may hold no plane (all points identical, a line).
+RETRY_AFTER_S = 1.0
 
 #: Configuration fields whose change voids the tuned tolerance (and a sweep in progress).
 TUNING_FIELDS = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points', 'criterion', 'max_planes',
@@ -71,6 +76,10 @@ class FrameResult:
     @property
     def values(self) -> tuple[tuple[str, str], ...]:
         return self.diagnostic.values
+
+
+class _Abandoned(Exception):
+    """Raised from a sweep's progress callback to stop it (the node is shutting down)."""
 
 
 def header_stamp_ns(header) -> int:
@@ -143,21 +152,29 @@ class FramePipeline:
             last = self.failed_at if self.failed_at is not None else self.tuned_at
             if last is None:
                 return True
-            # a failed sweep is retried like a periodic one (or after a parameter change); header
-            # time running backwards (a looping bag, a restarted sensor) also retunes
-            return cfg.retune_period > 0 and (stamp - last >= cfg.retune_period or stamp < last)
+            # a failed sweep is retried like a periodic one, and after RETRY_AFTER_S without one (or
+            # after a parameter change); header time running backwards (a looping bag, a restarted
+            # sensor) also retunes
+            period = cfg.retune_period or (RETRY_AFTER_S if self.failed_at is not None else 0.0)
+            return period > 0 and (stamp - last >= period or stamp < last)
 
     def retune(self, points: np.ndarray, stamp: float, stamp_ns: int = 0, *,
-               shape: tuple[int, int] | None = None) -> TuningResult:
+               shape: tuple[int, int] | None = None, stop: Callable[[], bool] | None = None) -> TuningResult | None:
         """Run a tolerance sweep on ``points`` (meters; all rows of an organized cloud of ``shape``,
         else its valid rows) and adopt its choice, unless the tuning set-up changed while it ran.
-        Raises one of TUNE_FAILURES when no sweep is possible."""
+        Raises one of TUNE_FAILURES when no sweep is possible, or when it finds no plane in this
+        frame (its t would say nothing about the next). ``stop``: asked after each candidate; True
+        abandons the sweep (None is returned, nothing adopted)."""
         with self._lock:
             cfg, generation = self.config, self._generation
         if cfg.voxel_size > 0:
             points, shape = voxel_downsample(points[finite_rows(points)], cfg.voxel_size)[0], None
         try:
-            result = self._sweep(cfg, points, stamp_ns, shape)
+            result = self._sweep(cfg, points, stamp_ns, shape, stop)
+            if result.segmentation.n_planes == 0:
+                raise ValueError(f'the sweep found no plane in this frame ({result.segmentation.reason})')
+        except _Abandoned:
+            return None
         except TUNE_FAILURES as exc:
             with self._lock:
                 if generation == self._generation:  # a voided sweep's failure is not reported
@@ -170,8 +187,12 @@ class FramePipeline:
         return result
 
     @staticmethod
-    def _sweep(cfg: PipelineConfig, points: np.ndarray, stamp_ns: int, shape) -> TuningResult:
-        return tune_tolerance(points, None, cfg.criterion, max_planes=cfg.max_planes,
+    def _sweep(cfg: PipelineConfig, points: np.ndarray, stamp_ns: int, shape,
+               stop: Callable[[], bool] | None = None) -> TuningResult:
+        def progress(*_) -> None:
+            if stop is not None and stop():
+                raise _Abandoned
+        return tune_tolerance(points, None, cfg.criterion, max_planes=cfg.max_planes, progress=progress,
                               min_inliers=min_inliers_value(cfg.min_inliers), probability=cfg.probability,
                               max_iterations=cfg.max_iterations, sample_size=cfg.index_sample_size,
                               tune_points=cfg.tune_points, t_min=cfg.tune_min or None, t_max=cfg.tune_max or None,
@@ -234,7 +255,11 @@ class FramePipeline:
             except TUNE_FAILURES as exc:
                 tune_problem = f'cannot tune: {exc}'
         elif self.config.auto_tune and self.tolerance is None and self.last_good is None and self.quick is None:
-            quick = quick_tolerance(valid, seed=frame_seed(cfg.seed, stamp_ns))  # until the sweep ends
+            try:
+                quick = quick_tolerance(valid, seed=frame_seed(cfg.seed, stamp_ns))  # until the sweep ends
+            except ValueError as exc:
+                return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
+                               self.current_tolerance(), n_input=n_input, n_valid=len(valid))
             self.quick = float(np.clip(quick, cfg.tune_min or quick, cfg.tune_max or quick))
         if tune_problem is None and self.tune_error is not None:
             tune_problem = f'cannot tune: {self.tune_error}'  # the last sweep (maybe in the background) failed
@@ -263,6 +288,8 @@ class FramePipeline:
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
             return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
                            (tolerance, source), n_input=n_input, n_valid=len(valid))
+        if seg.n_planes == 0 and source.startswith('quick'):
+            self.quick = None  # an estimate from a frame without planes (a line, one point): the next frame's instead
         level, message = (OK, verdict) if reliable else (WARN, f'no reliable planes: {verdict}')
         if tune_problem:
             used = source.split(' (')[0]

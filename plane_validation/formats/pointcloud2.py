@@ -122,6 +122,8 @@ def _field_layout(msg: Any) -> tuple[np.dtype, int]:
         if name in names:
             raise ValueError(f'field {name!r} appears more than once in PointCloud2.fields')
         base = np.dtype(DATATYPES[code]).newbyteorder(order)
+        if int(offset) + base.itemsize * int(count) >= 2**31:  # numpy's limit, and no sensor's point
+            raise ValueError(f'field {name!r} (offset {offset}, count {count}) ends 2 GiB or more into the point')
         names.append(name)
         formats.append(base if count == 1 else (base, (int(count),)))
         offsets.append(int(offset))

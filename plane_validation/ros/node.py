@@ -30,6 +30,8 @@ from .messages import OUTPUTS, frame_messages, node_values, status_name
 ERROR, WARN = Level.ERROR, Level.WARN
 #: Seconds between two log lines of the same kind.
 LOG_THROTTLE_S = 5.0
+#: Seconds destroy_node waits for a running sweep to stop (it stops after its current candidate).
+SWEEP_STOP_S = 3.0
 
 #: Node-only parameters (the pipeline's are in app/config.py's table).
 NODE_PARAMETERS = {'reliability': Parameter('reliability', 'best_effort', 'subscription reliability: best_effort '
@@ -119,6 +121,8 @@ class PlaneValidationNode(Node):
             try:
                 self.process(msg)
             except Exception as exc:  # never let one frame kill the worker
+                if self._stopping or not self.context.ok():
+                    return  # shutting down: publishing failed because the context is gone
                 self.get_logger().error(f'frame failed unexpectedly: {exc!r}', throttle_duration_sec=LOG_THROTTLE_S)
 
     # -- one frame -------------------------------------------------------------------------------
@@ -155,11 +159,14 @@ class PlaneValidationNode(Node):
 
         def run() -> None:
             try:
-                result = self.pipeline.retune(points, stamp_ns * 1e-9, stamp_ns, shape=frame.shape)
-                if self.pipeline.last_tuning is result:  # not voided by a parameter change
+                result = self.pipeline.retune(points, stamp_ns * 1e-9, stamp_ns, shape=frame.shape,
+                                              stop=lambda: self._stopping)
+                if result is not None and self.pipeline.last_tuning is result and not self._stopping:
                     self.get_logger().info(f'retuned: t = {result.tolerance:.4g} m ({result.verdict})')
             except Exception as exc:  # a failed sweep keeps the current tolerance; the node goes on
-                self.get_logger().warning(f'retune failed, keeping t: {exc!r}', throttle_duration_sec=LOG_THROTTLE_S)
+                if not self._stopping:
+                    self.get_logger().warning(f'retune failed, keeping t: {exc!r}',
+                                              throttle_duration_sec=LOG_THROTTLE_S)
             finally:
                 self._sweep_idle.set()
         threading.Thread(target=run, name='plane_validation_retune', daemon=True).start()
@@ -183,7 +190,8 @@ class PlaneValidationNode(Node):
             self._stopping = True
             self._wake.notify_all()
         self._worker.join(timeout=10)
-        self._sweep_idle.wait(timeout=30)  # a sweep cannot be interrupted; it ends within seconds
+        # a sweep stops after its current candidate; one that takes longer is left to its daemon thread
+        self._sweep_idle.wait(timeout=SWEEP_STOP_S)
         super().destroy_node()
 
 
