@@ -352,3 +352,31 @@ def test_a_node_stopped_during_a_sweep_stops_it_after_the_current_candidate(ros)
     finally:
         if not stopped:
             h.close()
+
+
+def test_live_sweeps_the_frames_offline_sweeps_after_a_first_frame_without_planes(ros):
+    """A first frame without planes fails its sweep; the retry 1 s later (header time) runs on the
+    same frame live as offline, even when the failed sweep is still running at that frame."""
+    params = {'auto_tune': True, 'seed': 5}
+    frames = [np.outer(np.linspace(0.0, 3.0, 20000), [1.0, 0.5, 0.2])]  # a line: a slow sweep, no plane
+    frames += [scenes.room(20000, 0.01, seed=k).points for k in range(1, 31)]
+    frames = [f.astype(np.float32).astype(np.float64) for f in frames]  # as the node receives them
+    stamps = [8_000_000_000_000 + k * 100_000_000 for k in range(len(frames))]  # 10 Hz header time
+    offline = FramePipeline(PipelineConfig(**params))
+    for points, stamp_ns in zip(frames, stamps):
+        result = offline.process(points, stamp_ns, tune_inline=False)
+        if result.segmentation is not None and offline.retune_due(stamp_ns * 1e-9):
+            try:
+                offline.retune(result.points, stamp_ns * 1e-9, stamp_ns)
+            except ValueError:
+                pass
+    assert offline.tuned_at == pytest.approx(stamps[10] * 1e-9)  # the retry ran on the frame 1 s later
+    node = PlaneValidationNode(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
+    h = Harness(node)
+    try:
+        for points, stamp_ns in zip(frames, stamps):
+            h.send(xyz_cloud(points, stamp_ns), timeout=60)
+        assert node.wait_for_sweep(timeout=120)
+        assert node.pipeline.tuned_at == offline.tuned_at and node.pipeline.tolerance == offline.tolerance
+    finally:
+        h.close()

@@ -245,6 +245,25 @@ def test_the_node_recovers_from_a_degenerate_first_frame(first):
     assert pipe.process(corner, 3 * 10**9, tune_inline=False).level == OK
 
 
+def test_failed_sweeps_are_retried_ever_less_often():
+    from plane_validation.app.pipeline import RETRY_MAX_S
+    pipe = FramePipeline(PipelineConfig(auto_tune=True, seed=0))
+    line = np.outer(np.linspace(0.0, 1.0, 300), [1.0, 2.0, 3.0])
+    stamp, waits = 1.0, []
+    grid = np.arange(0.5, 200.0, 0.5)
+    for _ in range(9):
+        foreseen = next(w for w in grid if pipe.due_after(stamp, stamp + w))  # while the sweep runs
+        with pytest.raises(ValueError, match='no plane'):
+            pipe.retune(line, stamp)
+        wait = next(w for w in grid if pipe.retune_due(stamp + w))
+        assert foreseen == wait
+        waits.append(float(wait))
+        stamp += wait
+    assert waits == [1.0, 2.0, 4.0, 8.0, 16.0, 32.0, RETRY_MAX_S, RETRY_MAX_S, RETRY_MAX_S]
+    pipe.retune(scenes.corner(3000, 1.0, seed=1).points, stamp)  # a success: no more retries (period 0)
+    assert pipe.failures == 0 and not pipe.retune_due(stamp + 1000.0)
+
+
 def test_a_sweep_asked_to_stop_adopts_nothing():
     pipe = FramePipeline(PipelineConfig(auto_tune=True, seed=0))
     asked = []

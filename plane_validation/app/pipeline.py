@@ -34,9 +34,11 @@ OK, WARN, ERROR = Level.OK, Level.WARN, Level.ERROR
 #: A sweep that raises one of these failed (the frame goes on with the last good t and says why).
 TUNE_FAILURES = (ValueError, np.linalg.LinAlgError, TuningWorkerError)
 
-#: Header time (s) after which a failed sweep is tried again, when retune_period does not retune
-#: sooner: a sensor's first frames may hold no plane (all points identical, a line).
+#: With retune_period 0, a failed sweep is tried again after this much header time (s), doubled
+#: after each further failure up to RETRY_MAX_S: a sensor's first frames may hold no plane (all
+#: points identical, a line), and a stream without planes should not keep a core sweeping.
 RETRY_AFTER_S = 1.0
+RETRY_MAX_S = 60.0
 
 #: Configuration fields whose change voids the tuned tolerance (and a sweep in progress).
 TUNING_FIELDS = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points', 'criterion', 'max_planes',
@@ -107,6 +109,7 @@ class FramePipeline:
     quick: float | None = None           # quick_tolerance of the first frame, until a sweep ends
     tune_error: str | None = None        # why the last sweep failed (None after a success)
     failed_at: float | None = None       # stamp (s) of the frame the last failed sweep ran on
+    failures: int = 0                    # sweeps failed in a row
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
     _generation: int = field(default=0, repr=False)  # bumped when the tuning set-up changes
 
@@ -119,7 +122,7 @@ class FramePipeline:
         with self._lock:
             if any(getattr(config, f) != getattr(self.config, f) for f in TUNING_FIELDS):
                 self.tolerance, self.tuned_at, self.last_tuning = None, None, None
-                self.tune_error, self.failed_at = None, None
+                self.tune_error, self.failed_at, self.failures = None, None, 0
                 self._generation += 1
             self.config = config
 
@@ -152,11 +155,24 @@ class FramePipeline:
             last = self.failed_at if self.failed_at is not None else self.tuned_at
             if last is None:
                 return True
-            # a failed sweep is retried like a periodic one, and after RETRY_AFTER_S without one (or
+            # a failed sweep is retried like a periodic one, or after _retry_interval without one (or
             # after a parameter change); header time running backwards (a looping bag, a restarted
             # sensor) also retunes
-            period = cfg.retune_period or (RETRY_AFTER_S if self.failed_at is not None else 0.0)
+            period = cfg.retune_period or (self._retry_interval(self.failures) if self.failed_at is not None else 0.0)
             return period > 0 and (stamp - last >= period or stamp < last)
+
+    def due_after(self, sweep_stamp: float, stamp: float) -> bool:
+        """Whether a frame stamped ``stamp`` (s) is due for a retune once the sweep running on the
+        frame stamped ``sweep_stamp`` ends, should that sweep fail (the earliest case): the node keeps
+        that frame for its next sweep, so that live and offline replay sweep the same frames."""
+        with self._lock:
+            cfg = self.config
+            period = cfg.retune_period or self._retry_interval(self.failures + 1)
+            return cfg.auto_tune and (stamp - sweep_stamp >= period or stamp < sweep_stamp)
+
+    @staticmethod
+    def _retry_interval(failures: int) -> float:
+        return min(RETRY_AFTER_S * 2.0 ** max(failures - 1, 0), RETRY_MAX_S)
 
     def retune(self, points: np.ndarray, stamp: float, stamp_ns: int = 0, *,
                shape: tuple[int, int] | None = None, stop: Callable[[], bool] | None = None) -> TuningResult | None:
@@ -179,11 +195,12 @@ class FramePipeline:
             with self._lock:
                 if generation == self._generation:  # a voided sweep's failure is not reported
                     self.tune_error, self.failed_at = str(exc), stamp
+                    self.failures += 1
             raise
         with self._lock:
             if generation == self._generation:  # a parameter change during the sweep voids it
                 self.tolerance, self.tuned_at, self.last_tuning = result.tolerance, stamp, result
-                self.last_good, self.tune_error, self.failed_at = result.tolerance, None, None
+                self.last_good, self.tune_error, self.failed_at, self.failures = result.tolerance, None, None, 0
         return result
 
     @staticmethod

@@ -6,8 +6,10 @@
 Data flow: the subscription callback only puts the newest cloud into a one-slot mailbox (an
 older unprocessed cloud is dropped and counted); a worker thread takes it, runs the shared
 :class:`~plane_validation.app.pipeline.FramePipeline` and publishes. Tolerance sweeps (the first,
-and later ones every ``retune_period``) run in a background thread while frames keep being
-processed with the current tolerance (a quick estimate until the first sweep ends).
+later ones every ``retune_period``, retries of a failed one) run in a background thread while frames keep being
+processed with the current tolerance (a quick estimate until the first sweep ends). A frame that
+comes due while a sweep runs is kept and swept when it ends, so the node sweeps the frames offline
+replay sweeps.
 """
 from __future__ import annotations
 
@@ -100,6 +102,9 @@ class PlaneValidationNode(Node):
         self._stopping = False
         self._sweep_idle = threading.Event()
         self._sweep_idle.set()
+        self._sweep_lock = threading.Lock()
+        self._sweeping_on: float | None = None  # stamp (s) of the frame the running sweep runs on
+        self._next_sweep = None  # (frame, stamp_ns) kept for the sweep after it
         self._worker = threading.Thread(target=self._work, name='plane_validation_worker', daemon=True)
         self._worker.start()
 
@@ -130,9 +135,7 @@ class PlaneValidationNode(Node):
         """Convert, run the shared pipeline, publish every output stamped with the input header."""
         result = self.pipeline.process_cloud(msg, tune_inline=False)
         stamp_ns = header_stamp_ns(msg.header)
-        retune = result.segmentation is not None and self.pipeline.retune_due(stamp_ns * 1e-9) and not self._tuning()
-        if retune:
-            self._sweep_idle.clear()  # from now until the sweep ends, wait_for_sweep waits
+        retune = result.segmentation is not None and self._reserve_sweep(result, stamp_ns)
         self.frames_processed += 1
         with self._wake:
             dropped_now, self._dropped_reported = self.frames_dropped - self._dropped_reported, self.frames_dropped
@@ -154,6 +157,33 @@ class PlaneValidationNode(Node):
     def _tuning(self) -> bool:
         return not self._sweep_idle.is_set()
 
+    def _reserve_sweep(self, frame, stamp_ns: int) -> bool:
+        """Whether this frame starts a sweep (wait_for_sweep waits from now on). While a sweep runs,
+        the first frame due after it is kept and swept when it ends, as offline replay would."""
+        stamp = stamp_ns * 1e-9
+        with self._sweep_lock:
+            if self._sweeping_on is not None:
+                if self._next_sweep is None and self.pipeline.due_after(self._sweeping_on, stamp):
+                    self._next_sweep = (frame, stamp_ns)
+                return False
+            if not self.pipeline.retune_due(stamp):
+                return False
+            self._sweeping_on = stamp
+            self._sweep_idle.clear()
+            return True
+
+    def _sweep_ended(self) -> None:
+        """Start the kept frame's sweep if it is due now that the last one ended, else go idle."""
+        with self._sweep_lock:
+            kept, self._next_sweep = self._next_sweep, None
+            if kept is not None and not self._stopping and self.pipeline.retune_due(kept[1] * 1e-9):
+                self._sweeping_on = kept[1] * 1e-9
+            else:
+                kept, self._sweeping_on = None, None
+                self._sweep_idle.set()
+        if kept is not None:
+            self._start_retune(*kept)
+
     def _start_retune(self, frame, stamp_ns: int) -> None:
         points = frame.organized if frame.shape else frame.points
 
@@ -168,7 +198,7 @@ class PlaneValidationNode(Node):
                     self.get_logger().warning(f'retune failed, keeping t: {exc!r}',
                                               throttle_duration_sec=LOG_THROTTLE_S)
             finally:
-                self._sweep_idle.set()
+                self._sweep_ended()
         threading.Thread(target=run, name='plane_validation_retune', daemon=True).start()
 
     def wait_for_sweep(self, timeout: float | None = None) -> bool:

@@ -15,10 +15,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
-
 from ..app.config import PipelineConfig
-from ..app.pipeline import FramePipeline, header_stamp_ns
+from ..app.pipeline import TUNE_FAILURES, FramePipeline, header_stamp_ns
 from ..app.summary import FrameSummary, ReplaySummary
 from ..formats.bags import POINTCLOUD2, BagError, bag_storage, open_bag, pick_topic, read_clouds
 from .messages import frame_messages, node_values, status_name, to_rclpy_cloud
@@ -86,7 +84,7 @@ def replay_offline(bag: str | Path, *, topic: str | None = None, out: str | Path
             stamp_ns = header_stamp_ns(msg.header)
             if result.segmentation is not None and pipeline.retune_due(stamp_ns * 1e-9):
                 # as the node's background sweep: its t applies from the next frame
-                with contextlib.suppress(ValueError, np.linalg.LinAlgError):
+                with contextlib.suppress(*TUNE_FAILURES):
                     pipeline.retune(result.organized if result.shape else result.points, stamp_ns * 1e-9, stamp_ns,
                                     shape=result.shape)
             frame = FrameSummary.from_diagnostic(index, timestamp, result.diagnostic)
