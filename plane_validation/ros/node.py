@@ -162,6 +162,8 @@ class PlaneValidationNode(Node):
         the first frame due after it is kept and swept when it ends, as offline replay would."""
         stamp = stamp_ns * 1e-9
         with self._sweep_lock:
+            if self._stopping:
+                return False
             if self._sweeping_on is not None:
                 if self._next_sweep is None and self.pipeline.due_after(self._sweeping_on, stamp):
                     self._next_sweep = (frame, stamp_ns)
