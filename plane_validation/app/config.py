@@ -79,7 +79,8 @@ class PipelineConfig:
                         'value; at most one per CPU core); 0 = one per CPU core', low=1, high=1024, special=0)
     criterion: str = _p(DEFAULT_CRITERION, 'index that picks t (dunn and the gs indices are maximized, davies_bouldin '
                         'minimized)', choices=tuple(CRITERIA))
-    retune_period: float = _p(0.0, 'header time between retunes; 0 = tune on the first frame only',
+    retune_period: float = _p(0.0, 'header time between retunes; 0 = tune on the first frame only (a failed '
+                              'sweep is retried, less often after each failure)',
                               low=0.0, high=1e6, unit='s')
     max_planes: int = _p(10, 'stop after this many planes', low=1, high=100)
     min_inliers: float = _p(0.02, 'smallest plane: a fraction of the valid points when < 1, else a count',
