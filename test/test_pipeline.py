@@ -222,7 +222,7 @@ def test_a_sweep_without_planes_is_not_adopted_and_is_tried_again():
     assert line.diagnostic.level == WARN and 'the sweep found no plane in this frame' in line.message
     assert pipe.tolerance is None and 'seed_agreement' not in dict(line.diagnostic.values)
     corner = scenes.corner(3000, 0.0, seed=1).points
-    assert not pipe.retune_due(1.5) and pipe.retune_due(1.0 + RETRY_AFTER_S)  # retune_period 0: retried anyway
+    assert not pipe.retune_due(1.0 + RETRY_AFTER_S / 2) and pipe.retune_due(1.0 + RETRY_AFTER_S)  # period 0
     planes = pipe.process(corner, 2 * 10**9)
     assert planes.tolerance_source.startswith('tuned') and planes.n_planes == 3
     assert planes.diagnostic.level == OK, planes.message
@@ -252,14 +252,14 @@ def test_failed_sweeps_are_retried_ever_less_often():
     stamp, waits = 1.0, []
     grid = np.arange(0.5, 200.0, 0.5)
     for _ in range(9):
-        foreseen = next(w for w in grid if pipe.due_after(stamp, stamp + w))  # while the sweep runs
+        foreseen = next(w for w in grid if pipe.due_after_failed_sweep(stamp, stamp + w))  # while it runs
         with pytest.raises(ValueError, match='no plane'):
             pipe.retune(line, stamp)
         wait = next(w for w in grid if pipe.retune_due(stamp + w))
         assert foreseen == wait
         waits.append(float(wait))
         stamp += wait
-    assert waits == [1.0, 2.0, 4.0, 8.0, 16.0, 32.0, RETRY_MAX_S, RETRY_MAX_S, RETRY_MAX_S]
+    assert waits == [min(RETRY_AFTER_S * 2 ** k, RETRY_MAX_S) for k in range(9)] and waits[-1] == RETRY_MAX_S
     pipe.retune(scenes.corner(3000, 1.0, seed=1).points, stamp)  # a success: no more retries (period 0)
     assert pipe.failures == 0 and not pipe.retune_due(stamp + 1000.0)
 

@@ -106,7 +106,7 @@ class FramePipeline:
     tuned_at: float | None = None        # stamp (s) of the frame the tolerance was tuned on
     last_tuning: TuningResult | None = None
     last_good: float | None = None       # the last tuned tolerance, kept across reconfiguration
-    quick: float | None = None           # quick_tolerance of the first frame, until a sweep ends
+    quick: float | None = None           # quick_tolerance of a frame, until a sweep succeeds
     tune_error: str | None = None        # why the last sweep failed (None after a success)
     failed_at: float | None = None       # stamp (s) of the frame the last failed sweep ran on
     failures: int = 0                    # sweeps failed in a row
@@ -161,7 +161,7 @@ class FramePipeline:
             period = cfg.retune_period or (self._retry_interval(self.failures) if self.failed_at is not None else 0.0)
             return period > 0 and (stamp - last >= period or stamp < last)
 
-    def due_after(self, sweep_stamp: float, stamp: float) -> bool:
+    def due_after_failed_sweep(self, sweep_stamp: float, stamp: float) -> bool:
         """Whether a frame stamped ``stamp`` (s) is due for a retune once the sweep running on the
         frame stamped ``sweep_stamp`` ends, should that sweep fail (the earliest case): the node keeps
         that frame for its next sweep, so that live and offline replay sweep the same frames."""
@@ -172,7 +172,7 @@ class FramePipeline:
 
     @staticmethod
     def _retry_interval(failures: int) -> float:
-        return min(RETRY_AFTER_S * 2.0 ** max(failures - 1, 0), RETRY_MAX_S)
+        return min(RETRY_AFTER_S * 2.0 ** (failures - 1), RETRY_MAX_S)
 
     def retune(self, points: np.ndarray, stamp: float, stamp_ns: int = 0, *,
                shape: tuple[int, int] | None = None, stop: Callable[[], bool] | None = None) -> TuningResult | None:
@@ -248,7 +248,8 @@ class FramePipeline:
         degenerate geometry) result. With ``tune_inline`` a due retune runs before detection;
         the node passes False and runs :meth:`retune` in a background thread instead. When the
         sweep fails (e.g. a tuning range the cloud cannot honour), the frame is still detected
-        with the last tuned tolerance (else the ``tolerance`` parameter) and reported as WARN.
+        with the last tuned tolerance (else the quick estimate, else the ``tolerance`` parameter)
+        and reported as WARN.
         """
         start = time.perf_counter()
         stamp = stamp_ns * 1e-9
@@ -305,8 +306,8 @@ class FramePipeline:
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
             return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
                            (tolerance, source), n_input=n_input, n_valid=len(valid))
-        if seg.n_planes == 0 and source.startswith('quick'):
-            self.quick = None  # an estimate from a frame without planes (a line, one point): the next frame's instead
+        if seg.n_planes == 0 and sweep is None and self.last_good is None and tolerance == self.quick:
+            self.quick = None  # no plane with the quick estimate (a line, one point): the next frame's instead
         level, message = (OK, verdict) if reliable else (WARN, f'no reliable planes: {verdict}')
         if tune_problem:
             used = source.split(' (')[0]

@@ -33,9 +33,9 @@ MIN_CURVATURE = 0.25
 #: ... measured on at least this many points (a quadric has 6 parameters).
 CURVATURE_POINTS = 30
 #: ... unless the thicker planes hold less than this share of the planes' points (a few stray
-#: points found as a small plane do not make a good segmentation unreliable; the same share for the
-#: planes on too few points, MIN_PLANE_POINTS).
-THICK_SHARE = 0.1
+#: points found as a small plane do not make a good segmentation unreliable); the planes on too few
+#: points (MIN_PLANE_POINTS) are forgiven below the same share.
+MINOR_SHARE = 0.1
 #: A lone plane this thin (see plane_thickness) is a plane; a thicker one may be a slab cut
 #: through stairs or a curved surface (a noisy 2 m floor with e = 1 cm is 0.01, a stair slope 0.14).
 SINGLE_PLANE_THICKNESS = 0.05
@@ -43,7 +43,7 @@ SINGLE_PLANE_THICKNESS = 0.05
 THICKNESS_POINTS = 4096
 #: A plane on fewer points than this is no evidence: any 3 points are coplanar and a handful lie within
 #: t of a plane on any surface (3 random points, or a room in a few coarse voxels, scored PS 1.00).
-#: Such planes may hold less than THICK_SHARE of the planes' points (a stray small plane found beside
+#: Such planes may hold less than MINOR_SHARE of the planes' points (a stray small plane found beside
 #: good ones does not make them unreliable).
 MIN_PLANE_POINTS = 10
 #: Stability under reseeding (Ben-Hur, Elisseeff & Guyon 2002; Lange et al. 2004): tune_tolerance
@@ -113,10 +113,10 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     """Whether the planes of ``seg`` are reliable, with a one-line reason.
 
     Reliable needs at least one plane, the planes on enough points (those with fewer than
-    MIN_PLANE_POINTS hold less than THICK_SHARE of the planes' points), the planes flat
+    MIN_PLANE_POINTS hold less than MINOR_SHARE of the planes' points), the planes flat
     (curved slabs, planes with a thickness ratio above MAX_THICKNESS, see :func:`plane_thickness`,
     whose residuals are at least MIN_CURVATURE explained by curvature, see :func:`plane_curvature`,
-    hold less than THICK_SHARE of their points) and a plane silhouette PS >= RELIABLE_PS: the points
+    hold less than MINOR_SHARE of their points) and a plane silhouette PS >= RELIABLE_PS: the points
     lie on their planes and clear of the other regions. On plane-free clouds (sphere, bunny) the "planes" are
     thick slabs or patches whose points lie near their neighbours' planes. With ``agreement`` (see
     :func:`seed_agreement`; tune_tolerance gives it) it must also reach MIN_SEED_AGREEMENT: other
@@ -133,11 +133,11 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     slab = (thickness > MAX_THICKNESS) & (curvature >= MIN_CURVATURE)
     problems = []  # every test that fails, so that fixing one cause does not reveal another
     tiny = sizes < MIN_PLANE_POINTS
-    if sizes[tiny].sum() >= THICK_SHARE * sizes.sum():
+    if sizes[tiny].sum() >= MINOR_SHARE * sizes.sum():
         few = int(np.argmin(sizes))
         problems.append(f'plane {few} rests on {int(sizes[few])} points (< {MIN_PLANE_POINTS}): too few to tell a '
                         'plane from chance')
-    if sizes[slab].sum() >= THICK_SHARE * sizes.sum():
+    if sizes[slab].sum() >= MINOR_SHARE * sizes.sum():
         worst = int(np.argmax(np.where(slab, sizes, -1)))
         problems.append(f'plane {worst} is a curved slab (thickness ratio {_up(thickness[worst])} > {MAX_THICKNESS}, '
                         f'{curvature[worst]:.0%} of its residual variance is curvature)')

@@ -9,7 +9,7 @@ older unprocessed cloud is dropped and counted); a worker thread takes it, runs 
 later ones every ``retune_period``, retries of a failed one) run in a background thread while frames keep being
 processed with the current tolerance (a quick estimate until the first sweep ends). A frame that
 comes due while a sweep runs is kept and swept when it ends, so the node sweeps the frames offline
-replay sweeps.
+replay sweeps (when it drops none).
 """
 from __future__ import annotations
 
@@ -165,7 +165,7 @@ class PlaneValidationNode(Node):
             if self._stopping:
                 return False
             if self._sweeping_on is not None:
-                if self._next_sweep is None and self.pipeline.due_after(self._sweeping_on, stamp):
+                if self._next_sweep is None and self.pipeline.due_after_failed_sweep(self._sweeping_on, stamp):
                     self._next_sweep = (frame, stamp_ns)
                 return False
             if not self.pipeline.retune_due(stamp):
