@@ -103,8 +103,8 @@ def _stages(msg, cfg: PipelineConfig, stamp_ns: int) -> tuple[float, float, floa
     process_cloud): seconds of conversion, RANSAC, indices (+ verdict)."""
     t0 = time.perf_counter()
     pts = as_points(xyz_array(msg))
-    finite = np.isfinite(pts).all(axis=1)
-    valid = pts[finite]
+    finite = pv_ransac.finite_rows(pts)
+    valid = np.compress(finite, pts, axis=0)
     t1 = time.perf_counter()
     seed = frame_seed(cfg.seed, stamp_ns)
     # an organized frame is searched as the pipeline searches it: with its image shape (connected regions)

@@ -80,6 +80,11 @@ class FrameResult:
         return self.diagnostic.values
 
 
+def _elapsed(stamp: float, last: float, period: float) -> bool:
+    """``period`` s of header time (> 0) passed since ``last``, or the time ran backwards."""
+    return period > 0 and (stamp - last >= period or stamp < last)
+
+
 class _Abandoned(Exception):
     """Raised from a sweep's progress callback to stop it (the node is shutting down)."""
 
@@ -159,7 +164,7 @@ class FramePipeline:
             # after a parameter change); header time running backwards (a looping bag, a restarted
             # sensor) also retunes
             period = cfg.retune_period or (self._retry_interval(self.failures) if self.failed_at is not None else 0.0)
-            return period > 0 and (stamp - last >= period or stamp < last)
+            return _elapsed(stamp, last, period)
 
     def due_after_failed_sweep(self, sweep_stamp: float, stamp: float) -> bool:
         """Whether a frame stamped ``stamp`` (s) is due for a retune once the sweep running on the
@@ -168,7 +173,7 @@ class FramePipeline:
         with self._lock:
             cfg = self.config
             period = cfg.retune_period or self._retry_interval(self.failures + 1)
-            return cfg.auto_tune and (stamp - sweep_stamp >= period or stamp < sweep_stamp)
+            return cfg.auto_tune and _elapsed(stamp, sweep_stamp, period)
 
     @staticmethod
     def _retry_interval(failures: int) -> float:

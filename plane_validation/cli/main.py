@@ -27,7 +27,7 @@ import numpy as np
 
 from ..app.config import min_inliers_value
 from ..app.report import format_planes
-from ..formats.files import check_output, load_cloud
+from ..formats.files import check_output, check_writable, load_cloud
 
 __all__ = ['main', 'build_parser', 'format_planes', 'parse_tolerances']
 
@@ -98,12 +98,7 @@ def _check_outputs(args: argparse.Namespace, *names: str) -> None:
     place, neither the input cloud nor each other (``--out`` also a point-file type)."""
     given = [(name, getattr(args, name)) for name in names if getattr(args, name, None) is not None]
     for i, (name, path) in enumerate(given):
-        if name == 'out':
-            check_output(path, inputs=(_cloud_path(args.cloud),))
-        elif Path(path).resolve() == _cloud_path(args.cloud).resolve():
-            raise ValueError(f'{path}: the output would overwrite the input; choose another name')
-        elif not Path(path).parent.is_dir():
-            raise ValueError(f'{path}: directory {Path(path).parent} does not exist')
+        (check_output if name == 'out' else check_writable)(path, inputs=(_cloud_path(args.cloud),))
         for other, other_path in given[:i]:
             if Path(path).resolve() == Path(other_path).resolve():
                 raise ValueError(f'{path}: given to both --{other} and --{name}; choose two names')

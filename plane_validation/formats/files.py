@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ['atomic_output', 'check_output', 'load_cloud', 'load_points', 'save_points', 'POINT_SUFFIXES',
-           'TEXT_SUFFIXES']
+__all__ = ['atomic_output', 'check_output', 'check_writable', 'load_cloud', 'load_points', 'save_points',
+           'POINT_SUFFIXES', 'TEXT_SUFFIXES']
 
 #: Extensions of plain point files (bags are recognised separately).
 TEXT_SUFFIXES = ('.xyz', '.txt', '.csv')
@@ -127,13 +127,28 @@ def check_output(path: str | Path, *, inputs: tuple[str | Path, ...] = ()) -> No
     """ValueError unless :func:`save_points` can write ``path`` (known type, existing directory, not
     one of the ``inputs``)."""
     path = Path(path)
-    for source in inputs:
-        if path.resolve() == Path(str(source)).resolve():
-            raise ValueError(f'{path}: the output would overwrite the input; choose another name')
+    _not_an_input(path, inputs)
     suffix = path.suffix.lower()
     if suffix not in ('.ply', '.pcd', '.npy', '.mcap', '.db3', '') + TEXT_SUFFIXES:
         raise ValueError(f'{path}: cannot write {suffix!r} files (use .ply, .pcd, .npy, .xyz, .txt, .csv, '
                          '.mcap, .db3 or a bag directory)')
+    _in_a_directory(path)
+
+
+def check_writable(path: str | Path, *, inputs: tuple[str | Path, ...] = ()) -> None:
+    """ValueError unless ``path`` (any file type) is none of the ``inputs`` and its directory exists."""
+    path = Path(path)
+    _not_an_input(path, inputs)
+    _in_a_directory(path)
+
+
+def _not_an_input(path: Path, inputs: tuple[str | Path, ...]) -> None:
+    for source in inputs:
+        if path.resolve() == Path(str(source)).resolve():
+            raise ValueError(f'{path}: the output would overwrite the input; choose another name')
+
+
+def _in_a_directory(path: Path) -> None:
     if not path.parent.is_dir():
         raise ValueError(f'{path}: directory {path.parent} does not exist')
 
