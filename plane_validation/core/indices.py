@@ -17,6 +17,7 @@ Conventions shared by every public function here:
 """
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -750,13 +751,15 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
         cl = _sorted_by_cluster(coded)
         sub = _stratified(cl, int(sample_size), rng) if sampled else cl
         sep = cl
-    if k >= 2:
-        diam, dist = _diameters(sep), _distances(sep)
-        dunn, db = _dunn(diam, dist), _db_paper(diam, dist)
-    else:
-        dunn, db = 0.0, np.inf
-    full, planes = _estimates(coded.sizes, coded.ids, sub, exact=not sampled)
-    ps = plane_silhouette(points, labels, sample_size=sample_size, seed=rng)
+    with ThreadPoolExecutor(1) as pool:  # PS beside the rest: numpy and the kd-trees release the GIL
+        ps = pool.submit(plane_silhouette, points, labels, sample_size=sample_size, seed=rng)
+        if k >= 2:
+            diam, dist = _diameters(sep), _distances(sep)
+            dunn, db = _dunn(diam, dist), _db_paper(diam, dist)
+        else:
+            dunn, db = 0.0, np.inf
+        full, planes = _estimates(coded.sizes, coded.ids, sub, exact=not sampled)
+        ps = ps.result()
     return ValidityIndices(
         dunn=float(dunn), davies_bouldin=float(db), davies_bouldin_classic=_db_classic(sep),
         silhouette=full.silhouette, gs=full.gs, gs_planes=planes.gs,

@@ -266,7 +266,8 @@ def graph_neighbours(points: np.ndarray) -> Neighbours:
     edges = [np.column_stack([rows[near], idx[:, 1:k][near]])]
     normals = None
     if k >= 4:  # local normals: the smallest principal axis of each point's neighbourhood
-        nb = points[idx[:, :k]] - points[idx[:, :k]].mean(axis=1, keepdims=True)
+        nb = points[idx[:, :k]]
+        nb -= nb.mean(axis=1, keepdims=True)
         values, vectors = np.linalg.eigh(np.einsum('nki,nkj->nij', nb, nb))
         normals = vectors[:, :, 0]
         line = values[:, 1] < 0.05 * values[:, 2]  # neighbours along a line: no normal, a ring
@@ -280,7 +281,8 @@ def graph_neighbours(points: np.ndarray) -> Neighbours:
             edges.append(np.column_stack([rows_l[found], target[found]]))
             rows_l = rows_l[~found]
     edges = np.sort(np.concatenate(edges), axis=1)  # each joined pair once, smaller index first
-    key = np.unique(edges[:, 0] * n + edges[:, 1])  # sorted by source, then destination
+    key = np.sort(edges[:, 0] * n + edges[:, 1])  # sorted by source, then destination
+    key = key[np.r_[True, key[1:] != key[:-1]][:len(key)]]  # each pair once (numpy 2's np.unique is much slower)
     edges = np.ascontiguousarray(np.stack([key // n, key % n]))  # (2, e): each row contiguous
     both = np.concatenate([edges, edges[::-1]], axis=1)
     order = np.argsort(both[0], kind='stable')
