@@ -175,7 +175,10 @@ def _degeneracy(cols: np.ndarray) -> str | None:
     if np.all(core == core[0]) and np.all(cols == cols[:, :1]):
         return 'all remaining points are identical'
     if len(core) >= 50:
-        dist = np.abs(core - np.median(core, axis=0)).max(axis=1)
+        m = len(core)
+        part = np.partition(core, [(m - 1) // 2, m // 2], axis=0)
+        median = (part[(m - 1) // 2] + part[m // 2]) / 2  # np.median's value, without its overhead
+        dist = np.abs(core - median).max(axis=1)
         core = core[dist <= np.quantile(dist, 0.98)]
     centered = core - core.mean(axis=0)
     eig = np.linalg.eigvalsh(centered.T @ centered)  # ascending
