@@ -127,9 +127,11 @@ class Neighbours:
         outside the mask are components of their own, of size 0."""
         src, dst = self.edges.T  # sorted by source (graph_neighbours): the CSR rows need no sort
         inside = mask[src] & mask[dst]
-        indptr = np.zeros(self.n + 1, np.int64)
+        # csgraph works on int32 indices: given int64, it converts (copies) them on every call
+        index = np.int32 if len(src) < np.iinfo(np.int32).max else np.int64
+        indptr = np.zeros(self.n + 1, index)
         np.cumsum(np.bincount(src[inside], minlength=self.n), out=indptr[1:])
-        graph = csr_matrix((np.ones(np.count_nonzero(inside)), dst[inside], indptr),
+        graph = csr_matrix((np.ones(np.count_nonzero(inside)), dst[inside].astype(index), indptr),
                            shape=(self.n, self.n))
         count, labels = connected_components(graph, directed=True, connection='weak')
         return labels, np.bincount(labels[mask], minlength=count)
