@@ -54,7 +54,7 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'plane_validation_node = plane_validation.ros.node:main',
+            'plane_validation_node = plane_validation.ros:main',
             'plane-validation = plane_validation.cli:main',
         ],
     },

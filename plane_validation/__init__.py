@@ -9,16 +9,31 @@ no rclpy), ``app`` (the per-frame pipeline, its parameters, diagnostics, reports
     seg = pv.detect_planes(points, tolerance=0.02, seed=0)
     scores = pv.validity_indices(points, seg.labels)
     tuned = pv.tune_tolerance(points)          # t chosen by the plane silhouette PS, plus the verdict
+
+The names load on first use, so that the command line starts (and stops quietly on Ctrl-C) before
+numpy and scipy are imported.
 """
-import sys
+import importlib
 
-from .core import scenes
-from .core.indices import ValidityIndices, validity_indices
-from .core.ransac import Plane, Segmentation, detect_planes, fit_plane
-from .core.tuning import PlaneCountResult, TuningResult, select_plane_count, tune_tolerance
+#: The public API: each name and the module of ``core`` that defines it.
+_API = {'Plane': 'ransac', 'Segmentation': 'ransac', 'detect_planes': 'ransac', 'fit_plane': 'ransac',
+        'ValidityIndices': 'indices', 'validity_indices': 'indices', 'TuningResult': 'tuning',
+        'PlaneCountResult': 'tuning', 'tune_tolerance': 'tuning', 'select_plane_count': 'tuning'}
 
-sys.modules[__name__ + '.scenes'] = scenes  # `import plane_validation.scenes` keeps working
-
-__all__ = ['Plane', 'Segmentation', 'detect_planes', 'fit_plane', 'ValidityIndices', 'validity_indices',
-           'TuningResult', 'PlaneCountResult', 'tune_tolerance', 'select_plane_count', 'scenes']
+__all__ = [*_API, 'scenes']
 __version__ = '0.1.0'
+
+
+def __getattr__(name: str):
+    if name == 'scenes':  # also `import plane_validation.scenes` (scenes.py)
+        value = importlib.import_module('.core.scenes', __name__)
+    elif name in _API:
+        value = getattr(importlib.import_module(f'.core.{_API[name]}', __name__), name)
+    else:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})

@@ -376,3 +376,31 @@ def test_a_failed_demo_leaves_no_output_folder(tmp_path, capsys):
     assert main(['demo', '--bag', str(tmp_path / 'empty'), '--out', str(out)]) == 2
     assert 'not a rosbag2 bag' in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ['empty']
+
+
+#: A Ctrl-C while the command line or the node loads numpy, scipy and rclpy (their first second): an
+#: import hook raises KeyboardInterrupt where the heavy module is imported, as the signal would.
+INTERRUPTED_IMPORT = '''
+import importlib, sys
+class Interrupt:
+    def find_spec(self, name, path=None, target=None):
+        if name == sys.argv[1]:
+            raise KeyboardInterrupt
+sys.meta_path.insert(0, Interrupt())
+sys.exit(importlib.import_module(sys.argv[2]).main([]))
+'''
+
+
+def test_ctrl_c_while_the_command_line_or_the_node_loads_exits_quietly():
+    for heavy, entry, status in (('plane_validation.cli.commands', 'plane_validation.cli', 130),
+                                 ('plane_validation.ros.node', 'plane_validation.ros', 0)):
+        proc = subprocess.run([sys.executable, '-c', INTERRUPTED_IMPORT, heavy, entry], capture_output=True,
+                              text=True, timeout=120, cwd=ROOT)
+        assert (proc.returncode, proc.stderr) == (status, ''), (entry, proc.stderr)
+    # the entry points (setup.py) load none of the heavy modules themselves
+    code = ('import sys, plane_validation.cli, plane_validation.ros; '
+            'print(sorted(m for m in ("numpy", "scipy", "rclpy") if m in sys.modules))')
+    proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert proc.stdout.strip() == '[]', proc.stderr
+    assert "'plane-validation = plane_validation.cli:main'" in (ROOT / 'setup.py').read_text()
+    assert "'plane_validation_node = plane_validation.ros:main'" in (ROOT / 'setup.py').read_text()

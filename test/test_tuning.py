@@ -249,6 +249,7 @@ def test_the_library_limits_blas_threads_itself():
 from threadpoolctl import threadpool_info
 import plane_validation as pv
 from plane_validation.core.blas import single_blas_thread
+pv.tune_tolerance  # the package loads numpy and scipy (and their BLAS) on first use
 def blas():
     return [i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas']
 before = blas()

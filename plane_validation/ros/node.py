@@ -232,6 +232,9 @@ def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
     try:
         node = PlaneValidationNode()
+    except KeyboardInterrupt:  # Ctrl-C while starting: as quiet as while spinning
+        rclpy.try_shutdown()
+        return 0
     except Exception as exc:  # invalid parameters (range, type, consistency): say which and exit
         print(f'plane_validation_node: cannot start: {exc}', file=sys.stderr)
         rclpy.try_shutdown()
