@@ -537,3 +537,17 @@ def test_cluster_distances_are_the_same_from_all_pairs_and_from_kd_trees(monkeyp
     trees = indices.cluster_distances(pts, labels)
     assert brute.shape == (12, 12) and np.all(np.diag(brute) == 0) and np.all(brute[~np.eye(12, dtype=bool)] > 0)
     assert np.array_equal(brute, trees)
+
+
+def test_the_plane_silhouette_in_a_thread_is_the_same_value_under_the_callers_error_state(monkeypatch):
+    from concurrent.futures import ThreadPoolExecutor
+    cube = scenes.cube(6000, 0.005, side=1.0, seed=2)
+    values = []
+    for threshold in (10**9, 0):  # inline, then in the thread
+        monkeypatch.setattr(pi, 'THREADED_PS_POINTS', threshold)
+        values.append(pi.validity_indices(cube.points, cube.labels, seed=5))
+    assert values[0] == values[1] and values[0].plane_silhouette > 0.5
+    with ThreadPoolExecutor(1) as pool, np.errstate(over='raise'):
+        assert pi._started(pool, lambda: np.geterr()['over'])() == 'raise'  # numpy's state goes along
+    pool.shutdown()
+    assert pi._started(pool, lambda: 7)() == 7  # no thread can start (as at interpreter exit): run here

@@ -241,3 +241,9 @@ def test_skipping_hypotheses_by_their_coherent_inliers_keeps_the_same_planes(mon
     coefficients = [np.array([p.coefficients for p in seg.planes]) for seg in (fast, full)]
     assert np.array_equal(*coefficients)
     assert n_fast < len(calls)  # and fewer labellings
+
+
+def test_integer_points_have_a_graph():
+    from plane_validation.core.regions import graph_neighbours
+    pts = np.random.default_rng(0).integers(0, 100, size=(500, 3))
+    assert np.array_equal(graph_neighbours(pts).edges, graph_neighbours(pts.astype(float)).edges)

@@ -17,6 +17,9 @@ Conventions shared by every public function here:
 """
 from __future__ import annotations
 
+import contextvars
+import functools
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 
@@ -702,6 +705,21 @@ class ValidityIndices:
         return out
 
 
+#: From this many points on, the plane silhouette runs in a thread beside the other indices (numpy and
+#: the kd-trees release the GIL; below it the thread's start and the GIL cost more than they save).
+THREADED_PS_POINTS = 50_000
+
+
+def _started(pool: ThreadPoolExecutor, call: Callable[[], float]) -> Callable[[], float]:
+    """``call`` started in ``pool``'s thread, under the caller's numpy error state (a context
+    variable); a function that waits for its value. Where no thread can start (the interpreter is
+    shutting down) it is ``call`` itself, run when asked."""
+    try:
+        return pool.submit(contextvars.copy_context().run, call).result
+    except RuntimeError:
+        return call
+
+
 @single_blas_thread
 def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int | None = 2000,
                      seed: int | np.random.Generator | None = None,
@@ -751,15 +769,17 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
         cl = _sorted_by_cluster(coded)
         sub = _stratified(cl, int(sample_size), rng) if sampled else cl
         sep = cl
-    with ThreadPoolExecutor(1) as pool:  # PS beside the rest: numpy and the kd-trees release the GIL
-        ps = pool.submit(plane_silhouette, points, labels, sample_size=sample_size, seed=rng)
+    with ThreadPoolExecutor(1) as pool:
+        ps = functools.partial(plane_silhouette, points, labels, sample_size=sample_size, seed=rng)
+        if n >= THREADED_PS_POINTS:
+            ps = _started(pool, ps)
         if k >= 2:
             diam, dist = _diameters(sep), _distances(sep)
             dunn, db = _dunn(diam, dist), _db_paper(diam, dist)
         else:
             dunn, db = 0.0, np.inf
         full, planes = _estimates(coded.sizes, coded.ids, sub, exact=not sampled)
-        ps = ps.result()
+        ps = ps()
     return ValidityIndices(
         dunn=float(dunn), davies_bouldin=float(db), davies_bouldin_classic=_db_classic(sep),
         silhouette=full.silhouette, gs=full.gs, gs_planes=planes.gs,

@@ -269,7 +269,7 @@ def graph_neighbours(points: np.ndarray) -> Neighbours:
     normals = None
     if k >= 4:  # local normals: the smallest principal axis of each point's neighbourhood
         nb = points[idx[:, :k]]
-        nb -= nb.mean(axis=1, keepdims=True)
+        nb = nb - nb.mean(axis=1, keepdims=True)
         values, vectors = np.linalg.eigh(np.einsum('nki,nkj->nij', nb, nb))
         normals = vectors[:, :, 0]
         line = values[:, 1] < 0.05 * values[:, 2]  # neighbours along a line: no normal, a ring
