@@ -23,6 +23,7 @@ CORE = [
     'tqdm>=4.60',
     'pypcd4>=1.0',  # optional .pcd reading in the CLI; pip only (no rosdep key)
     'joblib>=1.3',  # the tuning sweep's worker processes (tune_jobs); 1.3: results as a generator
+    'psutil>=5.8',  # lets joblib stop its workers on Ctrl-C (without it, it runs pgrep, which the Ctrl-C kills)
     'threadpoolctl>=3.0',  # one BLAS thread per process (see pipeline.limit_blas_threads)
     'plyfile>=1.0',  # .ply reading/writing in the CLI (GPL-3.0; imported only for .ply files)
     'pillow>=8',  # palette PNGs of the index plots (matplotlib depends on it anyway)

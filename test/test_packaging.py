@@ -46,6 +46,7 @@ ROSDEP_KEYS = {
     'plyfile': 'python3-plyfile',
     'threadpoolctl': 'python3-threadpoolctl',
     'joblib': 'python3-joblib',
+    'psutil': 'python3-psutil',
     'yaml': 'python3-yaml',
     'sklearn': 'python3-sklearn',
     'hypothesis': 'python3-hypothesis',

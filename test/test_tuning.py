@@ -2,6 +2,7 @@
 import os
 import re
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -360,3 +361,52 @@ def test_a_stray_small_plane_beside_good_ones_keeps_them_reliable():
     result = pv.tune_tolerance(scenes.stairs(300, 0.003, seed=2).points, seed=0, count=6)
     assert min(len(p.inliers) for p in result.segmentation.planes) < MIN_PLANE_POINTS
     assert result.reliable, result.verdict
+
+
+#: A parallel sweep that says when its first candidate is in (the workers are then busy with the others).
+PARALLEL_SWEEP = '''
+import sys
+import plane_validation as pv
+from plane_validation.core import scenes
+cube = scenes.cube(30000, 0.005, side=1.0, seed=1)
+def progress(done, total):
+    if done == 1:
+        print('running', flush=True)
+try:
+    pv.tune_tolerance(cube.points, jobs=2, count=40, progress=progress)
+except KeyboardInterrupt:
+    sys.exit(130)
+'''
+
+
+def test_ctrl_c_during_a_parallel_sweep_stops_it_and_its_workers_quietly():
+    """A terminal's Ctrl-C reaches the whole process group: the workers ignore it (they inherit that
+    from their start) and the sweep stops them; no traceback, no process left."""
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import psutil
+    proc = subprocess.Popen([sys.executable, '-c', PARALLEL_SWEEP], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    try:
+        assert proc.stdout.readline().strip() == 'running'
+        workers = psutil.Process(proc.pid).children(recursive=True)
+        ignored = [int(re.search(r'SigIgn:\s*([0-9a-f]+)', Path(f'/proc/{w.pid}/status').read_text())[1], 16)
+                   >> (signal.SIGINT - 1) & 1 for w in workers]
+        assert workers and all(ignored), ignored  # joblib's workers (and its resource tracker)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert (proc.returncode, err) == (130, '')
+    deadline = time.monotonic() + 10
+    while True:  # the workers are gone with it
+        try:
+            os.killpg(proc.pid, 0)
+        except ProcessLookupError:
+            break
+        assert time.monotonic() < deadline, 'worker processes left behind'
+        time.sleep(0.1)

@@ -7,6 +7,7 @@ segmentation for k = 1..K (the paper's Fig. 2). Pure numpy/scipy, no ROS import.
 from __future__ import annotations
 
 import contextlib
+import signal
 import threading
 import time
 import warnings
@@ -413,11 +414,14 @@ def _workers(jobs: int) -> Iterator[Callable[[Callable, list[tuple]], Iterator]]
     started: list = []
 
     def run(func: Callable, calls: list[tuple]) -> Iterator:
-        results = parallel(delayed(func)(*args) for args in calls)
+        with _sigint_ignored():
+            results = parallel(delayed(func)(*args) for args in calls)
         started.append(results)
         return results
     try:
-        with _PARALLEL, Parallel(n_jobs=jobs, return_as='generator') as parallel:
+        with _PARALLEL, contextlib.ExitStack() as stack:
+            with _sigint_ignored():  # joblib starts its worker processes here or with the first tasks
+                parallel = stack.enter_context(Parallel(n_jobs=jobs, return_as='generator'))
             try:
                 yield run
             finally:  # results left unread (an exception passes through) are cancelled quietly
@@ -427,6 +431,22 @@ def _workers(jobs: int) -> Iterator[Callable[[Callable, list[tuple]], Iterator]]
                         results.close()
     except BrokenExecutor as exc:  # a worker was killed (out of memory, a signal): not a bug of the cloud
         raise TuningWorkerError(f'a tuning worker process died ({type(exc).__name__})') from exc
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while joblib starts worker processes (from the main thread): they inherit that,
+    so Ctrl-C, which a terminal sends to its whole process group, reaches only this process, which
+    stops them, instead of interrupting them mid-import or mid-task with tracebacks of their own. A
+    Ctrl-C in that moment is lost (the same keystroke again stops the command)."""
+    if threading.current_thread() is not threading.main_thread():  # only the main thread may set handlers
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _sampled_separation(sampled_separation: bool | None, n_valid: int) -> bool:
