@@ -290,6 +290,27 @@ def test_node_with_invalid_startup_parameters_exits_with_a_reason():
     assert proc.returncode == 2
     assert 'tune_max must be greater than tune_min' in proc.stderr
     assert 'Traceback' not in proc.stderr
+    proc = subprocess.run([sys.executable, '-m', 'plane_validation.ros.node', '--ros-args', '--params-file',
+                           '/nonexistent/params.yaml'], capture_output=True, text=True, timeout=60, env=dict(os.environ))
+    assert proc.returncode == 2 and 'cannot start' in proc.stderr and 'Traceback' not in proc.stderr
+
+
+def test_whole_numbers_are_taken_for_float_parameters_and_other_types_are_not(ros):
+    node = PlaneValidationNode(parameter_overrides=[Parameter('min_inliers', value=500), Parameter('tolerance', value=1),
+                                                    Parameter('auto_tune', value=False)])
+    try:
+        config = node.pipeline.config
+        assert (config.min_inliers, config.tolerance) == (500.0, 1.0) and isinstance(config.tolerance, float)
+        assert node.set_parameters([Parameter('tolerance', value=2)])[0].successful
+        assert node.pipeline.config.tolerance == 2.0 and isinstance(node.pipeline.config.tolerance, float)
+        for bad, why in ((Parameter('tolerance', value='abc'), 'tolerance must be a float'),
+                         (Parameter('tolerance', value=100), 'tolerance must be in'),
+                         (Parameter('max_planes', value=2.5), 'INTEGER'), (Parameter('tolerance', value=True), 'float')):
+            result = node.set_parameters([bad])[0]
+            assert not result.successful and why in result.reason, (bad.value, result.reason)
+        assert node.pipeline.config.tolerance == 2.0
+    finally:
+        node.destroy_node()
 
 
 def test_error_and_warn_log_lines_both_appear_throttled_per_level(harness, capfd):

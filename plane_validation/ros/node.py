@@ -44,7 +44,10 @@ NODE_PARAMETERS = {'reliability': Parameter('reliability', 'best_effort', 'subsc
 def descriptor(spec: Parameter) -> ParameterDescriptor:
     """The ROS parameter descriptor of one table entry (its range includes the special value)."""
     desc = ParameterDescriptor(description=spec.description + (f' [{spec.unit}]' if spec.unit else ''),
-                               read_only=spec.read_only)
+                               read_only=spec.read_only,
+                               # a whole number for a float (`tolerance: 1`, `-p min_inliers:=500`) is fine;
+                               # the table's check (Parameter.problem) refuses every other type instead
+                               dynamic_typing=spec.type is float)
     if spec.low is not None:
         lo, hi = spec.low, spec.high
         if spec.special is not None:
@@ -54,6 +57,13 @@ def descriptor(spec: Parameter) -> ParameterDescriptor:
         elif spec.type is int:
             desc.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi), step=1)]
     return desc
+
+
+def _as_float(spec: Parameter, value):
+    """A whole number given for a float parameter as that float; any other value as it is."""
+    if spec.type is float and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    return value
 
 
 def params_yaml(node_name: str = 'plane_validation') -> str:
@@ -76,7 +86,7 @@ class PlaneValidationNode(Node):
 
     def __init__(self, name: str = 'plane_validation', **kwargs) -> None:
         super().__init__(name, **kwargs)
-        config = {name: self.declare_parameter(name, spec.default, descriptor(spec)).value
+        config = {name: _as_float(spec, self.declare_parameter(name, spec.default, descriptor(spec)).value)
                   for name, spec in PARAMETERS.items()}
         reliability = self.declare_parameter('reliability', NODE_PARAMETERS['reliability'].default,
                                              descriptor(NODE_PARAMETERS['reliability'])).value
@@ -209,7 +219,7 @@ class PlaneValidationNode(Node):
 
     # -- parameters ------------------------------------------------------------------------------
     def _on_set_parameters(self, params) -> SetParametersResult:
-        changes = {p.name: p.value for p in params if p.name in PARAMETERS}
+        changes = {p.name: _as_float(PARAMETERS[p.name], p.value) for p in params if p.name in PARAMETERS}
         try:
             config = dataclasses.replace(self.pipeline.config, **changes).validate()
         except (ValueError, TypeError) as exc:
@@ -229,7 +239,11 @@ class PlaneValidationNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     limit_blas_threads()
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:  # malformed --ros-args, a params file that is missing or not YAML
+        print(f'plane_validation_node: cannot start: {exc}', file=sys.stderr)
+        return 2
     try:
         node = PlaneValidationNode()
     except KeyboardInterrupt:  # Ctrl-C while starting: as quiet as while spinning
