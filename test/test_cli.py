@@ -404,3 +404,20 @@ def test_ctrl_c_while_the_command_line_or_the_node_loads_exits_quietly():
     assert proc.stdout.strip() == '[]', proc.stderr
     assert "'plane-validation = plane_validation.cli:main'" in (ROOT / 'setup.py').read_text()
     assert "'plane_validation_node = plane_validation.ros:main'" in (ROOT / 'setup.py').read_text()
+
+
+def test_stdout_closed_early_is_a_quiet_exit(corner_npy):
+    """As when piped into head: the reader is gone before the command prints."""
+    proc = subprocess.Popen([sys.executable, '-m', 'plane_validation.cli', 'detect', str(corner_npy),
+                             '--tolerance', '0.02'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert (proc.wait(timeout=120), err) == (141, '')
+
+
+def test_a_cloud_without_three_valid_points_is_an_error_with_or_without_a_tolerance(tmp_path, capsys):
+    cloud = tmp_path / 'two.xyz'
+    cloud.write_text('nan nan nan\n1 2 3\n4 5 6\n')
+    for extra in ([], ['--tolerance', '0.01']):
+        assert main(['detect', str(cloud), *extra]) == 2
+        assert '2 valid point(s) of 3: a plane needs at least 3' in capsys.readouterr().err

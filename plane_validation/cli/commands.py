@@ -10,7 +10,8 @@
 
 CLOUD is a .pcd, .ply, .npy, .xyz/.txt/.csv file or ``BAG[:TOPIC[:INDEX]]``. Exit status: 0 on
 success, 2 for bad usage or input (one line on stderr), 130 when interrupted (Ctrl-C), 143 on
-SIGTERM and 129 on SIGHUP; an output is complete or absent either way.
+SIGTERM, 129 on SIGHUP and 141, quietly, when stdout closes early (piped into ``head``); an output
+is complete or absent either way.
 """
 from __future__ import annotations
 
@@ -38,6 +39,8 @@ DEMO_OUT = 'out/demo'
 PAPER_OUT = 'out/paper'
 #: Exit status for bad usage or input (argparse uses it too).
 EXIT_USAGE = 2
+#: Exit status when stdout closes early (128 + SIGPIPE, as a tool the signal ends).
+EXIT_BROKEN_PIPE = 141
 
 CLOUD_HELP = ('point cloud: .pcd (ascii/binary/binary_compressed), .ply, .npy, .xyz/.txt/.csv, or a bag as '
               'BAG[:TOPIC[:INDEX]] (rosbag2 directory, .mcap, .db3 or ROS 1 .bag; INDEX counts from 0, '
@@ -104,6 +107,15 @@ def _check_outputs(args: argparse.Namespace, *names: str) -> None:
                 raise ValueError(f'{path}: given to both --{other} and --{name}; choose two names')
 
 
+def _load(cloud: str) -> tuple[np.ndarray, tuple[int, int] | None]:
+    """load_cloud, refusing a cloud with fewer than 3 valid points: no plane can be found in it."""
+    points, shape = load_cloud(cloud)
+    valid = int(np.count_nonzero(np.isfinite(points).all(axis=1)))
+    if valid < 3:
+        raise ValueError(f'{valid} valid point(s) of {len(points)}: a plane needs at least 3')
+    return points, shape
+
+
 @contextmanager
 def _about(cloud: str) -> Iterator[None]:
     """A ValueError raised inside names the cloud it is about (when it does not name its file already)."""
@@ -122,7 +134,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
     _check_outputs(args, 'out', 'png')
     tolerance = None if args.auto else args.tolerance
     with _about(args.cloud), progress_bar('tuning t', quiet=args.json) as progress:
-        points, shape = load_cloud(args.cloud)
+        points, shape = _load(args.cloud)
         det = detect(points, tolerance, seed=_seed(args.seed), max_planes=args.max_planes,
                      min_inliers=min_inliers_value(args.min_inliers), progress=progress, shape=shape,
                      noise_model=args.noise_model, noise_reference=args.noise_reference, jobs=args.tune_jobs)
@@ -165,7 +177,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     _check_outputs(args, 'plot', 'csv')
     with _about(args.cloud), progress_bar('sweeping t', quiet=args.json) as progress:
-        points, shape = load_cloud(args.cloud)
+        points, shape = _load(args.cloud)
         result = tune_tolerance(points, tolerances=args.tolerances, criterion=args.criterion, seed=_seed(args.seed),
                                 max_planes=args.max_planes, min_inliers=min_inliers_value(args.min_inliers),
                                 progress=progress, shape=shape, noise_model=args.noise_model,
@@ -201,7 +213,7 @@ def cmd_planes(args: argparse.Namespace) -> int:
     min_inliers = min_inliers_value(args.min_inliers)
     tolerance, source = args.tolerance, 'fixed'
     with _about(args.cloud):
-        points, shape = load_cloud(args.cloud)
+        points, shape = _load(args.cloud)
         if tolerance is None:
             with progress_bar('tuning t', quiet=args.json) as progress:
                 tolerance = tune_tolerance(points, seed=_seed(args.seed), max_planes=args.max_planes,
@@ -565,6 +577,10 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     except Terminated as exc:
         return 128 + exc.signum
+    except BrokenPipeError:  # stdout closed early (piped into head): quiet, as a tool killed by SIGPIPE
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing left to flush at exit
+        return EXIT_BROKEN_PIPE
     except (ValueError, OSError, TuningWorkerError) as exc:
         message = ' '.join(str(exc).split()) or type(exc).__name__
         print(f'plane-validation: error: {message}', file=sys.stderr)
