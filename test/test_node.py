@@ -291,13 +291,14 @@ def test_node_with_invalid_startup_parameters_exits_with_a_reason():
     assert 'tune_max must be greater than tune_min' in proc.stderr
     assert 'Traceback' not in proc.stderr
     proc = subprocess.run([sys.executable, '-m', 'plane_validation.ros.node', '--ros-args', '--params-file',
-                           '/nonexistent/params.yaml'], capture_output=True, text=True, timeout=60, env=dict(os.environ))
+                           '/nonexistent/params.yaml'], capture_output=True, text=True, timeout=60,
+                          env=dict(os.environ))
     assert proc.returncode == 2 and 'cannot start' in proc.stderr and 'Traceback' not in proc.stderr
 
 
 def test_whole_numbers_are_taken_for_float_parameters_and_other_types_are_not(ros):
-    node = PlaneValidationNode(parameter_overrides=[Parameter('min_inliers', value=500), Parameter('tolerance', value=1),
-                                                    Parameter('auto_tune', value=False)])
+    overrides = {'min_inliers': 500, 'tolerance': 1, 'auto_tune': False}
+    node = PlaneValidationNode(parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
     try:
         config = node.pipeline.config
         assert (config.min_inliers, config.tolerance) == (500.0, 1.0) and isinstance(config.tolerance, float)
@@ -305,7 +306,8 @@ def test_whole_numbers_are_taken_for_float_parameters_and_other_types_are_not(ro
         assert node.pipeline.config.tolerance == 2.0 and isinstance(node.pipeline.config.tolerance, float)
         for bad, why in ((Parameter('tolerance', value='abc'), 'tolerance must be a float'),
                          (Parameter('tolerance', value=100), 'tolerance must be in'),
-                         (Parameter('max_planes', value=2.5), 'INTEGER'), (Parameter('tolerance', value=True), 'float')):
+                         (Parameter('max_planes', value=2.5), 'INTEGER'),
+                         (Parameter('tolerance', value=True), 'float')):
             result = node.set_parameters([bad])[0]
             assert not result.successful and why in result.reason, (bad.value, result.reason)
         assert node.pipeline.config.tolerance == 2.0
