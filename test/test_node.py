@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import array
 import gc
+import re
 import time
 
 import numpy as np
@@ -230,6 +231,12 @@ def test_flood_drops_old_frames_keeps_memory_flat_and_stays_responsive(harness):
         flood_diags = [d.status[0] for k, d in harness.received['diagnostics'].items() if k < 5_100_000_000_000]
     warned = [st for st in flood_diags if 'dropped' in st.message]
     assert warned and all(st.level == b'\x01' for st in warned)
+    # each drop is reported once, with the newer frame that replaced it: never with the first one
+    with harness.lock:
+        first = min(k for k in harness.received['diagnostics'] if k >= 5_000_000_000_000)
+        assert 'dropped' not in harness.received['diagnostics'][first].status[0].message
+    reported = sum(int(re.search(r'(\d+) older frame\(s\) dropped', st.message)[1]) for st in warned)
+    assert reported == dropped
     assert values['planes'] == '3' and out['diagnostics'].status[0].level == b'\x00'  # nothing dropped since
     # (DDS itself may also discard frames for the best-effort subscription, so no lower bound on the sum)
     assert processed + dropped <= 251

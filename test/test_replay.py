@@ -286,3 +286,13 @@ def test_a_topic_with_two_message_types_names_both(tmp_path):
     with pytest.raises(ReplayError) as info:
         replay_offline(bag, topic='/points', out=tmp_path / 'o', echo=None)
     assert 'sensor_msgs/msg/PointCloud2 and std_msgs/msg/String' in str(info.value)
+
+
+def test_a_live_summary_says_where_the_unanswered_clouds_went():
+    from plane_validation.app.diagnostics import Level
+    from plane_validation.app.summary import FrameSummary, ReplaySummary
+    frames = [FrameSummary(i, i, 5, 0.02, 0.3, Level.OK, 'ok', 50.0) for i in (0, 4)]
+    line = ReplaySummary(bag=Path('bags/room'), topic='/points', output=None, frames=frames, dropped=2, sent=5).line()
+    assert '2 frames from bags/room [/points] (5 sent: 2 dropped by the busy node, 1 lost before it' in line
+    offline = ReplaySummary(bag=Path('bags/room'), topic='/points', output=None, frames=frames).line()
+    assert 'sent' not in offline and 'dropped' not in offline

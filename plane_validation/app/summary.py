@@ -42,8 +42,9 @@ class ReplaySummary:
     topic: str
     output: Path | None
     frames: list[FrameSummary] = field(default_factory=list)
-    dropped: int = 0
+    dropped: int = 0  # clouds the node dropped (a newer one replaced them while it was busy)
     last_segmented: object | None = None  # the last frame's segmented PointCloud2 (rclpy)
+    sent: int = 0  # clouds published to a live node (0: offline, every cloud processed)
 
     def line(self) -> str:
         if not self.frames:
@@ -53,5 +54,9 @@ class ReplaySummary:
         planes = ', '.join(f'{k} planes x{c}' for k, c in enumerate(counts) if c)
         out = f'; output bag {self.output}' if self.output else ''
         dropped = f', {self.dropped} dropped' if self.dropped else ''
+        if self.sent > len(self.frames):  # live: say where the unanswered ones went
+            lost = max(self.sent - len(self.frames) - self.dropped, 0)
+            dropped = (f' ({self.sent} sent: {self.dropped} dropped by the busy node, {lost} lost before it, '
+                       'e.g. in the depth-1 sensor-data queue)')
         return (f'{len(self.frames)} frames from {self.bag} [{self.topic}]{dropped}: {planes}; '
                 f'median {np.median(ms):.1f} ms per frame; last tolerance {self.frames[-1].tolerance:.4g} m{out}')

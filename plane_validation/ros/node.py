@@ -133,22 +133,26 @@ class PlaneValidationNode(Node):
                 if self._stopping:
                     return
                 msg, self._slot = self._slot, None
+                dropped = self.frames_dropped  # the clouds this one replaced: older than it
             try:
-                self.process(msg)
+                self.process(msg, dropped)
             except Exception as exc:  # never let one frame kill the worker
                 if self._stopping or not self.context.ok():
                     return  # shutting down: publishing failed because the context is gone
                 self.get_logger().error(f'frame failed unexpectedly: {exc!r}', throttle_duration_sec=LOG_THROTTLE_S)
 
     # -- one frame -------------------------------------------------------------------------------
-    def process(self, msg: PointCloud2) -> None:
-        """Convert, run the shared pipeline, publish every output stamped with the input header."""
+    def process(self, msg: PointCloud2, dropped: int | None = None) -> None:
+        """Convert, run the shared pipeline, publish every output stamped with the input header.
+        dropped: frames_dropped when this cloud was taken (None: now); the drops since the last
+        frame are reported with it (those meanwhile are older than the next frame, not this one)."""
         result = self.pipeline.process_cloud(msg, tune_inline=False)
         stamp_ns = header_stamp_ns(msg.header)
         retune = result.segmentation is not None and self._reserve_sweep(result, stamp_ns)
         self.frames_processed += 1
         with self._wake:
-            dropped_now, self._dropped_reported = self.frames_dropped - self._dropped_reported, self.frames_dropped
+            seen = self.frames_dropped if dropped is None else dropped
+            dropped_now, self._dropped_reported = seen - self._dropped_reported, seen
         if dropped_now:
             result = dataclasses.replace(result, diagnostic=result.diagnostic.escalated(
                 WARN, f'{dropped_now} older frame(s) dropped (clouds arrive faster than they are processed)'))

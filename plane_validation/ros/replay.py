@@ -153,4 +153,4 @@ def replay_live(bag: str | Path, *, topic: str | None = None, out: str | Path | 
         write_received()
     frames_answered = sorted(pairing.frames, key=lambda f: f.index)
     return ReplaySummary(bag=bag, topic=cloud_topic, output=out_path, frames=frames_answered, dropped=pairing.dropped,
-                         last_segmented=pairing.last_segmented)
+                         last_segmented=pairing.last_segmented, sent=len(frames))
