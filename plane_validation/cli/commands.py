@@ -58,6 +58,11 @@ def parse_tolerances(text: str) -> np.ndarray:
         raise argparse.ArgumentTypeError(f'expected A:B:N (e.g. 0.005:0.05:10), got {text!r}') from None
     if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi and count >= 2):
         raise argparse.ArgumentTypeError(f'need 0 < A < B and N >= 2, got {text!r}')
+    from ..app.config import PARAMETERS
+    for name, value in (('tolerance', hi), ('tune_count', count)):  # the node's limits (B: t's, N: tune_count's)
+        why = PARAMETERS[name].problem(value)
+        if why is not None:
+            raise argparse.ArgumentTypeError(f'{text!r}: {why}')
     return np.linspace(lo, hi, count)
 
 
@@ -101,6 +106,8 @@ def _check_outputs(args: argparse.Namespace, *names: str) -> None:
     place, neither the input cloud nor each other (``--out`` also a point-file type)."""
     given = [(name, getattr(args, name)) for name in names if getattr(args, name, None) is not None]
     for i, (name, path) in enumerate(given):
+        if not str(path).strip():
+            raise ValueError(f'--{name} needs a file name, got an empty one')
         (check_output if name == 'out' else check_writable)(path, inputs=(_cloud_path(args.cloud),))
         for other, other_path in given[:i]:
             if Path(path).resolve() == Path(other_path).resolve():
@@ -299,9 +306,12 @@ def _config(args: argparse.Namespace):
 def cmd_replay(args: argparse.Namespace) -> int:
     from ..ros.replay import replay_live, replay_offline
     cfg = _config(args)
+    if not args.live and (args.rate is not None or args.no_node):
+        raise ValueError(f'{"--rate" if args.rate is not None else "--no-node"} applies to --live replay only '
+                         '(offline replay processes every frame, in order, as fast as it can)')
     if args.live:
-        summary = replay_live(args.bag, topic=args.topic, out=args.out, rate=args.rate, start_node=not args.no_node,
-                              config=cfg, storage=args.storage)
+        summary = replay_live(args.bag, topic=args.topic, out=args.out, rate=args.rate or 1.0,
+                              start_node=not args.no_node, config=cfg, storage=args.storage)
     else:
         summary = replay_offline(args.bag, topic=args.topic, out=args.out, config=cfg, storage=args.storage)
     print(summary.line())
@@ -379,6 +389,13 @@ def _non_negative_float(text: str) -> float:
     return _number(text, allow_zero=True)
 
 
+def _fraction(text: str) -> float:
+    value = _number(text, allow_zero=True)
+    if value >= 1:
+        raise argparse.ArgumentTypeError(f'must be in [0, 1), got {text!r}')
+    return value
+
+
 def _table_type(name: str) -> Callable[[str], object]:
     """An argparse type for the table's parameter ``name``: its type, range and choices."""
     from ..app.config import PARAMETERS
@@ -409,8 +426,9 @@ def _add_detection_options(parser: argparse.ArgumentParser) -> None:
     for name, metavar in (('seed', 'S'), ('max_planes', 'K'), ('min_inliers', 'M'), ('noise_model', 'MODEL'),
                           ('noise_reference', 'R'), ('tune_jobs', 'N')):
         spec = PARAMETERS[name]
+        text = 'random seed; -1 = fresh entropy' if name == 'seed' else spec.description  # one cloud, no stamps
         parser.add_argument('--' + name.replace('_', '-'), dest=name, type=_table_type(name), default=spec.default,
-                            metavar=metavar, help=f'{spec.description} (default {spec.default})')
+                            metavar=metavar, help=f'{text} (default {spec.default})')
 
 
 def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:
@@ -443,8 +461,11 @@ def build_parser() -> argparse.ArgumentParser:
         '130 interrupted, 143 SIGTERM, 129 SIGHUP.')
     sub = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
 
-    demo = sub.add_parser('demo', help='the main job: replay a bundled bag through the node over DDS')
-    demo.add_argument('--bag', default=DEMO_BAG)
+    demo = sub.add_parser('demo', help='the main job: replay a bundled bag through the node over DDS',
+                          description='Replay a bundled bag live over DDS through plane_validation_node (started '
+                          'in this process, auto-tuned tolerance, seed 0), print each answered frame and record '
+                          'everything the node publishes into a bag, with a picture of the last frame.')
+    demo.add_argument('--bag', default=DEMO_BAG, help=f'the bag to replay (default {DEMO_BAG}; see bags/README.md)')
     demo.add_argument('--out', default=DEMO_OUT, help='directory for the output bag and PNG')
     demo.add_argument('--rate', type=_positive_float, default=0.25,
                       help='playback speed (slow enough that the node answers every frame)')
@@ -455,7 +476,7 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument('--topic', help='PointCloud2 topic (auto-detected when there is one)')
     replay.add_argument('--out', help='output rosbag2 directory (default: <bag>.planes beside the bag)')
     replay.add_argument('--live', action='store_true', help='publish on ROS topics at the recorded timing')
-    replay.add_argument('--rate', type=_positive_float, default=1.0, help='playback speed factor for --live')
+    replay.add_argument('--rate', type=_positive_float, help='playback speed factor for --live (default 1)')
     replay.add_argument('--no-node', action='store_true', help='with --live: do not start the node in-process')
     replay.add_argument('--storage', choices=('mcap', 'sqlite3'),
                         help='output bag storage (default: the input bag\'s; MCAP for a ROS 1 bag)')
@@ -467,7 +488,8 @@ def build_parser() -> argparse.ArgumentParser:
                             f'tolerance is auto-tuned (a sweep chosen by {DEFAULT_CRITERION}).')
     detect.add_argument('cloud', metavar='CLOUD', help=CLOUD_HELP)
     which = detect.add_mutually_exclusive_group()
-    which.add_argument('--tolerance', type=_positive_float, metavar='T', help='fixed RANSAC tolerance t in meters')
+    which.add_argument('--tolerance', type=_table_type('tolerance'), metavar='T',
+                       help='fixed RANSAC tolerance t in meters')
     which.add_argument('--auto', '--tune', dest='auto', action='store_true',
                        help=f'auto-tune t by a sweep chosen by {DEFAULT_CRITERION} (the default without --tolerance)')
     _add_detection_options(detect)
@@ -496,7 +518,7 @@ def build_parser() -> argparse.ArgumentParser:
     planes = sub.add_parser('planes', help='indices vs number of planes k and the selected k (paper Fig. 2)',
                             description='Extract up to K planes at t and score the first k planes for every k.')
     planes.add_argument('cloud', metavar='CLOUD', help=CLOUD_HELP)
-    planes.add_argument('--tolerance', type=_positive_float, metavar='T',
+    planes.add_argument('--tolerance', type=_table_type('tolerance'), metavar='T',
                         help='RANSAC tolerance t in meters (default: auto-tuned)')
     _add_detection_options(planes)
     planes.add_argument('--plot', metavar='PNG', help='write indices vs k, selected k marked')
@@ -510,7 +532,7 @@ def build_parser() -> argparse.ArgumentParser:
     scene.add_argument('--noise', type=_non_negative_float, metavar='E',
                        help='uniform noise half-width e along the normals')
     scene.add_argument('--points', dest='n_points', type=_positive_int, metavar='N', help='number of points')
-    scene.add_argument('--outliers', dest='outlier_fraction', type=float, metavar='F',
+    scene.add_argument('--outliers', dest='outlier_fraction', type=_fraction, metavar='F',
                        help='fraction of uniform outliers')
     scene.add_argument('--scale', type=_positive_float, metavar='S',
                        help='multiply all coordinates (0.01: paper units -> m)')
