@@ -438,6 +438,7 @@ def test_file_commands_take_the_node_parameter_ranges(argv, why, capsys):
 def test_options_that_would_be_ignored_are_refused(corner_npy, capsys):
     for argv, why in ((['replay', str(BAGS / 'cube'), '--rate', '2'], '--rate applies to --live replay only'),
                       (['replay', str(BAGS / 'cube'), '--no-node'], '--no-node applies to --live replay only'),
-                      (['detect', str(corner_npy), '--out', ''], '--out needs a file name')):
+                      (['detect', str(corner_npy), '--out', ''], '--out needs a file name'),
+                      (['replay', str(BAGS / 'cube'), '--out', 'x.mcap'], 'replay writes a rosbag2 bag, a folder')):
         assert main(argv) == 2
         assert why in capsys.readouterr().err

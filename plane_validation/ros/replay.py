@@ -39,6 +39,9 @@ def output_storage(bag: Path, storage: str | None) -> str:
 
 def _output_path(bag: Path, out: str | Path | None) -> Path:
     path = Path(out) if out is not None else bag.parent / f'{bag.name.removesuffix(".bag")}.planes'
+    if path.suffix.lower() in ('.mcap', '.db3', '.bag'):
+        raise ReplayError(f'output {path}: replay writes a rosbag2 bag, a folder (metadata.yaml and the storage '
+                          'file); give it a folder name such as out.planes, and the storage with --storage')
     if path.exists():
         raise ReplayError(f'output {path} already exists; remove it or pass another --out')
     return path
