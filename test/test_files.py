@@ -276,3 +276,19 @@ def test_an_empty_text_file_is_an_empty_cloud_without_warnings(tmp_path):
         warnings.simplefilter('error')
         assert load_points(tmp_path / 'empty.xyz').shape == (0, 3)
         assert load_points(tmp_path / 'empty.pcd').shape == (0, 3)
+
+
+def test_an_output_that_cannot_be_made_is_named_without_its_temporary_file(tmp_path):
+    from plane_validation.formats.files import atomic_output
+    target = tmp_path / 'gone' / 'x.ply'  # its folder vanished after the checks
+    with pytest.raises(OSError, match=r'^cannot write .*/gone/x\.ply: No such file or directory$'):
+        with atomic_output(target):
+            pass
+    folder = tmp_path / 'taken'
+    folder.mkdir()
+    (folder / 'x.ply').mkdir()  # a folder where the file goes: the final rename fails
+    (folder / 'x.ply' / 'f').write_text('')
+    with pytest.raises(OSError, match=r'^cannot write .*/taken/x\.ply: '):
+        with atomic_output(folder / 'x.ply') as tmp:
+            tmp.write_text('data')
+    assert sorted(p.name for p in folder.iterdir()) == ['x.ply']  # no temporary file left

@@ -296,3 +296,16 @@ def test_a_live_summary_says_where_the_unanswered_clouds_went():
     assert '2 frames from bags/room [/points] (5 sent: 2 dropped by the busy node, 1 lost before it' in line
     offline = ReplaySummary(bag=Path('bags/room'), topic='/points', output=None, frames=frames).line()
     assert 'sent' not in offline and 'dropped' not in offline
+
+
+def test_an_output_bag_made_meanwhile_by_another_run_is_kept_and_this_one_says_so(tmp_path):
+    from plane_validation.formats.bags import BagError
+    from plane_validation.ros.recorder import BagRecorder
+    out = tmp_path / 'same.planes'
+    recorder = BagRecorder(out, '/points', 'plane_validation', 'mcap')
+    out.mkdir()
+    (out / 'theirs').write_text('kept')  # the other run finished first
+    with pytest.raises(BagError, match='appeared while this replay ran'):
+        recorder.close()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['same.planes']
+    assert (out / 'theirs').read_text() == 'kept'

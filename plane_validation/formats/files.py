@@ -158,7 +158,10 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
     """A temporary path beside ``path`` (same suffix) that replaces ``path`` when the block ends
     normally and is deleted otherwise, so an output file is complete or absent."""
     path = Path(path)
-    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.stem}.', suffix=path.suffix)
+    try:
+        fd, name = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.stem}.', suffix=path.suffix)
+    except OSError as exc:  # named by the output, not by the temporary file
+        raise OSError(f'cannot write {path}: {exc.strerror or exc}') from exc
     os.close(fd)
     tmp = Path(name)
     try:
@@ -166,7 +169,10 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
         umask = os.umask(0)
         os.umask(umask)
         tmp.chmod(0o666 & ~umask)  # as a plain open() would have made it (mkstemp makes 0600)
-        os.replace(tmp, path)
+        try:
+            os.replace(tmp, path)
+        except OSError as exc:
+            raise OSError(f'cannot write {path}: {exc.strerror or exc}') from exc
     finally:
         tmp.unlink(missing_ok=True)
 

@@ -70,7 +70,11 @@ class BagRecorder:
             meta = self._bag / 'metadata.yaml'
             # the name stands in relative_file_paths and in files[].path
             meta.write_text(meta.read_text().replace(f' {data.name}\n', f' {rosbag2_name}\n'))
-            self._bag.rename(self.path)
+            try:
+                self._bag.rename(self.path)
+            except OSError as exc:
+                raise BagError(f'cannot write output bag {self.path}: it appeared while this replay ran (another '
+                               f'run writing the same --out?); nothing written ({exc.strerror or exc})') from exc
         except BaseException:
             self.abort()
             raise
