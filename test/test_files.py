@@ -292,3 +292,14 @@ def test_an_output_that_cannot_be_made_is_named_without_its_temporary_file(tmp_p
         with atomic_output(folder / 'x.ply') as tmp:
             tmp.write_text('data')
     assert sorted(p.name for p in folder.iterdir()) == ['x.ply']  # no temporary file left
+
+
+def test_a_text_table_may_start_with_a_row_of_column_names(tmp_path):
+    rows = '0,0,0\n1,0,0\n0,1,0\n'
+    cases = (('named.csv', 'x,y,z\n' + rows), ('plain.csv', rows), ('named.xyz', 'x y z\n' + rows.replace(',', ' ')))
+    for name, text in cases:
+        (tmp_path / name).write_text(text)
+        assert load_points(tmp_path / name).shape == (3, 3), name
+    (tmp_path / 'mixed.csv').write_text('x,1,2\n' + rows)  # a number among names: not a header
+    with pytest.raises(ValueError, match='not a table of numbers'):
+        load_points(tmp_path / 'mixed.csv')

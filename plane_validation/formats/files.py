@@ -212,16 +212,32 @@ def _read_npy(path: Path) -> np.ndarray:
     return _xyz_columns(path, table)
 
 
-def _loadtxt(source, delimiter: str | None = None) -> np.ndarray:
+def _loadtxt(source, delimiter: str | None = None, skiprows: int = 0) -> np.ndarray:
     """np.loadtxt as an (n, m) table; no data is an empty table, not a warning."""
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', UserWarning)  # "input contained no data"
-        return np.loadtxt(source, delimiter=delimiter, ndmin=2)
+        return np.loadtxt(source, delimiter=delimiter, ndmin=2, skiprows=skiprows)
+
+
+def _header_rows(path: Path, delimiter: str | None) -> int:
+    """1 when the first line is a row of column names (``x,y,z``: no field is a number), else 0."""
+    with open(path, 'rb') as f:
+        first = f.readline(4096).decode('utf-8', errors='replace').strip()
+    fields = [t.strip() for t in first.split(delimiter)] if first else []
+
+    def number(text: str) -> bool:
+        try:
+            float(text)
+        except ValueError:
+            return False
+        return True
+    return int(bool(fields) and not any(number(t) for t in fields))
 
 
 def _read_text(path: Path) -> np.ndarray:
+    delimiter = ',' if path.suffix.lower() == '.csv' else None
     try:
-        table = _loadtxt(path, ',' if path.suffix.lower() == '.csv' else None)
+        table = _loadtxt(path, delimiter, _header_rows(path, delimiter))
     except Exception as exc:  # ValueError on non-numbers, UnicodeDecodeError on binary bytes
         raise ValueError(f'{path}: not a table of numbers ({_first_line(exc)})') from exc
     return np.empty((0, 3)) if table.size == 0 else _xyz_columns(path, table)
@@ -294,7 +310,8 @@ def _read_pcd(path: Path) -> np.ndarray:
         try:
             table = _loadtxt(raw[offset:].decode('ascii', errors='replace').splitlines())
         except ValueError as exc:
-            raise ValueError(f'{path}: bad ascii PCD data ({_first_line(exc)})') from exc
+            why = _first_line(exc).split('; use `usecols`')[0]  # numpy's advice is about its own call
+            raise ValueError(f'{path}: bad ascii PCD data ({why}; a truncated file?)') from exc
         columns = np.cumsum([0] + counts)
         if table.size and table.shape[1] < columns[-1]:
             raise ValueError(f'{path}: ascii PCD rows have {table.shape[1]} values, the fields need {columns[-1]}')
