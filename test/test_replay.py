@@ -309,3 +309,16 @@ def test_an_output_bag_made_meanwhile_by_another_run_is_kept_and_this_one_says_s
         recorder.close()
     assert sorted(p.name for p in tmp_path.iterdir()) == ['same.planes']
     assert (out / 'theirs').read_text() == 'kept'
+
+
+def test_a_malformed_bag_message_is_named_with_its_index(tmp_path, capsys):
+    import dataclasses
+    bag = tmp_path / 'bad'
+    good = _cloud_msg(TS2, scenes.corner(500, 1.0, scale=0.01, seed=3).points, 10**18, rosbags_types(TS2))
+    short = dataclasses.replace(good, data=good.data[: len(good.data) // 2])  # half its bytes
+    with Writer(bag, version=9) as writer:
+        conn = writer.add_connection('/points', 'sensor_msgs/msg/PointCloud2', typestore=TS2)
+        for k, msg in enumerate((good, short)):
+            writer.write(conn, 10**18 + k, TS2.serialize_cdr(msg, 'sensor_msgs/msg/PointCloud2'))
+    assert cli_main(['detect', f'{bag}:/points:1', '--tolerance', '0.02']) == 2
+    assert f'{bag}:/points:1: PointCloud2.data is too short' in capsys.readouterr().err

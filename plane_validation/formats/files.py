@@ -73,8 +73,8 @@ def load_cloud(source: str | Path) -> tuple[np.ndarray, tuple[int, int] | None]:
     msg = read_bag_message(bag)
     try:
         points = xyz_array(msg)
-    except ValueError as exc:
-        raise ValueError(f'{bag.path}: {exc}') from exc
+    except ValueError as exc:  # named as given (BAG:TOPIC:INDEX): which message it is
+        raise ValueError(f'{source}: {exc}') from exc
     h, w = int(msg.height), int(msg.width)
     return points, (h, w) if h > 1 else None
 
