@@ -458,7 +458,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog='plane-validation', description='Self-validating plane detection: sequential RANSAC planes scored by '
         'cluster validity indices (Dunn, Davies-Bouldin, GS, GSplanes). Coordinates are taken as meters.',
         epilog='Exit status: 0 success, 1 a worker process of a parallel sweep died, 2 bad usage or input, '
-        '130 interrupted, 143 SIGTERM, 129 SIGHUP.')
+        f'130 interrupted, 143 SIGTERM, 129 SIGHUP, {EXIT_BROKEN_PIPE} stdout closed early (piped into head).')
     sub = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
 
     demo = sub.add_parser('demo', help='the main job: replay a bundled bag through the node over DDS',
