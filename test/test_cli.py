@@ -427,6 +427,7 @@ def test_a_cloud_without_three_valid_points_is_an_error_with_or_without_a_tolera
     (['detect', 'x.npy', '--tolerance', '1e9'], 'tolerance must be in [1e-06, 10.0] m'),  # the node's range
     (['sweep', 'x.npy', '--tolerances', '0.002:0.04:100000'], 'tune_count must be in [2, 100]'),
     (['sweep', 'x.npy', '--tolerances', '0.002:40:10'], 'tolerance must be in'),
+    (['sweep', 'x.npy', '--tolerances', '1e-9:0.01:5'], 'tolerance must be in'),
     (['scene', 'cube', '--outliers', '2'], 'argument --outliers: must be in [0, 1)'),
 ])
 def test_file_commands_take_the_node_parameter_ranges(argv, why, capsys):
@@ -439,6 +440,7 @@ def test_options_that_would_be_ignored_are_refused(corner_npy, capsys):
     for argv, why in ((['replay', str(BAGS / 'cube'), '--rate', '2'], '--rate applies to --live replay only'),
                       (['replay', str(BAGS / 'cube'), '--no-node'], '--no-node applies to --live replay only'),
                       (['detect', str(corner_npy), '--out', ''], '--out needs a file name'),
-                      (['replay', str(BAGS / 'cube'), '--out', 'x.mcap'], 'replay writes a rosbag2 bag, a folder')):
+                      (['replay', str(BAGS / 'cube'), '--out', 'x.mcap'], 'replay writes a rosbag2 bag, a folder'),
+                      (['replay', str(BAGS / 'cube'), '--out', ''], '--out needs a folder name')):
         assert main(argv) == 2
         assert why in capsys.readouterr().err

@@ -301,5 +301,7 @@ def test_a_text_table_may_start_with_a_row_of_column_names(tmp_path):
         (tmp_path / name).write_text(text)
         assert load_points(tmp_path / name).shape == (3, 3), name
     (tmp_path / 'mixed.csv').write_text('x,1,2\n' + rows)  # a number among names: not a header
-    with pytest.raises(ValueError, match='not a table of numbers'):
-        load_points(tmp_path / 'mixed.csv')
+    (tmp_path / 'commas.xyz').write_text(rows)  # numbers with the wrong separator: not names either
+    for name in ('mixed.csv', 'commas.xyz'):
+        with pytest.raises(ValueError, match=r"not a table of numbers .*'(x|0,0,0)'.* at row 0"):
+            load_points(tmp_path / name)

@@ -368,12 +368,14 @@ PARALLEL_SWEEP = '''
 import sys
 import plane_validation as pv
 from plane_validation.core import scenes
+from plane_validation.core.tuning import workers_ignore_sigint
 cube = scenes.cube(30000, 0.005, side=1.0, seed=1)
 def progress(done, total):
     if done == 1:
         print('running', flush=True)
 try:
-    pv.tune_tolerance(cube.points, jobs=2, count=40, progress=progress)
+    with workers_ignore_sigint():  # as the command line runs its commands
+        pv.tune_tolerance(cube.points, jobs=2, count=40, progress=progress)
 except KeyboardInterrupt:
     sys.exit(130)
 '''
@@ -410,3 +412,21 @@ def test_ctrl_c_during_a_parallel_sweep_stops_it_and_its_workers_quietly():
             break
         assert time.monotonic() < deadline, 'worker processes left behind'
         time.sleep(0.1)
+
+
+def test_the_library_leaves_sigint_alone_unless_asked(monkeypatch):
+    """A process with rclpy has its SIGINT handler in C (Python cannot save and restore it), so only a
+    command line that asks (workers_ignore_sigint) has SIGINT ignored while workers start."""
+    import signal
+
+    from plane_validation.core import tuning
+    calls = []
+    real = signal.signal
+    monkeypatch.setattr(signal, 'signal', lambda sig, handler: calls.append(handler) or real(sig, handler))
+    before = signal.getsignal(signal.SIGINT)
+    with tuning._sigint_ignored():
+        assert signal.getsignal(signal.SIGINT) is before
+    assert calls == []
+    with tuning.workers_ignore_sigint(), tuning._sigint_ignored():
+        assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+    assert calls == [signal.SIG_IGN, before] and signal.getsignal(signal.SIGINT) is before

@@ -59,7 +59,7 @@ def parse_tolerances(text: str) -> np.ndarray:
     if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi and count >= 2):
         raise argparse.ArgumentTypeError(f'need 0 < A < B and N >= 2, got {text!r}')
     from ..app.config import PARAMETERS
-    for name, value in (('tolerance', hi), ('tune_count', count)):  # the node's limits (B: t's, N: tune_count's)
+    for name, value in (('tolerance', lo), ('tolerance', hi), ('tune_count', count)):  # the node's limits
         why = PARAMETERS[name].problem(value)
         if why is not None:
             raise argparse.ArgumentTypeError(f'{text!r}: {why}')
@@ -306,6 +306,8 @@ def _config(args: argparse.Namespace):
 def cmd_replay(args: argparse.Namespace) -> int:
     from ..ros.replay import replay_live, replay_offline
     cfg = _config(args)
+    if args.out is not None and not args.out.strip():
+        raise ValueError('--out needs a folder name, got an empty one')
     if not args.live and (args.rate is not None or args.no_node):
         raise ValueError(f'{"--rate" if args.rate is not None else "--no-node"} applies to --live replay only '
                          '(offline replay processes every frame, in order, as fast as it can)')
@@ -590,10 +592,10 @@ def _terminate_cleanly() -> Iterator[None]:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from ..app.pipeline import limit_blas_threads
-    from ..core.tuning import TuningWorkerError
+    from ..core.tuning import TuningWorkerError, workers_ignore_sigint
     limit_blas_threads()  # small matrix products; spinning BLAS threads only slow a busy machine down
     try:
-        with _terminate_cleanly():
+        with _terminate_cleanly(), workers_ignore_sigint():
             return args.func(args)
     except KeyboardInterrupt:
         return 130

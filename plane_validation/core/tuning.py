@@ -7,6 +7,7 @@ segmentation for k = 1..K (the paper's Fig. 2). Pure numpy/scipy, no ROS import.
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import signal
 import threading
 import time
@@ -433,17 +434,34 @@ def _workers(jobs: int) -> Iterator[Callable[[Callable, list[tuple]], Iterator]]
         raise TuningWorkerError(f'a tuning worker process died ({type(exc).__name__})') from exc
 
 
+#: Set by :func:`workers_ignore_sigint` (a command line's choice, not the library's: a process with
+#: rclpy has its SIGINT handler in C, which Python cannot save and put back).
+_QUIET_WORKERS: contextvars.ContextVar[bool] = contextvars.ContextVar('quiet_workers', default=False)
+
+
+@contextlib.contextmanager
+def workers_ignore_sigint() -> Iterator[None]:
+    """Within this block (in the main thread of a process without rclpy), parallel sweeps start their
+    worker processes with SIGINT ignored: Ctrl-C, which a terminal sends to the whole process group,
+    then reaches only this process, which stops them, instead of interrupting them mid-import or
+    mid-task with tracebacks of their own. The command line uses it."""
+    token = _QUIET_WORKERS.set(True)
+    try:
+        yield
+    finally:
+        _QUIET_WORKERS.reset(token)
+
+
 @contextlib.contextmanager
 def _sigint_ignored() -> Iterator[None]:
-    """SIGINT ignored while joblib starts worker processes (from the main thread): they inherit that,
-    so Ctrl-C, which a terminal sends to its whole process group, reaches only this process, which
-    stops them, instead of interrupting them mid-import or mid-task with tracebacks of their own. A
-    Ctrl-C in that moment is lost (the same keystroke again stops the command)."""
-    if threading.current_thread() is not threading.main_thread():  # only the main thread may set handlers
-        yield
+    """SIGINT ignored while joblib starts worker processes (they inherit it), when the caller asked for
+    it (:func:`workers_ignore_sigint`). A Ctrl-C in that moment (milliseconds) is lost."""
+    previous = signal.getsignal(signal.SIGINT)
+    if not _QUIET_WORKERS.get() or threading.current_thread() is not threading.main_thread() or previous is None:
+        yield  # not asked for; only the main thread may set handlers; None: a handler set outside Python
         return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
         yield
     finally:
         signal.signal(signal.SIGINT, previous)

@@ -220,7 +220,7 @@ def _loadtxt(source, delimiter: str | None = None, skiprows: int = 0) -> np.ndar
 
 
 def _header_rows(path: Path, delimiter: str | None) -> int:
-    """1 when the first line is a row of column names (``x,y,z``: no field is a number), else 0."""
+    """1 when the first line is a row of column names (``x,y,z``: no field is or holds a number), else 0."""
     with open(path, 'rb') as f:
         first = f.readline(4096).decode('utf-8', errors='replace').strip()
     fields = [t.strip() for t in first.split(delimiter)] if first else []
@@ -231,7 +231,7 @@ def _header_rows(path: Path, delimiter: str | None) -> int:
         except ValueError:
             return False
         return True
-    return int(bool(fields) and not any(number(t) for t in fields))
+    return int(bool(fields) and not any(number(t) or any(c.isdigit() for c in t) for t in fields))
 
 
 def _read_text(path: Path) -> np.ndarray:

@@ -37,10 +37,11 @@ def status_name(node_name: str) -> str:
     return f'{node_name}: plane detection'
 
 
-def node_values(processed: int, dropped: int, sweep_running: bool) -> tuple[tuple[str, str], ...]:
-    """The node's own diagnostic key-values, added to each frame's."""
+def node_values(processed: int, dropped: int, sweep_running: bool, dropped_now: int = 0) -> tuple[tuple[str, str], ...]:
+    """The node's own diagnostic key-values, added to each frame's: frames processed and dropped since
+    it started, and dropped since its last answer (older than this frame)."""
     return (('frames_processed', str(processed)), ('frames_dropped', str(dropped)),
-            ('retune_running', str(sweep_running).lower()))
+            ('frames_dropped_since_last', str(dropped_now)), ('retune_running', str(sweep_running).lower()))
 
 
 def segmented_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:

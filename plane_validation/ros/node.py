@@ -156,7 +156,7 @@ class PlaneValidationNode(Node):
         if dropped_now:
             result = dataclasses.replace(result, diagnostic=result.diagnostic.escalated(
                 WARN, f'{dropped_now} older frame(s) dropped (clouds arrive faster than they are processed)'))
-        extra = node_values(self.frames_processed, self.frames_dropped, retune or self._tuning())
+        extra = node_values(self.frames_processed, seen, retune or self._tuning(), dropped_now)
         for topic, out in frame_messages(msg.header, result, self.status_name, extra).items():
             self._pubs[topic].publish(out)
         if retune:  # after publishing: the sweep competes for the GIL; frames go on with the current t
@@ -209,6 +209,8 @@ class PlaneValidationNode(Node):
                                               stop=lambda: self._stopping)
                 if result is not None and self.pipeline.last_tuning is result and not self._stopping:
                     self.get_logger().info(f'retuned: t = {result.tolerance:.4g} m ({result.verdict})')
+            except KeyboardInterrupt:  # Ctrl-C reached a worker process of a parallel sweep: the node stops
+                pass
             except Exception as exc:  # a failed sweep keeps the current tolerance; the node goes on
                 if not self._stopping:
                     self.get_logger().warning(f'retune failed, keeping t: {exc!r}',

@@ -6,6 +6,7 @@ so the n-th coefficients message belongs to the n-th diagnostics message of the 
 """
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable
 
@@ -57,7 +58,8 @@ class OutputPairing:
                 diagnostic = diagnostic_from_status(msg.status[0])
                 frame = FrameSummary.from_diagnostic(self.order[stamp], self.bag_time[stamp], diagnostic)
                 self.frames.append(frame)
-                self.dropped = int(diagnostic.number('frames_dropped') or 0)
+                dropped = diagnostic.number('frames_dropped_since_last')  # this run's drops only
+                self.dropped += 0 if math.isnan(dropped) else int(dropped)
                 if self.on_frame is not None:
                     self.on_frame(frame)
 
