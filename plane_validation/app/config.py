@@ -37,11 +37,17 @@ class Parameter:
     def type(self) -> type:
         return type(self.default)
 
+    def converted(self, value: Any) -> Any:
+        """``value`` as this parameter's type where that loses nothing (a whole number for a float),
+        else as it is."""
+        if self.type is float and isinstance(value, int) and not isinstance(value, bool):
+            return float(value)
+        return value
+
     def problem(self, value: Any) -> str | None:
         """Why ``value`` is not allowed, or None."""
         kind = self.type
-        if kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
+        value = self.converted(value)
         if type(value) is not kind:
             return f'{self.name} must be a {kind.__name__}, got {value!r}'
         if self.choices and value not in self.choices:

@@ -116,8 +116,9 @@ def _check_outputs(args: argparse.Namespace, *names: str) -> None:
 
 def _load(cloud: str) -> tuple[np.ndarray, tuple[int, int] | None]:
     """load_cloud, refusing a cloud with fewer than 3 valid points: no plane can be found in it."""
+    from ..core.ransac import finite_rows
     points, shape = load_cloud(cloud)
-    valid = int(np.count_nonzero(np.isfinite(points).all(axis=1)))
+    valid = int(np.count_nonzero(finite_rows(points)))
     if valid < 3:
         raise ValueError(f'{valid} valid point(s) of {len(points)}: a plane needs at least 3')
     return points, shape

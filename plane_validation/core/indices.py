@@ -17,6 +17,7 @@ Conventions shared by every public function here:
 """
 from __future__ import annotations
 
+import contextlib
 import contextvars
 import functools
 from collections.abc import Callable
@@ -769,9 +770,9 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
         cl = _sorted_by_cluster(coded)
         sub = _stratified(cl, int(sample_size), rng) if sampled else cl
         sep = cl
-    with ThreadPoolExecutor(1) as pool:
-        ps = functools.partial(plane_silhouette, points, labels, sample_size=sample_size, seed=rng)
-        if n >= THREADED_PS_POINTS:
+    ps = functools.partial(plane_silhouette, points, labels, sample_size=sample_size, seed=rng)
+    with ThreadPoolExecutor(1) if n >= THREADED_PS_POINTS else contextlib.nullcontext() as pool:
+        if pool is not None:
             ps = _started(pool, ps)
         if k >= 2:
             diam, dist = _diameters(sep), _distances(sep)

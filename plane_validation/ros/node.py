@@ -46,7 +46,7 @@ def descriptor(spec: Parameter) -> ParameterDescriptor:
     desc = ParameterDescriptor(description=spec.description + (f' [{spec.unit}]' if spec.unit else ''),
                                read_only=spec.read_only,
                                # a whole number for a float (`tolerance: 1`, `-p min_inliers:=500`) is fine;
-                               # the table's check (Parameter.problem) refuses every other type instead
+                               # (Parameter.converted); the table's check refuses every other type instead
                                dynamic_typing=spec.type is float)
     if spec.low is not None:
         lo, hi = spec.low, spec.high
@@ -57,13 +57,6 @@ def descriptor(spec: Parameter) -> ParameterDescriptor:
         elif spec.type is int:
             desc.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi), step=1)]
     return desc
-
-
-def _as_float(spec: Parameter, value):
-    """A whole number given for a float parameter as that float; any other value as it is."""
-    if spec.type is float and isinstance(value, int) and not isinstance(value, bool):
-        return float(value)
-    return value
 
 
 def params_yaml(node_name: str = 'plane_validation') -> str:
@@ -86,7 +79,7 @@ class PlaneValidationNode(Node):
 
     def __init__(self, name: str = 'plane_validation', **kwargs) -> None:
         super().__init__(name, **kwargs)
-        config = {name: _as_float(spec, self.declare_parameter(name, spec.default, descriptor(spec)).value)
+        config = {name: spec.converted(self.declare_parameter(name, spec.default, descriptor(spec)).value)
                   for name, spec in PARAMETERS.items()}
         reliability = self.declare_parameter('reliability', NODE_PARAMETERS['reliability'].default,
                                              descriptor(NODE_PARAMETERS['reliability'])).value
@@ -142,21 +135,20 @@ class PlaneValidationNode(Node):
                 self.get_logger().error(f'frame failed unexpectedly: {exc!r}', throttle_duration_sec=LOG_THROTTLE_S)
 
     # -- one frame -------------------------------------------------------------------------------
-    def process(self, msg: PointCloud2, dropped: int | None = None) -> None:
+    def process(self, msg: PointCloud2, dropped: int) -> None:
         """Convert, run the shared pipeline, publish every output stamped with the input header.
-        dropped: frames_dropped when this cloud was taken (None: now); the drops since the last
-        frame are reported with it (those meanwhile are older than the next frame, not this one)."""
+        dropped: frames_dropped when this cloud was taken; the drops since the last frame are
+        reported with it (those meanwhile are older than the next frame, not this one)."""
         result = self.pipeline.process_cloud(msg, tune_inline=False)
         stamp_ns = header_stamp_ns(msg.header)
         retune = result.segmentation is not None and self._reserve_sweep(result, stamp_ns)
         self.frames_processed += 1
         with self._wake:
-            seen = self.frames_dropped if dropped is None else dropped
-            dropped_now, self._dropped_reported = seen - self._dropped_reported, seen
+            dropped_now, self._dropped_reported = dropped - self._dropped_reported, dropped
         if dropped_now:
             result = dataclasses.replace(result, diagnostic=result.diagnostic.escalated(
                 WARN, f'{dropped_now} older frame(s) dropped (clouds arrive faster than they are processed)'))
-        extra = node_values(self.frames_processed, seen, retune or self._tuning(), dropped_now)
+        extra = node_values(self.frames_processed, dropped, retune or self._tuning(), dropped_now)
         for topic, out in frame_messages(msg.header, result, self.status_name, extra).items():
             self._pubs[topic].publish(out)
         if retune:  # after publishing: the sweep competes for the GIL; frames go on with the current t
@@ -225,7 +217,7 @@ class PlaneValidationNode(Node):
 
     # -- parameters ------------------------------------------------------------------------------
     def _on_set_parameters(self, params) -> SetParametersResult:
-        changes = {p.name: _as_float(PARAMETERS[p.name], p.value) for p in params if p.name in PARAMETERS}
+        changes = {p.name: PARAMETERS[p.name].converted(p.value) for p in params if p.name in PARAMETERS}
         try:
             config = dataclasses.replace(self.pipeline.config, **changes).validate()
         except (ValueError, TypeError) as exc:
