@@ -107,6 +107,14 @@ def test_organized_pcd_keeps_nan_rows_in_place(tmp_path):
     assert cli_main(['detect', str(path), '--tolerance', '0.02']) == 0
 
 
+def test_a_ply_whose_x_is_a_list_property_is_a_one_line_error(tmp_path):
+    path = tmp_path / 'lists.ply'
+    path.write_text('ply\nformat ascii 1.0\nelement vertex 2\nproperty list uchar float x\nproperty float y\n'
+                    'property float z\nend_header\n2 0 1 0 0\n1 5 0 0\n')
+    with pytest.raises(ValueError, match=r'lists\.ply: field x does not hold one number per point'):
+        load_points(path)
+
+
 def test_ply_ascii_by_plyfile_and_binary_by_us(tmp_path):
     from plyfile import PlyData, PlyElement
     vertex = np.zeros(len(POINTS), [('x', 'f8'), ('y', 'f8'), ('z', 'f8'), ('red', 'u1')])
@@ -296,10 +304,13 @@ def test_an_output_that_cannot_be_made_is_named_without_its_temporary_file(tmp_p
 
 def test_a_text_table_may_start_with_a_row_of_column_names(tmp_path):
     rows = '0,0,0\n1,0,0\n0,1,0\n'
-    cases = (('named.csv', 'x,y,z\n' + rows), ('plain.csv', rows), ('named.xyz', 'x y z\n' + rows.replace(',', ' ')))
+    cases = (('named.csv', 'x,y,z\n' + rows), ('plain.csv', rows), ('named.xyz', 'x y z\n' + rows.replace(',', ' ')),
+             ('digits.csv', 'x,y,z,intensity_8bit\n' + rows.replace('\n', ',7\n')),
+             ('quoted.csv', '"x","y","z"\n' + rows), ('bom.csv', '\ufeff' + rows),
+             ('bom_named.csv', '\ufeffx,y,z\n' + rows))
     for name, text in cases:
-        (tmp_path / name).write_text(text)
-        assert load_points(tmp_path / name).shape == (3, 3), name
+        (tmp_path / name).write_text(text, encoding='utf-8')
+        np.testing.assert_array_equal(load_points(tmp_path / name), [[0, 0, 0], [1, 0, 0], [0, 1, 0]], err_msg=name)
     (tmp_path / 'mixed.csv').write_text('x,1,2\n' + rows)  # a number among names: not a header
     (tmp_path / 'commas.xyz').write_text(rows)  # numbers with the wrong separator: not names either
     for name in ('mixed.csv', 'commas.xyz'):

@@ -357,6 +357,7 @@ def test_labels_below_minus_one_are_unassigned():
     (np.zeros((5, 3)), np.zeros(4, int)),
     (np.zeros((5, 3)), np.zeros((5, 1), int)),
     (np.zeros((5, 3)), np.full(5, 0.5)),
+    (np.zeros((5, 3), bool), np.zeros(5, int)),  # as detect_planes: booleans are no coordinates
 ])
 def test_bad_shapes_raise(points, labels):
     for fn in (pi.validity_indices, pi.dunn_index, pi.davies_bouldin_index, pi.davies_bouldin_classic,

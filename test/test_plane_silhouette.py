@@ -40,9 +40,22 @@ def test_coverage_and_edge_cases():
     assert -1 <= value <= 1 and value == plane_silhouette(pts, scene.labels, seed=3)  # seeded: deterministic
     with pytest.raises(ValueError):
         plane_silhouette(scene.points, scene.labels[:-1])
+    # any integer ids: only their order matters (no table as long as the largest id)
+    huge = np.where(scene.labels >= 0, scene.labels.astype(np.int64) * 2**50 + 7, -1)
+    assert plane_silhouette(scene.points, huge, seed=0) == full
 
 
 def test_reported_by_validity_indices():
     scene = scenes.corner(2000, 1.0, scale=0.01, seed=4)
     scores = validity_indices(scene.points, scene.labels, seed=0)
     assert scores.plane_silhouette > 0.8 and 'plane_silhouette' in scores.as_dict()
+
+
+def test_without_a_sample_size_every_assigned_point_counts():
+    """20,000 points in six regions of at most FRAME_POINTS each: nothing is drawn at random, so the
+    value cannot depend on the seed (it did while the mean ran over a FRAME_SAMPLE subset)."""
+    from plane_validation.core.plane_silhouette import FRAME_POINTS, FRAME_SAMPLE
+    scene = scenes.cube(20000, 0.5, seed=4)
+    assert len(scene.points) > FRAME_SAMPLE and np.bincount(scene.labels[scene.labels >= 0]).max() <= FRAME_POINTS
+    values = {plane_silhouette(scene.points, scene.labels, sample_size=None, seed=s) for s in range(3)}
+    assert len(values) == 1 and 0.5 < values.pop() <= 1

@@ -247,3 +247,36 @@ def test_integer_points_have_a_graph():
     from plane_validation.core.regions import graph_neighbours
     pts = np.random.default_rng(0).integers(0, 100, size=(500, 3))
     assert np.array_equal(graph_neighbours(pts).edges, graph_neighbours(pts.astype(float)).edges)
+
+
+def test_exact_copies_of_points_do_not_split_a_plane():
+    from plane_validation.core.regions import graph_neighbours
+    rng = np.random.default_rng(1)
+    floor = np.column_stack([rng.uniform(-1, 1, (200, 2)), np.zeros(200)])
+    stacked = np.repeat(floor, 12, axis=0)  # twelve scans of a static scene, stacked
+    seg = pv.detect_planes(stacked, 0.01, seed=0)
+    assert seg.n_planes == 1 and np.all(seg.labels == 0)
+    graph = graph_neighbours(stacked)
+    assert np.array_equal(graph.normals, np.repeat(graph_neighbours(floor).normals, 12, axis=0))
+    # every copy is joined to the first point at its place, and the distinct points as without copies
+    first = np.arange(0, len(stacked), 12)
+    edges = {tuple(e) for e in graph.edges.tolist()}
+    assert all((f, f + c) in edges for f in first for c in range(1, 12))
+    assert {(a // 12, b // 12) for a, b in edges if a % 12 == 0 and b % 12 == 0} == \
+        {tuple(e) for e in graph_neighbours(floor).edges.tolist()}
+    # half the points copies of one: still one plane
+    spot = np.vstack([floor[:50], np.repeat(floor[:1], 50, axis=0)])
+    assert pv.detect_planes(spot, 0.01, seed=0, min_inliers=10).n_planes == 1
+
+
+@pytest.mark.parametrize('shape', [(3000, 1), (1, 3000), (2, 1500)])
+def test_an_image_too_thin_for_a_grid_is_searched_as_an_unorganized_cloud(shape):
+    rng = np.random.default_rng(0)
+    floor = np.column_stack([rng.uniform(0, 4, (3000, 2)), rng.normal(0, 0.002, 3000)])
+    thin = pv.detect_planes(floor, 0.01, seed=0, shape=shape, ransac_points=500)
+    assert thin.n_planes == 1 and np.count_nonzero(thin.labels == 0) > 2900
+    assert np.array_equal(thin.labels, pv.detect_planes(floor, 0.01, seed=0, ransac_points=500).labels)
+    tuned = pv.tune_tolerance(floor, seed=0, count=3, shape=shape, tune_points=1000)
+    plain = pv.tune_tolerance(floor, seed=0, count=3, tune_points=1000)
+    assert tuned.tolerance == plain.tolerance and tuned.segmentation.n_planes == 1
+    assert np.array_equal(tuned.segmentation.labels, plain.segmentation.labels)

@@ -220,7 +220,8 @@ def test_concurrent_parallel_sweeps_with_other_worker_counts_both_finish(monkeyp
 
 @pytest.mark.parametrize('kwargs', [{'criterion': 'entropy'}, {'tolerances': [0.0, 1.0]},
                                     {'tolerances': [np.nan]}, {'tolerances': []}, {'jobs': -1}, {'jobs': 1.5},
-                                    {'jobs': None}, {'jobs': True}])
+                                    {'jobs': None}, {'jobs': True}, {'tune_points': 0}, {'tune_points': 2},
+                                    {'tune_points': 2.5}, {'tune_points': True}, {'tolerances': [[0.01, 0.02]]}])
 def test_bad_tuning_arguments_raise(kwargs):
     with pytest.raises(ValueError):
         pv.tune_tolerance(scenes.corner(500, seed=0).points, **kwargs)

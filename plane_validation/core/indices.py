@@ -101,7 +101,7 @@ class _Clusters:
 def _check(points: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Validate shapes: points (N, 3) real, labels (N,) integer-valued."""
     pts = np.asarray(points)
-    if pts.dtype.kind not in 'fiub' or pts.ndim != 2 or pts.shape[1] != 3:
+    if pts.dtype.kind not in 'fiu' or pts.ndim != 2 or pts.shape[1] != 3:  # as detect_planes takes them
         raise ValueError(f'points must be a real array of shape (N, 3), got {pts.dtype} {pts.shape}')
     lab = np.asarray(labels)
     if lab.ndim != 1 or len(lab) != len(pts):

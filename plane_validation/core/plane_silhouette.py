@@ -22,6 +22,8 @@ __all__ = ['plane_silhouette', 'region_frames', 'clipped_plane_distances']
 FRAME_POINTS = 4096
 #: The regions' frames are estimated from a random subset of this many assigned points.
 FRAME_SAMPLE = 16384
+#: Points whose distances to every region are computed at once.
+BLOCK = 65536
 #: In-plane extent of a region: these percentiles of its points along each in-plane axis.
 EXTENT_PERCENTILES = (0.5, 99.5)
 
@@ -69,8 +71,8 @@ def plane_silhouette(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     """PS of the regions ``labels`` (N,) int, -1 unassigned, on ``points`` (N, 3) meters; in
     [-1, 1], larger is better; 0.0 without regions. Rows with NaN/inf are ignored. The mean is
     taken over a random sample of ``sample_size`` assigned points (None: all), times the share of
-    valid points assigned (the regions' frames from at most FRAME_SAMPLE of them). Deterministic
-    for a fixed int ``seed``."""
+    valid points assigned. The regions' frames come from at most FRAME_POINTS points each, of at
+    most FRAME_SAMPLE assigned points when sampled. Deterministic for a fixed int ``seed``."""
     pts = as_points(points)
     lab = np.asarray(labels).reshape(-1)
     if len(lab) != len(pts):
@@ -82,23 +84,33 @@ def plane_silhouette(points: np.ndarray, labels: np.ndarray, *, sample_size: int
         return 0.0
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     coverage = len(assigned) / np.count_nonzero(keep)
-    if len(assigned) > FRAME_SAMPLE:  # drawn with replacement: much cheaper on large clouds
+    if sample_size is not None and len(assigned) > FRAME_SAMPLE:  # with replacement: much cheaper on large clouds
         assigned = np.sort(assigned[rng.integers(0, len(assigned), FRAME_SAMPLE)])
-    present = np.bincount(lab[assigned])
-    dense_of = np.cumsum(present > 0) - 1  # label -> 0..k-1 among the labels present
-    k = int(np.count_nonzero(present))
-    dense = dense_of[lab[assigned]]
+    ids = lab[assigned]
+    if ids.max() < 4 * len(ids) + 1024:  # small labels: a lookup table instead of np.unique's sort
+        present = np.bincount(ids) > 0
+        dense = (np.cumsum(present) - 1)[ids]  # label -> 0..k-1 among the labels present
+        k = int(np.count_nonzero(present))
+    else:
+        uniq, dense = np.unique(ids, return_inverse=True)
+        dense, k = dense.reshape(-1), len(uniq)
     origin = pts[assigned[0]]  # precision for far-away coordinates
     frame_pts = pts[assigned] - origin
-    centroids, axes, lo, hi, radius = region_frames(frame_pts, dense, k, rng)
+    frames = region_frames(frame_pts, dense, k, rng)
     rows = np.arange(len(assigned)) if sample_size is None or len(assigned) <= sample_size else \
         rng.choice(len(assigned), int(sample_size), replace=False)
-    clipped, perp = clipped_plane_distances(frame_pts[rows], centroids, axes, lo, hi)
-    own = dense[rows]
-    a = perp[np.arange(len(rows)), own]
-    clipped[np.arange(len(rows)), own] = np.inf
+    total = sum(_silhouette_sum(frame_pts[part], dense[part], frames)  # bounded memory: (block, k, 3)
+                for part in np.array_split(rows, -(-len(rows) // BLOCK)))
+    return float(total / len(rows) * coverage)
+
+
+def _silhouette_sum(x: np.ndarray, own: np.ndarray, frames: tuple) -> float:
+    """Sum of s_i over the points ``x`` (m, 3) of regions ``own`` (m,), given the regions' ``frames``."""
+    centroids, axes, lo, hi, radius = frames
+    clipped, perp = clipped_plane_distances(x, centroids, axes, lo, hi)
+    a = perp[np.arange(len(x)), own]
+    clipped[np.arange(len(x)), own] = np.inf
     b = np.minimum(clipped.min(axis=1), radius[own])
     top = np.maximum(a, b)
     with np.errstate(invalid='ignore', divide='ignore'):
-        s = np.where(top > 0, (b - a) / top, 0.0)
-    return float(s.mean() * coverage)
+        return float(np.where(top > 0, (b - a) / top, 0.0).sum())

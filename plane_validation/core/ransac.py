@@ -404,11 +404,16 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     noise_model: 'constant', or 'depth_quadratic': a point at range r from the origin (the sensor) is
         within t * max(1, (r / noise_reference)^2) of a plane (:mod:`.noise`).
 
-    Each plane found is then refitted by least squares on the searched points nearest to it
-    (within ``tolerance``), and every valid point is labelled with the nearest plane within
-    ``tolerance`` (ties to the earlier plane, -1 when none): a point within ``t`` of two planes
-    along a shared edge goes to the nearer, not to the first found. A plane left with fewer than
-    ``min_inliers`` points by that labelling is dropped (and said so in ``reason``).
+    Without connectivity, each plane found is then refitted by least squares on the searched points
+    nearest to it (within ``tolerance``), and every valid point is labelled with the nearest plane
+    within ``tolerance`` (ties to the earlier plane, -1 when none): a point within ``t`` of two planes
+    along a shared edge goes to the nearer, not to the first found. With connectivity, each region is
+    refitted on its own points, border points go to the nearest plane of the regions they touch,
+    touching regions of one surface are merged, and every valid point takes the region of the
+    searched point nearest to it (organized: of the sub-grid pixels around it) when it lies within
+    ``tolerance`` of that region's plane, else -1. Either way a plane left with fewer than
+    ``min_inliers`` points is dropped (and said so in ``reason``); with connectivity its points stay
+    unassigned, as they touch no other region.
     """
     pts = as_points(points)
     tolerance = float(tolerance)
@@ -581,6 +586,20 @@ def _check_ransac_points(ransac_points) -> None:
         raise ValueError(f'ransac_points must be None or an integer >= 3, got {ransac_points!r}')
 
 
+#: An image whose (sub-)grid would have fewer rows or columns than this is searched as an unorganized
+#: cloud: a line of pixels has no 2-D neighbourhood.
+MIN_GRID_SIDE = 3
+
+
+def grid_step(shape: tuple[int, int], n_valid: int, limit: int | None) -> int:
+    """The step of the regular sub-grid of an H x W image (``shape``) with ``n_valid`` valid pixels that
+    keeps about ``limit`` of them (1: every pixel; ``limit`` None: 1), taking rows and columns from
+    step // 2 on; 0 when that grid would have fewer than MIN_GRID_SIDE rows or columns."""
+    h, w = shape
+    step = 1 if limit is None or n_valid <= limit else int(np.ceil(np.sqrt(n_valid / limit)))
+    return step if min(len(range(step // 2, h, step)), len(range(step // 2, w, step))) >= MIN_GRID_SIDE else 0
+
+
 def check_shape(shape, n: int) -> tuple[int, int]:
     """``shape`` as (H, W) ints with H * W == n, or ValueError."""
     try:
@@ -596,7 +615,8 @@ def check_shape(shape, n: int) -> tuple[int, int]:
 class SearchGraph:
     """The points a connected-regions search runs on and their neighbourhood graph.
 
-    search_idx: (m,) rows of the cloud searched; step: the image sub-grid step (0: unorganized);
+    search_idx: (m,) rows of the cloud searched; step: the image sub-grid step (0: searched as an
+    unorganized cloud, also an image too thin for a grid: :func:`grid_step`);
     center: (3,) meters subtracted before the search; neighbours: their graph. It depends only on the
     cloud, ``shape`` and ``ransac_points``, not on the tolerance: a sweep builds it once
     (:func:`search_graph`) and passes it to every :func:`detect_planes` call on that cloud.
@@ -630,17 +650,15 @@ def _search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | 
     valid_idx = np.flatnonzero(finite)
     n_valid = len(valid_idx)
     center = np.median(pts[valid_idx[::max(1, n_valid // 1024)]], axis=0) if n_valid else np.zeros(3)
-    if shape is not None:
+    step = 0 if shape is None else grid_step(shape, n_valid, ransac_points)
+    if step:
         h, w = shape
-        step = 1 if ransac_points is None or n_valid <= ransac_points else \
-            int(np.ceil(np.sqrt(n_valid / ransac_points)))
         grid = pts.reshape(h, w, 3)[step // 2::step, step // 2::step]
         grid_valid = finite.reshape(h, w)[step // 2::step, step // 2::step]
         neighbours = grid_neighbours(grid, grid_valid)
         rows, cols_ = np.divmod(neighbours.pixel, grid.shape[1])
         search_idx = (rows * step + step // 2) * w + cols_ * step + step // 2
-    else:
-        step = 0
+    else:  # unorganized, or an image too thin for a 2-D grid
         search_idx = valid_idx
         if ransac_points is not None and n_valid > ransac_points:
             if rng is None:
@@ -682,7 +700,7 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
     found = _refit(search, region, found)
     region, found = _merge_coplanar(search, region, found, search_tolerance, neighbours)
     residual = None
-    if shape is not None:
+    if step:
         uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]
         labels, residual = _spread_grid(pts, finite, shape, step, region, neighbours, uncentred, tolerance)
     elif len(search_idx) == n_valid:

@@ -251,13 +251,20 @@ def _across(tree: cKDTree, points: np.ndarray, rows: np.ndarray, direction: np.n
 def graph_neighbours(points: np.ndarray) -> Neighbours:
     """Neighbours of unorganized (n, 3) points: each joined to its NEIGHBOURS nearest within RADIUS
     median NEIGHBOURS-th-neighbour distances and, where those lie along a line (a lidar ring), to
-    its nearest point off that line (on the next ring) among ACROSS_CANDIDATES."""
+    its nearest point off that line (on the next ring) among ACROSS_CANDIDATES. Exact copies of a
+    point are joined to it and share its neighbours and normal."""
+    return _graph(points, merge_copies=True)
+
+
+def _graph(points: np.ndarray, merge_copies: bool) -> Neighbours:
     n = len(points)
     k = min(NEIGHBOURS + 1, n)
     if k < 2:
         return Neighbours(n=n, edges=np.empty((0, 2), np.int64))
     tree = cKDTree(points)
     dist, idx = tree.query(points, k=k)
+    if merge_copies and np.any(dist[:, 1] == 0):  # copies would fill the neighbour lists (stacked scans)
+        return _with_copies(points)
     missing = idx >= n  # far-out coordinates (a driver's FLT_MAX rows) find no neighbour
     idx = np.where(missing, np.arange(n)[:, None], idx)
     dist = np.where(missing, np.inf, dist)
@@ -282,7 +289,25 @@ def graph_neighbours(points: np.ndarray) -> Neighbours:
             found, target = _across(tree, points, rows_l, vectors[rows_l, :, 2], k, min(candidates, n))
             edges.append(np.column_stack([rows_l[found], target[found]]))
             rows_l = rows_l[~found]
-    edges = np.sort(np.concatenate(edges), axis=1)  # each joined pair once, smaller index first
+    return _neighbours(n, np.concatenate(edges), normals)
+
+
+def _with_copies(points: np.ndarray) -> Neighbours:
+    """:func:`graph_neighbours` of points with exact copies: the graph of the distinct points, each
+    copy joined to the first point at its place."""
+    n = len(points)
+    _, first, inverse = np.unique(points, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    distinct = _graph(points[first], merge_copies=False)
+    owner = first[inverse]  # the first point at each point's place
+    copies = np.flatnonzero(owner != np.arange(n))
+    edges = np.concatenate([first[distinct.edges], np.column_stack([owner[copies], copies])])
+    return _neighbours(n, edges, None if distinct.normals is None else distinct.normals[inverse])
+
+
+def _neighbours(n: int, edges: np.ndarray, normals: np.ndarray | None) -> Neighbours:
+    """The graph form of :class:`Neighbours` from joined pairs ``edges`` (e, 2), in any order, repeats allowed."""
+    edges = np.sort(edges, axis=1)  # each joined pair once, smaller index first
     key = np.sort(edges[:, 0] * n + edges[:, 1])  # sorted by source, then destination
     key = key[np.r_[True, key[1:] != key[:-1]][:len(key)]]  # each pair once (numpy 2's np.unique is much slower)
     edges = np.ascontiguousarray(np.stack([key // n, key % n]))  # (2, e): each row contiguous

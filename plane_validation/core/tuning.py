@@ -30,6 +30,7 @@ from .ransac import (
     check_shape,
     detect_planes,
     finite_rows,
+    grid_step,
     search_graph,
 )
 from .verdict import (
@@ -293,6 +294,11 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     _check_criterion(criterion)
     if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 0:
         raise ValueError(f'jobs must be an integer >= 0 (0 = one per CPU core), got {jobs!r}')
+    if tune_points is not None and (isinstance(tune_points, bool) or int(tune_points) != tune_points
+                                    or tune_points < 3):
+        raise ValueError(f'tune_points must be None or an integer >= 3, got {tune_points!r}')
+    if tolerances is not None and np.ndim(tolerances) != 1:
+        raise ValueError(f'tolerances must be a list of distances, got an array of shape {np.shape(tolerances)}')
     start = time.perf_counter()
     pts = as_points(points)
     finite = _finite(pts)
@@ -315,13 +321,12 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     if cand.size == 0 or not np.all(np.isfinite(cand)) or cand[0] <= 0:
         raise ValueError('tolerances must be finite and > 0')
     sweep_shape = None
-    if shape is not None:
-        h, w = check_shape(shape, len(pts))
-        step = 1 if tune_points is None or len(finite) <= tune_points else \
-            int(np.ceil(np.sqrt(len(finite) / tune_points)))
+    step = 0 if shape is None else grid_step(check_shape(shape, len(pts)), len(finite), tune_points)
+    if step:
+        h, w = shape
         grid = pts.reshape(h, w, 3)[step // 2::step, step // 2::step]
         sweep_pts, sweep_shape = grid.reshape(-1, 3), grid.shape[:2]
-    else:
+    else:  # unorganized, or an image too thin for a 2-D grid
         sweep_pts = finite if tune_points is None or len(finite) <= tune_points else \
             finite[rng.choice(len(finite), tune_points, replace=False)]
     n_sweep = int(np.count_nonzero(finite_rows(sweep_pts)))

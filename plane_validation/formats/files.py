@@ -190,6 +190,9 @@ def _xyz_columns(path: Path, table: np.ndarray) -> np.ndarray:
     if table.dtype.names:
         if not {'x', 'y', 'z'} <= set(table.dtype.names):
             raise ValueError(f'{path}: no x, y, z fields (fields: {" ".join(table.dtype.names)})')
+        for a in 'xyz':
+            if table.dtype[a].kind not in 'fiu':  # a PLY list property, say
+                raise ValueError(f'{path}: field {a} does not hold one number per point (dtype {table.dtype[a]})')
         return np.column_stack([table[a].reshape(-1) for a in 'xyz'])
     if table.dtype.kind not in 'fiu':
         raise ValueError(f'{path}: expected numbers, got dtype {table.dtype}')
@@ -213,25 +216,26 @@ def _read_npy(path: Path) -> np.ndarray:
 
 
 def _loadtxt(source, delimiter: str | None = None, skiprows: int = 0) -> np.ndarray:
-    """np.loadtxt as an (n, m) table; no data is an empty table, not a warning."""
+    """np.loadtxt as an (n, m) table (UTF-8, a byte-order mark skipped); no data is an empty table, not a warning."""
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', UserWarning)  # "input contained no data"
-        return np.loadtxt(source, delimiter=delimiter, ndmin=2, skiprows=skiprows)
+        return np.loadtxt(source, delimiter=delimiter, ndmin=2, skiprows=skiprows, encoding='utf-8-sig')
 
 
 def _header_rows(path: Path, delimiter: str | None) -> int:
-    """1 when the first line is a row of column names (``x,y,z``: no field is or holds a number), else 0."""
+    """1 when the first line is a row of column names (``x,y,z,intensity_8bit``: every field a name,
+    starting with a letter or underscore, maybe quoted), else 0 (``1,2,3`` in an .xyz is data)."""
     with open(path, 'rb') as f:
-        first = f.readline(4096).decode('utf-8', errors='replace').strip()
-    fields = [t.strip() for t in first.split(delimiter)] if first else []
+        first = f.readline(4096).decode('utf-8-sig', errors='replace').strip()
+    fields = [t.strip().strip('"\'') for t in first.split(delimiter)] if first else []
 
-    def number(text: str) -> bool:
+    def name(text: str) -> bool:
         try:
-            float(text)
+            float(text)  # nan and inf are numbers
         except ValueError:
-            return False
-        return True
-    return int(bool(fields) and not any(number(t) or any(c.isdigit() for c in t) for t in fields))
+            return text[:1].isalpha() or text[:1] == '_'
+        return False
+    return int(bool(fields) and all(name(t) for t in fields))
 
 
 def _read_text(path: Path) -> np.ndarray:
