@@ -15,6 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .noise import NOISE_REFERENCE, tolerance_scale
 from .regions import NORMAL_MIN_COS, Neighbours, graph_neighbours, grid_neighbours
@@ -617,9 +618,11 @@ class SearchGraph:
 
     search_idx: (m,) rows of the cloud searched; step: the image sub-grid step (0: searched as an
     unorganized cloud, also an image too thin for a grid: :func:`grid_step`);
-    center: (3,) meters subtracted before the search; neighbours: their graph. It depends only on the
-    cloud, ``shape`` and ``ransac_points``, not on the tolerance: a sweep builds it once
-    (:func:`search_graph`) and passes it to every :func:`detect_planes` call on that cloud.
+    center: (3,) meters subtracted before the search; neighbours: their graph; nearest: when the
+    search is a sample of an unorganized cloud, for each valid row (ascending) the position in
+    search_idx of the searched point nearest to it (the point then takes that one's region). It
+    depends only on the cloud, ``shape`` and ``ransac_points``, not on the tolerance: a sweep builds
+    it once (:func:`search_graph`) and passes it to every :func:`detect_planes` call on that cloud.
     """
 
     n_points: int
@@ -630,6 +633,7 @@ class SearchGraph:
     shape: tuple[int, int] | None
     ransac_points: int | None
     n_valid: int
+    nearest: np.ndarray | None = None
 
 
 def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
@@ -650,6 +654,7 @@ def _search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | 
     valid_idx = np.flatnonzero(finite)
     n_valid = len(valid_idx)
     center = np.median(pts[valid_idx[::max(1, n_valid // 1024)]], axis=0) if n_valid else np.zeros(3)
+    nearest = None
     step = 0 if shape is None else grid_step(shape, n_valid, ransac_points)
     if step:
         h, w = shape
@@ -664,9 +669,12 @@ def _search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | 
             if rng is None:
                 return None
             search_idx = valid_idx[np.sort(rng.choice(n_valid, int(ransac_points), replace=False))]
-        neighbours = graph_neighbours(pts[search_idx] - center)
+        searched = pts[search_idx] - center
+        if len(search_idx) < n_valid:
+            nearest = cKDTree(searched).query(pts[valid_idx] - center, k=1)[1]
+        neighbours = graph_neighbours(searched)
     return SearchGraph(n_points=len(pts), search_idx=search_idx, step=step, center=center, neighbours=neighbours,
-                       shape=shape, ransac_points=ransac_points, n_valid=n_valid)
+                       shape=shape, ransac_points=ransac_points, n_valid=n_valid, nearest=nearest)
 
 
 def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
@@ -710,7 +718,7 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
         near = np.abs(np.einsum('ji,ij->j', normals[own], search) + offsets[own]) <= search_tolerance
         labels[search_idx] = np.where((region >= 0) & near, region, -1)  # within t of the refitted plane
     else:
-        labels[valid_idx] = _spread_nearest(pts[valid_idx] - center, search, region, found,
+        labels[valid_idx] = _spread_nearest(pts[valid_idx] - center, graph.nearest, region, found,
                                             _at(tolerance, valid_idx))
     counts = np.bincount(labels[labels >= 0], minlength=len(found))
     small = np.flatnonzero(counts < min_count)
@@ -935,12 +943,10 @@ def _spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], ste
     return out, best
 
 
-def _spread_nearest(points: np.ndarray, search: np.ndarray, region: np.ndarray, found: list,
+def _spread_nearest(points: np.ndarray, nearest: np.ndarray, region: np.ndarray, found: list,
                     tolerance: Tolerance) -> np.ndarray:
-    """Labels of ``points`` (n, 3) from the region of their nearest searched point (``search``
-    (3, m)), when within ``tolerance`` of that region's plane; -1 otherwise."""
-    from scipy.spatial import cKDTree
-    _, nearest = cKDTree(search.T).query(points, k=1)
+    """Labels of ``points`` (n, 3) from the region of their nearest searched point (``nearest`` (n,):
+    its position among the searched points), when within ``tolerance`` of that region's plane; -1 otherwise."""
     lab = region[nearest]
     normals = np.array([n for n, _ in found])
     offsets = np.array([d for _, d in found])

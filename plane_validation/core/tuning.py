@@ -13,7 +13,7 @@ import threading
 import time
 import warnings
 from collections.abc import Callable, Iterator
-from concurrent.futures import BrokenExecutor
+from concurrent.futures import BrokenExecutor, ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -336,20 +336,21 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                 noise_model=noise_model, noise_reference=noise_reference)
     # a count means the same share of the cloud on the subsample (as ransac_points scales it)
     sweep_opts = dict(opts, min_inliers=_scaled_min_inliers(min_inliers, n_sweep, len(finite)), shape=sweep_shape)
-    if connectivity:  # the same neighbourhood graph for every candidate (None when it would be sampled)
-        sweep_opts['graph'] = search_graph(sweep_pts, sweep_shape, ransac_points)
-
     sampled_separation = _sampled_separation(sampled_separation, len(finite))
     sweep_sampled = sampled_separation or criterion not in SEPARATION_CRITERIA
     score = dict(sample_size=sample_size, seed=int(index_seed), sampled_separation=sweep_sampled)
-    with _workers(jobs) as run:
+    # The final detection's graph does not depend on t: built in a thread beside the sweep (its kd-tree
+    # and numpy work release the GIL), from the generator that detect_planes(seed=ransac_seed) would
+    # build it from (the same planes).
+    final_rng = np.random.default_rng(int(ransac_seed))
+    with ThreadPoolExecutor(1) as pool, _workers(jobs) as run:
+        final_graph = pool.submit(contextvars.copy_context().run, search_graph, pts, shape, ransac_points,
+                                  final_rng) if connectivity else None
+        if connectivity:  # the same neighbourhood graph for every candidate (None when it would be sampled)
+            sweep_opts['graph'] = search_graph(sweep_pts, sweep_shape, ransac_points)
         rows: list[TuningRow] = []
         sweep_labels: list[np.ndarray] = []
         candidates = run(_candidate, [(sweep_pts, t, int(ransac_seed), sweep_opts, score) for t in cand])
-        # the final detection's graph does not depend on t: built while worker processes sweep, from
-        # the generator that detect_planes(seed=ransac_seed) would build it from (the same planes)
-        final_rng = np.random.default_rng(int(ransac_seed))
-        final_graph = search_graph(pts, shape, ransac_points, final_rng) if connectivity else None
         for row, labels in candidates:
             rows.append(row)
             sweep_labels.append(labels)
@@ -362,7 +363,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         reseeds = rng.integers(0, 2**63, size=STABILITY_RESEEDS)
         reruns = run(_labels, [(sweep_pts, t_best, int(s), sweep_opts) for s in reseeds]) \
             if rows[best].n_planes else iter(())
-        final = detect_planes(pts, t_best, seed=final_rng, shape=shape, graph=final_graph, **opts)
+        final = detect_planes(pts, t_best, seed=final_rng, shape=shape,
+                              graph=None if final_graph is None else final_graph.result(), **opts)
         if sweep_pts is finite and len(finite) == len(pts) and shape is None and sweep_sampled == sampled_separation:
             final_scores = rows[best].indices  # the sweep already scored this very segmentation
         else:
@@ -401,6 +403,8 @@ def _labels(points: np.ndarray, t: float, seed: int, opts: dict) -> np.ndarray:
     return detect_planes(points, t, seed=seed, **opts).labels
 
 
+#: Arrays from this size on are memory-mapped to the worker processes of a parallel sweep, not pickled.
+MEMMAP_BYTES = '64M'
 #: One parallel sweep at a time per process: joblib's shared worker pool cannot be resized for a
 #: sweep with another worker count while one runs (the two would wait on each other).
 _PARALLEL = threading.Lock()
@@ -427,7 +431,9 @@ def _workers(jobs: int) -> Iterator[Callable[[Callable, list[tuple]], Iterator]]
     try:
         with _PARALLEL, contextlib.ExitStack() as stack:
             with _sigint_ignored():  # joblib starts its worker processes here or with the first tasks
-                parallel = stack.enter_context(Parallel(n_jobs=jobs, return_as='generator'))
+                # arguments are pickled, not memory-mapped: leaving a memory-mapping Parallel waits 0.1 s
+                # for its temporary files to go; memory-mapped only from MEMMAP_BYTES (tune_points is large)
+                parallel = stack.enter_context(Parallel(n_jobs=jobs, return_as='generator', max_nbytes=MEMMAP_BYTES))
             try:
                 yield run
             finally:  # results left unread (an exception passes through) are cancelled quietly
