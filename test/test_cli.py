@@ -371,7 +371,7 @@ def test_the_depth_noise_model_is_named_and_its_coefficient_reported(tmp_path, c
 def test_a_failed_demo_leaves_no_output_folder(tmp_path, capsys):
     out = tmp_path / 'parent' / 'demo_out'
     assert main(['demo', '--bag', str(tmp_path / 'nosuch'), '--out', str(out)]) == 2
-    assert 'no such bag' in capsys.readouterr().err and not out.exists()
+    assert 'bag not found' in capsys.readouterr().err and not out.exists()
     (tmp_path / 'empty').mkdir()  # there, but not a bag: fails after the output folders were made
     assert main(['demo', '--bag', str(tmp_path / 'empty'), '--out', str(out)]) == 2
     assert 'not a rosbag2 bag' in capsys.readouterr().err
@@ -424,9 +424,9 @@ def test_a_cloud_without_three_valid_points_is_an_error_with_or_without_a_tolera
 
 
 @pytest.mark.parametrize('argv, why', [
-    (['detect', 'x.npy', '--tolerance', '1e9'], 'tolerance must be in [1e-06, 10.0] m'),  # the node's range
+    (['detect', 'x.npy', '--tolerance', '1e9'], 'tolerance must be in [1e-06, 1000.0] m'),  # the node's range
     (['sweep', 'x.npy', '--tolerances', '0.002:0.04:100000'], 'tune_count must be in [2, 100]'),
-    (['sweep', 'x.npy', '--tolerances', '0.002:40:10'], 'tolerance must be in'),
+    (['sweep', 'x.npy', '--tolerances', '0.002:4000:10'], 'tolerance must be in'),
     (['sweep', 'x.npy', '--tolerances', '1e-9:0.01:5'], 'tolerance must be in'),
     (['scene', 'cube', '--outliers', '2'], 'argument --outliers: must be in [0, 1)'),
 ])
@@ -444,3 +444,22 @@ def test_options_that_would_be_ignored_are_refused(corner_npy, capsys):
                       (['replay', str(BAGS / 'cube'), '--out', ''], '--out needs a folder name')):
         assert main(argv) == 2
         assert why in capsys.readouterr().err
+
+
+def test_a_cloud_in_paper_units_takes_tolerances_in_its_units(tmp_path, capsys):
+    out = tmp_path / 'corner.ply'
+    assert main(['scene', 'corner', '--noise', '2.5', '--out', str(out)]) == 0  # faces of 100 units
+    capsys.readouterr()
+    assert main(['detect', str(out), '--tolerance', '15']) == 0
+    assert '3 plane(s), tolerance 15 m' in capsys.readouterr().out
+
+
+def test_sweep_says_when_the_chosen_t_is_the_largest_candidate(tmp_path, capsys):
+    from plane_validation.cli.commands import LARGEST_CANDIDATE
+    cloud = tmp_path / 'corner.ply'
+    assert main(['scene', 'corner', '--noise', '1', '--points', '2000', '--out', str(cloud)]) == 0
+    capsys.readouterr()
+    assert main(['sweep', str(cloud), '--tolerances', '0.2:0.8:3', '--seed', '0']) == 0  # all below the noise
+    assert LARGEST_CANDIDATE in capsys.readouterr().out
+    assert main(['sweep', str(cloud), '--tolerances', '1:60:5', '--seed', '0']) == 0
+    assert LARGEST_CANDIDATE not in capsys.readouterr().out

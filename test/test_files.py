@@ -275,6 +275,29 @@ def test_coordinates_beyond_float32_are_written_as_float64_not_inf(tmp_path, nam
                                   POINTS.astype(np.float32).astype(np.float64))
 
 
+@pytest.mark.parametrize('name', ['utm.pcd', 'utm.ply', 'utm.mcap'])
+def test_georeferenced_coordinates_keep_their_millimetres(tmp_path, name):
+    utm = POINTS + (512_345.6789, 4_012_345.6789, 101.2345)  # float32 would round them to 0.25 m
+    path = save_points(tmp_path / name, utm)
+    back = load_points(path if path.suffix != '.mcap' else f'{path}:/points:0')
+    np.testing.assert_allclose(back, utm, rtol=0, atol=1e-9)
+    near = POINTS * 800  # within 838 m: float32 rounds by at most 0.06 mm
+    path = save_points(tmp_path / ('near' + Path(name).suffix), near)
+    back = load_points(path if path.suffix != '.mcap' else f'{path}:/points:0')
+    np.testing.assert_array_equal(back, near.astype(np.float32).astype(np.float64))
+    assert np.abs(back - near).max() <= 1e-4
+
+
+def test_an_organized_cloud_written_to_a_bag_reads_back_organized(tmp_path):
+    from plane_validation.formats.files import load_cloud
+    scene = scenes.depth_camera('table', width=80, height=60, seed=1)
+    path = save_points(tmp_path / 'organized.mcap', scene.points, scene.labels, shape=scene.shape)
+    points, shape = load_cloud(f'{path}:/points:0')
+    assert shape == (60, 80)
+    np.testing.assert_array_equal(np.isnan(points), np.isnan(scene.points))
+    assert load_cloud(f'{save_points(tmp_path / "flat.mcap", scene.points)}:/points:0')[1] is None
+
+
 def test_an_empty_text_file_is_an_empty_cloud_without_warnings(tmp_path):
     import warnings
     (tmp_path / 'empty.xyz').write_text('')
@@ -316,3 +339,13 @@ def test_a_text_table_may_start_with_a_row_of_column_names(tmp_path):
     for name in ('mixed.csv', 'commas.xyz'):
         with pytest.raises(ValueError, match=r"not a table of numbers .*'(x|0,0,0)'.* at row 0"):
             load_points(tmp_path / name)
+
+
+def test_a_folder_of_storage_files_without_metadata_names_them(tmp_path):
+    bag = save_points(tmp_path / 'one.mcap', POINTS)
+    folder = tmp_path / 'folder'
+    folder.mkdir()
+    bag.rename(folder / 'one.mcap')
+    with pytest.raises(ValueError, match=r'folder: a directory without metadata\.yaml.*name the file \(one\.mcap\)'):
+        load_points(folder)
+    assert load_points(folder / 'one.mcap').shape == POINTS.shape

@@ -1,5 +1,6 @@
 """The per-frame pipeline shared by node and replay, without ROS: robustness and tuning set-up."""
 import dataclasses
+import re
 import threading
 
 import numpy as np
@@ -269,3 +270,12 @@ def test_a_sweep_asked_to_stop_adopts_nothing():
     asked = []
     result = pipe.retune(scenes.corner(3000, 1.0, seed=1).points, 1.0, stop=lambda: asked.append(1) or True)
     assert result is None and len(asked) == 1 and pipe.tolerance is None and pipe.tune_error is None
+
+
+def test_a_sweep_range_too_small_for_the_noise_is_named_in_the_message():
+    pipe = FramePipeline(PipelineConfig(auto_tune=True, seed=0, tune_max=0.0001))
+    noisy = scenes.corner(3000, 1.0, scale=0.01, seed=1).points  # a 1 m corner, noise 1 cm
+    frame = pipe.process(noisy, 10**9)
+    assert frame.diagnostic.level == WARN and pipe.tolerance is None
+    assert re.search(r'no plane in this frame at any t from [\d.e-]+ to 0\.0001 m .*; tune_max set that range',
+                     frame.message), frame.message

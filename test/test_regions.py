@@ -1,5 +1,6 @@
 """Planes as connected regions (detect_planes(connectivity=True), the default)."""
 import hashlib
+import re
 
 import numpy as np
 import pytest
@@ -280,3 +281,10 @@ def test_an_image_too_thin_for_a_grid_is_searched_as_an_unorganized_cloud(shape)
     plain = pv.tune_tolerance(floor, seed=0, count=3, tune_points=1000)
     assert tuned.tolerance == plain.tolerance and tuned.segmentation.n_planes == 1
     assert np.array_equal(tuned.segmentation.labels, plain.segmentation.labels)
+
+
+def test_the_reason_says_when_regions_were_merged():
+    pts, sh = scenes.depth_camera('table', width=160, height=120, seed=1).points, (120, 160)
+    seg = pv.detect_planes(pts, 0.02, seed=0, shape=sh, min_inliers=1, max_planes=10)
+    merged = re.search(r'merged (\d+) region', seg.reason)
+    assert merged and seg.n_planes + int(merged[1]) <= 10, seg.reason

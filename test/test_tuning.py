@@ -431,3 +431,11 @@ def test_the_library_leaves_sigint_alone_unless_asked(monkeypatch):
     with tuning.workers_ignore_sigint(), tuning._sigint_ignored():
         assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
     assert calls == [signal.SIG_IGN, before] and signal.getsignal(signal.SIGINT) is before
+
+
+def test_a_choice_at_the_largest_candidate_is_flagged():
+    points = scenes.corner(2000, 1.0, seed=0).points  # noise e = 1 unit
+    low = pv.tune_tolerance(points, [0.2, 0.4, 0.8], seed=0)  # every candidate below the noise
+    wide = pv.tune_tolerance(points, [1, 3, 10, 30, 60], seed=0)
+    assert low.tolerance == 0.8 and low.at_largest
+    assert wide.tolerance < 60 and not wide.at_largest

@@ -65,18 +65,23 @@ def _p(default: Any, description: str, **spec: Any) -> Any:
     return field(default=default, metadata={'parameter': dict(description=description, **spec)})
 
 
+#: Largest distance parameter (tolerances, voxel size): meters from a robot's sensor, but files may
+#: be in millimetres or the paper's units (the ``scene`` command's cubes have 100-unit faces).
+MAX_DISTANCE = 1000.0
+
+
 @dataclass(frozen=True)
 class PipelineConfig:
     """Every tunable of the per-frame pipeline; the node's ROS parameters map one to one onto
     these fields. Distances in meters."""
 
     tolerance: float = _p(0.02, 'RANSAC inlier distance t (used when auto_tune is false)',
-                          low=1e-6, high=10.0, unit='m')
+                          low=1e-6, high=MAX_DISTANCE, unit='m')
     auto_tune: bool = _p(True, 'choose t by sweeping candidates scored with the validity indices')
     tune_min: float = _p(0.0, 'smallest tuning candidate; 0 = derive from the cloud (nearest-neighbour spacing / 20)',
-                         low=1e-6, high=10.0, special=0.0, unit='m')
+                         low=1e-6, high=MAX_DISTANCE, special=0.0, unit='m')
     tune_max: float = _p(0.0, 'largest tuning candidate; 0 = derive from the cloud (at most the bounding-box '
-                         'diagonal / 8)', low=1e-6, high=10.0, special=0.0, unit='m')
+                         'diagonal / 8)', low=1e-6, high=MAX_DISTANCE, special=0.0, unit='m')
     tune_count: int = _p(TUNE_CANDIDATES, 'tuning candidates, geometrically spaced from tune_min to tune_max',
                          low=2, high=100)
     tune_points: int = _p(TUNE_POINTS, 'random subsample of the cloud the tuning sweep runs on',
@@ -107,8 +112,8 @@ class PipelineConfig:
                           'noise_reference)', choices=NOISE_MODELS)
     noise_reference: float = _p(NOISE_REFERENCE, 'range up to which depth_quadratic keeps t', low=0.01, high=100.0,
                                 unit='m')
-    voxel_size: float = _p(0.0, 'voxel grid applied before detection; 0 = off', low=1e-6, high=10.0, special=0.0,
-                           unit='m')
+    voxel_size: float = _p(0.0, 'voxel grid applied before detection; 0 = off', low=1e-6, high=MAX_DISTANCE,
+                           special=0.0, unit='m')
     seed: int = _p(0, 'random seed; frames are seeded by (seed, header stamp); -1 = fresh entropy every frame',
                    low=-1, high=2**31 - 1)
 

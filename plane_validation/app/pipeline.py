@@ -193,7 +193,10 @@ class FramePipeline:
         try:
             result = self._sweep(cfg, points, stamp_ns, shape, stop)
             if result.segmentation.n_planes == 0:
-                raise ValueError(f'the sweep found no plane in this frame ({result.segmentation.reason})')
+                bounds = ' and '.join(name for name in ('tune_min', 'tune_max') if getattr(cfg, name))
+                raise ValueError(f'the sweep found no plane in this frame at any t from {result.rows[0].tolerance:.3g}'
+                                 f' to {result.rows[-1].tolerance:.3g} m ({result.segmentation.reason})'
+                                 + (f'; {bounds} set that range' if bounds else ''))
         except _Abandoned:
             return None
         except TUNE_FAILURES as exc:
@@ -231,7 +234,7 @@ class FramePipeline:
             points = xyz_array(msg)
             extra = trailing_bytes(msg)
         except ValueError as exc:
-            return self.reject(f'malformed PointCloud2: {exc}', ERROR)
+            return self.reject(f'malformed PointCloud2: {exc}', ERROR, n_input=int(msg.height) * int(msg.width))
         shape = (int(msg.height), int(msg.width)) if msg.height > 1 else None  # organized: an image
         result = self.process(points, stamp_ns, tune_inline=tune_inline, shape=shape)
         if extra:
@@ -240,9 +243,10 @@ class FramePipeline:
             result = replace(result, diagnostic=result.diagnostic.escalated(WARN, note))
         return result
 
-    def reject(self, message: str, level: Level = ERROR) -> FrameResult:
-        """Result for a frame that could not even be read (e.g. a malformed message)."""
-        return _failed(level, message, time.perf_counter(), self.current_tolerance())
+    def reject(self, message: str, level: Level = ERROR, n_input: int = 0) -> FrameResult:
+        """Result for a frame that could not even be read (e.g. a malformed message declaring
+        ``n_input`` points)."""
+        return _failed(level, message, time.perf_counter(), self.current_tolerance(), n_input=n_input)
 
     def process(self, points: np.ndarray, stamp_ns: int = 0, *, tune_inline: bool = True,
                 shape: tuple[int, int] | None = None) -> FrameResult:

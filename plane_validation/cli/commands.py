@@ -135,6 +135,11 @@ def _about(cloud: str) -> Iterator[None]:
         raise ValueError(f'{cloud}: {exc}') from exc
 
 
+#: Said when the tuned t is the largest candidate.
+LARGEST_CANDIDATE = ('(t is the largest candidate: a wider range might choose a larger one; '
+                     '`sweep CLOUD --tolerances LO:HI:N` tries one, the node\'s tune_max sets it)')
+
+
 def cmd_detect(args: argparse.Namespace) -> int:
     from ..app.detection import detect
     from ..app.report import detection_document, format_indices, noise_line
@@ -164,6 +169,8 @@ def cmd_detect(args: argparse.Namespace) -> int:
     if det.tuning is not None:
         print(f'tuned tolerance {det.tolerance:.4g} m ({det.tuning.criterion} over {len(det.tuning.rows)} '
               f'candidates, {det.tuning.rows[0].tolerance:.3g}-{det.tuning.rows[-1].tolerance:.3g} m)')
+        if det.tuning.at_largest:
+            print(LARGEST_CANDIDATE)
     else:
         print(f'fixed tolerance {det.tolerance:.4g} m')
     print(format_planes(seg))
@@ -205,6 +212,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
               f'{result.segmentation.n_valid} valid points)')
     if result.noise_model != 'constant':
         print(noise_line(result.segmentation, points))
+    if result.at_largest:
+        print(LARGEST_CANDIDATE)
     print(f'chosen t = {result.tolerance:.4g} m by {result.criterion}; {result.segmentation.n_planes} planes; '
           f'noise estimate {result.noise_estimate:.3g} m; {"reliable" if result.reliable else "NOT reliable"}: '
           f'{result.verdict}; {result.seconds:.1f} s')
@@ -326,7 +335,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from ..app.plot import plot_cloud_message
     from ..ros.replay import replay_live
     if not Path(args.bag).exists():
-        raise ValueError(f'no such bag: {args.bag}')
+        raise ValueError(f'bag not found: {args.bag}')
     out_dir = Path(args.out)
     made = [d for d in (out_dir, *out_dir.parents) if not d.exists()]  # the folders this run creates
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -471,11 +480,11 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument('--bag', default=DEMO_BAG, help=f'the bag to replay (default {DEMO_BAG}; see bags/README.md)')
     demo.add_argument('--out', default=DEMO_OUT, help='directory for the output bag and PNG')
     demo.add_argument('--rate', type=_positive_float, default=0.25,
-                      help='playback speed (slow enough that the node answers every frame)')
+                      help='playback speed (default 0.25: slow enough that the node answers every frame)')
     demo.set_defaults(func=cmd_demo)
 
     replay = sub.add_parser('replay', help='replay a bag through the per-frame pipeline')
-    replay.add_argument('bag')
+    replay.add_argument('bag', help='a rosbag2 directory, .mcap or .db3 file, or ROS 1 .bag with PointCloud2 messages')
     replay.add_argument('--topic', help='PointCloud2 topic (auto-detected when there is one)')
     replay.add_argument('--out', help='output rosbag2 directory (default: <bag>.planes beside the bag)')
     replay.add_argument('--live', action='store_true', help='publish on ROS topics at the recorded timing')

@@ -706,7 +706,10 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
     found = _refit(search, region, found)
     region = _compete(search, region, found, search_tolerance, neighbours)
     found = _refit(search, region, found)
+    searched = len(found)
     region, found = _merge_coplanar(search, region, found, search_tolerance, neighbours)
+    if len(found) < searched:
+        reason += f'; merged {searched - len(found)} region(s) into a touching region of the same surface'
     residual = None
     if step:
         uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]

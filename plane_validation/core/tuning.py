@@ -119,6 +119,11 @@ class TuningResult:
     def tolerances(self) -> np.ndarray:
         return np.array([r.tolerance for r in self.rows])
 
+    @property
+    def at_largest(self) -> bool:
+        """Whether the chosen t is the largest candidate (a wider range might choose a larger one)."""
+        return self.best == len(self.rows) - 1 and len(self.rows) > 1
+
     def scores(self, criterion: str | None = None) -> np.ndarray:
         return np.array([r.score(criterion or self.criterion) for r in self.rows])
 

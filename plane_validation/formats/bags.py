@@ -49,8 +49,12 @@ def open_bag(bag: Path):
     from rosbags.highlevel import AnyReader, AnyReaderError
     if not bag.exists():
         raise BagError(f'bag not found: {bag}')
-    if bag.is_dir() and not (bag / 'metadata.yaml').is_file() and bag_storage(bag) is None:
-        raise BagError(f'{bag}: a directory but not a rosbag2 bag (no metadata.yaml, no .mcap or .db3 file)')
+    if bag.is_dir() and not (bag / 'metadata.yaml').is_file():
+        files = sorted(p.name for suffix in STORAGES.values() for p in bag.glob(f'*{suffix}'))
+        if not files:
+            raise BagError(f'{bag}: a directory but not a rosbag2 bag (no metadata.yaml, no .mcap or .db3 file)')
+        raise BagError(f'{bag}: a directory without metadata.yaml, so not a rosbag2 bag; to read one storage file '
+                       f'of it, name the file ({", ".join(files[:3])}{", ..." if len(files) > 3 else ""})')
     try:
         reader = AnyReader([bag], default_typestore=typestore())
         reader.open()
@@ -207,10 +211,10 @@ def _xyz(source: BagSource, topic: str, msg, xyz_array) -> np.ndarray:
 
 
 def write_bag_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None = None, *,
-                     topic: str = TOPIC) -> Path:
-    """Write (N, 3) points (meters) as one float32 x y z PointCloud2 (float64 beyond float32's range)
-    into a new rosbag2 bag, with
-    (N,) labels as an int32 field ``label`` when given.
+                     topic: str = TOPIC, shape: tuple[int, int] | None = None) -> Path:
+    """Write (N, 3) points (meters) as one float32 x y z PointCloud2 (float64 where float32 would lose
+    precision: :func:`~plane_validation.formats.files.coordinate_dtype`) into a new rosbag2 bag, with
+    (N,) labels as an int32 field ``label`` when given; organized (height H) with ``shape`` (H, W).
 
     ``path`` without extension: a bag directory (MCAP storage); ``.mcap`` or ``.db3``: a single
     storage file (MCAP or SQLite 3), readable without metadata.yaml. Refuses to overwrite.
@@ -238,7 +242,7 @@ def write_bag_points(path: str | Path, points: np.ndarray, labels: np.ndarray | 
     columns = {'x': xyz[:, 0], 'y': xyz[:, 1], 'z': xyz[:, 2]}
     if labels is not None:
         columns['label'] = np.asarray(labels).astype(np.int32).reshape(-1)
-    msg = create_cloud(header, columns, types=types)
+    msg = create_cloud(header, columns, types=types, shape=shape)
     storage = StoragePlugin.SQLITE3 if suffix == '.db3' else StoragePlugin.MCAP
     with tempfile.TemporaryDirectory(dir=path.parent, prefix=f'.{path.name}.') as tmp:
         bag_dir = Path(tmp) / (path.stem if suffix else path.name)

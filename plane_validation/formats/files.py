@@ -102,7 +102,8 @@ def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None 
     (rosbag2 directory) or ending in .mcap/.db3 (one PointCloud2 on /points, x y z float32 and
     int32 ``label``).
     All rows are written, NaN rows included, so that row i stays point i. ``shape`` (H, W): the
-    rows are an H x W image; a .pcd is then written organized (HEIGHT H), the other formats ignore it.
+    rows are an H x W image; a .pcd or a bag is then written organized (height H), the other
+    formats ignore it.
     """
     path = Path(path)
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
@@ -115,7 +116,7 @@ def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None 
     suffix = path.suffix.lower()
     from .bags import BAG_SUFFIXES, write_bag_points
     if suffix in BAG_SUFFIXES or suffix == '':
-        return write_bag_points(path, pts, lab)
+        return write_bag_points(path, pts, lab, shape=shape)
     writers = {'.ply': _write_ply, '.npy': _write_npy,
                '.pcd': lambda p, x, y: _write_pcd(p, x, y, shape)}
     with atomic_output(path) as tmp:
@@ -351,11 +352,17 @@ def _read_pcd(path: Path) -> np.ndarray:
 # -- writers -------------------------------------------------------------------------------------
 
 
+#: Written coordinates are float32 unless float32 would round one by more than this (meters): then
+#: float64 (georeferenced clouds, UTM coordinates in the millions of meters, need it).
+COORDINATE_PRECISION = 1e-4
+
+
 def coordinate_dtype(points: np.ndarray) -> np.dtype:
-    """float32 for written coordinates, float64 when a finite one is beyond float32's range (it
-    would be written as inf)."""
+    """float32 for written coordinates, float64 when a finite one is so large that float32 would
+    round it by more than COORDINATE_PRECISION (its spacing at |x| is up to |x| / 2**23), or write it
+    as inf."""
     finite = np.abs(points[np.isfinite(points)])
-    return np.dtype('<f8' if finite.size and finite.max() > np.finfo(np.float32).max else '<f4')
+    return np.dtype('<f8' if finite.size and finite.max() > COORDINATE_PRECISION * 2.0 ** 23 else '<f4')
 
 
 def _write_pcd(path: Path, points: np.ndarray, labels: np.ndarray | None,

@@ -239,8 +239,9 @@ def _is_rosbags(cls: Any) -> bool:
 
 
 def create_cloud(header: Any, columns: Mapping[str, npt.ArrayLike], *,
-                 types: CloudTypes) -> Any:
-    """Unorganized (height=1), little-endian, packed PointCloud2 from equal-length 1-D columns.
+                 types: CloudTypes, shape: tuple[int, int] | None = None) -> Any:
+    """Little-endian, packed PointCloud2 from equal-length 1-D columns: unorganized (height=1), or
+    an H x W image of the rows in row-major order with ``shape`` (H, W).
 
     Column dtypes must be float32/float64/int8/uint8/int16/uint16/int32/uint32 (cast int64 or
     bool yourself); fields follow the mapping's order. ``header`` is stored as is; ``types``
@@ -264,6 +265,9 @@ def create_cloud(header: Any, columns: Mapping[str, npt.ArrayLike], *,
     if len(set(lengths.values())) != 1:
         raise ValueError(f'columns must have equal length, got {lengths}')
     n = next(iter(lengths.values()))
+    height, width = (1, n) if shape is None else (int(shape[0]), int(shape[1]))
+    if height * width != n:
+        raise ValueError(f'shape {tuple(shape)} does not match columns of length {n}')
 
     offsets: list[int] = []
     formats: list[np.dtype] = []
@@ -291,8 +295,8 @@ def create_cloud(header: Any, columns: Mapping[str, npt.ArrayLike], *,
     fields = [types.PointField(name=name, offset=int(off),
                                datatype=_CODES[fmt.newbyteorder('=')], count=1)
               for name, off, fmt in zip(arrays, offsets, formats)]
-    kwargs = dict(header=header, height=1, width=int(n), fields=fields, is_bigendian=False,
-                  point_step=int(step), row_step=int(n * step), is_dense=bool(dense))
+    kwargs = dict(header=header, height=height, width=width, fields=fields, is_bigendian=False,
+                  point_step=int(step), row_step=int(width * step), is_dense=bool(dense))
     if rosbags:
         return types.PointCloud2(data=data, **kwargs)
     msg = types.PointCloud2(**kwargs)

@@ -15,6 +15,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from ..app.diagnostics import Diagnostic, Level
 from ..app.pipeline import FrameResult
 from ..core.geometry import UNASSIGNED_RGB, PlaneOutline, plane_colors, plane_outlines
+from ..formats.files import coordinate_dtype
 from ..formats.pointcloud2 import create_cloud, pack_rgb
 
 __all__ = ['OUTPUTS', 'msgtype', 'status_name', 'node_values', 'segmented_cloud', 'plane_markers', 'plane_poses',
@@ -45,11 +46,12 @@ def node_values(processed: int, dropped: int, sweep_running: bool, dropped_now: 
 
 
 def segmented_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
-    """x, y, z (float32), plane_id (int32, -1 unassigned) and packed rgb of the valid points."""
+    """x, y, z (float32; float64 where float32 would lose precision: :func:`coordinate_dtype`), plane_id
+    (int32, -1 unassigned) and packed rgb of the valid points."""
     labels = result.labels.astype(np.int32)
     palette = np.vstack([plane_colors(result.n_planes), np.array([UNASSIGNED_RGB], np.uint8)])
     packed = pack_rgb(palette[:, 0], palette[:, 1], palette[:, 2])
-    pts = result.points.astype(np.float32)
+    pts = result.points.astype(coordinate_dtype(result.points))
     # label -1 indexes the last palette entry, the unassigned grey
     return create_cloud(header, {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2], 'plane_id': labels,
                                  'rgb': packed[labels]}, types=sensor_msgs.msg)
