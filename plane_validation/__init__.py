@@ -37,3 +37,25 @@ def __getattr__(name: str):
 
 def __dir__() -> list[str]:
     return sorted({*globals(), *__all__})
+
+
+def _entry_point(module: str, package: str):
+    """The ``main`` of ``module`` (relative to ``package``), or None when Ctrl-C stopped loading it:
+    a KeyboardInterrupt, or the ImportError an extension module raises when one reaches its
+    initialisation (scipy's, for instance)."""
+    try:
+        return importlib.import_module(module, package).main
+    except KeyboardInterrupt:
+        return None
+    except ImportError as exc:
+        if _interrupted(exc):
+            return None
+        raise
+
+
+def _interrupted(exc: BaseException | None, depth: int = 8) -> bool:
+    """Whether ``exc`` or an exception it was raised from (numpy re-raises its own) is a KeyboardInterrupt."""
+    if exc is None or depth == 0:
+        return False
+    return isinstance(exc, KeyboardInterrupt) or _interrupted(exc.__cause__, depth - 1) or \
+        _interrupted(exc.__context__, depth - 1)

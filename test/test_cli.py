@@ -385,18 +385,25 @@ import importlib, sys
 class Interrupt:
     def find_spec(self, name, path=None, target=None):
         if name == sys.argv[1]:
+            if sys.argv[3] == 'extension':  # in an extension module's initialisation, Python reports it so
+                raise ImportError('initialization failed') from KeyboardInterrupt()
             raise KeyboardInterrupt
 sys.meta_path.insert(0, Interrupt())
 sys.exit(importlib.import_module(sys.argv[2]).main([]))
 '''
 
 
-def test_ctrl_c_while_the_command_line_or_the_node_loads_exits_quietly():
+@pytest.mark.parametrize('where', ['python', 'extension'])
+def test_ctrl_c_while_the_command_line_or_the_node_loads_exits_quietly(where):
     for heavy, entry, status in (('plane_validation.cli.commands', 'plane_validation.cli', 130),
                                  ('plane_validation.ros.node', 'plane_validation.ros', 0)):
-        proc = subprocess.run([sys.executable, '-c', INTERRUPTED_IMPORT, heavy, entry], capture_output=True,
+        proc = subprocess.run([sys.executable, '-c', INTERRUPTED_IMPORT, heavy, entry, where], capture_output=True,
                               text=True, timeout=120, cwd=ROOT)
         assert (proc.returncode, proc.stderr) == (status, ''), (entry, proc.stderr)
+    other = subprocess.run([sys.executable, '-c', INTERRUPTED_IMPORT.replace(' from KeyboardInterrupt()', ''),
+                            'plane_validation.cli.commands', 'plane_validation.cli', 'extension'],
+                           capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert other.returncode == 1 and 'ImportError: initialization failed' in other.stderr  # a real one shows
     # the entry points (setup.py) load none of the heavy modules themselves
     code = ('import sys, plane_validation.cli, plane_validation.ros; '
             'print(sorted(m for m in ("numpy", "scipy", "rclpy") if m in sys.modules))')

@@ -600,10 +600,13 @@ def _terminate_cleanly() -> Iterator[None]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    from ..app.pipeline import limit_blas_threads
-    from ..core.tuning import TuningWorkerError, workers_ignore_sigint
-    limit_blas_threads()  # small matrix products; spinning BLAS threads only slow a busy machine down
+    try:
+        args = build_parser().parse_args(argv)
+        from ..app.pipeline import limit_blas_threads
+        from ..core.tuning import TuningWorkerError, workers_ignore_sigint
+        limit_blas_threads()  # small matrix products; spinning BLAS threads only slow a busy machine down
+    except KeyboardInterrupt:  # while they load (threadpoolctl opens the BLAS libraries)
+        return 130
     try:
         with _terminate_cleanly(), workers_ignore_sigint():
             return args.func(args)

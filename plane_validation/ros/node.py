@@ -236,9 +236,12 @@ class PlaneValidationNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    limit_blas_threads()
     try:
+        limit_blas_threads()
         rclpy.init(args=args)
+    except KeyboardInterrupt:  # Ctrl-C while starting: as quiet as while spinning
+        rclpy.try_shutdown()
+        return 0
     except Exception as exc:  # malformed --ros-args, a params file that is missing or not YAML
         print(f'plane_validation_node: cannot start: {exc}', file=sys.stderr)
         return 2
