@@ -64,3 +64,18 @@ def test_collinear_plane_points_get_their_length_as_extent():
                               tolerance=0.01, n_valid=n, reason='')
         outline = plane_outlines(points, labels, seg)[0]
         assert outline.extent == pytest.approx(2.0)
+
+
+@pytest.mark.parametrize('make', [
+    lambda: scenes.depth_camera('room', quantum_1m=0.0), lambda: scenes.depth_camera('attic'),
+    lambda: scenes.depth_camera('room', width=0), lambda: scenes.lidar(sigma=-0.01),
+    lambda: scenes.sphere(noise=-1.0), lambda: scenes.sphere(radius=0.0), lambda: scenes.corner(noise=-1.0)])
+def test_scene_parameters_out_of_range_raise(make):
+    with pytest.raises(ValueError):
+        make()
+
+
+def test_a_scene_of_outliers_only_lies_in_the_box_of_its_planes():
+    scene = scenes.cube(100, outlier_fraction=0.999, seed=0)  # 100 outliers, no plane point
+    assert scene.points.shape == (100, 3) and np.all(scene.labels == -1)
+    assert scene.points.min() >= 0 and scene.points.max() <= 100  # the cube's 100-unit box

@@ -78,6 +78,11 @@ def test_voxel_downsample_centroids():
     assert len(centroids) == 2
     np.testing.assert_allclose(centroids[inverse[0]], [0.02, 0.02, 0.02])
     assert inverse[0] == inverse[1] != inverse[2]
+    # a far row (a driver's FLT_MAX) makes more voxels than an integer holds: still each its own
+    far = np.vstack([pts, [1e150, 0.0, 0.0], [3e38, 3e38, 3e38]])
+    centroids, inverse = voxel_downsample(far, 1e-6)
+    assert len(centroids) == 5 and len(set(inverse.tolist())) == 5
+    assert voxel_downsample(far, 0.1)[1].tolist()[:3] == [0, 0, 1]
 
 
 def test_tune_max_alone_bounds_the_candidates_and_tune_count_is_used():

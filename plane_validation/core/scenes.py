@@ -88,8 +88,10 @@ def _compose(name: str, rects: list[_Rect], n_points: int, noise: float, outlier
         parts.append(clutter[0](n_clutter, rng))
         labels.append(np.full(n_clutter, -1, dtype=np.int32))
     body = np.concatenate(parts) if parts else np.empty((0, 3))
-    if n_out:
-        lo, hi = body.min(axis=0), body.max(axis=0)
+    if n_out:  # in the box of the sampled points (of the rectangles' corners when none were sampled)
+        box = body if len(body) else np.array([np.asarray(r.origin) + a * r.su * np.asarray(r.u) + b * r.sv *
+                                               np.asarray(r.v) for r in rects for a in (0, 1) for b in (0, 1)])
+        lo, hi = box.min(axis=0), box.max(axis=0)
         parts.append(rng.uniform(lo, hi, size=(n_out, 3)))
         labels.append(np.full(n_out, -1, dtype=np.int32))
     points = np.concatenate(parts) if parts else np.empty((0, 3))
@@ -188,6 +190,8 @@ def sphere(n_points: int = 5000, noise: float = 0.0, *, radius: float = 1.0, out
     """Points on a sphere (meters): no planes at all. Noise is radial."""
     if not 0 <= outlier_fraction < 1:
         raise ValueError(f'outlier_fraction must be in [0, 1), got {outlier_fraction}')
+    if noise < 0 or scale <= 0 or n_points < 0 or radius <= 0:
+        raise ValueError('noise must be >= 0, scale and radius > 0 and n_points >= 0')
     rng = np.random.default_rng(seed)
     n_out = int(round(n_points * outlier_fraction))
     directions = rng.normal(size=(n_points - n_out, 3))
@@ -273,6 +277,11 @@ def depth_camera(view: str = 'room', *, width: int = 640, height: int = 480, hfo
     view: depth noise sigma(z) = sigma_1m * z^2 (1.5 mm at 1 m, 6 mm at 2 m), depth quantised in
     steps of quantum_1m * z^2, no return where the ray meets the surface at a grazing angle
     (|cos| < min_cos) or beyond max_range. ``noise`` of the scene is sigma_1m."""
+    if view not in SENSOR_VIEWS:
+        raise ValueError(f'view must be one of {", ".join(SENSOR_VIEWS)}, got {view!r}')
+    if width < 1 or height < 1 or not 0 < hfov_deg < 180 or sigma_1m < 0 or quantum_1m <= 0 or max_range <= 0:
+        raise ValueError('need width, height >= 1, 0 < hfov_deg < 180, sigma_1m >= 0, quantum_1m > 0 and '
+                         'max_range > 0')
     make, eye, target = SENSOR_VIEWS[view]
     rects = make()
     rng = np.random.default_rng(seed)
@@ -303,6 +312,8 @@ def lidar(*, rings: int = 32, azimuths: int = 1800, sigma: float = 0.015, height
           elevation_deg: tuple[float, float] = (-30.0, 10.0), max_range: float = 60.0, seed=None) -> Scene:
     """A spinning lidar's scan (sensor frame, meters, unorganized) of a street: ``rings`` beams
     between the elevations, ``azimuths`` steps per turn, range noise N(0, sigma) along each beam."""
+    if rings < 1 or azimuths < 1 or sigma < 0 or max_range <= 0:
+        raise ValueError('need rings, azimuths >= 1, sigma >= 0 and max_range > 0')
     rects = _street()
     rng = np.random.default_rng(seed)
     eye = np.array([0.0, 0.0, height])
