@@ -16,6 +16,7 @@ Pure numpy/scipy.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +50,9 @@ NORMAL_ANGLE_DEG = 25.0
 NORMAL_MIN_COS = float(np.cos(np.radians(NORMAL_ANGLE_DEG)))
 #: Grid normals from neighbours this many pixels away (smoother than adjacent pixels).
 NORMAL_REACH = 3
+#: Components of a mask of up to this share of the points come from the graph of its points alone;
+#: of a larger one, from the whole graph with the edges leaving it cut (faster then).
+COMPACT_SHARE = 0.5
 #: Scales of :meth:`Neighbours.nearby`: a window of this many sub-grid pixels around the point
 #: (organized) or a random walk of this many graph hops (unorganized), one drawn per sample.
 NEARBY_SCALES = (1, 2, 4, 8)
@@ -86,12 +90,21 @@ class Neighbours:
         if self.adjacency is None:  # no edges
             return at
         indptr, indices = self.adjacency
-        for hop in range(int(scale.max(initial=0))):
-            degree = indptr[at + 1] - indptr[at]
-            move = (degree > 0) & (hop < scale)
-            step = indptr[at] + (rng.random(len(at)) * degree).astype(np.int64)
+        hops = int(scale.max(initial=0))
+        draws = rng.random((hops, len(at)))  # the numbers of one draw per hop, in the same order
+        walking = scale > np.arange(hops)[:, None]
+        degrees = self.degrees
+        for hop in range(hops):
+            degree = degrees[at]
+            move = (degree > 0) & walking[hop]
+            step = indptr[at] + (draws[hop] * degree).astype(np.int64)
             at = np.where(move, indices[np.where(move, step, 0)], at)
         return at
+
+    @functools.cached_property
+    def degrees(self) -> np.ndarray:
+        """Graph form: (n,) neighbours of each point."""
+        return np.diff(self.adjacency[0])
 
     def coherent(self, normal: np.ndarray, at: np.ndarray | None = None) -> np.ndarray:
         """(n,) bool: points whose local normal is within NORMAL_ANGLE_DEG of ``normal`` (or unknown);
@@ -116,25 +129,57 @@ class Neighbours:
         outside the mask, components 0..c-1; c)."""
         if self.shape is not None:
             return self._grid_components(mask)
-        labels, sizes = self._graph_components(mask)
-        used = np.flatnonzero(sizes)
-        dense = np.full(len(sizes), -1, dtype=np.int64)
-        dense[used] = np.arange(len(used))
-        return np.where(mask, dense[labels], -1), len(used)
+        members, labels, sizes = self._graph_components(mask)
+        out = np.full(self.n, -1, dtype=np.int64)
+        out[members] = labels
+        return out, len(sizes)
 
-    def _graph_components(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Graph form: (component of every point (n,), masked points per component); the points
-        outside the mask are components of their own, of size 0."""
+    def _graph_components(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Graph form: the masked points (ascending), the component of each (numbered in the order
+        of their first point) and the points per component, from the graph of the masked points alone."""
+        members = np.flatnonzero(mask)
+        m = len(members)
+        if m == 0:
+            return members, members, members
+        if m > COMPACT_SHARE * self.n:  # most points: gathering their edges costs more than masking all
+            return self._components_of_whole(mask, members)
+        # the edges from the masked points (the rows of the source-sorted edge list) to masked points
+        first = self.edge_rows[members]
+        counts = self.edge_rows[members + 1] - first
+        total = int(counts.sum())
+        ends = np.cumsum(counts)
+        at = np.arange(total) + np.repeat(first - (ends - counts), counts)
+        dst = self.edges[at, 1]
+        inside = mask[dst]
+        position = np.empty(self.n, np.int32)
+        position[members] = np.arange(m, dtype=np.int32)
+        # csgraph works on int32 indices: given int64, it converts (copies) them on every call
+        indptr = np.zeros(m + 1, np.int32)
+        np.cumsum(np.bincount(np.repeat(np.arange(m), counts)[inside], minlength=m), out=indptr[1:])
+        graph = csr_matrix((np.ones(int(indptr[-1])), position[dst[inside]], indptr), shape=(m, m))
+        count, labels = connected_components(graph, directed=True, connection='weak')
+        return members, labels, np.bincount(labels, minlength=count)
+
+    def _components_of_whole(self, mask: np.ndarray, members: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`_graph_components` from the whole graph with the edges that leave the mask cut."""
         src, dst = self.edges.T  # sorted by source (graph_neighbours): the CSR rows need no sort
         inside = mask[src] & mask[dst]
-        # csgraph works on int32 indices: given int64, it converts (copies) them on every call
         index = np.int32 if len(src) < np.iinfo(np.int32).max else np.int64
         indptr = np.zeros(self.n + 1, index)
         np.cumsum(np.bincount(src[inside], minlength=self.n), out=indptr[1:])
         graph = csr_matrix((np.ones(np.count_nonzero(inside)), dst[inside].astype(index), indptr),
                            shape=(self.n, self.n))
         count, labels = connected_components(graph, directed=True, connection='weak')
-        return labels, np.bincount(labels[mask], minlength=count)
+        sizes = np.bincount(labels[members], minlength=count)
+        used = np.flatnonzero(sizes)  # the other labels are unmasked points
+        dense = np.full(count, -1, dtype=np.int64)
+        dense[used] = np.arange(len(used))
+        return members, dense[labels[members]], sizes[used]
+
+    @functools.cached_property
+    def edge_rows(self) -> np.ndarray:
+        """Graph form: (n + 1,) where each point's edges to larger indices start in ``edges``."""
+        return np.searchsorted(self.edges[:, 0], np.arange(self.n + 1))
 
     def _grid_components(self, mask: np.ndarray) -> tuple[np.ndarray, int]:
         image = np.zeros(self.shape[0] * self.shape[1], bool)
@@ -146,8 +191,11 @@ class Neighbours:
     def largest(self, mask: np.ndarray) -> np.ndarray:
         """(n,) bool: the largest connected component of ``mask`` (empty when ``mask`` is)."""
         if self.shape is None:
-            labels, sizes = self._graph_components(mask)
-            return mask & (labels == int(np.argmax(sizes))) if sizes.max(initial=0) > 0 else np.zeros(self.n, bool)
+            members, labels, sizes = self._graph_components(mask)
+            out = np.zeros(self.n, bool)
+            if len(members):
+                out[members[labels == int(np.argmax(sizes))]] = True
+            return out
         labels, count = self.components(mask)
         if count == 0:
             return np.zeros(self.n, bool)
