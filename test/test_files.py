@@ -275,7 +275,7 @@ def test_coordinates_beyond_float32_are_written_as_float64_not_inf(tmp_path, nam
                                   POINTS.astype(np.float32).astype(np.float64))
 
 
-@pytest.mark.parametrize('name', ['utm.pcd', 'utm.ply', 'utm.mcap'])
+@pytest.mark.parametrize('name', ['utm.pcd', 'utm.ply', 'utm.mcap', 'utm.xyz', 'utm.csv'])
 def test_georeferenced_coordinates_keep_their_millimetres(tmp_path, name):
     utm = POINTS + (512_345.6789, 4_012_345.6789, 101.2345)  # float32 would round them to 0.25 m
     path = save_points(tmp_path / name, utm)
@@ -284,8 +284,16 @@ def test_georeferenced_coordinates_keep_their_millimetres(tmp_path, name):
     near = POINTS * 800  # within 838 m: float32 rounds by at most 0.06 mm
     path = save_points(tmp_path / ('near' + Path(name).suffix), near)
     back = load_points(path if path.suffix != '.mcap' else f'{path}:/points:0')
-    np.testing.assert_array_equal(back, near.astype(np.float32).astype(np.float64))
     assert np.abs(back - near).max() <= 1e-4
+    if path.suffix not in ('.xyz', '.csv'):  # binary: float32
+        np.testing.assert_array_equal(back, near.astype(np.float32).astype(np.float64))
+    came_as_float32 = utm.astype(np.float32).astype(np.float64)  # float32 can write them without loss
+    path = save_points(tmp_path / ('f32' + Path(name).suffix), came_as_float32)
+    np.testing.assert_array_equal(load_points(path if path.suffix != '.mcap' else f'{path}:/points:0'), came_as_float32)
+    if path.suffix == '.ply':
+        assert b'property float x' in path.read_bytes()[:300]
+    if path.suffix == '.pcd':
+        assert b'SIZE 4 4 4' in path.read_bytes()[:300]
 
 
 def test_an_organized_cloud_written_to_a_bag_reads_back_organized(tmp_path):
@@ -330,7 +338,7 @@ def test_a_text_table_may_start_with_a_row_of_column_names(tmp_path):
     cases = (('named.csv', 'x,y,z\n' + rows), ('plain.csv', rows), ('named.xyz', 'x y z\n' + rows.replace(',', ' ')),
              ('digits.csv', 'x,y,z,intensity_8bit\n' + rows.replace('\n', ',7\n')),
              ('quoted.csv', '"x","y","z"\n' + rows), ('bom.csv', '\ufeff' + rows),
-             ('bom_named.csv', '\ufeffx,y,z\n' + rows))
+             ('bom_named.csv', '\ufeffx,y,z\n' + rows), ('cloudcompare.csv', '//X,Y,Z\n' + rows))
     for name, text in cases:
         (tmp_path / name).write_text(text, encoding='utf-8')
         np.testing.assert_array_equal(load_points(tmp_path / name), [[0, 0, 0], [1, 0, 0], [0, 1, 0]], err_msg=name)

@@ -83,6 +83,10 @@ def test_voxel_downsample_centroids():
     centroids, inverse = voxel_downsample(far, 1e-6)
     assert len(centroids) == 5 and len(set(inverse.tolist())) == 5
     assert voxel_downsample(far, 0.1)[1].tolist()[:3] == [0, 0, 1]
+    cloud = np.random.default_rng(0).random((1000, 3))
+    for sentinel in (3.4e38, -3.4e38):  # on either side: the other voxels stay apart
+        assert len(voxel_downsample(np.vstack([cloud, [sentinel, 0.5, 0.5]]), 0.05)[0]) == \
+            len(voxel_downsample(cloud, 0.05)[0]) + 1
 
 
 def test_tune_max_alone_bounds_the_candidates_and_tune_count_is_used():

@@ -227,6 +227,21 @@ def test_bad_tuning_arguments_raise(kwargs):
         pv.tune_tolerance(scenes.corner(500, seed=0).points, **kwargs)
 
 
+def test_numbers_that_mean_what_they_say_are_taken():
+    points = scenes.corner(1500, 1.0, seed=2).points
+    base = pv.tune_tolerance(points, seed=0, count=4, tune_points=1000)
+    assert pv.tune_tolerance(points, seed=0, count=4, tune_points=1000.0).tolerance == base.tolerance
+    assert pv.tune_tolerance(points, seed=0, count=4, tune_points=np.inf).sweep_points == 1500  # all, as None
+    assert [r.tolerance for r in pv.tune_tolerance(points, 2.0, seed=0).rows] == [2.0]  # one candidate
+    with pytest.raises(ValueError, match='tolerances is empty'):
+        pv.tune_tolerance(points, [], seed=0)
+    with pytest.raises(ValueError, match='tune_points'):
+        pv.tune_tolerance(points, tune_points=np.nan)
+    scene = scenes.depth_camera('table', width=80, height=60, seed=1)
+    assert pv.tune_tolerance(scene.points, seed=0, count=3, shape=(60.0, 80.0)).tolerance == \
+        pv.tune_tolerance(scene.points, seed=0, count=3, shape=(60, 80)).tolerance
+
+
 def test_too_few_points_raise_clearly():
     with pytest.raises(ValueError, match='at least 3'):
         pv.tune_tolerance(np.full((10, 3), np.nan))

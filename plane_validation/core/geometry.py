@@ -104,12 +104,12 @@ def voxel_downsample(points: np.ndarray, voxel_size: float) -> tuple[np.ndarray,
     Returns (centroids (m, 3), inverse (n,)) with ``inverse[i]`` the voxel of point i.
     """
     cells = np.floor(points / voxel_size)
-    cells -= cells.min(axis=0)
-    dims = cells.max(axis=0) + 1
+    low = cells.min(axis=0)
+    dims = cells.max(axis=0) - low + 1
     if np.prod(dims) < 2**62:  # one integer key per voxel: a 1-D unique is much faster
-        _, inverse = np.unique(np.ravel_multi_index(cells.T.astype(np.int64), dims.astype(np.int64)),
+        _, inverse = np.unique(np.ravel_multi_index((cells - low).T.astype(np.int64), dims.astype(np.int64)),
                                return_inverse=True)
-    else:  # more voxels than an integer holds (a far outlier): rows of float voxel numbers
+    else:  # more voxels than an integer holds (a far outlier): rows of voxel numbers, as they are
         _, inverse = np.unique(cells, axis=0, return_inverse=True)
     inverse = inverse.reshape(-1)
     counts = np.bincount(inverse)

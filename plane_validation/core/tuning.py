@@ -299,10 +299,14 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     _check_criterion(criterion)
     if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 0:
         raise ValueError(f'jobs must be an integer >= 0 (0 = one per CPU core), got {jobs!r}')
-    if tune_points is not None and (isinstance(tune_points, bool) or int(tune_points) != tune_points
-                                    or tune_points < 3):
-        raise ValueError(f'tune_points must be None or an integer >= 3, got {tune_points!r}')
-    if tolerances is not None and np.ndim(tolerances) != 1:
+    if tune_points is not None and tune_points != np.inf:  # inf: all points, as None
+        if isinstance(tune_points, bool) or not np.isfinite(tune_points) or int(tune_points) != tune_points \
+                or tune_points < 3:
+            raise ValueError(f'tune_points must be None or an integer >= 3, got {tune_points!r}')
+        tune_points = int(tune_points)
+    else:
+        tune_points = None
+    if tolerances is not None and np.ndim(tolerances) > 1:
         raise ValueError(f'tolerances must be a list of distances, got an array of shape {np.shape(tolerances)}')
     start = time.perf_counter()
     pts = as_points(points)
@@ -312,7 +316,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     check_magnitude(finite)
     rng = np.random.default_rng(seed)
     cand = default_tolerances(finite, count, lo=t_min, hi=t_max, seed=rng) if tolerances is None \
-        else np.asarray(tolerances, dtype=float)
+        else np.atleast_1d(np.asarray(tolerances, dtype=float))
     scale = tolerance_scale(finite, noise_model, noise_reference)
     if scale is not None and tolerances is None:  # the derived bounds are tolerances at typical range
         factor = float(np.median(scale))
@@ -323,10 +327,13 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                              f'largest t0 derived from this cloud, {hi:.3g} m: lower it or give t_max too')
         cand = np.geomspace(lo, hi, len(cand))
     cand = np.unique(cand)
-    if cand.size == 0 or not np.all(np.isfinite(cand)) or cand[0] <= 0:
+    if cand.size == 0:
+        raise ValueError('tolerances is empty: give at least one candidate (or None to derive them)')
+    if not np.all(np.isfinite(cand)) or cand[0] <= 0:
         raise ValueError('tolerances must be finite and > 0')
     sweep_shape = None
-    step = 0 if shape is None else grid_step(check_shape(shape, len(pts)), len(finite), tune_points)
+    shape = None if shape is None else check_shape(shape, len(pts))
+    step = 0 if shape is None else grid_step(shape, len(finite), tune_points)
     if step:
         h, w = shape
         grid = pts.reshape(h, w, 3)[step // 2::step, step // 2::step]
@@ -348,7 +355,10 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     # and numpy work release the GIL), from the generator that detect_planes(seed=ransac_seed) would
     # build it from (the same planes).
     final_rng = np.random.default_rng(int(ransac_seed))
-    with ThreadPoolExecutor(1) as pool, _workers(jobs) as run:
+    pool = ThreadPoolExecutor(1)
+    with contextlib.ExitStack() as stack, _workers(jobs) as run:
+        # a sweep that fails or is abandoned does not wait for the graph (the thread ends on its own)
+        stack.callback(pool.shutdown, wait=False, cancel_futures=True)
         final_graph = pool.submit(contextvars.copy_context().run, search_graph, pts, shape, ransac_points,
                                   final_rng) if connectivity else None
         if connectivity:  # the same neighbourhood graph for every candidate (None when it would be sampled)

@@ -110,7 +110,7 @@ def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None 
     lab = None if labels is None else np.asarray(labels).astype(np.int32).reshape(-1)
     if lab is not None and len(lab) != len(pts):
         raise ValueError(f'{len(lab)} labels for {len(pts)} points')
-    if shape is not None and int(shape[0]) * int(shape[1]) != len(pts):
+    if shape is not None and (int(shape[0]) < 1 or int(shape[1]) < 1 or int(shape[0]) * int(shape[1]) != len(pts)):
         raise ValueError(f'shape {tuple(shape)} does not match {len(pts)} points')
     check_output(path)
     suffix = path.suffix.lower()
@@ -224,17 +224,17 @@ def _loadtxt(source, delimiter: str | None = None, skiprows: int = 0) -> np.ndar
 
 
 def _header_rows(path: Path, delimiter: str | None) -> int:
-    """1 when the first line is a row of column names (``x,y,z,intensity_8bit``: every field a name,
-    starting with a letter or underscore, maybe quoted), else 0 (``1,2,3`` in an .xyz is data)."""
+    """1 when the first line is a row of column names (``x,y,z,intensity_8bit``, CloudCompare's
+    ``//X,Y,Z``: every field holds a letter and is no number), else 0 (``1,2,3`` in an .xyz is data)."""
     with open(path, 'rb') as f:
         first = f.readline(4096).decode('utf-8-sig', errors='replace').strip()
-    fields = [t.strip().strip('"\'') for t in first.split(delimiter)] if first else []
+    fields = [t.strip() for t in first.split(delimiter)] if first else []
 
     def name(text: str) -> bool:
         try:
             float(text)  # nan and inf are numbers
         except ValueError:
-            return text[:1].isalpha() or text[:1] == '_'
+            return any(c.isalpha() for c in text)
         return False
     return int(bool(fields) and all(name(t) for t in fields))
 
@@ -358,11 +358,14 @@ COORDINATE_PRECISION = 1e-4
 
 
 def coordinate_dtype(points: np.ndarray) -> np.dtype:
-    """float32 for written coordinates, float64 when a finite one is so large that float32 would
-    round it by more than COORDINATE_PRECISION (its spacing at |x| is up to |x| / 2**23), or write it
-    as inf."""
-    finite = np.abs(points[np.isfinite(points)])
-    return np.dtype('<f8' if finite.size and finite.max() > COORDINATE_PRECISION * 2.0 ** 23 else '<f4')
+    """float32 for written coordinates, float64 when float32 would round a finite one by more than
+    COORDINATE_PRECISION or write it as inf (coordinates that came as float32 stay float32)."""
+    finite = points[np.isfinite(points)]
+    if not finite.size or np.abs(finite).max() <= COORDINATE_PRECISION * 2.0 ** 23:  # float32's spacing there is finer
+        return np.dtype('<f4')
+    with np.errstate(over='ignore'):
+        error = np.abs(finite.astype(np.float32).astype(np.float64) - finite).max()
+    return np.dtype('<f8' if error > COORDINATE_PRECISION else '<f4')
 
 
 def _write_pcd(path: Path, points: np.ndarray, labels: np.ndarray | None,
@@ -413,7 +416,10 @@ def _write_npy(path: Path, points: np.ndarray, labels: np.ndarray | None) -> Non
 
 def _write_text(path: Path, points: np.ndarray, labels: np.ndarray | None) -> None:
     sep = ',' if path.suffix.lower() == '.csv' else ' '
+    finite = np.abs(points[np.isfinite(points)])
+    # 9 significant digits keep COORDINATE_PRECISION up to the magnitude float32 does; beyond it, all 17
+    digits = '%.9g' if not finite.size or finite.max() <= COORDINATE_PRECISION * 2.0 ** 23 else '%.17g'
     if labels is None:
-        np.savetxt(path, points, fmt='%.9g', delimiter=sep)
+        np.savetxt(path, points, fmt=digits, delimiter=sep)
     else:
-        np.savetxt(path, np.column_stack([points, labels]), fmt=['%.9g'] * 3 + ['%d'], delimiter=sep)
+        np.savetxt(path, np.column_stack([points, labels]), fmt=[digits] * 3 + ['%d'], delimiter=sep)

@@ -266,7 +266,7 @@ def create_cloud(header: Any, columns: Mapping[str, npt.ArrayLike], *,
         raise ValueError(f'columns must have equal length, got {lengths}')
     n = next(iter(lengths.values()))
     height, width = (1, n) if shape is None else (int(shape[0]), int(shape[1]))
-    if height * width != n:
+    if height * width != n or height < 1 or width < 0:
         raise ValueError(f'shape {tuple(shape)} does not match columns of length {n}')
 
     offsets: list[int] = []

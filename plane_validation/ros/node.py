@@ -205,7 +205,7 @@ class PlaneValidationNode(Node):
                 pass
             except Exception as exc:  # a failed sweep keeps the current tolerance; the node goes on
                 if not self._stopping:
-                    self.get_logger().warning(f'retune failed, keeping t: {exc}',
+                    self.get_logger().warning(f'retune failed, keeping t: {str(exc) or type(exc).__name__}',
                                               throttle_duration_sec=LOG_THROTTLE_S)
             finally:
                 self._sweep_ended()
