@@ -29,7 +29,7 @@ from scipy.spatial import ConvexHull, QhullError, cKDTree
 from scipy.spatial.distance import cdist, pdist
 
 from .blas import single_blas_thread
-from .plane_silhouette import plane_silhouette
+from .plane_silhouette import dense_codes, plane_silhouette
 from .ransac import finite_rows
 
 __all__ = [
@@ -135,14 +135,7 @@ def _coded(points: np.ndarray, labels: np.ndarray) -> _Coded:
     pts, lab = _check(points, labels)
     keep = np.flatnonzero(finite_rows(pts))
     lab = np.maximum(lab[keep], -1)
-    if len(lab) and lab.max() < 4 * len(lab) + 1024:
-        # Labels are small integers: a lookup table instead of np.unique's sort.
-        present = np.bincount(lab + 1) > 0
-        ids = np.flatnonzero(present) - 1
-        codes = (np.cumsum(present) - 1)[lab + 1]
-    else:
-        ids, codes = np.unique(lab, return_inverse=True)
-        codes = codes.reshape(-1)
+    ids, codes = dense_codes(lab) if len(lab) else (np.empty(0, np.int64), np.empty(0, np.int64))
     return _Coded(pts, keep, codes, ids, np.bincount(codes, minlength=len(ids)))
 
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from .ransac import as_points, finite_rows
 
-__all__ = ['plane_silhouette', 'region_frames', 'clipped_plane_distances']
+__all__ = ['plane_silhouette', 'region_frames', 'clipped_plane_distances', 'dense_codes']
 
 #: Points per region its frame (plane and extent) is estimated from.
 FRAME_POINTS = 4096
@@ -26,6 +26,17 @@ FRAME_SAMPLE = 16384
 BLOCK = 65536
 #: In-plane extent of a region: these percentiles of its points along each in-plane axis.
 EXTENT_PERCENTILES = (0.5, 99.5)
+
+
+def dense_codes(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(ids, codes) of an integer array ``values`` (n,) with n > 0: its distinct values ascending, and
+    each value's position among them (n,) (``np.unique(values, return_inverse=True)``)."""
+    low = int(values.min())
+    if int(values.max()) - low < 4 * len(values) + 1024:  # a lookup table instead of np.unique's sort
+        present = np.bincount(values - low) > 0
+        return np.flatnonzero(present) + low, (np.cumsum(present) - 1)[values - low]
+    ids, codes = np.unique(values, return_inverse=True)
+    return ids, codes.reshape(-1)
 
 
 def region_frames(points: np.ndarray, labels: np.ndarray, k: int, rng: np.random.Generator
@@ -86,14 +97,8 @@ def plane_silhouette(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     coverage = len(assigned) / np.count_nonzero(keep)
     if sample_size is not None and len(assigned) > FRAME_SAMPLE:  # with replacement: much cheaper on large clouds
         assigned = np.sort(assigned[rng.integers(0, len(assigned), FRAME_SAMPLE)])
-    ids = lab[assigned]
-    if ids.max() < 4 * len(ids) + 1024:  # small labels: a lookup table instead of np.unique's sort
-        present = np.bincount(ids) > 0
-        dense = (np.cumsum(present) - 1)[ids]  # label -> 0..k-1 among the labels present
-        k = int(np.count_nonzero(present))
-    else:
-        uniq, dense = np.unique(ids, return_inverse=True)
-        dense, k = dense.reshape(-1), len(uniq)
+    ids, dense = dense_codes(lab[assigned])
+    k = len(ids)
     origin = pts[assigned[0]]  # precision for far-away coordinates
     frame_pts = pts[assigned] - origin
     frames = region_frames(frame_pts, dense, k, rng)

@@ -357,12 +357,22 @@ def _read_pcd(path: Path) -> np.ndarray:
 COORDINATE_PRECISION = 1e-4
 
 
+def _float32_fine(points: np.ndarray) -> bool:
+    """Whether every finite coordinate is within the magnitude (838.9 m) up to which float32's spacing
+    is finer than COORDINATE_PRECISION."""
+    bound = COORDINATE_PRECISION * 2.0 ** 23
+    if not points.size or (-bound <= np.fmin.reduce(points, axis=None) and np.fmax.reduce(points, axis=None) <= bound):
+        return True  # the usual case, without copying the finite values (fmin/fmax skip NaN)
+    finite = np.abs(points[np.isfinite(points)])
+    return not finite.size or finite.max() <= bound
+
+
 def coordinate_dtype(points: np.ndarray) -> np.dtype:
     """float32 for written coordinates, float64 when float32 would round a finite one by more than
     COORDINATE_PRECISION or write it as inf (coordinates that came as float32 stay float32)."""
-    finite = points[np.isfinite(points)]
-    if not finite.size or np.abs(finite).max() <= COORDINATE_PRECISION * 2.0 ** 23:  # float32's spacing there is finer
+    if _float32_fine(points):
         return np.dtype('<f4')
+    finite = points[np.isfinite(points)]
     with np.errstate(over='ignore'):
         error = np.abs(finite.astype(np.float32).astype(np.float64) - finite).max()
     return np.dtype('<f8' if error > COORDINATE_PRECISION else '<f4')
@@ -416,9 +426,7 @@ def _write_npy(path: Path, points: np.ndarray, labels: np.ndarray | None) -> Non
 
 def _write_text(path: Path, points: np.ndarray, labels: np.ndarray | None) -> None:
     sep = ',' if path.suffix.lower() == '.csv' else ' '
-    finite = np.abs(points[np.isfinite(points)])
-    # 9 significant digits keep COORDINATE_PRECISION up to the magnitude float32 does; beyond it, all 17
-    digits = '%.9g' if not finite.size or finite.max() <= COORDINATE_PRECISION * 2.0 ** 23 else '%.17g'
+    digits = '%.9g' if _float32_fine(points) else '%.17g'  # 9 significant digits keep as much as float32
     if labels is None:
         np.savetxt(path, points, fmt=digits, delimiter=sep)
     else:
