@@ -288,3 +288,26 @@ def test_the_reason_says_when_regions_were_merged():
     seg = pv.detect_planes(pts, 0.02, seed=0, shape=sh, min_inliers=1, max_planes=10)
     merged = re.search(r'merged (\d+) region', seg.reason)
     assert merged and seg.n_planes + int(merged[1]) <= 10, seg.reason
+
+
+def test_each_sub_grid_block_is_stood_for_by_its_centre_or_its_valid_pixel_nearest_to_it():
+    from plane_validation.core.ransac import grid_pixels
+    valid = np.zeros((7, 7), bool)  # step 3: blocks of rows/columns 0-2 and 3-5 (row and column 6 in none)
+    valid[1, 1] = valid[0, 0] = True  # block (0, 0): its centre (1, 1)
+    valid[0, 3] = valid[2, 4] = True  # block (0, 1): centre (1, 4) lost; (2, 4) is next to it, (0, 3) a corner
+    valid[6, 6] = True  # in no block: block (1, 1) stays empty
+    pixels = grid_pixels(valid.reshape(-1), (7, 7), 3)
+    assert pixels.tolist() == [[1 * 7 + 1, 2 * 7 + 4], [-1, -1]]
+
+
+def test_scattered_lost_pixels_do_not_cut_an_organized_frame_into_pieces():
+    # half the pixels lost at random (a stereo camera on a textureless wall): the 4-connected sub-grid
+    # of centre pixels alone falls apart below ~59 % valid pixels; a block's other pixels stand in
+    scene = scenes.depth_camera('room', seed=2)
+    pts = scene.points.copy()
+    lost = np.random.default_rng(0).random(len(pts)) < 0.5
+    pts[lost] = np.nan
+    truth = np.where(lost, -1, scene.labels)
+    seg = pv.detect_planes(pts, 0.06, seed=0, shape=scene.shape, max_planes=12, min_inliers=0.005)
+    q = segmentation_quality(seg.labels, truth)
+    assert q.correct >= 5 and q.f1 > 0.9, q

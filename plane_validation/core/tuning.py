@@ -30,6 +30,7 @@ from .ransac import (
     check_shape,
     detect_planes,
     finite_rows,
+    grid_image,
     grid_step,
     search_graph,
 )
@@ -335,8 +336,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     shape = None if shape is None else check_shape(shape, len(pts))
     step = 0 if shape is None else grid_step(shape, len(finite), tune_points)
     if step:
-        h, w = shape
-        grid = pts.reshape(h, w, 3)[step // 2::step, step // 2::step]
+        grid, _ = grid_image(pts, finite_rows(pts), shape, step)
         sweep_pts, sweep_shape = grid.reshape(-1, 3), grid.shape[:2]
     else:  # unorganized, or an image too thin for a 2-D grid
         sweep_pts = finite if tune_points is None or len(finite) <= tune_points else \
