@@ -470,3 +470,14 @@ def test_sweep_says_when_the_chosen_t_is_the_largest_candidate(tmp_path, capsys)
     assert LARGEST_CANDIDATE in capsys.readouterr().out
     assert main(['sweep', str(cloud), '--tolerances', '1:60:5', '--seed', '0']) == 0
     assert LARGEST_CANDIDATE not in capsys.readouterr().out
+
+
+def test_detect_leaves_out_points_at_the_origin_unless_told_otherwise(tmp_path, capsys):
+    scene = scenes.corner(3000, 0.5, scale=0.01, seed=1)
+    points = np.vstack([scene.points, np.zeros((500, 3))])  # a driver's "no return" rows
+    path = tmp_path / 'zeros.xyz'
+    np.savetxt(path, points)
+    assert main(['detect', str(path), '--tolerance', '0.01']) == 0
+    assert f'{len(points)} points, {len(scene.points)} valid' in capsys.readouterr().out
+    assert main(['detect', str(path), '--tolerance', '0.01', '--no-zero-is-no-return']) == 0
+    assert f'{len(points)} points, {len(points)} valid' in capsys.readouterr().out

@@ -20,8 +20,9 @@ def corner(noise_cm: float = 0.5, n: int = 3000, seed: int = 1) -> np.ndarray:
 @pytest.mark.parametrize('points, level, words', [
     (np.full((100, 3), np.nan), WARN, 'too few'),
     # three points do make a plane, but no evidence of one
-    (np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), WARN, '1 plane(s) but plane 0 rests on 3 points'),
-    (np.array([[0.0, 0, 0], [0, 0, 0], [1, 1, 1]]), WARN, 'collinear'),
+    (np.array([[1.0, 0, 0], [0, 1, 0], [0, 0, 1]]), WARN, '1 plane(s) but plane 0 rests on 3 points'),
+    (np.array([[1.0, 1, 1], [1, 1, 1], [2, 2, 2]]), WARN, 'collinear'),
+    (np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), WARN, 'too few valid points: 2'),  # (0, 0, 0): no return
     (np.ones((10, 2)), ERROR, 'bad input'),
     (np.array([['a', 'b', 'c']]), ERROR, 'bad input'),
 ])
@@ -288,3 +289,26 @@ def test_a_sweep_range_too_small_for_the_noise_is_named_in_the_message():
     assert frame.diagnostic.level == WARN and pipe.tolerance is None
     assert re.search(r'no plane in this frame at any t from [\d.e-]+ to 0\.0001 m .*; tune_max set that range',
                      frame.message), frame.message
+
+
+@pytest.mark.parametrize('organized', [False, True])
+def test_points_at_the_origin_are_no_returns_not_a_plane(organized):
+    # some drivers (ouster-ros, for one) mark a pixel without a return as (0, 0, 0): thousands of copies
+    # of one point, which every plane through the origin would take as inliers
+    scene = scenes.depth_camera('table', width=160, height=120, seed=0)
+    pts = scene.points.copy()
+    pts[:1800] = 0.0  # the top 15 rows
+    shape = scene.shape if organized else None
+    rows = pts if organized else pts[np.isfinite(pts).all(axis=1)]
+    n_zero = int(np.count_nonzero((rows == 0).all(axis=1)))
+    assert n_zero > 1000
+    config = dataclasses.replace(FIXED, min_inliers=50.0)
+    result = FramePipeline(config).process(rows, 0, shape=shape)
+    values = dict(result.values)
+    assert values['no_return_points'] == str(n_zero)
+    assert int(values['valid_points']) == np.isfinite(rows).all(axis=1).sum() - n_zero
+    assert not (result.points == 0).all(axis=1).any()
+    assert all(plane.rms > 0 for plane in result.segmentation.planes)
+    kept = FramePipeline(dataclasses.replace(config, zero_is_no_return=False)).process(rows, 0, shape=shape)
+    assert dict(kept.values)['no_return_points'] == '0'
+    assert (kept.points == 0).all(axis=1).sum() == n_zero  # points like any other when told so

@@ -311,3 +311,22 @@ def test_scattered_lost_pixels_do_not_cut_an_organized_frame_into_pieces():
     seg = pv.detect_planes(pts, 0.06, seed=0, shape=scene.shape, max_planes=12, min_inliers=0.005)
     q = segmentation_quality(seg.labels, truth)
     assert q.correct >= 5 and q.f1 > 0.9, q
+
+
+def test_a_360_degree_lidar_image_is_joined_across_its_seam():
+    # the wall at x = 12 m faces azimuth 0, where an organized scan's first and last columns meet
+    scene = scenes.lidar(organized=True, rings=16, seed=1)
+    assert scene.shape == (16, 1800)
+    seg = pv.detect_planes(scene.points, 0.06, seed=0, shape=scene.shape, max_planes=12, min_inliers=0.005)
+    q = segmentation_quality(seg.labels, scene.labels)
+    assert seg.n_planes == q.correct == q.true_planes == 6, q
+    wall = seg.labels[scene.labels == 3]
+    assert np.bincount(wall[wall >= 0]).max() > 0.85 * len(wall)
+
+
+def test_only_a_scan_whose_last_column_is_next_to_its_first_wraps_around():
+    from plane_validation.core.regions import grid_neighbours
+    for scene, wraps in ((scenes.lidar(organized=True, rings=16, seed=1), True),
+                         (scenes.depth_camera('room', width=160, height=120, seed=0), False)):
+        image = scene.points.reshape(*scene.shape, 3)
+        assert grid_neighbours(image, np.isfinite(image).all(axis=2)).wraps is wraps

@@ -112,6 +112,8 @@ class PipelineConfig:
                           'noise_reference)', choices=NOISE_MODELS)
     noise_reference: float = _p(NOISE_REFERENCE, 'range up to which depth_quadratic keeps t', low=0.01, high=100.0,
                                 unit='m')
+    zero_is_no_return: bool = _p(True, 'a point at exactly (0, 0, 0) is a driver\'s "no return" mark (as NaN is) and '
+                                 'is left out; false = a point like any other')
     voxel_size: float = _p(0.0, 'voxel grid applied before detection; 0 = off', low=1e-6, high=MAX_DISTANCE,
                            special=0.0, unit='m')
     seed: int = _p(0, 'random seed; frames are seeded by (seed, header stamp); -1 = fresh entropy every frame',

@@ -18,7 +18,7 @@ from ..core.blas import limit_blas_threads
 from ..core.geometry import voxel_downsample
 from ..core.indices import ValidityIndices, validity_indices
 from ..core.noise import noise_coefficient
-from ..core.ransac import Segmentation, as_points, detect_planes, finite_rows
+from ..core.ransac import Segmentation, as_points, detect_planes, finite_rows, no_returns_as_nan
 from ..core.tuning import TuningResult, TuningWorkerError, noise_from_segmentation, quick_tolerance, tune_tolerance
 from ..core.verdict import judge
 from ..formats.pointcloud2 import trailing_bytes, xyz_array
@@ -43,7 +43,8 @@ RETRY_MAX_S = 60.0
 #: Configuration fields whose change voids the tuned tolerance (and a sweep in progress).
 TUNING_FIELDS = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points', 'criterion', 'max_planes',
                  'min_inliers', 'voxel_size', 'probability', 'max_iterations', 'index_sample_size',
-                 'exact_indices', 'ransac_points', 'connectivity', 'noise_model', 'noise_reference')
+                 'exact_indices', 'ransac_points', 'connectivity', 'noise_model', 'noise_reference',
+                 'zero_is_no_return')
 
 
 @dataclass(frozen=True, eq=False)
@@ -264,9 +265,10 @@ class FramePipeline:
         stamp = stamp_ns * 1e-9
         cfg = self.config
         try:
-            pts = as_points(points)
+            given = as_points(points)
         except ValueError as exc:
             return _failed(ERROR, f'bad input: {exc}', start, self.current_tolerance())
+        pts, no_returns = no_returns_as_nan(given) if cfg.zero_is_no_return else (given, 0)
         finite = finite_rows(pts)
         valid = np.compress(finite, pts, axis=0)  # much faster than a boolean index
         n_input = len(pts)
@@ -322,8 +324,8 @@ class FramePipeline:
             used = source.split(' (')[0]
             level, message = WARN, f'{tune_problem}; detected with {used} t={tolerance:.4g} m: {message}'
         counts = np.bincount(labels[labels >= 0], minlength=seg.n_planes)
-        values = _values(cfg, tolerance, source, n_input, len(valid), int(np.sum(labels < 0)), seg, counts, scores,
-                         noise_from_segmentation(seg, work), work)
+        values = _values(cfg, tolerance, source, n_input, len(valid), no_returns, int(np.sum(labels < 0)), seg, counts,
+                         scores, noise_from_segmentation(seg, work), work)
         if agreement is not None:
             values += (('seed_agreement', fmt(agreement)),)
         seconds = time.perf_counter() - start
@@ -333,11 +335,12 @@ class FramePipeline:
                            plane_counts=tuple(int(c) for c in counts), organized=pts if shape else None, shape=shape)
 
 
-def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_valid: int, n_unassigned: int,
-            seg: Segmentation, counts: np.ndarray, scores: ValidityIndices,
+def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_valid: int, no_returns: int,
+            n_unassigned: int, seg: Segmentation, counts: np.ndarray, scores: ValidityIndices,
             noise: float, work: np.ndarray) -> tuple[tuple[str, str], ...]:
     values = [('tolerance', fmt(tolerance)), ('tolerance_source', source), ('criterion', cfg.criterion),
               ('planes', str(seg.n_planes)), ('input_points', str(n_input)), ('valid_points', str(n_valid)),
+              ('no_return_points', str(no_returns)),
               ('unassigned_points', str(n_unassigned)),
               ('dunn', fmt(scores.dunn)), ('davies_bouldin', fmt(scores.davies_bouldin)),
               ('gs', fmt(scores.gs)), ('gs_se', fmt(scores.gs_se)),

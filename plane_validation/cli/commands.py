@@ -114,10 +114,13 @@ def _check_outputs(args: argparse.Namespace, *names: str) -> None:
                 raise ValueError(f'{path}: given to both --{other} and --{name}; choose two names')
 
 
-def _load(cloud: str) -> tuple[np.ndarray, tuple[int, int] | None]:
-    """load_cloud, refusing a cloud with fewer than 3 valid points: no plane can be found in it."""
-    from ..core.ransac import finite_rows
-    points, shape = load_cloud(cloud)
+def _load(args: argparse.Namespace) -> tuple[np.ndarray, tuple[int, int] | None]:
+    """load_cloud of ``args.cloud`` (rows at (0, 0, 0) as NaN with ``args.zero_is_no_return``), refusing a
+    cloud with fewer than 3 valid points: no plane can be found in it."""
+    from ..core.ransac import finite_rows, no_returns_as_nan
+    points, shape = load_cloud(args.cloud)
+    if args.zero_is_no_return:
+        points, _ = no_returns_as_nan(points)
     valid = int(np.count_nonzero(finite_rows(points)))
     if valid < 3:
         raise ValueError(f'{valid} valid point(s) of {len(points)}: a plane needs at least 3')
@@ -147,7 +150,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
     _check_outputs(args, 'out', 'png')
     tolerance = None if args.auto else args.tolerance
     with _about(args.cloud), progress_bar('tuning t', quiet=args.json) as progress:
-        points, shape = _load(args.cloud)
+        points, shape = _load(args)
         det = detect(points, tolerance, seed=_seed(args.seed), max_planes=args.max_planes,
                      min_inliers=min_inliers_value(args.min_inliers), progress=progress, shape=shape,
                      noise_model=args.noise_model, noise_reference=args.noise_reference, jobs=args.tune_jobs)
@@ -192,7 +195,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     _check_outputs(args, 'plot', 'csv')
     with _about(args.cloud), progress_bar('sweeping t', quiet=args.json) as progress:
-        points, shape = _load(args.cloud)
+        points, shape = _load(args)
         result = tune_tolerance(points, tolerances=args.tolerances, criterion=args.criterion, seed=_seed(args.seed),
                                 max_planes=args.max_planes, min_inliers=min_inliers_value(args.min_inliers),
                                 progress=progress, shape=shape, noise_model=args.noise_model,
@@ -230,7 +233,7 @@ def cmd_planes(args: argparse.Namespace) -> int:
     min_inliers = min_inliers_value(args.min_inliers)
     tolerance, source = args.tolerance, 'fixed'
     with _about(args.cloud):
-        points, shape = _load(args.cloud)
+        points, shape = _load(args)
         if tolerance is None:
             with progress_bar('tuning t', quiet=args.json) as progress:
                 tolerance = tune_tolerance(points, seed=_seed(args.seed), max_planes=args.max_planes,
@@ -432,8 +435,8 @@ def _seed(value: int) -> int | None:
 
 
 def _add_detection_options(parser: argparse.ArgumentParser) -> None:
-    """--seed, --max-planes, --min-inliers, --noise-model, --tune-jobs for the file commands (type, range and default
-    from the table)."""
+    """--seed, --max-planes, --min-inliers, --noise-model, --tune-jobs, --zero-is-no-return for the file commands
+    (type, range and default from the table)."""
     from ..app.config import PARAMETERS
     for name, metavar in (('seed', 'S'), ('max_planes', 'K'), ('min_inliers', 'M'), ('noise_model', 'MODEL'),
                           ('noise_reference', 'R'), ('tune_jobs', 'N')):
@@ -441,6 +444,9 @@ def _add_detection_options(parser: argparse.ArgumentParser) -> None:
         text = 'random seed; -1 = fresh entropy' if name == 'seed' else spec.description  # one cloud, no stamps
         parser.add_argument('--' + name.replace('_', '-'), dest=name, type=_table_type(name), default=spec.default,
                             metavar=metavar, help=f'{text} (default {spec.default})')
+    spec = PARAMETERS['zero_is_no_return']
+    parser.add_argument('--zero-is-no-return', dest='zero_is_no_return', action=argparse.BooleanOptionalAction,
+                        default=spec.default, help=f'{spec.description} (default {str(spec.default).lower()})')
 
 
 def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:

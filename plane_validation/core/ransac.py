@@ -21,7 +21,7 @@ from .noise import NOISE_REFERENCE, tolerance_scale
 from .regions import NORMAL_MIN_COS, Neighbours, graph_neighbours, grid_neighbours
 
 __all__ = ['Plane', 'Segmentation', 'SearchGraph', 'detect_planes', 'search_graph', 'fit_plane', 'as_points',
-           'finite_rows', 'resolve_min_inliers']
+           'finite_rows', 'no_returns_as_nan', 'resolve_min_inliers']
 
 #: Hypotheses scored per numpy call.
 BATCH = 128
@@ -109,6 +109,19 @@ def finite_rows(points: np.ndarray) -> np.ndarray:
     ok &= np.isfinite(points[:, 1])
     ok &= np.isfinite(points[:, 2])
     return ok
+
+
+def no_returns_as_nan(points: np.ndarray) -> tuple[np.ndarray, int]:
+    """``points`` (N, 3) with rows at exactly (0, 0, 0) set to NaN (a copy, only when there are any),
+    and how many there were: the "no return" mark of sensor drivers that do not use NaN (a lidar
+    or depth camera reports no point at its own origin)."""
+    zero = (points[:, 0] == 0) & (points[:, 1] == 0) & (points[:, 2] == 0)
+    count = int(np.count_nonzero(zero))
+    if count == 0:
+        return points, 0
+    out = np.array(points, dtype=np.result_type(points.dtype, np.float32))
+    out[zero] = np.nan
+    return out, count
 
 
 #: Largest coordinate magnitude accepted, meters: squared distances of larger ones overflow float64 (a
@@ -795,12 +808,13 @@ MERGE_SPREAD = 1.5
 
 def _adjacent(neighbours: Neighbours) -> tuple[np.ndarray, np.ndarray]:
     """(src, dst) point pairs of the searched points that touch: graph edges, or right and down
-    neighbours on the sub-grid that may both join a region (no depth jump between them)."""
+    neighbours on the sub-grid that may both join a region (no depth jump between them), and the last
+    and first pixels of each row when the image wraps around (a 360-degree scan)."""
     if neighbours.shape is None:
         return neighbours.edges[:, 0], neighbours.edges[:, 1]
     node = np.where(neighbours.usable, neighbours.node, -1).reshape(neighbours.shape)
-    src = np.concatenate([node[:, :-1].ravel(), node[:-1].ravel()])
-    dst = np.concatenate([node[:, 1:].ravel(), node[1:].ravel()])
+    src = np.concatenate([node[:, :-1].ravel(), node[:-1].ravel()] + ([node[:, -1]] if neighbours.wraps else []))
+    dst = np.concatenate([node[:, 1:].ravel(), node[1:].ravel()] + ([node[:, 0]] if neighbours.wraps else []))
     both = (src >= 0) & (dst >= 0)
     return src[both], dst[both]
 

@@ -73,6 +73,7 @@ class Neighbours:
     edges: np.ndarray | None = None
     normals: np.ndarray | None = None  # (n, 3) unit local surface normals, NaN where unknown
     adjacency: tuple[np.ndarray, np.ndarray] | None = None  # graph form: CSR (indptr, indices), both ways
+    wraps: bool = False  # grid form: the last column is next to the first (a 360-degree lidar scan)
 
     def nearby(self, nodes: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """A random point near each of ``nodes`` (m,): within a window of NEARBY_SCALES pixels
@@ -260,7 +261,17 @@ def grid_neighbours(image_points: np.ndarray, valid: np.ndarray) -> Neighbours:
     node = np.full(h * w, -1, dtype=np.int64)
     node[pixel] = np.arange(len(pixel))
     return Neighbours(n=len(pixel), shape=(h, w), pixel=pixel, node=node, usable=usable.reshape(-1),
-                      normals=normals)
+                      normals=normals, wraps=_wraps(image_points, valid, ranges, typical))
+
+
+def _wraps(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, typical: float) -> bool:
+    """Whether the image's last column lies next to its first, as in a spinning lidar's 360-degree scan:
+    their gaps, per meter of range, are typically within JUMP typical pixel spacings."""
+    both = valid[:, 0] & valid[:, -1]
+    if image_points.shape[1] < 3 or not both.any() or typical <= 0:
+        return False
+    gap = np.linalg.norm(image_points[both, 0] - image_points[both, -1], axis=1)
+    return bool(np.median(gap / np.minimum(ranges[both, 0], ranges[both, -1])) <= JUMP * typical)
 
 
 def _grid_normals(image_points: np.ndarray, valid: np.ndarray) -> np.ndarray:

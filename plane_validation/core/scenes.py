@@ -309,9 +309,12 @@ def depth_camera(view: str = 'room', *, width: int = 640, height: int = 480, hfo
 
 
 def lidar(*, rings: int = 32, azimuths: int = 1800, sigma: float = 0.015, height: float = 1.8,
-          elevation_deg: tuple[float, float] = (-30.0, 10.0), max_range: float = 60.0, seed=None) -> Scene:
-    """A spinning lidar's scan (sensor frame, meters, unorganized) of a street: ``rings`` beams
-    between the elevations, ``azimuths`` steps per turn, range noise N(0, sigma) along each beam."""
+          elevation_deg: tuple[float, float] = (-30.0, 10.0), max_range: float = 60.0, organized: bool = False,
+          seed=None) -> Scene:
+    """A spinning lidar's scan (sensor frame, meters) of a street: ``rings`` beams between the
+    elevations, ``azimuths`` steps per turn from azimuth 0 (+x), range noise N(0, sigma) along each
+    beam. Unorganized (the returns only), or with ``organized`` a rings x azimuths image with NaN rows
+    for beams without a return (as velodyne_pointcloud and ouster-ros publish it)."""
     if rings < 1 or azimuths < 1 or sigma < 0 or max_range <= 0:
         raise ValueError('need rings, azimuths >= 1, sigma >= 0 and max_range > 0')
     rects = _street()
@@ -326,4 +329,10 @@ def lidar(*, rings: int = 32, azimuths: int = 1800, sigma: float = 0.015, height
     r = rng_[hit] + rng.normal(0.0, sigma, hit.sum())
     points = rays[hit] * r[:, None]
     planes = np.array([np.append(rect.normal, -rect.normal @ (np.asarray(rect.origin) - eye)) for rect in rects])
-    return Scene(name='lidar_street', points=points, labels=which[hit].astype(np.int32), planes=planes, noise=sigma)
+    labels = which[hit].astype(np.int32)
+    if organized:
+        image = np.full((len(rays), 3), np.nan)
+        image[hit] = points
+        points, labels = image, np.where(hit, which, -1).astype(np.int32)
+    return Scene(name='lidar_street', points=points, labels=labels, planes=planes, noise=sigma,
+                 shape=(rings, azimuths) if organized else None)
