@@ -115,7 +115,10 @@ def no_returns_as_nan(points: np.ndarray) -> tuple[np.ndarray, int]:
     """``points`` (N, 3) with rows at exactly (0, 0, 0) set to NaN (a copy, only when there are any),
     and how many there were: the "no return" mark of sensor drivers that do not use NaN (a lidar
     or depth camera reports no point at its own origin)."""
-    zero = (points[:, 0] == 0) & (points[:, 1] == 0) & (points[:, 2] == 0)
+    zero = points[:, 0] == 0
+    if not zero.any():  # the usual frame: one comparison
+        return points, 0
+    zero &= (points[:, 1] == 0) & (points[:, 2] == 0)
     count = int(np.count_nonzero(zero))
     if count == 0:
         return points, 0
