@@ -11,7 +11,9 @@ points; :meth:`Neighbours.components` then labels the connected components of an
   neighbours are labelled afterwards from the regions around them). Components come from
   ``scipy.ndimage.label``.
 * Unorganized clouds: each point's ``NEIGHBOURS`` nearest neighbours within ``RADIUS`` median
-  neighbour spacings (scipy's kd-tree), components by ``scipy.sparse.csgraph``.
+  neighbour spacings (scipy's kd-tree), components by ``scipy.sparse.csgraph``. A point whose
+  neighbours all lie on one lidar ring (a line, or a strip widened by range noise) is also joined to
+  the next ring, and a strip takes its normal from both rings.
 Pure numpy/scipy.
 """
 from __future__ import annotations
@@ -42,6 +44,17 @@ ACROSS_CANDIDATES = 48
 ACROSS_FAR = 512
 #: Neighbour indices held at once by that search (rows x candidates).
 ACROSS_BLOCK = 1 << 20
+#: The neighbours of a point on one lidar ring with range noise lie on the beam's cone: a flat strip
+#: across the surface, whose normal is not the surface's (on a wall facing the sensor it is 90 degrees
+#: off). A neighbourhood flat to within this share of its width (eigenvalues) with one of the
+#: ACROSS_CANDIDATES nearest more than 30 degrees off its plane (the next ring) is such a strip:
+#: it is joined to that point and takes its normal from both points' neighbours together.
+STRIP_FLATNESS = 0.01
+#: ... and seen edge-on from the origin, as the cone is from the sensor (sine of the angle between
+#: the plane and the ray).
+STRIP_EDGE_ON = float(np.sin(np.radians(10.0)))
+#: A neighbourhood thicker than this share of its width (eigenvalues) is noise above the spacing: no normal.
+NOISY = 0.1
 #: A point whose local surface normal is farther than this from a candidate plane's normal does not
 #: count towards that plane's region (a plane slanted across the nosings of a staircase keeps only
 #: strips of the treads, not the risers that would join them into one region).
@@ -288,12 +301,14 @@ def _grid_normals(image_points: np.ndarray, valid: np.ndarray) -> np.ndarray:
 
 
 def _across(tree: cKDTree, points: np.ndarray, rows: np.ndarray, direction: np.ndarray, skip: int,
-            candidates: int) -> tuple[np.ndarray, np.ndarray]:
+            candidates: int, off_plane: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """For the points ``rows`` whose neighbours lie along ``direction`` (m, 3): whether one of their
-    ``candidates`` nearest (after the first ``skip``) lies off that line, and the nearest such one."""
+    ``candidates`` nearest (after the first ``skip``) lies off that line, and the nearest such one.
+    With ``off_plane``, ``direction`` is the normal of a flat neighbourhood and "off" means more
+    than 30 degrees off its plane."""
     if len(rows) * candidates > ACROSS_BLOCK:  # bounded memory: a block of rows at a time
         step = max(1, ACROSS_BLOCK // candidates)
-        parts = [_across(tree, points, rows[i:i + step], direction[i:i + step], skip, candidates)
+        parts = [_across(tree, points, rows[i:i + step], direction[i:i + step], skip, candidates, off_plane)
                  for i in range(0, len(rows), step)]
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
     _, near = tree.query(points[rows], k=candidates)
@@ -302,7 +317,7 @@ def _across(tree: cKDTree, points: np.ndarray, rows: np.ndarray, direction: np.n
     offs = points[near] - points[rows, None, :]
     with np.errstate(invalid='ignore', divide='ignore'):
         cos = np.abs(np.einsum('nkd,nd->nk', offs, direction)) / np.linalg.norm(offs, axis=-1)
-    across = cos < 0.7  # NaN (the point itself) is not across
+    across = cos > 0.5 if off_plane else cos < 0.7  # NaN (the point itself) is neither
     first = np.argmax(across, axis=1)
     return across[np.arange(len(rows)), first], near[np.arange(len(rows)), first]
 
@@ -334,13 +349,15 @@ def _graph(points: np.ndarray, merge_copies: bool) -> Neighbours:
     edges = [np.column_stack([rows[near], idx[:, 1:k][near]])]
     normals = None
     if k >= 4:  # local normals: the smallest principal axis of each point's neighbourhood
-        nb = points[idx[:, :k]]
-        nb = nb - nb.mean(axis=1, keepdims=True)
-        values, vectors = np.linalg.eigh(np.einsum('nki,nkj->nij', nb, nb))
+        values, vectors = _principal_axes(points[idx[:, :k]])
         normals = vectors[:, :, 0]
         line = values[:, 1] < 0.05 * values[:, 2]  # neighbours along a line: no normal, a ring
         normals[line] = np.nan
-        normals[values[:, 0] > 0.1 * values[:, 1]] = np.nan  # noise above the spacing: no normal either
+        normals[values[:, 0] > NOISY * values[:, 1]] = np.nan  # noise above the spacing: no normal either
+        rows_s, target = _strips(tree, points, ~line & (values[:, 0] < STRIP_FLATNESS * values[:, 1]), normals, k)
+        edges.append(np.column_stack([rows_s, target]))
+        both_values, both_axes = _principal_axes(points[np.concatenate([idx[rows_s, :k], idx[target, :k]], axis=1)])
+        normals[rows_s] = np.where((both_values[:, 0] > NOISY * both_values[:, 1])[:, None], np.nan, both_axes[:, :, 0])
         rows_l = np.flatnonzero(line)
         for candidates in (ACROSS_CANDIDATES, ACROSS_FAR):
             if len(rows_l) == 0 or min(candidates, n) <= k:
@@ -349,6 +366,29 @@ def _graph(points: np.ndarray, merge_copies: bool) -> Neighbours:
             edges.append(np.column_stack([rows_l[found], target[found]]))
             rows_l = rows_l[~found]
     return _neighbours(n, np.concatenate(edges), normals)
+
+
+def _principal_axes(neighbourhoods: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (m, 3), ascending, and unit principal axes (m, 3, 3), as columns, of point sets (m, k, 3)."""
+    nb = neighbourhoods - neighbourhoods.mean(axis=1, keepdims=True)
+    return np.linalg.eigh(np.einsum('nki,nkj->nij', nb, nb))
+
+
+def _strips(tree: cKDTree, points: np.ndarray, flat: np.ndarray, normals: np.ndarray, k: int
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Points whose ``flat`` neighbourhood of k (normal ``normals``, (n, 3)) is a strip of one lidar
+    ring (see STRIP_FLATNESS), and for each the point of the next ring: (rows (m,), targets (m,))."""
+    with np.errstate(invalid='ignore'):
+        edge_on = np.abs(np.einsum('ij,ij->i', normals, points)) < STRIP_EDGE_ON * np.linalg.norm(points, axis=1)
+    rows = np.flatnonzero(flat & edge_on)
+    candidates = min(ACROSS_CANDIDATES, len(points))
+    if len(rows) == 0 or candidates <= k:
+        return rows[:0], rows[:0]
+    found, target = _across(tree, points, rows, normals[rows], k, candidates, off_plane=True)
+    # the next ring's strip lies on a cone of nearly the same normal; a point of another surface
+    # across an edge (or a point without a flat neighbourhood) is not taken
+    found &= np.abs(np.einsum('ij,ij->i', normals[rows], normals[target])) >= NORMAL_MIN_COS
+    return rows[found], target[found]
 
 
 def _with_copies(points: np.ndarray) -> Neighbours:

@@ -246,6 +246,13 @@ SENSOR_VIEWS = {
 }
 
 
+#: Spinning-lidar views: rectangles and where the sensor stands (x, y; meters), as ``lidar`` names them.
+LIDAR_VIEWS = {
+    'street': (_street, (0.0, 0.0)),
+    'room': (_furnished_room, (2.5, 2.0)),
+}
+
+
 def _raycast(rects: list[_Rect], eye: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Nearest hit of each ray (n, 3, unit) from ``eye``: (range (n,), rectangle index (n,), -1 none)."""
     best = np.full(len(rays), np.inf)
@@ -308,18 +315,23 @@ def depth_camera(view: str = 'room', *, width: int = 640, height: int = 480, hfo
                  shape=(height, width))
 
 
-def lidar(*, rings: int = 32, azimuths: int = 1800, sigma: float = 0.015, height: float = 1.8,
-          elevation_deg: tuple[float, float] = (-30.0, 10.0), max_range: float = 60.0, organized: bool = False,
-          seed=None) -> Scene:
-    """A spinning lidar's scan (sensor frame, meters) of a street: ``rings`` beams between the
-    elevations, ``azimuths`` steps per turn from azimuth 0 (+x), range noise N(0, sigma) along each
-    beam. Unorganized (the returns only), or with ``organized`` a rings x azimuths image with NaN rows
-    for beams without a return (as velodyne_pointcloud and ouster-ros publish it)."""
+def lidar(view: str = 'street', *, rings: int = 32, azimuths: int = 1800, sigma: float = 0.015,
+          height: float = 1.8, elevation_deg: tuple[float, float] = (-30.0, 10.0), max_range: float = 60.0,
+          organized: bool = False, seed=None) -> Scene:
+    """A spinning lidar's scan (sensor frame, meters) of a :data:`LIDAR_VIEWS` view (a street, or the
+    depth camera's furnished room from its middle), the sensor ``height`` above the ground: ``rings``
+    beams between the elevations, ``azimuths`` steps per turn from azimuth 0 (+x), range noise
+    N(0, sigma) along each beam. Unorganized (the returns only), or with ``organized`` a rings x
+    azimuths image with NaN rows for beams without a return (as velodyne_pointcloud and ouster-ros
+    publish it)."""
+    if view not in LIDAR_VIEWS:
+        raise ValueError(f'view must be one of {", ".join(LIDAR_VIEWS)}, got {view!r}')
     if rings < 1 or azimuths < 1 or sigma < 0 or max_range <= 0:
         raise ValueError('need rings, azimuths >= 1, sigma >= 0 and max_range > 0')
-    rects = _street()
+    make, (x, y) = LIDAR_VIEWS[view]
+    rects = make()
     rng = np.random.default_rng(seed)
-    eye = np.array([0.0, 0.0, height])
+    eye = np.array([x, y, height])
     el = np.radians(np.linspace(*elevation_deg, rings))[:, None]
     az = np.linspace(0, 2 * np.pi, azimuths, endpoint=False)[None, :]
     rays = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el) * np.ones_like(az)], -1)
@@ -334,5 +346,5 @@ def lidar(*, rings: int = 32, azimuths: int = 1800, sigma: float = 0.015, height
         image = np.full((len(rays), 3), np.nan)
         image[hit] = points
         points, labels = image, np.where(hit, which, -1).astype(np.int32)
-    return Scene(name='lidar_street', points=points, labels=labels, planes=planes, noise=sigma,
+    return Scene(name=f'lidar_{view}', points=points, labels=labels, planes=planes, noise=sigma,
                  shape=(rings, azimuths) if organized else None)
