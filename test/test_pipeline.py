@@ -73,6 +73,18 @@ def test_voxel_grid_reports_counts_in_input_points():
     assert len(result.segmentation.planes[0].inliers) < result.plane_counts[0]  # detection ran on voxels
 
 
+def test_with_a_voxel_grid_each_labelled_point_lies_within_t_of_its_plane():
+    # a point took its voxel's label even 2 t from the plane (a voxel's points spread about its diagonal)
+    pts = corner(0.5, n=20000)
+    t = 0.01
+    result = FramePipeline(PipelineConfig(auto_tune=False, tolerance=t, voxel_size=0.05)).process(pts, 0)
+    labelled = result.labels >= 0
+    plane = result.segmentation.coefficients[result.labels[labelled]]
+    distance = np.abs(np.einsum('ij,ij->i', result.points[labelled], plane[:, :3]) + plane[:, 3])
+    assert result.n_planes == 3 and distance.max() <= t and labelled.mean() > 0.6
+    assert int(dict(result.values)['unassigned_points']) == int(np.sum(~labelled))
+
+
 def test_voxel_downsample_centroids():
     pts = np.array([[0.01, 0.01, 0.01], [0.03, 0.03, 0.03], [0.26, 0.0, 0.0]])
     centroids, inverse = voxel_downsample(pts, 0.1)

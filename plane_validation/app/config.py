@@ -114,8 +114,8 @@ class PipelineConfig:
                                 unit='m')
     zero_is_no_return: bool = _p(True, 'a point at exactly (0, 0, 0) is a driver\'s "no return" mark (as NaN is) and '
                                  'is left out; false = a point like any other')
-    voxel_size: float = _p(0.0, 'voxel grid applied before detection; 0 = off', low=1e-6, high=MAX_DISTANCE,
-                           special=0.0, unit='m')
+    voxel_size: float = _p(0.0, 'voxel grid applied before detection (each point then takes its voxel\'s plane '
+                           'if within t of it); 0 = off', low=1e-6, high=MAX_DISTANCE, special=0.0, unit='m')
     seed: int = _p(0, 'random seed; frames are seeded by (seed, header stamp); -1 = fresh entropy every frame',
                    low=-1, high=2**31 - 1)
 

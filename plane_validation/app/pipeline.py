@@ -17,7 +17,7 @@ import numpy as np
 from ..core.blas import limit_blas_threads
 from ..core.geometry import voxel_downsample
 from ..core.indices import ValidityIndices, validity_indices
-from ..core.noise import noise_coefficient
+from ..core.noise import noise_coefficient, tolerance_scale
 from ..core.ransac import Segmentation, as_points, detect_planes, finite_rows, no_returns_as_nan
 from ..core.tuning import TuningResult, TuningWorkerError, noise_from_segmentation, quick_tolerance, tune_tolerance
 from ..core.verdict import judge
@@ -308,7 +308,10 @@ class FramePipeline:
                                     ransac_points=cfg.ransac_points or None, shape=shape,
                                     connectivity=cfg.connectivity, noise_model=cfg.noise_model,
                                     noise_reference=cfg.noise_reference)
-                labels = seg.labels[inverse] if inverse is not None else seg.labels[finite] if shape else seg.labels
+                if inverse is not None:  # each point its voxel's plane, if it lies within t of it
+                    labels = _within_plane(valid, seg.labels[inverse], seg, tolerance)
+                else:
+                    labels = seg.labels[finite] if shape else seg.labels
                 # an organized frame's indices from its valid rows: the same values, no second NaN filter
                 scored = (valid, labels) if shape is not None else (work, seg.labels)
                 scores = validity_indices(*scored, sample_size=cfg.index_sample_size, seed=seed,
@@ -333,6 +336,18 @@ class FramePipeline:
         return FrameResult(points=valid, labels=labels, segmentation=seg, indices=scores, tolerance=tolerance,
                            tolerance_source=source, diagnostic=Diagnostic(level, message, values), seconds=seconds,
                            plane_counts=tuple(int(c) for c in counts), organized=pts if shape else None, shape=shape)
+
+
+def _within_plane(points: np.ndarray, labels: np.ndarray, seg: Segmentation, tolerance: float) -> np.ndarray:
+    """``labels`` (n,) of ``points`` (n, 3) meters, -1 where a point lies farther from its plane than
+    the tolerance at that point (a voxel's points spread up to about its diagonal from the centroid)."""
+    planes = np.asarray(seg.coefficients, dtype=float).reshape(-1, 4)
+    if len(planes) == 0:
+        return labels
+    plane = planes[np.maximum(labels, 0)]
+    distance = np.abs(np.einsum('ij,ij->i', points, plane[:, :3]) + plane[:, 3])
+    scale = tolerance_scale(points, seg.noise_model, seg.noise_reference)
+    return np.where(distance <= tolerance * (1.0 if scale is None else scale), labels, -1)
 
 
 def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_valid: int, no_returns: int,
