@@ -371,6 +371,13 @@ def test_three_points_are_a_plane_but_not_a_reliable_one():
     assert f'plane 0 rests on 3 points (< {MIN_PLANE_POINTS})' in result.verdict
 
 
+def test_copies_of_three_points_are_no_more_evidence_than_three_points():
+    three = np.repeat(np.random.default_rng(0).random((3, 3)), 33, axis=0)
+    result = pv.tune_tolerance(three, seed=0)
+    assert result.segmentation.n_planes == 1 and not result.reliable
+    assert 'plane 0 rests on 3 distinct points (99 with copies)' in result.verdict
+
+
 def test_a_stray_small_plane_beside_good_ones_keeps_them_reliable():
     """The planes on fewer than MIN_PLANE_POINTS points hold a small share here: the stairs stay reliable."""
     from plane_validation.core.verdict import MIN_PLANE_POINTS

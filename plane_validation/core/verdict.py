@@ -41,8 +41,9 @@ MINOR_SHARE = 0.1
 SINGLE_PLANE_THICKNESS = 0.05
 #: plane_thickness looks at a fixed random subset of this many inliers of a larger plane.
 THICKNESS_POINTS = 4096
-#: A plane on fewer points than this is no evidence: any 3 points are coplanar and a handful lie within
-#: t of a plane on any surface (3 random points, or a room in a few coarse voxels, scored PS 1.00).
+#: A plane on fewer distinct points than this is no evidence: any 3 points are coplanar and a handful lie
+#: within t of a plane on any surface (3 random points, or a room in a few coarse voxels, scored PS 1.00;
+#: 3 points with 32 copies each, too).
 #: Such planes may hold less than MINOR_SHARE of the planes' points (a stray small plane found beside
 #: good ones does not make them unreliable).
 MIN_PLANE_POINTS = 10
@@ -132,11 +133,13 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
                           for p, t in zip(seg.planes, thickness)])
     slab = (thickness > MAX_THICKNESS) & (curvature >= MIN_CURVATURE)
     problems = []  # every test that fails, so that fixing one cause does not reveal another
-    tiny = sizes < MIN_PLANE_POINTS
+    distinct = np.array([_distinct(pts, p.inliers) for p in seg.planes])
+    tiny = distinct < MIN_PLANE_POINTS
     if sizes[tiny].sum() >= MINOR_SHARE * sizes.sum():
-        few = int(np.argmin(sizes))
-        problems.append(f'plane {few} rests on {int(sizes[few])} points (< {MIN_PLANE_POINTS}): too few to tell a '
-                        'plane from chance')
+        few = int(np.argmin(distinct))
+        copies = f' ({int(sizes[few])} with copies)' if distinct[few] < sizes[few] else ''
+        problems.append(f'plane {few} rests on {distinct[few]}{" distinct" if copies else ""} points{copies} '
+                        f'(< {MIN_PLANE_POINTS}): too few to tell a plane from chance')
     if sizes[slab].sum() >= MINOR_SHARE * sizes.sum():
         worst = int(np.argmax(np.where(slab, sizes, -1)))
         problems.append(f'plane {worst} is a curved slab (thickness ratio {_up(thickness[worst])} > {MAX_THICKNESS}, '
@@ -149,6 +152,14 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     if problems:
         return False, f'{seg.n_planes} plane(s) but ' + '; '.join(problems)
     return True, f'{seg.n_planes} plane(s), PS {scores.plane_silhouette:.2f}'
+
+
+def _distinct(points: np.ndarray, rows: np.ndarray) -> int:
+    """How many distinct points the ``rows`` of ``points`` are, counted exactly below
+    MIN_PLANE_POINTS (exact copies, as stacked scans have them, are no more evidence than one point)."""
+    head = rows[:8 * MIN_PLANE_POINTS]  # enough on any cloud without many copies
+    first = len(np.unique(points[head], axis=0))
+    return first if first >= MIN_PLANE_POINTS or len(head) == len(rows) else len(np.unique(points[rows], axis=0))
 
 
 def _up(value: float) -> str:
