@@ -361,3 +361,27 @@ def test_a_plane_through_the_origin_is_not_taken_for_a_lidar_ring():
     moved = graph_neighbours(corner + 500.0).normals
     assert np.isfinite(moved).all(axis=1).mean() > 0.9
     np.testing.assert_allclose(graph_neighbours(corner).normals, moved, rtol=0, atol=1e-9)
+
+
+def test_far_lidar_rings_on_the_ground_are_joined_to_each_other():
+    # two rings 2 m apart with returns 3.5 cm apart along each: the next ring lies beyond the
+    # ACROSS_CANDIDATES nearest points, so only the far search (every ACROSS_FAR_STRIDE-th point) finds it
+    from plane_validation.core.regions import ACROSS_CANDIDATES, graph_neighbours
+    azimuth = np.linspace(0, 2 * np.pi, 3600, endpoint=False)
+    rings = [np.column_stack([r * np.cos(azimuth), r * np.sin(azimuth), np.full(3600, -1.8)]) for r in (20.0, 22.0)]
+    points = np.concatenate(rings)
+    assert 2.0 / (2 * np.pi * 20.0 / 3600) > ACROSS_CANDIDATES
+    graph = graph_neighbours(points)
+    labels, count = graph.components(np.ones(len(points), bool))
+    assert count == 1
+    across = np.count_nonzero((graph.edges[:, 0] < 3600) != (graph.edges[:, 1] < 3600))
+    assert across > 1000  # nearly every point of the inner ring is joined to the outer one, or by a neighbour
+
+
+def test_a_small_face_is_found_among_the_crumbs_of_the_planes_found_before_it():
+    # after the walls, their leftover edge points outnumber the cabinet's 144-point side within t of
+    # a plane through the sensor's height; ranked by those counts, the side was never confirmed
+    scene = _room_scan()
+    seg = pv.detect_planes(scene.points, 0.05, seed=0, max_planes=14, min_inliers=23)
+    side = seg.labels[scene.labels == 7]
+    assert len(side) > 100 and np.bincount(side[side >= 0]).max() >= 0.9 * len(side)

@@ -39,9 +39,14 @@ RADIUS = 2.0
 #: ... and always to this many nearest, however far (along a far lidar ring the spacing exceeds the radius).
 ALWAYS_JOINED = 2
 #: Points whose neighbours lie along a line are also joined across it, to the nearest of this many;
-#: those with none off the line (a far lidar ring on the ground) look again among ACROSS_FAR.
+#: those with none off the line (a far lidar ring on the ground) look again among as many of every
+#: ACROSS_FAR_STRIDE-th point (reaching about as far as the 528 nearest).
 ACROSS_CANDIDATES = 48
-ACROSS_FAR = 512
+ACROSS_FAR_STRIDE = 11
+#: Only this fixed random share of the points looking across searches; the others take the point
+#: found by one of their searching neighbours (the points along a ring share the next ring), or search
+#: themselves when none of their neighbours searches.
+ACROSS_SEARCHING = 0.25
 #: Neighbour indices held at once by that search (rows x candidates).
 ACROSS_BLOCK = 1 << 20
 #: The neighbours of a point on one lidar ring with range noise lie on the beam's cone: a flat strip
@@ -301,25 +306,48 @@ def _grid_normals(image_points: np.ndarray, valid: np.ndarray) -> np.ndarray:
 
 
 def _across(tree: cKDTree, points: np.ndarray, rows: np.ndarray, direction: np.ndarray, skip: int,
-            candidates: int, off_plane: bool = False) -> tuple[np.ndarray, np.ndarray]:
+            off_plane: bool = False, stride: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """For the points ``rows`` whose neighbours lie along ``direction`` (m, 3): whether one of their
-    ``candidates`` nearest (after the first ``skip``) lies off that line, and the nearest such one.
-    With ``off_plane``, ``direction`` is the normal of a flat neighbourhood and "off" means more
-    than 30 degrees off its plane."""
+    ACROSS_CANDIDATES nearest in ``tree`` (after the first ``skip``) lies off that line, and the nearest
+    such one. With ``off_plane``, ``direction`` is the normal of a flat neighbourhood and "off" means
+    more than 30 degrees off its plane. ``tree`` holds every ``stride``-th of ``points``."""
+    candidates = min(ACROSS_CANDIDATES, tree.n)
     if len(rows) * candidates > ACROSS_BLOCK:  # bounded memory: a block of rows at a time
         step = max(1, ACROSS_BLOCK // candidates)
-        parts = [_across(tree, points, rows[i:i + step], direction[i:i + step], skip, candidates, off_plane)
+        parts = [_across(tree, points, rows[i:i + step], direction[i:i + step], skip, off_plane, stride)
                  for i in range(0, len(rows), step)]
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
     _, near = tree.query(points[rows], k=candidates)
-    near = near[:, skip:]
-    near = np.where(near < len(points), near, rows[:, None])  # no neighbour found: the point itself
+    near = near.reshape(len(rows), -1)[:, skip:]
+    near = np.where(near < tree.n, near * stride, rows[:, None])  # no neighbour found: the point itself
     offs = points[near] - points[rows, None, :]
     with np.errstate(invalid='ignore', divide='ignore'):
         cos = np.abs(np.einsum('nkd,nd->nk', offs, direction)) / np.linalg.norm(offs, axis=-1)
     across = cos > 0.5 if off_plane else cos < 0.7  # NaN (the point itself) is neither
     first = np.argmax(across, axis=1)
     return across[np.arange(len(rows)), first], near[np.arange(len(rows)), first]
+
+
+def _partners(tree: cKDTree, points: np.ndarray, idx: np.ndarray, rows: np.ndarray, direction: np.ndarray,
+              off_plane: bool = False, stride: int = 1) -> np.ndarray:
+    """:func:`_across` for the points ``rows`` (ascending) with neighbours ``idx`` (n, k), directions
+    ``direction`` (n, 3): (n,) the point found for each row, -1 where none (and for other points).
+    A fixed random ACROSS_SEARCHING share of the rows search; the others take a searching neighbour's."""
+    n, k = idx.shape
+    partner = np.full(n, -1, dtype=np.int64)
+    searching = np.random.default_rng(0).random(n) < ACROSS_SEARCHING
+    skip = k if stride == 1 else 0
+    for group in (rows[searching[rows]], None):
+        if group is None:  # the rest: a searching neighbour's point (or none), without one their own search
+            rest = rows[~searching[rows]]
+            found = partner[idx[rest, 1:]]
+            has = (found >= 0).any(axis=1)
+            partner[rest[has]] = found[has, np.argmax(found[has] >= 0, axis=1)]
+            group = rest[~searching[idx[rest, 1:]].any(axis=1)]
+        if len(group):
+            ok, target = _across(tree, points, group, direction[group], skip, off_plane, stride)
+            partner[group[ok]] = target[ok]
+    return partner
 
 
 def graph_neighbours(points: np.ndarray) -> Neighbours:
@@ -354,16 +382,19 @@ def _graph(points: np.ndarray, merge_copies: bool) -> Neighbours:
         line = values[:, 1] < 0.05 * values[:, 2]  # neighbours along a line: no normal, a ring
         normals[line] = np.nan
         normals[values[:, 0] > NOISY * values[:, 1]] = np.nan  # noise above the spacing: no normal either
-        rows_s, target = _strips(tree, points, ~line & (values[:, 0] < STRIP_FLATNESS * values[:, 1]), normals, k)
+        rows_s, target = _strips(tree, points, idx[:, :k], ~line & (values[:, 0] < STRIP_FLATNESS * values[:, 1]),
+                                 normals)
         edges.append(np.column_stack([rows_s, target]))
         both_values, both_axes = _principal_axes(points[np.concatenate([idx[rows_s, :k], idx[target, :k]], axis=1)])
         normals[rows_s] = np.where((both_values[:, 0] > NOISY * both_values[:, 1])[:, None], np.nan, both_axes[:, :, 0])
         rows_l = np.flatnonzero(line)
-        for candidates in (ACROSS_CANDIDATES, ACROSS_FAR):
-            if len(rows_l) == 0 or min(candidates, n) <= k:
+        for stride in (1, ACROSS_FAR_STRIDE):
+            if len(rows_l) == 0 or n <= k:
                 break
-            found, target = _across(tree, points, rows_l, vectors[rows_l, :, 2], k, min(candidates, n))
-            edges.append(np.column_stack([rows_l[found], target[found]]))
+            sub = tree if stride == 1 else cKDTree(points[::stride])
+            partner = _partners(sub, points, idx, rows_l, vectors[:, :, 2], stride=stride)
+            found = partner[rows_l] >= 0
+            edges.append(np.column_stack([rows_l[found], partner[rows_l[found]]]))
             rows_l = rows_l[~found]
     return _neighbours(n, np.concatenate(edges), normals)
 
@@ -371,23 +402,29 @@ def _graph(points: np.ndarray, merge_copies: bool) -> Neighbours:
 def _principal_axes(neighbourhoods: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvalues (m, 3), ascending, and unit principal axes (m, 3, 3), as columns, of point sets (m, k, 3)."""
     nb = neighbourhoods - neighbourhoods.mean(axis=1, keepdims=True)
-    return np.linalg.eigh(np.einsum('nki,nkj->nij', nb, nb))
+    x, y, z = nb[..., 0], nb[..., 1], nb[..., 2]
+    xy, xz, yz = (np.einsum('nk,nk->n', a, b) for a, b in ((x, y), (x, z), (y, z)))  # 2-d products are faster
+    scatter = np.stack([np.einsum('nk,nk->n', x, x), xy, xz, xy, np.einsum('nk,nk->n', y, y), yz,
+                        xz, yz, np.einsum('nk,nk->n', z, z)], axis=-1).reshape(-1, 3, 3)
+    return np.linalg.eigh(scatter)
 
 
-def _strips(tree: cKDTree, points: np.ndarray, flat: np.ndarray, normals: np.ndarray, k: int
+def _strips(tree: cKDTree, points: np.ndarray, idx: np.ndarray, flat: np.ndarray, normals: np.ndarray
             ) -> tuple[np.ndarray, np.ndarray]:
-    """Points whose ``flat`` neighbourhood of k (normal ``normals``, (n, 3)) is a strip of one lidar
-    ring (see STRIP_FLATNESS), and for each the point of the next ring: (rows (m,), targets (m,))."""
+    """Points whose ``flat`` neighbourhood ``idx`` (n, k) (normal ``normals``, (n, 3)) is a strip of
+    one lidar ring (see STRIP_FLATNESS), and for each the point of the next ring: (rows (m,), targets (m,))."""
+    k = idx.shape[1]
     with np.errstate(invalid='ignore'):
         edge_on = np.abs(np.einsum('ij,ij->i', normals, points)) < STRIP_EDGE_ON * np.linalg.norm(points, axis=1)
     rows = np.flatnonzero(flat & edge_on)
-    candidates = min(ACROSS_CANDIDATES, len(points))
-    if len(rows) == 0 or candidates <= k:
+    if len(rows) == 0 or len(points) <= k:
         return rows[:0], rows[:0]
-    found, target = _across(tree, points, rows, normals[rows], k, candidates, off_plane=True)
+    target = _partners(tree, points, idx, rows, normals, off_plane=True)[rows]
+    found = target >= 0
+    rows, target = rows[found], target[found]
     # the next ring's strip lies on a cone of nearly the same normal; a point of another surface
     # across an edge (or a point without a flat neighbourhood) is not taken
-    found &= np.abs(np.einsum('ij,ij->i', normals[rows], normals[target])) >= NORMAL_MIN_COS
+    found = np.abs(np.einsum('ij,ij->i', normals[rows], normals[target])) >= NORMAL_MIN_COS
     return rows[found], target[found]
 
 
