@@ -303,47 +303,34 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
     best_counts = np.empty(0, dtype=np.int64)
     iterations = 0
     needed = float(max_iterations)
-    winner, kept = None, 0  # with regions: the largest region confirmed so far, and its size
-    while True:
-        while iterations < min(needed, max_iterations):
-            batch = int(min(BATCH, max_iterations - iterations))
-            normals, offsets = _hypotheses(cols, rng, batch, sampler)
-            iterations += batch
-            if len(normals) == 0:
-                continue
-            with np.errstate(invalid='ignore'):
-                near = _distances(subset32, normals.astype(np.float32), offsets.astype(np.float32)) <= sub_tolerance
-            if point_normals is not None:
-                coherent = np.abs(normals.astype(np.float32) @ sub_normals) >= min_cos
-                coherent |= unknown
-                near &= coherent
-            # a uint16 row sum is much faster than count_nonzero(axis=1); SUBSET < 65536
-            counts = np.add.reduce(near.view(np.uint8), axis=1, dtype=np.uint16).astype(np.int64)
-            # Keep the CONFIRM best hypotheses seen so far for confirmation on all points.
-            best_normals = np.concatenate([best_normals, normals])
-            best_offsets = np.concatenate([best_offsets, offsets])
-            best_counts = np.concatenate([best_counts, counts])
-            keep = np.argsort(-best_counts, kind='stable')[:CONFIRM]
-            keep = keep[best_counts[keep] * m > kept * subset.shape[1]]  # one that may beat the winner
-            best_normals, best_offsets, best_counts = best_normals[keep], best_offsets[keep], best_counts[keep]
-            if len(best_counts):
-                needed = _required_iterations(best_counts[0] / subset.shape[1], probability, sampler is not None)
-        if len(best_counts) == 0:
-            return winner
-        # MSAC: the truncated squared distance prefers, of two planes with similar support, the one
-        # its inliers hug (a plane tilted across a small face and its neighbours' edges loses).
-        dist = _distances(cols, best_normals, best_offsets)
-        if region_of is None:
-            break
-        found = _best_region(cols, tolerance, best_normals, best_offsets, dist, region_of, point_normals)
-        if winner is None or np.count_nonzero(found[2]) > kept:
-            winner, kept = found, int(np.count_nonzero(found[2]))
-        # The inlier counts that ranked the hypotheses may overstate what they keep (scattered crumbs
-        # beside found planes): RANSAC goes on until enough samples back the region actually kept.
-        needed = _required_iterations(kept / m, probability, sampler is not None)
-        if iterations >= min(needed, max_iterations):
-            return winner
-        best_normals, best_offsets, best_counts = best_normals[:0], best_offsets[:0], best_counts[:0]
+    while iterations < min(needed, max_iterations):
+        batch = int(min(BATCH, max_iterations - iterations))
+        normals, offsets = _hypotheses(cols, rng, batch, sampler)
+        iterations += batch
+        if len(normals) == 0:
+            continue
+        with np.errstate(invalid='ignore'):
+            near = _distances(subset32, normals.astype(np.float32), offsets.astype(np.float32)) <= sub_tolerance
+        if point_normals is not None:
+            coherent = np.abs(normals.astype(np.float32) @ sub_normals) >= min_cos
+            coherent |= unknown
+            near &= coherent
+        # a uint16 row sum is much faster than count_nonzero(axis=1); SUBSET < 65536
+        counts = np.add.reduce(near.view(np.uint8), axis=1, dtype=np.uint16).astype(np.int64)
+        # Keep the CONFIRM best hypotheses seen so far for confirmation on all points.
+        best_normals = np.concatenate([best_normals, normals])
+        best_offsets = np.concatenate([best_offsets, offsets])
+        best_counts = np.concatenate([best_counts, counts])
+        keep = np.argsort(-best_counts, kind='stable')[:CONFIRM]
+        best_normals, best_offsets, best_counts = best_normals[keep], best_offsets[keep], best_counts[keep]
+        needed = _required_iterations(best_counts[0] / subset.shape[1], probability, sampler is not None)
+    if len(best_counts) == 0:
+        return None
+    # MSAC: the truncated squared distance prefers, of two planes with similar support, the one
+    # its inliers hug (a plane tilted across a small face and its neighbours' edges loses).
+    dist = _distances(cols, best_normals, best_offsets)
+    if region_of is not None:
+        return _best_region(cols, tolerance, best_normals, best_offsets, dist, region_of, point_normals)
     np.minimum(dist, tolerance, out=dist)
     winner = int(np.argmin(np.einsum('ij,ij->i', dist, dist)))
     normal, offset = best_normals[winner], best_offsets[winner]
