@@ -33,6 +33,7 @@ domain_environment()
 os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(ROOT / 'config' / 'fastdds_large_clouds.xml'))
 
 import bench_autotune  # noqa: E402
+import bench_lidar  # noqa: E402
 import bench_many_planes  # noqa: E402
 import numpy as np  # noqa: E402
 import quality as gt_quality  # noqa: E402  (benchmarks/quality.py, not pvbench.quality)
@@ -474,6 +475,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--skip-quality', action='store_true',
                         help='skip (7) quality against ground truth and (9) the verdict calibration')
     parser.add_argument('--skip-tuning', action='store_true', help='skip (8) auto-tuning speed against Open3D')
+    parser.add_argument('--skip-lidar', action='store_true', help='skip (8b) unorganized lidar frames')
     args = parser.parse_args(argv)
     limit = getattr(pv_pipeline, 'limit_blas_threads', None)
     if limit:
@@ -535,6 +537,9 @@ def main(argv: list[str] | None = None) -> int:
         bench_autotune.table([str(p) for p in sorted(bench_autotune.DATA.glob('*.pcd'))], 1 if args.quick else 3)
         print()
         bench_many_planes.measure(1 if args.quick else 3)
+    if not args.skip_lidar:
+        print('\n## (8b) unorganized lidar frames — benchmarks/bench_lidar.py\n')
+        bench_lidar.table(1 if args.quick else 5)
     if not args.skip_quality and not args.quick:
         print('\n## (9) verdict calibration — benchmarks/verdict.py\n')
         verdict.table()
