@@ -28,8 +28,7 @@ PLANES = 10
 SCANS = {
     '32-beam street': lambda: scenes.lidar(seed=1),
     '16-beam street': lambda: scenes.lidar(rings=16, seed=1),
-    '16-beam room, 2 cm noise': lambda: scenes.lidar('room', rings=16, elevation_deg=(-15.0, 15.0), sigma=0.02,
-                                                     height=1.0, seed=1),
+    '16-beam room, 2 cm noise': lambda: scenes.lidar(**scenes.VLP16_ROOM, seed=1),
 }
 METHODS = {
     'regions': dict(),

@@ -79,8 +79,7 @@ def load_clouds(only: list[str] | None = None) -> list[Cloud]:
     for view in scenes.SENSOR_VIEWS:
         s = scenes.depth_camera(view, seed=1)
         clouds.append(Cloud(s.name, s.points, s.labels.astype(np.int64), s.shape))
-    for s in (scenes.lidar(seed=1),  # and a 16-beam lidar indoors, its rings' returns closer than their noise
-              scenes.lidar('room', rings=16, elevation_deg=(-15.0, 15.0), sigma=0.02, height=1.0, seed=1)):
+    for s in (scenes.lidar(seed=1), scenes.lidar(**scenes.VLP16_ROOM, seed=1)):
         clouds.append(Cloud(s.name, s.points, s.labels.astype(np.int64), None))
     return [c for c in clouds if not only or c.name in only]
 

@@ -332,10 +332,10 @@ def test_only_a_scan_whose_last_column_is_next_to_its_first_wraps_around():
         assert grid_neighbours(image, np.isfinite(image).all(axis=2)).wraps is wraps
 
 
-def _room_scan(**kwargs) -> scenes.Scene:
+def _room_scan() -> scenes.Scene:
     """A 16-beam lidar in the middle of a furnished room: walls 1.5-3 m away, where the 1800 returns
     of a ring lie 5-10 mm apart, closer than the 2 cm range noise."""
-    return scenes.lidar('room', rings=16, elevation_deg=(-15.0, 15.0), sigma=0.02, height=1.0, seed=0, **kwargs)
+    return scenes.lidar(**scenes.VLP16_ROOM, seed=0)
 
 
 def test_an_unorganized_lidar_scan_of_near_walls_keeps_its_walls():
@@ -376,3 +376,13 @@ def test_far_lidar_rings_on_the_ground_are_joined_to_each_other():
     assert count == 1
     across = np.count_nonzero((graph.edges[:, 0] < 3600) != (graph.edges[:, 1] < 3600))
     assert across > 1000  # nearly every point of the inner ring is joined to the outer one, or by a neighbour
+
+
+def test_the_strip_test_looks_from_the_sensor_also_when_the_scan_is_cropped():
+    # detect_planes centres a cloud on its median; a 90-degree slice of a scan has its median far
+    # from the sensor, which stays at the cloud's origin
+    scene = _room_scan()
+    front = scene.points[:, 0] > np.abs(scene.points[:, 1])
+    seg = pv.detect_planes(scene.points[front], 0.05, seed=0, max_planes=20, min_inliers=50)
+    q = segmentation_quality(seg.labels, scene.labels[front])
+    assert q.correct == q.true_planes and q.f1 > 0.95, q

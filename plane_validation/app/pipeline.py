@@ -340,7 +340,8 @@ class FramePipeline:
 
 def _within_plane(points: np.ndarray, labels: np.ndarray, seg: Segmentation, tolerance: float) -> np.ndarray:
     """``labels`` (n,) of ``points`` (n, 3) meters, -1 where a point lies farther from its plane than
-    the tolerance at that point (a voxel's points spread up to about its diagonal from the centroid)."""
+    ``tolerance`` (m) scaled by the noise model at that point (a voxel's points spread up to about its
+    diagonal from the centroid)."""
     planes = np.asarray(seg.coefficients, dtype=float).reshape(-1, 4)
     if len(planes) == 0:
         return labels

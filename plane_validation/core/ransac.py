@@ -721,7 +721,7 @@ def _search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | 
         searched = pts[search_idx] - center
         if len(search_idx) < n_valid:
             nearest = cKDTree(searched).query(pts[valid_idx] - center, k=1)[1]
-        neighbours = graph_neighbours(searched)
+        neighbours = graph_neighbours(searched, viewpoint=-center)  # the sensor sits at the cloud's origin
     return SearchGraph(n_points=len(pts), search_idx=search_idx, step=step, center=center, neighbours=neighbours,
                        shape=shape, ransac_points=ransac_points, n_valid=n_valid, nearest=nearest)
 

@@ -13,7 +13,7 @@ points; :meth:`Neighbours.components` then labels the connected components of an
 * Unorganized clouds: each point's ``NEIGHBOURS`` nearest neighbours within ``RADIUS`` median
   neighbour spacings (scipy's kd-tree), components by ``scipy.sparse.csgraph``. A point whose
   neighbours all lie on one lidar ring (a line, or a strip widened by range noise) is also joined to
-  the next ring, and a strip takes its normal from both rings.
+  the next ring; a strip's own normal is the beam cone's, so it takes one from both rings, or none.
 Pure numpy/scipy.
 """
 from __future__ import annotations
@@ -43,6 +43,10 @@ ALWAYS_JOINED = 2
 #: ACROSS_FAR_STRIDE-th point (reaching about as far as the 528 nearest).
 ACROSS_CANDIDATES = 48
 ACROSS_FAR_STRIDE = 11
+#: "Off the line": the offset makes more than 45 degrees with it (cosine below this) ...
+OFF_LINE_COS = 0.7
+#: ... "off the plane" of a strip: more than 30 degrees with it (cosine with its normal above this).
+OFF_PLANE_COS = 0.5
 #: Only this fixed random share of the points looking across searches; the others take the point
 #: found by one of their searching neighbours (the points along a ring share the next ring), or search
 #: themselves when none of their neighbours searches.
@@ -52,8 +56,9 @@ ACROSS_BLOCK = 1 << 20
 #: The neighbours of a point on one lidar ring with range noise lie on the beam's cone: a flat strip
 #: across the surface, whose normal is not the surface's (on a wall facing the sensor it is 90 degrees
 #: off). A neighbourhood flat to within this share of its width (eigenvalues) with one of the
-#: ACROSS_CANDIDATES nearest more than 30 degrees off its plane (the next ring) is such a strip:
-#: it is joined to that point and takes its normal from both points' neighbours together.
+#: ACROSS_CANDIDATES nearest off its plane (OFF_PLANE_COS; the next ring, whose strip is parallel) is
+#: such a strip: it is joined to that point, and its normal comes from both points' neighbours
+#: together, unknown (NaN) where the rings' noise swamps that too (most of them at 2 cm noise).
 STRIP_FLATNESS = 0.01
 #: ... and seen edge-on from the origin, as the cone is from the sensor (sine of the angle between
 #: the plane and the ray).
@@ -310,7 +315,7 @@ def _across(tree: cKDTree, points: np.ndarray, rows: np.ndarray, direction: np.n
     """For the points ``rows`` whose neighbours lie along ``direction`` (m, 3): whether one of their
     ACROSS_CANDIDATES nearest in ``tree`` (after the first ``skip``) lies off that line, and the nearest
     such one. With ``off_plane``, ``direction`` is the normal of a flat neighbourhood and "off" means
-    more than 30 degrees off its plane. ``tree`` holds every ``stride``-th of ``points``."""
+    off its plane (OFF_PLANE_COS). ``tree`` holds every ``stride``-th of ``points``."""
     candidates = min(ACROSS_CANDIDATES, tree.n)
     if len(rows) * candidates > ACROSS_BLOCK:  # bounded memory: a block of rows at a time
         step = max(1, ACROSS_BLOCK // candidates)
@@ -323,7 +328,7 @@ def _across(tree: cKDTree, points: np.ndarray, rows: np.ndarray, direction: np.n
     offs = points[near] - points[rows, None, :]
     with np.errstate(invalid='ignore', divide='ignore'):
         cos = np.abs(np.einsum('nkd,nd->nk', offs, direction)) / np.linalg.norm(offs, axis=-1)
-    across = cos > 0.5 if off_plane else cos < 0.7  # NaN (the point itself) is neither
+    across = cos > OFF_PLANE_COS if off_plane else cos < OFF_LINE_COS  # NaN (the point itself) is neither
     first = np.argmax(across, axis=1)
     return across[np.arange(len(rows)), first], near[np.arange(len(rows)), first]
 
@@ -335,7 +340,9 @@ def _partners(tree: cKDTree, points: np.ndarray, idx: np.ndarray, rows: np.ndarr
     A fixed random ACROSS_SEARCHING share of the rows search; the others take a searching neighbour's."""
     n, k = idx.shape
     partner = np.full(n, -1, dtype=np.int64)
-    searching = np.random.default_rng(0).random(n) < ACROSS_SEARCHING
+    among = np.zeros(n, bool)
+    among[rows] = True
+    searching = (np.random.default_rng(0).random(n) < ACROSS_SEARCHING) & among  # by index: order matters
     skip = k if stride == 1 else 0
     for group in (rows[searching[rows]], None):
         if group is None:  # the rest: a searching neighbour's point (or none), without one their own search
@@ -350,15 +357,17 @@ def _partners(tree: cKDTree, points: np.ndarray, idx: np.ndarray, rows: np.ndarr
     return partner
 
 
-def graph_neighbours(points: np.ndarray) -> Neighbours:
-    """Neighbours of unorganized (n, 3) points: each joined to its NEIGHBOURS nearest within RADIUS
-    median NEIGHBOURS-th-neighbour distances and, where those lie along a line (a lidar ring), to
-    its nearest point off that line (on the next ring) among ACROSS_CANDIDATES. Exact copies of a
-    point are joined to it and share its neighbours and normal."""
-    return _graph(points, merge_copies=True)
+def graph_neighbours(points: np.ndarray, viewpoint: np.ndarray | None = None) -> Neighbours:
+    """Neighbours of unorganized (n, 3) points (meters): each joined to its NEIGHBOURS nearest within
+    RADIUS median NEIGHBOURS-th-neighbour distances and, where those lie along a line or a strip of
+    one lidar ring, to a point of the next ring (see ACROSS_CANDIDATES, ACROSS_SEARCHING,
+    STRIP_FLATNESS). ``viewpoint`` (3,): where the sensor is in these coordinates (default the
+    origin), for the strip test. Exact copies of a point are joined to it and share its neighbours
+    and normal."""
+    return _graph(points, merge_copies=True, viewpoint=np.zeros(3) if viewpoint is None else viewpoint)
 
 
-def _graph(points: np.ndarray, merge_copies: bool) -> Neighbours:
+def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Neighbours:
     n = len(points)
     k = min(NEIGHBOURS + 1, n)
     if k < 2:
@@ -366,7 +375,7 @@ def _graph(points: np.ndarray, merge_copies: bool) -> Neighbours:
     tree = cKDTree(points)
     dist, idx = tree.query(points, k=k)
     if merge_copies and np.any(dist[:, 1] == 0):  # copies would fill the neighbour lists (stacked scans)
-        return _with_copies(points)
+        return _with_copies(points, viewpoint)
     missing = idx >= n  # far-out coordinates (a driver's FLT_MAX rows) find no neighbour
     idx = np.where(missing, np.arange(n)[:, None], idx)
     dist = np.where(missing, np.inf, dist)
@@ -383,7 +392,7 @@ def _graph(points: np.ndarray, merge_copies: bool) -> Neighbours:
         normals[line] = np.nan
         normals[values[:, 0] > NOISY * values[:, 1]] = np.nan  # noise above the spacing: no normal either
         rows_s, target = _strips(tree, points, idx[:, :k], ~line & (values[:, 0] < STRIP_FLATNESS * values[:, 1]),
-                                 normals)
+                                 normals, viewpoint)
         edges.append(np.column_stack([rows_s, target]))
         both_values, both_axes = _principal_axes(points[np.concatenate([idx[rows_s, :k], idx[target, :k]], axis=1)])
         normals[rows_s] = np.where((both_values[:, 0] > NOISY * both_values[:, 1])[:, None], np.nan, both_axes[:, :, 0])
@@ -409,13 +418,15 @@ def _principal_axes(neighbourhoods: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return np.linalg.eigh(scatter)
 
 
-def _strips(tree: cKDTree, points: np.ndarray, idx: np.ndarray, flat: np.ndarray, normals: np.ndarray
-            ) -> tuple[np.ndarray, np.ndarray]:
+def _strips(tree: cKDTree, points: np.ndarray, idx: np.ndarray, flat: np.ndarray, normals: np.ndarray,
+            viewpoint: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Points whose ``flat`` neighbourhood ``idx`` (n, k) (normal ``normals``, (n, 3)) is a strip of
-    one lidar ring (see STRIP_FLATNESS), and for each the point of the next ring: (rows (m,), targets (m,))."""
+    one lidar ring seen from ``viewpoint`` (3,) (see STRIP_FLATNESS), and for each the point of the
+    next ring: (rows (m,), targets (m,))."""
     k = idx.shape[1]
+    rays = points - viewpoint
     with np.errstate(invalid='ignore'):
-        edge_on = np.abs(np.einsum('ij,ij->i', normals, points)) < STRIP_EDGE_ON * np.linalg.norm(points, axis=1)
+        edge_on = np.abs(np.einsum('ij,ij->i', normals, rays)) < STRIP_EDGE_ON * np.linalg.norm(rays, axis=1)
     rows = np.flatnonzero(flat & edge_on)
     if len(rows) == 0 or len(points) <= k:
         return rows[:0], rows[:0]
@@ -428,13 +439,13 @@ def _strips(tree: cKDTree, points: np.ndarray, idx: np.ndarray, flat: np.ndarray
     return rows[found], target[found]
 
 
-def _with_copies(points: np.ndarray) -> Neighbours:
+def _with_copies(points: np.ndarray, viewpoint: np.ndarray) -> Neighbours:
     """:func:`graph_neighbours` of points with exact copies: the graph of the distinct points, each
     copy joined to the first point at its place."""
     n = len(points)
     _, first, inverse = np.unique(points, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.reshape(-1)
-    distinct = _graph(points[first], merge_copies=False)
+    distinct = _graph(points[first], merge_copies=False, viewpoint=viewpoint)
     owner = first[inverse]  # the first point at each point's place
     copies = np.flatnonzero(owner != np.arange(n))
     edges = np.concatenate([first[distinct.edges], np.column_stack([owner[copies], copies])])

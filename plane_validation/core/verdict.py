@@ -114,7 +114,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     """Whether the planes of ``seg`` are reliable, with a one-line reason.
 
     Reliable needs at least one plane, the planes on enough points (those with fewer than
-    MIN_PLANE_POINTS hold less than MINOR_SHARE of the planes' points), the planes flat
+    MIN_PLANE_POINTS distinct points hold less than MINOR_SHARE of the planes' points), the planes flat
     (curved slabs, planes with a thickness ratio above MAX_THICKNESS, see :func:`plane_thickness`,
     whose residuals are at least MIN_CURVATURE explained by curvature, see :func:`plane_curvature`,
     hold less than MINOR_SHARE of their points) and a plane silhouette PS >= RELIABLE_PS: the points
@@ -157,9 +157,12 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
 def _distinct(points: np.ndarray, rows: np.ndarray) -> int:
     """How many distinct points the ``rows`` of ``points`` are, counted exactly below
     MIN_PLANE_POINTS (exact copies, as stacked scans have them, are no more evidence than one point)."""
-    head = rows[:8 * MIN_PLANE_POINTS]  # enough on any cloud without many copies
-    first = len(np.unique(points[head], axis=0))
-    return first if first >= MIN_PLANE_POINTS or len(head) == len(rows) else len(np.unique(points[rows], axis=0))
+    head = 8 * MIN_PLANE_POINTS  # enough on any cloud without many copies; more where copies sit together
+    while True:
+        distinct = len(np.unique(points[rows[:head]], axis=0))
+        if distinct >= MIN_PLANE_POINTS or head >= len(rows):
+            return distinct
+        head *= 8
 
 
 def _up(value: float) -> str:
