@@ -60,8 +60,8 @@ ACROSS_BLOCK = 1 << 20
 #: such a strip: it is joined to that point, and its normal comes from both points' neighbours
 #: together, unknown (NaN) where the rings' noise swamps that too (most of them at 2 cm noise).
 STRIP_FLATNESS = 0.01
-#: ... and seen edge-on from the origin, as the cone is from the sensor (sine of the angle between
-#: the plane and the ray).
+#: ... and seen edge-on from the sensor (graph_neighbours' viewpoint), as the cone is (sine of the
+#: angle between the plane and the ray).
 STRIP_EDGE_ON = float(np.sin(np.radians(10.0)))
 #: A neighbourhood thicker than this share of its width (eigenvalues) is noise above the spacing: no normal.
 NOISY = 0.1
