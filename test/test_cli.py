@@ -481,3 +481,22 @@ def test_detect_leaves_out_points_at_the_origin_unless_told_otherwise(tmp_path, 
     assert f'{len(points)} points, {len(scene.points)} valid' in capsys.readouterr().out
     assert main(['detect', str(path), '--tolerance', '0.01', '--no-zero-is-no-return']) == 0
     assert f'{len(points)} points, {len(points)} valid' in capsys.readouterr().out
+
+
+def test_detect_and_sweep_take_the_search_settings_a_lidar_needs(tmp_path, capsys):
+    points = scenes.corner(3000, 1.0, scale=0.01, seed=2).points
+    path = tmp_path / 'corner3000.npy'
+    np.save(path, points)
+    args = ['--seed', '7', '--no-connectivity', '--ransac-points', '1000', '--json']
+    assert main(['detect', str(path), '--tolerance', '0.02', *args]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    seg = pv.detect_planes(points, 0.02, seed=7, connectivity=False, ransac_points=1000)
+    default = pv.detect_planes(points, 0.02, seed=7)
+    counts = [p['inliers'] for p in doc['planes']]
+    assert counts == [len(p.inliers) for p in seg.planes] != [len(p.inliers) for p in default.planes]
+    assert main(['sweep', str(path), '--tolerances', '0.01:0.04:3', *args]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    grid = [r['tolerance'] for r in doc['sweep']]
+    tuned = pv.tune_tolerance(points, grid, seed=7, connectivity=False, ransac_points=1000)
+    assert [r['assigned_points'] for r in doc['sweep']] == [int(sum(r.inlier_counts)) for r in tuned.rows]
+    assert doc['tolerance'] == pytest.approx(tuned.tolerance, rel=1e-12)

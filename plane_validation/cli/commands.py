@@ -153,7 +153,8 @@ def cmd_detect(args: argparse.Namespace) -> int:
         points, shape = _load(args)
         det = detect(points, tolerance, seed=_seed(args.seed), max_planes=args.max_planes,
                      min_inliers=min_inliers_value(args.min_inliers), progress=progress, shape=shape,
-                     noise_model=args.noise_model, noise_reference=args.noise_reference, jobs=args.tune_jobs)
+                     noise_model=args.noise_model, noise_reference=args.noise_reference, jobs=args.tune_jobs,
+                     connectivity=args.connectivity, ransac_points=args.ransac_points or None)
     written = []
     if args.out:
         from ..formats.files import save_points
@@ -199,7 +200,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         result = tune_tolerance(points, tolerances=args.tolerances, criterion=args.criterion, seed=_seed(args.seed),
                                 max_planes=args.max_planes, min_inliers=min_inliers_value(args.min_inliers),
                                 progress=progress, shape=shape, noise_model=args.noise_model,
-                                noise_reference=args.noise_reference, jobs=args.tune_jobs)
+                                noise_reference=args.noise_reference, jobs=args.tune_jobs,
+                                connectivity=args.connectivity, ransac_points=args.ransac_points or None)
     written = []
     if args.csv:
         written.append(write_sweep_csv(args.csv, result))
@@ -449,6 +451,17 @@ def _add_detection_options(parser: argparse.ArgumentParser) -> None:
                         default=spec.default, help=f'{spec.description} (default {str(spec.default).lower()})')
 
 
+def _add_search_options(parser: argparse.ArgumentParser) -> None:
+    """--connectivity/--no-connectivity and --ransac-points for detect and sweep (from the table)."""
+    from ..app.config import PARAMETERS
+    spec = PARAMETERS['connectivity']
+    parser.add_argument('--connectivity', dest='connectivity', action=argparse.BooleanOptionalAction,
+                        default=spec.default, help=f'{spec.description} (default {str(spec.default).lower()})')
+    spec = PARAMETERS['ransac_points']
+    parser.add_argument('--ransac-points', dest='ransac_points', type=_table_type('ransac_points'),
+                        default=spec.default, metavar='N', help=f'{spec.description} (default {spec.default})')
+
+
 def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:
     """One option per pipeline parameter (replay), e.g. --tune-min for tune_min; unset ones keep the
     table's default. Values are checked by PipelineConfig.validate."""
@@ -511,6 +524,7 @@ def build_parser() -> argparse.ArgumentParser:
     which.add_argument('--auto', '--tune', dest='auto', action='store_true',
                        help=f'auto-tune t by a sweep chosen by {DEFAULT_CRITERION} (the default without --tolerance)')
     _add_detection_options(detect)
+    _add_search_options(detect)
     detect.add_argument('--json', action='store_true', help='print one JSON document (schema in README) and nothing '
                         'else on stdout')
     detect.add_argument('--out', metavar='FILE', help='write the labelled cloud: .ply (plane_id), .pcd (label), '
@@ -528,6 +542,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument('--criterion', default=PARAMETERS['criterion'].default, choices=sorted(CRITERIA),
                        help=f'index that chooses t (default {PARAMETERS["criterion"].default})')
     _add_detection_options(sweep)
+    _add_search_options(sweep)
     sweep.add_argument('--plot', metavar='PNG', help='write indices and planes vs t, chosen t marked')
     sweep.add_argument('--csv', metavar='CSV', help='write one row per t: planes and every index')
     sweep.add_argument('--json', action='store_true', help='print one JSON document and nothing else on stdout')
