@@ -436,30 +436,31 @@ def _seed(value: int) -> int | None:
     return None if value < 0 else value
 
 
-def _add_detection_options(parser: argparse.ArgumentParser) -> None:
-    """--seed, --max-planes, --min-inliers, --noise-model, --tune-jobs, --zero-is-no-return for the file commands
-    (type, range and default from the table)."""
+def _add_table_options(parser: argparse.ArgumentParser, names: tuple[tuple[str, str], ...]) -> None:
+    """One option per (parameter, metavar) of the table, with its type, range and default; booleans as
+    --name/--no-name."""
     from ..app.config import PARAMETERS
-    for name, metavar in (('seed', 'S'), ('max_planes', 'K'), ('min_inliers', 'M'), ('noise_model', 'MODEL'),
-                          ('noise_reference', 'R'), ('tune_jobs', 'N')):
+    for name, metavar in names:
         spec = PARAMETERS[name]
+        flag = '--' + name.replace('_', '-')
         text = 'random seed; -1 = fresh entropy' if name == 'seed' else spec.description  # one cloud, no stamps
-        parser.add_argument('--' + name.replace('_', '-'), dest=name, type=_table_type(name), default=spec.default,
-                            metavar=metavar, help=f'{text} (default {spec.default})')
-    spec = PARAMETERS['zero_is_no_return']
-    parser.add_argument('--zero-is-no-return', dest='zero_is_no_return', action=argparse.BooleanOptionalAction,
-                        default=spec.default, help=f'{spec.description} (default {str(spec.default).lower()})')
+        if spec.type is bool:
+            parser.add_argument(flag, dest=name, action=argparse.BooleanOptionalAction, default=spec.default,
+                                help=f'{text} (default {str(spec.default).lower()})')
+        else:
+            parser.add_argument(flag, dest=name, type=_table_type(name), default=spec.default, metavar=metavar,
+                                help=f'{text} (default {spec.default})')
+
+
+def _add_detection_options(parser: argparse.ArgumentParser) -> None:
+    """--seed, --max-planes, --min-inliers, --noise-model, --tune-jobs, --zero-is-no-return for the file commands."""
+    _add_table_options(parser, (('seed', 'S'), ('max_planes', 'K'), ('min_inliers', 'M'), ('noise_model', 'MODEL'),
+                                ('noise_reference', 'R'), ('tune_jobs', 'N'), ('zero_is_no_return', '')))
 
 
 def _add_search_options(parser: argparse.ArgumentParser) -> None:
-    """--connectivity/--no-connectivity and --ransac-points for detect and sweep (from the table)."""
-    from ..app.config import PARAMETERS
-    spec = PARAMETERS['connectivity']
-    parser.add_argument('--connectivity', dest='connectivity', action=argparse.BooleanOptionalAction,
-                        default=spec.default, help=f'{spec.description} (default {str(spec.default).lower()})')
-    spec = PARAMETERS['ransac_points']
-    parser.add_argument('--ransac-points', dest='ransac_points', type=_table_type('ransac_points'),
-                        default=spec.default, metavar='N', help=f'{spec.description} (default {spec.default})')
+    """--connectivity/--no-connectivity and --ransac-points for detect and sweep."""
+    _add_table_options(parser, (('connectivity', ''), ('ransac_points', 'N')))
 
 
 def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:

@@ -386,16 +386,14 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Nei
     edges = [np.column_stack([rows[near], idx[:, 1:k][near]])]
     normals = None
     if k >= 4:  # local normals: the smallest principal axis of each point's neighbourhood
-        values, vectors = _principal_axes(points[idx[:, :k]])
-        normals = vectors[:, :, 0]
+        values, vectors = _principal_axes(points[idx])
+        normals = _normals(values, vectors)
         line = values[:, 1] < 0.05 * values[:, 2]  # neighbours along a line: no normal, a ring
         normals[line] = np.nan
-        normals[values[:, 0] > NOISY * values[:, 1]] = np.nan  # noise above the spacing: no normal either
-        rows_s, target = _strips(tree, points, idx[:, :k], ~line & (values[:, 0] < STRIP_FLATNESS * values[:, 1]),
+        rows_s, target = _strips(tree, points, idx, ~line & (values[:, 0] < STRIP_FLATNESS * values[:, 1]),
                                  normals, viewpoint)
         edges.append(np.column_stack([rows_s, target]))
-        both_values, both_axes = _principal_axes(points[np.concatenate([idx[rows_s, :k], idx[target, :k]], axis=1)])
-        normals[rows_s] = np.where((both_values[:, 0] > NOISY * both_values[:, 1])[:, None], np.nan, both_axes[:, :, 0])
+        normals[rows_s] = _normals(*_principal_axes(points[np.concatenate([idx[rows_s], idx[target]], axis=1)]))
         rows_l = np.flatnonzero(line)
         for stride in (1, ACROSS_FAR_STRIDE):
             if len(rows_l) == 0 or n <= k:
@@ -416,6 +414,12 @@ def _principal_axes(neighbourhoods: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     scatter = np.stack([np.einsum('nk,nk->n', x, x), xy, xz, xy, np.einsum('nk,nk->n', y, y), yz,
                         xz, yz, np.einsum('nk,nk->n', z, z)], axis=-1).reshape(-1, 3, 3)
     return np.linalg.eigh(scatter)
+
+
+def _normals(values: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """(m, 3) smallest principal axes of :func:`_principal_axes`' output, NaN where the thickness is
+    above NOISY (noise above the spacing: no normal)."""
+    return np.where((values[:, 0] > NOISY * values[:, 1])[:, None], np.nan, axes[:, :, 0])
 
 
 def _strips(tree: cKDTree, points: np.ndarray, idx: np.ndarray, flat: np.ndarray, normals: np.ndarray,
