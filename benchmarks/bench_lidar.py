@@ -29,6 +29,7 @@ SCANS = {
     '32-beam street': lambda: scenes.lidar(seed=1),
     '16-beam street': lambda: scenes.lidar(rings=16, seed=1),
     '16-beam room, 2 cm noise': lambda: scenes.lidar(**scenes.VLP16_ROOM, seed=1),
+    '16-beam corridor, 2 cm noise': lambda: scenes.lidar(**scenes.VLP16_CORRIDOR, seed=1),
 }
 METHODS = {
     'regions': dict(),

@@ -386,3 +386,18 @@ def test_the_strip_test_looks_from_the_sensor_also_when_the_scan_is_cropped():
     seg = pv.detect_planes(scene.points[front], 0.05, seed=0, max_planes=20, min_inliers=50)
     q = segmentation_quality(seg.labels, scene.labels[front])
     assert q.correct == q.true_planes and q.f1 > 0.95, q
+
+
+def test_a_corridor_floor_under_a_16_beam_lidar_is_one_region_on_each_side_of_the_sensor():
+    # the rings cross the 2.4 m wide floor 0.5-6 m apart; the nearest points off a ring's line were the
+    # same ring climbing the walls, so each ring on the floor was a region of its own (8 of them, and
+    # 33-73 % of the floor in a plane); now a ring looks for the next ring in the direction of the scan
+    from plane_validation.core.regions import graph_neighbours
+    scene = scenes.lidar(**scenes.VLP16_CORRIDOR, seed=2)
+    floor = int(np.flatnonzero((scene.planes[:, 2] < -0.9) & np.isclose(scene.planes[:, 3], -0.8))[0])
+    on_floor = scene.labels == floor
+    _, count = graph_neighbours(scene.points).components(on_floor)
+    assert count == 2  # in front of and behind the sensor's blind circle (3 m across at 0.8 m height)
+    seg = pv.detect_planes(scene.points, 0.05, seed=0)
+    horizontal = [k for k, plane in enumerate(seg.planes) if abs(plane.normal[2]) > 0.9]
+    assert np.isin(seg.labels[on_floor], horizontal).mean() > 0.95

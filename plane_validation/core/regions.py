@@ -19,6 +19,7 @@ Pure numpy/scipy.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,6 +48,18 @@ ACROSS_FAR_STRIDE = 11
 OFF_LINE_COS = 0.7
 #: ... "off the plane" of a strip: more than 30 degrees with it (cosine with its normal above this).
 OFF_PLANE_COS = 0.5
+#: A point whose neighbours all lie on its own lidar ring (their elevations seen from the sensor, about
+#: the z axis as a spinning lidar's frame has it, within this many radians: range noise keeps a ring's
+#: elevation, but not that of a noisy surface through the sensor) ...
+ONE_RING = float(np.radians(0.01))
+#: ... looks for the nearest point in direction (the next ring at about the same azimuth, as in the
+#: scan's image) whose elevation differs by more than this, instead of one off its line or plane:
+#: otherwise a ring on a corridor's floor is joined to itself where it climbs the wall, or finds nothing
+#: within reach. Rings lie 0.3-2 degrees apart.
+ANOTHER_RING = float(np.radians(0.1))
+#: ... among this many nearest in direction (then among as many of every ACROSS_FAR_STRIDE-th): a ring's
+#: returns are 0.1-0.4 degrees apart, the next ring 0.3-2 degrees away.
+RING_CANDIDATES = 16
 #: Only this fixed random share of the points looking across searches; the others take the point
 #: found by one of their searching neighbours (the points along a ring share the next ring), or search
 #: themselves when none of their neighbours searches.
@@ -310,40 +323,62 @@ def _grid_normals(image_points: np.ndarray, valid: np.ndarray) -> np.ndarray:
         return n / np.sqrt(np.einsum('...i,...i->...', n, n))[..., None]
 
 
-def _across(tree: cKDTree, points: np.ndarray, rows: np.ndarray, direction: np.ndarray, skip: int,
-            off_plane: bool = False, stride: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """For the points ``rows`` whose neighbours lie along ``direction`` (m, 3): whether one of their
-    ACROSS_CANDIDATES nearest in ``tree`` (after the first ``skip``) lies off that line, and the nearest
-    such one. With ``off_plane``, ``direction`` is the normal of a flat neighbourhood and "off" means
-    off its plane (OFF_PLANE_COS). ``tree`` holds every ``stride``-th of ``points``."""
-    candidates = min(ACROSS_CANDIDATES, tree.n)
+#: A kd-tree over coordinates, built on first use, the coordinates and how many nearest candidates a
+#: search looks at: (tree(), coordinates (n, 3), candidates).
+_Space = tuple[Callable[[], cKDTree], np.ndarray, int]
+#: Which candidates (m, c) of the rows (m,) are across: (rows, candidates) -> bool (m, c).
+_Test = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def _space(coords: np.ndarray, candidates: int, tree: cKDTree | None = None) -> _Space:
+    return (lambda: tree) if tree is not None else functools.cache(lambda: cKDTree(coords)), coords, candidates
+
+
+def _off(points: np.ndarray, direction: np.ndarray, off_plane: bool) -> _Test:
+    """Off the line along ``direction`` (n, 3) (OFF_LINE_COS), or with ``off_plane`` off the plane of
+    normal ``direction`` (OFF_PLANE_COS)."""
+    def test(rows: np.ndarray, near: np.ndarray) -> np.ndarray:
+        offs = points[near] - points[rows, None, :]
+        with np.errstate(invalid='ignore', divide='ignore'):
+            cos = np.abs(np.einsum('nkd,nd->nk', offs, direction[rows])) / np.linalg.norm(offs, axis=-1)
+        return cos > OFF_PLANE_COS if off_plane else cos < OFF_LINE_COS  # NaN (the point itself) is neither
+    return test
+
+
+def _another_ring(elevation: np.ndarray) -> _Test:
+    """On another lidar ring: ``elevation`` (n,) differs by more than ANOTHER_RING."""
+    return lambda rows, near: np.abs(elevation[near] - elevation[rows, None]) > ANOTHER_RING
+
+
+def _across(tree: cKDTree, coords: np.ndarray, rows: np.ndarray, test: _Test, candidates: int, skip: int,
+            stride: int) -> tuple[np.ndarray, np.ndarray]:
+    """For the points ``rows``: whether one of their ``candidates`` nearest in ``tree`` (after the
+    first ``skip``) passes ``test``, and the nearest such one. ``tree`` holds every ``stride``-th of
+    ``coords`` (n, 3)."""
+    candidates = min(candidates, tree.n)
     if len(rows) * candidates > ACROSS_BLOCK:  # bounded memory: a block of rows at a time
         step = max(1, ACROSS_BLOCK // candidates)
-        parts = [_across(tree, points, rows[i:i + step], direction[i:i + step], skip, off_plane, stride)
+        parts = [_across(tree, coords, rows[i:i + step], test, candidates, skip, stride)
                  for i in range(0, len(rows), step)]
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-    _, near = tree.query(points[rows], k=candidates)
+    _, near = tree.query(coords[rows], k=candidates)
     near = near.reshape(len(rows), -1)[:, skip:]
     near = np.where(near < tree.n, near * stride, rows[:, None])  # no neighbour found: the point itself
-    offs = points[near] - points[rows, None, :]
-    with np.errstate(invalid='ignore', divide='ignore'):
-        cos = np.abs(np.einsum('nkd,nd->nk', offs, direction)) / np.linalg.norm(offs, axis=-1)
-    across = cos > OFF_PLANE_COS if off_plane else cos < OFF_LINE_COS  # NaN (the point itself) is neither
+    across = test(rows, near)
     first = np.argmax(across, axis=1)
     return across[np.arange(len(rows)), first], near[np.arange(len(rows)), first]
 
 
-def _partners(tree: cKDTree, points: np.ndarray, idx: np.ndarray, rows: np.ndarray, direction: np.ndarray,
-              off_plane: bool = False, stride: int = 1) -> np.ndarray:
-    """:func:`_across` for the points ``rows`` (ascending) with neighbours ``idx`` (n, k), directions
-    ``direction`` (n, 3): (n,) the point found for each row, -1 where none (and for other points).
-    A fixed random ACROSS_SEARCHING share of the rows search; the others take a searching neighbour's."""
-    n, k = idx.shape
+def _partners(tree: cKDTree, coords: np.ndarray, idx: np.ndarray, rows: np.ndarray, test: _Test,
+              candidates: int, skip: int, stride: int) -> np.ndarray:
+    """:func:`_across` for the points ``rows`` (ascending) with neighbours ``idx`` (n, k): (n,) the
+    point found for each row, -1 where none (and for other points). A fixed random ACROSS_SEARCHING
+    share of the rows search; the others take a searching neighbour's."""
+    n = len(idx)
     partner = np.full(n, -1, dtype=np.int64)
     among = np.zeros(n, bool)
     among[rows] = True
     searching = (np.random.default_rng(0).random(n) < ACROSS_SEARCHING) & among  # by index: order matters
-    skip = k if stride == 1 else 0
     for group in (rows[searching[rows]], None):
         if group is None:  # the rest: a searching neighbour's point (or none), without one their own search
             rest = rows[~searching[rows]]
@@ -352,18 +387,36 @@ def _partners(tree: cKDTree, points: np.ndarray, idx: np.ndarray, rows: np.ndarr
             partner[rest[has]] = found[has, np.argmax(found[has] >= 0, axis=1)]
             group = rest[~searching[idx[rest, 1:]].any(axis=1)]
         if len(group):
-            ok, target = _across(tree, points, group, direction[group], skip, off_plane, stride)
+            ok, target = _across(tree, coords, group, test, candidates, skip, stride)
             partner[group[ok]] = target[ok]
     return partner
+
+
+def _search(space: _Space, idx: np.ndarray, rows: np.ndarray, test: _Test, skip: int, far: bool
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_partners` among the nearest in ``space`` (after the first ``skip``), then, with ``far``,
+    for the rows without one among every ACROSS_FAR_STRIDE-th point: (rows found (m,), partners (m,))."""
+    tree, coords, candidates = space
+    found_rows, found_targets = [rows[:0]], [rows[:0]]
+    for stride in (1, ACROSS_FAR_STRIDE) if far else (1,):
+        if len(rows) == 0 or len(coords) <= idx.shape[1]:
+            break
+        sub = tree() if stride == 1 else cKDTree(coords[::stride])
+        partner = _partners(sub, coords, idx, rows, test, candidates, skip if stride == 1 else 0, stride)[rows]
+        found = partner >= 0
+        found_rows.append(rows[found])
+        found_targets.append(partner[found])
+        rows = rows[~found]
+    return np.concatenate(found_rows), np.concatenate(found_targets)
 
 
 def graph_neighbours(points: np.ndarray, viewpoint: np.ndarray | None = None) -> Neighbours:
     """Neighbours of unorganized (n, 3) points (meters): each joined to its NEIGHBOURS nearest within
     RADIUS median NEIGHBOURS-th-neighbour distances and, where those lie along a line or a strip of
     one lidar ring, to a point of the next ring (see ACROSS_CANDIDATES, ACROSS_SEARCHING,
-    STRIP_FLATNESS). ``viewpoint`` (3,): where the sensor is in these coordinates (default the
-    origin), for the strip test. Exact copies of a point are joined to it and share its neighbours
-    and normal."""
+    STRIP_FLATNESS, ONE_RING). ``viewpoint`` (3,): where the sensor is in these coordinates (default
+    the origin; a spinning lidar's axis is taken as z), for the strip and ring tests. Exact copies of
+    a point are joined to it and share its neighbours and normal."""
     return _graph(points, merge_copies=True, viewpoint=np.zeros(3) if viewpoint is None else viewpoint)
 
 
@@ -390,19 +443,34 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Nei
         normals = _normals(values, vectors)
         line = values[:, 1] < 0.05 * values[:, 2]  # neighbours along a line: no normal, a ring
         normals[line] = np.nan
-        rows_s, target = _strips(tree, points, idx, ~line & (values[:, 0] < STRIP_FLATNESS * values[:, 1]),
-                                 normals, viewpoint)
+        rays = points - viewpoint
+        elevation = np.arctan2(rays[:, 2], np.hypot(rays[:, 0], rays[:, 1]))
+        near_elevation = elevation[idx]
+        one_ring = near_elevation.max(axis=1) - near_elevation.min(axis=1) <= ONE_RING
+        length = np.linalg.norm(rays, axis=1, keepdims=True)  # inf for a driver's FLT_MAX rows: direction 0
+        directions = _space(rays / np.where(length > 0, length, 1.0), RING_CANDIDATES)
+        nearby = _space(points, ACROSS_CANDIDATES, tree)
+
+        def search(rows: np.ndarray, off: _Test, far: bool) -> tuple[np.ndarray, np.ndarray]:
+            """Each row's partner: the nearest point off its line or plane (farther only with ``far``; for
+            a point of one ring, on another ring too), else the nearest in direction on another ring. A
+            point of one ring is also joined to the latter (the next ring at about its azimuth, as in
+            the scan's image), whatever the surface: across an edge that joins nothing, as the region
+            growth takes only points near its plane."""
+            another = _another_ring(elevation)
+            found, target = _search(nearby, idx, rows, lambda r, near: off(r, near) & (
+                ~one_ring[r, None] | another(r, near)), k, far)
+            found_d, target_d = _search(directions, idx, rows[one_ring[rows]], another, 0, True)
+            edges.append(np.column_stack([found_d, target_d]))
+            rest = ~np.isin(found_d, found)
+            return np.concatenate([found, found_d[rest]]), np.concatenate([target, target_d[rest]])
+
+        rows_s, target = _strips(points, ~line & (values[:, 0] < STRIP_FLATNESS * values[:, 1]), normals,
+                                 viewpoint, search)
         edges.append(np.column_stack([rows_s, target]))
         normals[rows_s] = _normals(*_principal_axes(points[np.concatenate([idx[rows_s], idx[target]], axis=1)]))
-        rows_l = np.flatnonzero(line)
-        for stride in (1, ACROSS_FAR_STRIDE):
-            if len(rows_l) == 0 or n <= k:
-                break
-            sub = tree if stride == 1 else cKDTree(points[::stride])
-            partner = _partners(sub, points, idx, rows_l, vectors[:, :, 2], stride=stride)
-            found = partner[rows_l] >= 0
-            edges.append(np.column_stack([rows_l[found], partner[rows_l[found]]]))
-            rows_l = rows_l[~found]
+        rows_l, target = search(np.flatnonzero(line), _off(points, vectors[:, :, 2], off_plane=False), True)
+        edges.append(np.column_stack([rows_l, target]))
     return _neighbours(n, np.concatenate(edges), normals)
 
 
@@ -422,21 +490,16 @@ def _normals(values: np.ndarray, axes: np.ndarray) -> np.ndarray:
     return np.where((values[:, 0] > NOISY * values[:, 1])[:, None], np.nan, axes[:, :, 0])
 
 
-def _strips(tree: cKDTree, points: np.ndarray, idx: np.ndarray, flat: np.ndarray, normals: np.ndarray,
-            viewpoint: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Points whose ``flat`` neighbourhood ``idx`` (n, k) (normal ``normals``, (n, 3)) is a strip of
-    one lidar ring seen from ``viewpoint`` (3,) (see STRIP_FLATNESS), and for each the point of the
-    next ring: (rows (m,), targets (m,))."""
-    k = idx.shape[1]
+def _strips(points: np.ndarray, flat: np.ndarray, normals: np.ndarray, viewpoint: np.ndarray,
+            search: Callable[[np.ndarray, _Test, bool], tuple[np.ndarray, np.ndarray]]
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Points whose ``flat`` neighbourhood (normal ``normals``, (n, 3)) is a strip of one lidar ring
+    seen from ``viewpoint`` (3,) (see STRIP_FLATNESS), and for each the point of the next ring found
+    by ``search``: (rows (m,), targets (m,))."""
     rays = points - viewpoint
     with np.errstate(invalid='ignore'):
         edge_on = np.abs(np.einsum('ij,ij->i', normals, rays)) < STRIP_EDGE_ON * np.linalg.norm(rays, axis=1)
-    rows = np.flatnonzero(flat & edge_on)
-    if len(rows) == 0 or len(points) <= k:
-        return rows[:0], rows[:0]
-    target = _partners(tree, points, idx, rows, normals, off_plane=True)[rows]
-    found = target >= 0
-    rows, target = rows[found], target[found]
+    rows, target = search(np.flatnonzero(flat & edge_on), _off(points, normals, off_plane=True), False)
     # the next ring's strip lies on a cone of nearly the same normal; a point of another surface
     # across an edge (or a point without a flat neighbourhood) is not taken
     found = np.abs(np.einsum('ij,ij->i', normals[rows], normals[target])) >= NORMAL_MIN_COS

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ['Scene', 'corner', 'cube', 'room', 'stairs', 'table', 'sphere', 'boxes', 'SCENES', 'depth_camera',
-           'lidar', 'SENSOR_VIEWS', 'LIDAR_VIEWS', 'VLP16_ROOM']
+           'lidar', 'SENSOR_VIEWS', 'LIDAR_VIEWS', 'VLP16_ROOM', 'VLP16_CORRIDOR']
 
 
 @dataclass(frozen=True, eq=False)
@@ -238,6 +238,12 @@ def _street() -> list[_Rect]:
              _Rect((12, -8, 0), Y, Z, 16, 3)] + _box_faces((3, 2, 0), (8, 4, 2.2), bottom=False))
 
 
+def _corridor() -> list[_Rect]:
+    """A 30 m long, 2.4 m wide and high corridor with a cabinet against one wall."""
+    cabinet = _box_faces((18.0, 1.8, 0.0), (19.2, 2.4, 1.2), bottom=False)
+    return _box_faces((0, 0, 0), (30.0, 2.4, 2.4)) + cabinet[:3] + cabinet[4:]  # not its back, on the wall
+
+
 #: Depth-camera views: rectangles, eye and target (meters, z up), and how the scene is named.
 SENSOR_VIEWS = {
     'room': (_furnished_room, (4.6, 0.4, 1.5), (1.5, 3.6, 0.7)),
@@ -250,6 +256,7 @@ SENSOR_VIEWS = {
 LIDAR_VIEWS = {
     'street': (_street, (0.0, 0.0)),
     'room': (_furnished_room, (2.5, 2.0)),
+    'corridor': (_corridor, (12.0, 1.2)),
 }
 
 
@@ -257,6 +264,9 @@ LIDAR_VIEWS = {
 #: furnished room, 2 cm range noise; its walls are 1.5-3 m away, where a ring's returns lie closer
 #: together than their noise.
 VLP16_ROOM = dict(view='room', rings=16, elevation_deg=(-15.0, 15.0), sigma=0.02, height=1.0)
+#: ``lidar(**VLP16_CORRIDOR)``: the same lidar 0.8 m above the floor of the corridor; its rings cross
+#: the floor 3-9 m apart, farther than the corridor is wide.
+VLP16_CORRIDOR = dict(view='corridor', rings=16, elevation_deg=(-15.0, 15.0), sigma=0.02, height=0.8)
 
 
 def _raycast(rects: list[_Rect], eye: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -324,8 +334,8 @@ def depth_camera(view: str = 'room', *, width: int = 640, height: int = 480, hfo
 def lidar(view: str = 'street', *, rings: int = 32, azimuths: int = 1800, sigma: float = 0.015,
           height: float = 1.8, elevation_deg: tuple[float, float] = (-30.0, 10.0), max_range: float = 60.0,
           organized: bool = False, seed=None) -> Scene:
-    """A spinning lidar's scan (sensor frame, meters) of a :data:`LIDAR_VIEWS` view (a street, or the
-    depth camera's furnished room from its middle), the sensor ``height`` above the ground: ``rings``
+    """A spinning lidar's scan (sensor frame, meters) of a :data:`LIDAR_VIEWS` view (a street, the
+    depth camera's furnished room from its middle, or a corridor), the sensor ``height`` above the ground: ``rings``
     beams between the elevations, ``azimuths`` steps per turn from azimuth 0 (+x), range noise
     N(0, sigma) along each beam. Unorganized (the returns only), or with ``organized`` a rings x
     azimuths image with NaN rows for beams without a return (as velodyne_pointcloud and ouster-ros
