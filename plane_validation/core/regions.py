@@ -50,7 +50,8 @@ OFF_LINE_COS = 0.7
 OFF_PLANE_COS = 0.5
 #: A point whose neighbours all lie on its own lidar ring (their elevations seen from the sensor, about
 #: the z axis as a spinning lidar's frame has it, within this many radians: range noise keeps a ring's
-#: elevation, but not that of a noisy surface through the sensor) ...
+#: elevation, but not that of a noisy surface through the sensor; and spread over more than ANOTHER_RING
+#: in direction, which a patch far from the sensor, as a scan not in the sensor's frame has, is not) ...
 ONE_RING = float(np.radians(0.01))
 #: ... looks for the nearest point in direction (the next ring at about the same azimuth, as in the
 #: scan's image) whose elevation differs by more than this, instead of one off its line or plane:
@@ -446,9 +447,12 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Nei
         rays = points - viewpoint
         elevation = np.arctan2(rays[:, 2], np.hypot(rays[:, 0], rays[:, 1]))
         near_elevation = elevation[idx]
-        one_ring = near_elevation.max(axis=1) - near_elevation.min(axis=1) <= ONE_RING
-        length = np.linalg.norm(rays, axis=1, keepdims=True)  # inf for a driver's FLT_MAX rows: direction 0
-        directions = _space(rays / np.where(length > 0, length, 1.0), RING_CANDIDATES)
+        length = np.linalg.norm(rays, axis=1, keepdims=True)
+        unit = rays / np.where(length > 0, length, 1.0)
+        widest = np.einsum('nkd,nd->nk', unit[idx], unit).min(axis=1)  # cosine of the widest neighbour's angle
+        one_ring = (near_elevation.max(axis=1) - near_elevation.min(axis=1) <= ONE_RING) & \
+            (widest < np.cos(ANOTHER_RING))
+        directions = _space(unit, RING_CANDIDATES)
         nearby = _space(points, ACROSS_CANDIDATES, tree)
 
         def search(rows: np.ndarray, off: _Test, far: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -466,7 +470,7 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Nei
             return np.concatenate([found, found_d[rest]]), np.concatenate([target, target_d[rest]])
 
         rows_s, target = _strips(points, ~line & (values[:, 0] < STRIP_FLATNESS * values[:, 1]), normals,
-                                 viewpoint, search)
+                                 rays, search)
         edges.append(np.column_stack([rows_s, target]))
         normals[rows_s] = _normals(*_principal_axes(points[np.concatenate([idx[rows_s], idx[target]], axis=1)]))
         rows_l, target = search(np.flatnonzero(line), _off(points, vectors[:, :, 2], off_plane=False), True)
@@ -490,13 +494,12 @@ def _normals(values: np.ndarray, axes: np.ndarray) -> np.ndarray:
     return np.where((values[:, 0] > NOISY * values[:, 1])[:, None], np.nan, axes[:, :, 0])
 
 
-def _strips(points: np.ndarray, flat: np.ndarray, normals: np.ndarray, viewpoint: np.ndarray,
+def _strips(points: np.ndarray, flat: np.ndarray, normals: np.ndarray, rays: np.ndarray,
             search: Callable[[np.ndarray, _Test, bool], tuple[np.ndarray, np.ndarray]]
             ) -> tuple[np.ndarray, np.ndarray]:
     """Points whose ``flat`` neighbourhood (normal ``normals``, (n, 3)) is a strip of one lidar ring
-    seen from ``viewpoint`` (3,) (see STRIP_FLATNESS), and for each the point of the next ring found
-    by ``search``: (rows (m,), targets (m,))."""
-    rays = points - viewpoint
+    seen along ``rays`` (n, 3) from the sensor (see STRIP_FLATNESS), and for each the point of the
+    next ring found by ``search``: (rows (m,), targets (m,))."""
     with np.errstate(invalid='ignore'):
         edge_on = np.abs(np.einsum('ij,ij->i', normals, rays)) < STRIP_EDGE_ON * np.linalg.norm(rays, axis=1)
     rows, target = search(np.flatnonzero(flat & edge_on), _off(points, normals, off_plane=True), False)
