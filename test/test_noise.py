@@ -104,3 +104,16 @@ def test_a_tuning_range_the_model_cannot_honour_is_an_error():
     wall = np.column_stack([rng.uniform(-2, 2, 3000), rng.uniform(-1, 1, 3000), 6 + rng.normal(0, 0.01, 3000)])
     with pytest.raises(ValueError, match='t_min'):
         pv.tune_tolerance(wall, count=6, noise_model='depth_quadratic', t_min=0.01, seed=0)
+
+
+def test_depth_quadratic_ranges_are_measured_from_the_viewpoint():
+    scene = scenes.depth_camera('table', width=80, height=60, seed=0)
+    pts = scene.points[np.isfinite(scene.points).all(axis=1)]
+    v = np.array([0.3, -0.2, 1.0])
+    np.testing.assert_allclose(tolerance_scale(pts + v, 'depth_quadratic', viewpoint=v),
+                               tolerance_scale(pts, 'depth_quadratic'))
+    own = pv.detect_planes(pts, 0.005, seed=0, noise_model='depth_quadratic')
+    moved = pv.detect_planes(pts + v, 0.005, seed=0, noise_model='depth_quadratic', viewpoint=v)
+    assert np.array_equal(own.labels, moved.labels)
+    assert noise_coefficient(pts + v, moved.labels, moved.coefficients, v) == pytest.approx(
+        noise_coefficient(pts, own.labels, own.coefficients), rel=1e-6)

@@ -334,3 +334,15 @@ def test_the_quick_estimate_finds_the_walls_of_an_unorganized_lidar_scan():
     first = pipe.process(scan.points, 10**9, tune_inline=False)
     assert first.tolerance_source.startswith('quick estimate') and first.tolerance > 0.01
     assert first.n_planes >= 4, first.message
+
+
+def test_the_viewpoint_parameters_give_a_lidar_scan_in_base_link_its_sensor_frame_planes():
+    scan = scenes.lidar(**scenes.VLP16_ROOM, seed=1)
+    fixed = dict(auto_tune=False, tolerance=0.05, max_planes=14, min_inliers=23.0, seed=0)
+    own = FramePipeline(PipelineConfig(**fixed)).process(scan.points, 10**9)
+    lifted = scan.points + [0.0, 0.0, 1.8]
+    moved = FramePipeline(PipelineConfig(**fixed, viewpoint_z=1.8)).process(lifted, 10**9)
+    blind = FramePipeline(PipelineConfig(**fixed)).process(lifted, 10**9)
+    assert np.array_equal(moved.labels, own.labels) and own.n_planes >= 5
+    assert not np.array_equal(blind.labels, own.labels)
+    np.testing.assert_allclose(moved.points, lifted)

@@ -112,12 +112,25 @@ class PipelineConfig:
                           'noise_reference)', choices=NOISE_MODELS)
     noise_reference: float = _p(NOISE_REFERENCE, 'range up to which depth_quadratic keeps t', low=0.01, high=100.0,
                                 unit='m')
+    viewpoint_x: float = _p(0.0, 'where the sensor is in the cloud\'s frame, x (0, 0, 0 = its origin, as a driver '
+                            'publishes a scan; e.g. 0, 0, 1.8 for a lidar 1.8 m above base_link): the origin of '
+                            'depth_quadratic\'s ranges and of the rays by which unorganized lidar rings are told',
+                            low=-MAX_DISTANCE, high=MAX_DISTANCE, unit='m')
+    viewpoint_y: float = _p(0.0, 'where the sensor is in the cloud\'s frame, y (see viewpoint_x)',
+                            low=-MAX_DISTANCE, high=MAX_DISTANCE, unit='m')
+    viewpoint_z: float = _p(0.0, 'where the sensor is in the cloud\'s frame, z (see viewpoint_x)',
+                            low=-MAX_DISTANCE, high=MAX_DISTANCE, unit='m')
     zero_is_no_return: bool = _p(True, 'a point at exactly (0, 0, 0) is a driver\'s "no return" mark (as NaN is) and '
                                  'is left out; false = a point like any other')
     voxel_size: float = _p(0.0, 'voxel grid applied before detection (each point then takes its voxel\'s plane '
                            'if within t of it); 0 = off', low=1e-6, high=MAX_DISTANCE, special=0.0, unit='m')
     seed: int = _p(0, 'random seed; frames are seeded by (seed, header stamp); -1 = fresh entropy every frame',
                    low=-1, high=2**31 - 1)
+
+    @property
+    def viewpoint(self) -> tuple[float, float, float]:
+        """(x, y, z) meters: viewpoint_x, viewpoint_y, viewpoint_z."""
+        return self.viewpoint_x, self.viewpoint_y, self.viewpoint_z
 
     def validate(self) -> PipelineConfig:
         """Return self, or raise ValueError naming the first invalid field and why."""

@@ -44,7 +44,7 @@ RETRY_MAX_S = 60.0
 TUNING_FIELDS = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points', 'criterion', 'max_planes',
                  'min_inliers', 'voxel_size', 'probability', 'max_iterations', 'index_sample_size',
                  'exact_indices', 'ransac_points', 'connectivity', 'noise_model', 'noise_reference',
-                 'zero_is_no_return')
+                 'viewpoint_x', 'viewpoint_y', 'viewpoint_z', 'zero_is_no_return')
 
 
 @dataclass(frozen=True, eq=False)
@@ -225,7 +225,7 @@ class FramePipeline:
                               count=cfg.tune_count, seed=frame_seed(cfg.seed, stamp_ns),
                               ransac_points=cfg.ransac_points or None, sampled_separation=not cfg.exact_indices,
                               shape=shape, connectivity=cfg.connectivity, noise_model=cfg.noise_model,
-                              noise_reference=cfg.noise_reference, jobs=cfg.tune_jobs)
+                              noise_reference=cfg.noise_reference, viewpoint=cfg.viewpoint, jobs=cfg.tune_jobs)
 
     def process_cloud(self, msg, *, tune_inline: bool = True) -> FrameResult:
         """One sensor_msgs/PointCloud2 (rclpy or rosbags) through :meth:`process`; a malformed
@@ -307,7 +307,7 @@ class FramePipeline:
                                     max_iterations=cfg.max_iterations, seed=seed,
                                     ransac_points=cfg.ransac_points or None, shape=shape,
                                     connectivity=cfg.connectivity, noise_model=cfg.noise_model,
-                                    noise_reference=cfg.noise_reference)
+                                    noise_reference=cfg.noise_reference, viewpoint=cfg.viewpoint)
                 if inverse is not None:  # each point its voxel's plane, if it lies within t of it
                     labels = _within_plane(valid, seg.labels[inverse], seg, tolerance)
                 else:
@@ -347,7 +347,7 @@ def _within_plane(points: np.ndarray, labels: np.ndarray, seg: Segmentation, tol
         return labels
     plane = planes[np.maximum(labels, 0)]
     distance = np.abs(np.einsum('ij,ij->i', points, plane[:, :3]) + plane[:, 3])
-    scale = tolerance_scale(points, seg.noise_model, seg.noise_reference)
+    scale = tolerance_scale(points, seg.noise_model, seg.noise_reference, np.asarray(seg.viewpoint))
     return np.where(distance <= tolerance * (1.0 if scale is None else scale), labels, -1)
 
 
@@ -367,7 +367,8 @@ def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_
               ('noise_model', cfg.noise_model), ('noise_estimate', fmt(noise)),
               ('stop_reason', seg.reason)]
     if cfg.noise_model == 'depth_quadratic':  # sigma(r) = c r^2
-        values.append(('noise_coefficient', fmt(noise_coefficient(work, seg.labels, seg.coefficients))))
+        values.append(('noise_coefficient', fmt(noise_coefficient(work, seg.labels, seg.coefficients,
+                                                                  np.asarray(seg.viewpoint)))))
     for k, plane in enumerate(seg.planes):
         values += [(f'plane_{k}_inliers', str(int(counts[k]))), (f'plane_{k}_rms', fmt(plane.rms))]
     return tuple(values)

@@ -2,7 +2,7 @@
 
 * ``constant``: one tolerance ``t`` everywhere (the paper).
 * ``depth_quadratic``: a depth camera's noise grows as the square of the range, so a point at range
-  r (meters, from the sensor at the origin of the cloud's frame) is an inlier within
+  r (meters, from the sensor: the origin of the cloud's frame, or the ``viewpoint`` given) is an inlier within
   t(r) = t0 * max(1, (r / reference)^2). The tolerance ``t`` that :func:`~.ransac.detect_planes`
   and the tuner take is then t0, the tolerance up to ``reference`` meters.
 
@@ -32,25 +32,29 @@ def check_noise_model(noise_model: str, reference: float) -> None:
 
 
 def tolerance_scale(points: np.ndarray, noise_model: str = 'constant',
-                    reference: float = NOISE_REFERENCE) -> np.ndarray | None:
+                    reference: float = NOISE_REFERENCE, viewpoint: np.ndarray | None = None) -> np.ndarray | None:
     """(N,) factor the tolerance is multiplied by at each point of ``points`` (N, 3) meters, or None
-    for ``constant`` (a factor of 1 everywhere): max(1, (r / reference)^2), at most MAX_SCALE. NaN
-    rows give NaN."""
+    for ``constant`` (a factor of 1 everywhere): max(1, (r / reference)^2), at most MAX_SCALE, r the
+    range from ``viewpoint`` (3,) (default the origin). NaN rows give NaN."""
     check_noise_model(noise_model, reference)
     if noise_model == 'constant':
         return None
+    if viewpoint is not None and np.any(viewpoint):
+        points = points - viewpoint
     with np.errstate(over='ignore'):
         squared = np.einsum('ij,ij->i', points, points) / reference ** 2
     return np.clip(squared, 1.0, MAX_SCALE, where=~np.isnan(squared), out=squared)
 
 
-def noise_coefficient(points: np.ndarray, labels: np.ndarray, coefficients: np.ndarray) -> float:
+def noise_coefficient(points: np.ndarray, labels: np.ndarray, coefficients: np.ndarray,
+                      viewpoint: np.ndarray | None = None) -> float:
     """c (1/m) of depth noise sigma(r) = c * r^2 along each viewing ray, fitted to the planes' residuals.
 
-    points (N, 3) meters in the sensor frame; labels (N,) plane index or -1; coefficients (k, 4)
-    planes (a, b, c, d) with unit normals. Range noise dr moves a point along its ray u by dr, i.e.
-    by dr (n . u) from its plane, so each residual is c r^2 (n . u) times unit noise; c is the
-    least-squares fit of that over every plane point (grazing points, n . u ~ 0, weigh little).
+    points (N, 3) meters; labels (N,) plane index or -1; coefficients (k, 4) planes (a, b, c, d) with
+    unit normals; viewpoint (3,): the sensor in these coordinates (default the origin). Range noise dr
+    moves a point along its ray u by dr, i.e. by dr (n . u) from its plane, so each residual is
+    c r^2 (n . u) times unit noise; c is the least-squares fit of that over every plane point
+    (grazing points, n . u ~ 0, weigh little).
     NaN without plane points.
     """
     own = (labels >= 0) & (labels < len(coefficients)) & np.isfinite(points).all(axis=1)
@@ -58,8 +62,10 @@ def noise_coefficient(points: np.ndarray, labels: np.ndarray, coefficients: np.n
         return float('nan')
     pts = points[own]
     plane = np.asarray(coefficients, float)[labels[own]]
+    residual = np.einsum('ij,ij->i', pts, plane[:, :3]) + plane[:, 3]
+    if viewpoint is not None and np.any(viewpoint):
+        pts = pts - viewpoint
     projection = np.einsum('ij,ij->i', pts, plane[:, :3])
-    residual = projection + plane[:, 3]
     ranges = np.sqrt(np.einsum('ij,ij->i', pts, pts))
     along = np.abs(projection) / np.maximum(ranges, 1e-12)  # |n . u|
     model = ranges ** 2 * along

@@ -72,6 +72,7 @@ class Segmentation:
     planes: detected planes in extraction order. tolerance: meters. n_valid: finite rows.
     reason: why extraction stopped (human-readable). noise_model, noise_reference: how the
     tolerance grows with range (:mod:`.noise`; ``tolerance`` is t0, the one up to the reference range).
+    viewpoint: (x, y, z) meters, where the sensor is in the cloud's frame.
     """
 
     labels: np.ndarray
@@ -81,6 +82,7 @@ class Segmentation:
     reason: str
     noise_model: str = 'constant'
     noise_reference: float = NOISE_REFERENCE
+    viewpoint: tuple[float, float, float] = (0.0, 0.0, 0.0)
     coefficients: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -394,7 +396,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
                   max_iterations: int = 1000, seed: int | np.random.Generator | None = None,
                   ransac_points: int | None = RANSAC_POINTS, shape: tuple[int, int] | None = None,
                   connectivity: bool = True, graph: SearchGraph | None = None, noise_model: str = 'constant',
-                  noise_reference: float = NOISE_REFERENCE) -> Segmentation:
+                  noise_reference: float = NOISE_REFERENCE, viewpoint=None) -> Segmentation:
     """Find planes one by one with RANSAC, removing each plane's points before the next search.
 
     With ``connectivity`` (the default) a plane is a connected planar region: each candidate's
@@ -418,8 +420,11 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
         sample of this many (min_inliers scaled to the sample); None = always on all points.
     graph: the :func:`search_graph` of these points, shape and ransac_points, to reuse across calls
         on one cloud (a tolerance sweep); None builds it here.
-    noise_model: 'constant', or 'depth_quadratic': a point at range r from the origin (the sensor) is
-        within t * max(1, (r / noise_reference)^2) of a plane (:mod:`.noise`).
+    noise_model: 'constant', or 'depth_quadratic': a point at range r from the sensor is within
+        t * max(1, (r / noise_reference)^2) of a plane (:mod:`.noise`).
+    viewpoint: (3,) meters, where the sensor is in the cloud's frame (default the origin, as a driver
+        publishes a scan): ranges for the noise model, and the rays along which the neighbourhood
+        graph of an unorganized cloud tells a spinning lidar's rings (:func:`.regions.graph_neighbours`).
 
     Without connectivity, each plane found is then refitted by least squares on the searched points
     nearest to it (within ``tolerance``), and every valid point is labelled with the nearest plane
@@ -446,13 +451,14 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     if shape is not None:
         shape = check_shape(shape, len(pts))
     check_magnitude(pts)
-    scale = tolerance_scale(pts, noise_model, noise_reference)
-    model = dict(noise_model=noise_model, noise_reference=float(noise_reference))
+    view = check_viewpoint(viewpoint)
+    scale = tolerance_scale(pts, noise_model, noise_reference, view)
+    model = dict(noise_model=noise_model, noise_reference=float(noise_reference), viewpoint=tuple(view.tolist()))
     point_tolerance = tolerance if scale is None else tolerance * scale  # (N,) with a noise model
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     if connectivity:
         seg = _detect_regions(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
-                              ransac_points, shape, graph)
+                              ransac_points, shape, graph, view)
         return dataclasses.replace(seg, tolerance=tolerance, **model)
 
     cols = np.ascontiguousarray(pts.T)
@@ -675,6 +681,7 @@ class SearchGraph:
     search_idx of the searched point nearest to it (the point then takes that one's region). It
     depends only on the cloud, ``shape`` and ``ransac_points``, not on the tolerance: a sweep builds
     it once (:func:`search_graph`) and passes it to every :func:`detect_planes` call on that cloud.
+    viewpoint: (3,) meters, the sensor it was built for.
     """
 
     n_points: int
@@ -686,22 +693,36 @@ class SearchGraph:
     ransac_points: int | None
     n_valid: int
     nearest: np.ndarray | None = None
+    viewpoint: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
-                 ransac_points: int | None = RANSAC_POINTS, rng: np.random.Generator | None = None
-                 ) -> SearchGraph | None:
-    """The :class:`SearchGraph` of ``points`` (N, 3) meters. An unorganized cloud of more than
-    ``ransac_points`` valid points is searched on a random sample drawn from ``rng``; without
-    ``rng`` such a cloud has no fixed graph and None is returned."""
+                 ransac_points: int | None = RANSAC_POINTS, rng: np.random.Generator | None = None,
+                 viewpoint=None) -> SearchGraph | None:
+    """The :class:`SearchGraph` of ``points`` (N, 3) meters seen from ``viewpoint`` (as in
+    :func:`detect_planes`). An unorganized cloud of more than ``ransac_points`` valid points is
+    searched on a random sample drawn from ``rng``; without ``rng`` such a cloud has no fixed graph
+    and None is returned."""
     pts = as_points(points)
     _check_ransac_points(ransac_points)
     return _search_graph(pts, finite_rows(pts), None if shape is None else check_shape(shape, len(pts)),
-                         ransac_points, rng)
+                         ransac_points, rng, check_viewpoint(viewpoint))
+
+
+def check_viewpoint(viewpoint) -> np.ndarray:
+    """``viewpoint`` (3,) meters as a float array (None: the origin); ValueError unless 3 finite numbers."""
+    why = f'viewpoint must be 3 finite coordinates (x, y, z) in meters, got {viewpoint!r}'
+    try:
+        view = np.zeros(3) if viewpoint is None else np.asarray(viewpoint, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(why) from None
+    if view.shape != (3,) or not np.isfinite(view).all():
+        raise ValueError(why)
+    return view
 
 
 def _search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | None, ransac_points: int | None,
-                  rng: np.random.Generator | None) -> SearchGraph | None:
+                  rng: np.random.Generator | None, viewpoint: np.ndarray) -> SearchGraph | None:
     """:func:`search_graph` of checked points ``pts`` with their finite rows ``finite`` (N,)."""
     valid_idx = np.flatnonzero(finite)
     n_valid = len(valid_idx)
@@ -710,7 +731,7 @@ def _search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | 
     step = 0 if shape is None else grid_step(shape, n_valid, ransac_points)
     if step:
         grid, pixels = grid_image(pts, finite, shape, step)
-        neighbours = grid_neighbours(grid, pixels >= 0)
+        neighbours = grid_neighbours(grid - viewpoint if viewpoint.any() else grid, pixels >= 0)  # sensor ranges
         search_idx = pixels.reshape(-1)[neighbours.pixel]
     else:  # unorganized, or an image too thin for a 2-D grid
         search_idx = valid_idx
@@ -721,25 +742,28 @@ def _search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | 
         searched = pts[search_idx] - center
         if len(search_idx) < n_valid:
             nearest = cKDTree(searched).query(pts[valid_idx] - center, k=1)[1]
-        neighbours = graph_neighbours(searched, viewpoint=-center)  # the sensor sits at the cloud's origin
+        neighbours = graph_neighbours(searched, viewpoint=viewpoint - center)
     return SearchGraph(n_points=len(pts), search_idx=search_idx, step=step, center=center, neighbours=neighbours,
-                       shape=shape, ransac_points=ransac_points, n_valid=n_valid, nearest=nearest)
+                       shape=shape, ransac_points=ransac_points, n_valid=n_valid, nearest=nearest,
+                       viewpoint=tuple(viewpoint.tolist()))
 
 
 def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
                     probability: float, max_iterations: int, rng: np.random.Generator,
                     ransac_points: int | None, shape: tuple[int, int] | None,
-                    graph: SearchGraph | None) -> Segmentation:
+                    graph: SearchGraph | None, viewpoint: np.ndarray) -> Segmentation:
     """detect_planes with connected regions (see its docstring)."""
     finite = finite_rows(pts)
     valid_idx = np.flatnonzero(finite)
     n_valid = len(valid_idx)
     min_count = resolve_min_inliers(min_inliers, n_valid)
     if graph is None:
-        graph = _search_graph(pts, finite, shape, ransac_points, rng)
+        graph = _search_graph(pts, finite, shape, ransac_points, rng, viewpoint)
     elif (graph.n_points, graph.shape, graph.ransac_points) != (len(pts), shape, ransac_points):
         raise ValueError(f'graph was built for {graph.n_points} points, shape {graph.shape} and ransac_points '
                          f'{graph.ransac_points}, not {len(pts)}, {shape} and {ransac_points}')
+    elif graph.viewpoint != tuple(viewpoint.tolist()):
+        raise ValueError(f'graph was built for viewpoint {graph.viewpoint}, not {tuple(viewpoint.tolist())}')
     elif graph.n_valid != n_valid or not finite[graph.search_idx].all():
         raise ValueError('graph was built for a cloud with other valid (finite) rows')
     search_idx, step, center, neighbours = graph.search_idx, graph.step, graph.center, graph.neighbours

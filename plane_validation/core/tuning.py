@@ -28,6 +28,7 @@ from .ransac import (
     as_points,
     check_magnitude,
     check_shape,
+    check_viewpoint,
     detect_planes,
     finite_rows,
     grid_image,
@@ -261,7 +262,7 @@ def noise_from_segmentation(seg: Segmentation, points: np.ndarray | None = None)
     own = seg.labels >= 0
     plane = seg.coefficients[seg.labels[own]]
     residual = np.einsum('ij,ij->i', pts[own], plane[:, :3]) + plane[:, 3]
-    residual /= tolerance_scale(pts[own], seg.noise_model, seg.noise_reference)
+    residual /= tolerance_scale(pts[own], seg.noise_model, seg.noise_reference, np.asarray(seg.viewpoint))
     return float(np.sqrt(3 * np.mean(residual ** 2)))
 
 
@@ -274,7 +275,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                    ransac_points: int | None = RANSAC_POINTS, sampled_separation: bool | None = None,
                    shape: tuple[int, int] | None = None, connectivity: bool = True,
                    noise_model: str = 'constant', noise_reference: float = NOISE_REFERENCE,
-                   jobs: int = 1) -> TuningResult:
+                   viewpoint=None, jobs: int = 1) -> TuningResult:
     """Sweep the RANSAC tolerance and pick the best by ``criterion``.
 
     points: (N, 3) meters. tolerances: candidate ``t`` values in meters, or None for ``count``
@@ -294,9 +295,9 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     the criterion (they cannot change the choice);
     shape, connectivity: to :func:`detect_planes` (an organized cloud is swept on a regular
     sub-grid of about ``tune_points`` pixels, which keeps it organized).
-    noise_model, noise_reference: to :func:`detect_planes`; with ``depth_quadratic`` the candidates
-    are t0, the tolerance up to the reference range (derived bounds are divided by the median
-    tolerance factor of the cloud).
+    noise_model, noise_reference, viewpoint: to :func:`detect_planes`; with ``depth_quadratic`` the
+    candidates are t0, the tolerance up to the reference range (derived bounds are divided by the
+    median tolerance factor of the cloud).
     jobs: worker processes the candidates (and the reseeded reruns, beside the final detection)
     run in; 1 = this process, 0 = one per CPU core, and never more than the cores. The result is
     the same for any value.
@@ -322,7 +323,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     rng = np.random.default_rng(seed)
     cand = default_tolerances(finite, count, lo=t_min, hi=t_max, seed=rng) if tolerances is None \
         else np.atleast_1d(np.asarray(tolerances, dtype=float))
-    scale = tolerance_scale(finite, noise_model, noise_reference)
+    view = check_viewpoint(viewpoint)
+    scale = tolerance_scale(finite, noise_model, noise_reference, view)
     if scale is not None and tolerances is None:  # the derived bounds are tolerances at typical range
         factor = float(np.median(scale))
         lo = cand[0] / factor if t_min is None else cand[0]
@@ -349,7 +351,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     ransac_seed, index_seed = rng.integers(0, 2**63, size=2)
     opts = dict(max_planes=max_planes, min_inliers=min_inliers, probability=probability,
                 max_iterations=max_iterations, ransac_points=ransac_points, connectivity=connectivity,
-                noise_model=noise_model, noise_reference=noise_reference)
+                noise_model=noise_model, noise_reference=noise_reference, viewpoint=view)
     # a count means the same share of the cloud on the subsample (as ransac_points scales it)
     sweep_opts = dict(opts, min_inliers=_scaled_min_inliers(min_inliers, n_sweep, len(finite)), shape=sweep_shape)
     sampled_separation = _sampled_separation(sampled_separation, len(finite))
@@ -364,9 +366,9 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         # a sweep that fails or is abandoned does not wait for the graph (the thread ends on its own)
         stack.callback(pool.shutdown, wait=False, cancel_futures=True)
         final_graph = pool.submit(contextvars.copy_context().run, search_graph, pts, shape, ransac_points,
-                                  final_rng) if connectivity else None
+                                  final_rng, view) if connectivity else None
         if connectivity:  # the same neighbourhood graph for every candidate (None when it would be sampled)
-            sweep_opts['graph'] = search_graph(sweep_pts, sweep_shape, ransac_points)
+            sweep_opts['graph'] = search_graph(sweep_pts, sweep_shape, ransac_points, viewpoint=view)
         rows: list[TuningRow] = []
         sweep_labels: list[np.ndarray] = []
         candidates = run(_candidate, [(sweep_pts, t, int(ransac_seed), sweep_opts, score) for t in cand])
@@ -394,7 +396,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     return TuningResult(rows=tuple(rows), criterion=criterion, best=best, tolerance=t_best, segmentation=final,
                         indices=final_scores, noise_estimate=noise_from_segmentation(final, pts), reliable=reliable,
                         verdict=verdict, seconds=time.perf_counter() - start, noise_model=noise_model,
-                        noise_coefficient=noise_coefficient(pts, final.labels, final.coefficients)
+                        noise_coefficient=noise_coefficient(pts, final.labels, final.coefficients, view)
                         if noise_model == 'depth_quadratic' else float('nan'), sweep_points=n_sweep,
                         seed_agreement=agreement)
 
@@ -545,7 +547,7 @@ def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 1
                        max_iterations: int = 1000, sample_size: int | None = 2000,
                        seed: int | None = None, shape: tuple[int, int] | None = None,
                        connectivity: bool = True, noise_model: str = 'constant',
-                       noise_reference: float = NOISE_REFERENCE,
+                       noise_reference: float = NOISE_REFERENCE, viewpoint=None,
                        sampled_separation: bool | None = None) -> PlaneCountResult:
     """Score the first k planes (the rest unassigned) for k = 1..K and pick k (paper Fig. 2).
 
@@ -554,7 +556,7 @@ def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 1
     silhouette and davies_bouldin k is the index's optimum (``best_by``); for gs_planes it is the
     largest k whose planes all keep a mean silhouette S_j >= MIN_PLANE_SILHOUETTE (see
     :func:`_well_assigned_count` for why not the plain argmax). shape, connectivity, noise_model,
-    noise_reference: to :func:`detect_planes`; sampled_separation: to :func:`validity_indices`, None
+    noise_reference, viewpoint: to :func:`detect_planes`; sampled_separation: to :func:`validity_indices`, None
     meaning exact up to EXACT_SEPARATION_POINTS valid points (as in :func:`tune_tolerance`).
     """
     _check_criterion(criterion)
@@ -563,7 +565,7 @@ def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 1
     seg = detect_planes(points, tolerance, max_planes=max_planes, min_inliers=min_inliers,
                         probability=probability, max_iterations=max_iterations, seed=int(ransac_seed),
                         shape=shape, connectivity=connectivity, noise_model=noise_model,
-                        noise_reference=noise_reference)
+                        noise_reference=noise_reference, viewpoint=viewpoint)
     pts = as_points(points)
     sampled = _sampled_separation(sampled_separation, seg.n_valid)
     counts, scores = [], []
