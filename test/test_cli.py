@@ -500,3 +500,20 @@ def test_detect_and_sweep_take_the_search_settings_a_lidar_needs(tmp_path, capsy
     tuned = pv.tune_tolerance(points, grid, seed=7, connectivity=False, ransac_points=1000)
     assert [r['assigned_points'] for r in doc['sweep']] == [int(sum(r.inlier_counts)) for r in tuned.rows]
     assert doc['tolerance'] == pytest.approx(tuned.tolerance, rel=1e-12)
+
+
+def test_the_file_commands_take_the_viewpoint(tmp_path, capsys):
+    # a 16-beam scan 1.8 m above the file's origin (base_link): --viewpoint-z gives its own frame's planes
+    scan = scenes.lidar(**scenes.VLP16_ROOM, seed=1)
+    path = tmp_path / 'lifted.npy'
+    np.save(path, scan.points + [0.0, 0.0, 1.8])
+    counts = {}
+    for z in ('0', '1.8'):
+        assert main(['detect', str(path), '--tolerance', '0.05', '--seed', '0', '--min-inliers', '23',
+                     '--max-planes', '14', '--viewpoint-z', z, '--json']) == 0
+        counts[z] = [p['inliers'] for p in json.loads(capsys.readouterr().out)['planes']]
+    own = pv.detect_planes(scan.points, 0.05, seed=0, min_inliers=23, max_planes=14)
+    assert counts['1.8'] == [len(p.inliers) for p in own.planes] != counts['0']
+    with pytest.raises(SystemExit):
+        main(['detect', str(path), '--viewpoint-z', 'nan'])
+    assert 'viewpoint_z must be in' in capsys.readouterr().err

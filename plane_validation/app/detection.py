@@ -44,10 +44,10 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, seed: int = 0,
            min_inliers: int | float = 0.02, progress: Callable[[int, int], None] | None = None,
            shape: tuple[int, int] | None = None, noise_model: str = 'constant',
            noise_reference: float = NOISE_REFERENCE, jobs: int = 1, connectivity: bool = True,
-           ransac_points: int | None = RANSAC_POINTS) -> Detection:
+           ransac_points: int | None = RANSAC_POINTS, viewpoint=None) -> Detection:
     """Planes of (N, 3) ``points`` at ``tolerance`` meters, or at the auto-tuned t when None;
-    ``shape`` (H, W) for an organized cloud; ``noise_model``, ``connectivity`` and ``ransac_points``
-    as in :func:`detect_planes`; ``jobs`` as in :func:`tune_tolerance`.
+    ``shape`` (H, W) for an organized cloud; ``noise_model``, ``connectivity``, ``ransac_points`` and
+    ``viewpoint`` as in :func:`detect_planes`; ``jobs`` as in :func:`tune_tolerance`.
 
     Equivalent Python API calls (same results): fixed t -> ``detect_planes(points, t, seed=seed,
     max_planes=..., min_inliers=...)`` and ``validity_indices(points, labels, seed=seed)``; auto ->
@@ -58,14 +58,14 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, seed: int = 0,
     if tolerance is None:
         tuned = tune_tolerance(pts, seed=seed, max_planes=max_planes, min_inliers=min_inliers, progress=progress,
                                shape=shape, noise_model=noise_model, noise_reference=noise_reference, jobs=jobs,
-                               connectivity=connectivity, ransac_points=ransac_points)
+                               connectivity=connectivity, ransac_points=ransac_points, viewpoint=viewpoint)
         return Detection(points=pts, segmentation=tuned.segmentation, indices=tuned.indices,
                          tolerance=tuned.tolerance, tolerance_source='auto', reliable=tuned.reliable,
                          verdict=tuned.verdict, noise_estimate=tuned.noise_estimate, seed=seed,
                          seconds=time.perf_counter() - start, tuning=tuned)
     seg = detect_planes(pts, tolerance, seed=seed, max_planes=max_planes, min_inliers=min_inliers, shape=shape,
                         noise_model=noise_model, noise_reference=noise_reference, connectivity=connectivity,
-                        ransac_points=ransac_points)
+                        ransac_points=ransac_points, viewpoint=viewpoint)
     scores = validity_indices(pts, seg.labels, seed=seed)
     reliable, verdict = judge(pts, seg, scores)
     return Detection(points=pts, segmentation=seg, indices=scores, tolerance=float(tolerance),

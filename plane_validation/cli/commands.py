@@ -154,7 +154,8 @@ def cmd_detect(args: argparse.Namespace) -> int:
         det = detect(points, tolerance, seed=_seed(args.seed), max_planes=args.max_planes,
                      min_inliers=min_inliers_value(args.min_inliers), progress=progress, shape=shape,
                      noise_model=args.noise_model, noise_reference=args.noise_reference, jobs=args.tune_jobs,
-                     connectivity=args.connectivity, ransac_points=args.ransac_points or None)
+                     connectivity=args.connectivity, ransac_points=args.ransac_points or None,
+                     viewpoint=_viewpoint(args))
     written = []
     if args.out:
         from ..formats.files import save_points
@@ -201,7 +202,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                                 max_planes=args.max_planes, min_inliers=min_inliers_value(args.min_inliers),
                                 progress=progress, shape=shape, noise_model=args.noise_model,
                                 noise_reference=args.noise_reference, jobs=args.tune_jobs,
-                                connectivity=args.connectivity, ransac_points=args.ransac_points or None)
+                                connectivity=args.connectivity, ransac_points=args.ransac_points or None,
+                                viewpoint=_viewpoint(args))
     written = []
     if args.csv:
         written.append(write_sweep_csv(args.csv, result))
@@ -241,11 +243,11 @@ def cmd_planes(args: argparse.Namespace) -> int:
                 tolerance = tune_tolerance(points, seed=_seed(args.seed), max_planes=args.max_planes,
                                            min_inliers=min_inliers, progress=progress, shape=shape,
                                            noise_model=args.noise_model, noise_reference=args.noise_reference,
-                                           jobs=args.tune_jobs).tolerance
+                                           viewpoint=_viewpoint(args), jobs=args.tune_jobs).tolerance
             source = 'auto'
         result = select_plane_count(points, tolerance, args.max_planes, min_inliers=min_inliers,
                                     seed=_seed(args.seed), shape=shape, noise_model=args.noise_model,
-                                    noise_reference=args.noise_reference)
+                                    noise_reference=args.noise_reference, viewpoint=_viewpoint(args))
     written = []
     if args.plot:
         from ..app.plot import plot_plane_count
@@ -453,9 +455,15 @@ def _add_table_options(parser: argparse.ArgumentParser, names: tuple[tuple[str, 
 
 
 def _add_detection_options(parser: argparse.ArgumentParser) -> None:
-    """--seed, --max-planes, --min-inliers, --noise-model, --tune-jobs, --zero-is-no-return for the file commands."""
+    """--seed, --max-planes, --min-inliers, --noise-model, --viewpoint-x/y/z, --tune-jobs, --zero-is-no-return
+    for the file commands."""
     _add_table_options(parser, (('seed', 'S'), ('max_planes', 'K'), ('min_inliers', 'M'), ('noise_model', 'MODEL'),
-                                ('noise_reference', 'R'), ('tune_jobs', 'N'), ('zero_is_no_return', '')))
+                                ('noise_reference', 'R'), ('viewpoint_x', 'X'), ('viewpoint_y', 'Y'),
+                                ('viewpoint_z', 'Z'), ('tune_jobs', 'N'), ('zero_is_no_return', '')))
+
+
+def _viewpoint(args: argparse.Namespace) -> tuple[float, float, float]:
+    return args.viewpoint_x, args.viewpoint_y, args.viewpoint_z
 
 
 def _add_search_options(parser: argparse.ArgumentParser) -> None:
