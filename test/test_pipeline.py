@@ -346,3 +346,18 @@ def test_the_viewpoint_parameters_give_a_lidar_scan_in_base_link_its_sensor_fram
     assert np.array_equal(moved.labels, own.labels) and own.n_planes >= 5
     assert not np.array_equal(blind.labels, own.labels)
     np.testing.assert_allclose(moved.points, lifted)
+
+
+def test_with_a_viewpoint_the_no_return_mark_moved_with_the_cloud_is_left_out():
+    # a driver's (0, 0, 0) rows, transformed to base_link with the scan (float32), sit at the viewpoint
+    scan = scenes.lidar(**scenes.VLP16_ROOM, seed=1)
+    marked = scan.points.copy()
+    marked[::10] = 0.0
+    sensor = np.array([3.0, 0.0, 1.8])  # the frame's origin behind a wall, seen from the sensor
+    lifted = (marked + sensor).astype(np.float32)
+    fixed = dict(auto_tune=False, tolerance=0.05, max_planes=14, min_inliers=23.0, seed=0)
+    own = FramePipeline(PipelineConfig(**fixed)).process(marked.astype(np.float32), 10**9)
+    moved = FramePipeline(PipelineConfig(**fixed, viewpoint_x=3.0, viewpoint_z=1.8)).process(lifted, 10**9)
+    assert dict(moved.values)['no_return_points'] == dict(own.values)['no_return_points'] == str(len(marked[::10]))
+    assert sorted(moved.plane_counts) == pytest.approx(sorted(own.plane_counts), abs=10)  # float32 rounding moved
+    assert all(p.normal @ sensor + p.offset < 0 for p in moved.segmentation.planes)  # normals away from the sensor

@@ -65,7 +65,7 @@ def _p(default: Any, description: str, **spec: Any) -> Any:
     return field(default=default, metadata={'parameter': dict(description=description, **spec)})
 
 
-#: Largest distance parameter (tolerances, voxel size): meters from a robot's sensor, but files may
+#: Largest distance parameter (tolerances, voxel size, viewpoint): meters from a robot's sensor, but files may
 #: be in millimetres or the paper's units (the ``scene`` command's cubes have 100-unit faces).
 MAX_DISTANCE = 1000.0
 
@@ -120,8 +120,9 @@ class PipelineConfig:
                             low=-MAX_DISTANCE, high=MAX_DISTANCE, unit='m')
     viewpoint_z: float = _p(0.0, 'where the sensor is in the cloud\'s frame, z (see viewpoint_x)',
                             low=-MAX_DISTANCE, high=MAX_DISTANCE, unit='m')
-    zero_is_no_return: bool = _p(True, 'a point at exactly (0, 0, 0) is a driver\'s "no return" mark (as NaN is) and '
-                                 'is left out; false = a point like any other')
+    zero_is_no_return: bool = _p(True, 'a point at exactly (0, 0, 0) (at the viewpoint, when one is set) is a '
+                                 'driver\'s "no return" mark (as NaN is) and is left out; false = a point like any '
+                                 'other')
     voxel_size: float = _p(0.0, 'voxel grid applied before detection (each point then takes its voxel\'s plane '
                            'if within t of it); 0 = off', low=1e-6, high=MAX_DISTANCE, special=0.0, unit='m')
     seed: int = _p(0, 'random seed; frames are seeded by (seed, header stamp); -1 = fresh entropy every frame',

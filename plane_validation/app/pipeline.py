@@ -268,7 +268,7 @@ class FramePipeline:
             given = as_points(points)
         except ValueError as exc:
             return _failed(ERROR, f'bad input: {exc}', start, self.current_tolerance())
-        pts, no_returns = no_returns_as_nan(given) if cfg.zero_is_no_return else (given, 0)
+        pts, no_returns = no_returns_as_nan(given, cfg.viewpoint) if cfg.zero_is_no_return else (given, 0)
         finite = finite_rows(pts)
         valid = np.compress(finite, pts, axis=0)  # much faster than a boolean index
         n_input = len(pts)

@@ -115,12 +115,12 @@ def _check_outputs(args: argparse.Namespace, *names: str) -> None:
 
 
 def _load(args: argparse.Namespace) -> tuple[np.ndarray, tuple[int, int] | None]:
-    """load_cloud of ``args.cloud`` (rows at (0, 0, 0) as NaN with ``args.zero_is_no_return``), refusing a
-    cloud with fewer than 3 valid points: no plane can be found in it."""
+    """load_cloud of ``args.cloud`` (rows at (0, 0, 0), or at the viewpoint, as NaN with
+    ``args.zero_is_no_return``), refusing a cloud with fewer than 3 valid points: no plane can be found in it."""
     from ..core.ransac import finite_rows, no_returns_as_nan
     points, shape = load_cloud(args.cloud)
     if args.zero_is_no_return:
-        points, _ = no_returns_as_nan(points)
+        points, _ = no_returns_as_nan(points, _viewpoint(args))
     valid = int(np.count_nonzero(finite_rows(points)))
     if valid < 3:
         raise ValueError(f'{valid} valid point(s) of {len(points)}: a plane needs at least 3')

@@ -113,14 +113,28 @@ def finite_rows(points: np.ndarray) -> np.ndarray:
     return ok
 
 
-def no_returns_as_nan(points: np.ndarray) -> tuple[np.ndarray, int]:
+#: A row this close to a viewpoint other than the origin (meters, in each coordinate) is the driver's
+#: (0, 0, 0) "no return" mark moved with the cloud (float32 rounding of the transform); no sensor
+#: reports a point this close to itself.
+AT_VIEWPOINT = 1e-6
+
+
+def no_returns_as_nan(points: np.ndarray, viewpoint=None) -> tuple[np.ndarray, int]:
     """``points`` (N, 3) with rows at exactly (0, 0, 0) set to NaN (a copy, only when there are any),
     and how many there were: the "no return" mark of sensor drivers that do not use NaN (a lidar
-    or depth camera reports no point at its own origin)."""
-    zero = points[:, 0] == 0
-    if not zero.any():  # the usual frame: one comparison
-        return points, 0
-    zero &= (points[:, 1] == 0) & (points[:, 2] == 0)
+    or depth camera reports no point at its own origin). With a ``viewpoint`` (3,) other than the
+    origin (a cloud moved to another frame), rows within AT_VIEWPOINT of it instead."""
+    view = check_viewpoint(viewpoint)
+    if view.any():
+        zero = np.abs(points[:, 0] - view[0]) <= AT_VIEWPOINT
+        if not zero.any():
+            return points, 0
+        zero &= (np.abs(points[:, 1] - view[1]) <= AT_VIEWPOINT) & (np.abs(points[:, 2] - view[2]) <= AT_VIEWPOINT)
+    else:
+        zero = points[:, 0] == 0
+        if not zero.any():  # the usual frame: one comparison
+            return points, 0
+        zero &= (points[:, 1] == 0) & (points[:, 2] == 0)
     count = int(np.count_nonzero(zero))
     if count == 0:
         return points, 0
@@ -459,7 +473,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     if connectivity:
         seg = _detect_regions(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
                               ransac_points, shape, graph, view)
-        return dataclasses.replace(seg, tolerance=tolerance, **model)
+        return _facing_away(dataclasses.replace(seg, tolerance=tolerance, **model), view)
 
     cols = np.ascontiguousarray(pts.T)
     finite = np.isfinite(cols).all(axis=0)
@@ -490,7 +504,18 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
         planes = _label_all(valid, search, valid_idx, center, labels, found, tolerances)
         reason += (f'; dropped {len(small)} plane(s) left with fewer than min_inliers={min_count} points '
                    'once every point was labelled')
-    return Segmentation(labels=labels, planes=planes, tolerance=tolerance, n_valid=n_valid, reason=reason, **model)
+    return _facing_away(Segmentation(labels=labels, planes=planes, tolerance=tolerance, n_valid=n_valid,
+                                     reason=reason, **model), view)
+
+
+def _facing_away(seg: Segmentation, viewpoint: np.ndarray) -> Segmentation:
+    """``seg`` with each plane's normal pointing away from ``viewpoint`` (3,) (from the origin it
+    already does): a floor keeps its normal from frame to frame."""
+    if not viewpoint.any():
+        return seg
+    planes = tuple(dataclasses.replace(p, normal=-p.normal, offset=-p.offset) if p.offset + p.normal @ viewpoint > 0
+                   else p for p in seg.planes)
+    return dataclasses.replace(seg, planes=planes)
 
 
 def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_count: int, probability: float,
