@@ -359,5 +359,6 @@ def test_with_a_viewpoint_the_no_return_mark_moved_with_the_cloud_is_left_out():
     own = FramePipeline(PipelineConfig(**fixed)).process(marked.astype(np.float32), 10**9)
     moved = FramePipeline(PipelineConfig(**fixed, viewpoint_x=3.0, viewpoint_z=1.8)).process(lifted, 10**9)
     assert dict(moved.values)['no_return_points'] == dict(own.values)['no_return_points'] == str(len(marked[::10]))
+    assert dict(moved.values)['viewpoint'] == '3 0 1.8' and 'viewpoint' not in dict(own.values)
     assert sorted(moved.plane_counts) == pytest.approx(sorted(own.plane_counts), abs=10)  # float32 rounding moved
     assert all(p.normal @ sensor + p.offset < 0 for p in moved.segmentation.planes)  # normals away from the sensor

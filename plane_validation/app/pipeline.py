@@ -366,6 +366,8 @@ def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_
               ('index_sample_size', str(scores.sample_size)), ('dunn_db_points', str(scores.separation_size)),
               ('noise_model', cfg.noise_model), ('noise_estimate', fmt(noise)),
               ('stop_reason', seg.reason)]
+    if any(cfg.viewpoint):
+        values.append(('viewpoint', ' '.join(fmt(c) for c in cfg.viewpoint)))
     if cfg.noise_model == 'depth_quadratic':  # sigma(r) = c r^2
         values.append(('noise_coefficient', fmt(noise_coefficient(work, seg.labels, seg.coefficients,
                                                                   np.asarray(seg.viewpoint)))))
