@@ -14,7 +14,7 @@ import numpy as np
 
 from ..core.indices import ValidityIndices, validity_indices
 from ..core.noise import NOISE_REFERENCE
-from ..core.ransac import RANSAC_POINTS, Segmentation, as_points, detect_planes
+from ..core.ransac import RANSAC_POINTS, Segmentation, Viewpoint, as_points, detect_planes
 from ..core.tuning import TuningResult, noise_from_segmentation, tune_tolerance
 from ..core.verdict import judge
 
@@ -44,7 +44,7 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, seed: int = 0,
            min_inliers: int | float = 0.02, progress: Callable[[int, int], None] | None = None,
            shape: tuple[int, int] | None = None, noise_model: str = 'constant',
            noise_reference: float = NOISE_REFERENCE, jobs: int = 1, connectivity: bool = True,
-           ransac_points: int | None = RANSAC_POINTS, viewpoint=None) -> Detection:
+           ransac_points: int | None = RANSAC_POINTS, viewpoint: Viewpoint = None) -> Detection:
     """Planes of (N, 3) ``points`` at ``tolerance`` meters, or at the auto-tuned t when None;
     ``shape`` (H, W) for an organized cloud; ``noise_model``, ``connectivity``, ``ransac_points`` and
     ``viewpoint`` as in :func:`detect_planes`; ``jobs`` as in :func:`tune_tolerance`.

@@ -11,7 +11,7 @@ without losing precision to large absolute coordinates (each fit also centres it
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -119,7 +119,7 @@ def finite_rows(points: np.ndarray) -> np.ndarray:
 AT_VIEWPOINT = 1e-6
 
 
-def no_returns_as_nan(points: np.ndarray, viewpoint=None) -> tuple[np.ndarray, int]:
+def no_returns_as_nan(points: np.ndarray, viewpoint: Viewpoint = None) -> tuple[np.ndarray, int]:
     """``points`` (N, 3) with rows at exactly (0, 0, 0) set to NaN (a copy, only when there are any),
     and how many there were: the "no return" mark of sensor drivers that do not use NaN (a lidar
     or depth camera reports no point at its own origin). With a ``viewpoint`` (3,) other than the
@@ -277,6 +277,8 @@ def _distances(cols: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> np
 
 #: An inlier tolerance in meters: one for every point, or (n,) one per point (a noise model).
 Tolerance = float | np.ndarray
+#: Where the sensor is in a cloud's frame: (x, y, z) meters, or None for the origin.
+Viewpoint = Sequence[float] | np.ndarray | None
 
 
 def _at(tolerance: Tolerance, idx) -> Tolerance:
@@ -410,7 +412,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
                   max_iterations: int = 1000, seed: int | np.random.Generator | None = None,
                   ransac_points: int | None = RANSAC_POINTS, shape: tuple[int, int] | None = None,
                   connectivity: bool = True, graph: SearchGraph | None = None, noise_model: str = 'constant',
-                  noise_reference: float = NOISE_REFERENCE, viewpoint=None) -> Segmentation:
+                  noise_reference: float = NOISE_REFERENCE, viewpoint: Viewpoint = None) -> Segmentation:
     """Find planes one by one with RANSAC, removing each plane's points before the next search.
 
     With ``connectivity`` (the default) a plane is a connected planar region: each candidate's
@@ -723,7 +725,7 @@ class SearchGraph:
 
 def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
                  ransac_points: int | None = RANSAC_POINTS, rng: np.random.Generator | None = None,
-                 viewpoint=None) -> SearchGraph | None:
+                 viewpoint: Viewpoint = None) -> SearchGraph | None:
     """The :class:`SearchGraph` of ``points`` (N, 3) meters seen from ``viewpoint`` (as in
     :func:`detect_planes`). An unorganized cloud of more than ``ransac_points`` valid points is
     searched on a random sample drawn from ``rng``; without ``rng`` such a cloud has no fixed graph
@@ -734,7 +736,7 @@ def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
                          ransac_points, rng, check_viewpoint(viewpoint))
 
 
-def check_viewpoint(viewpoint) -> np.ndarray:
+def check_viewpoint(viewpoint: Viewpoint) -> np.ndarray:
     """``viewpoint`` (3,) meters as a float array (None: the origin); ValueError unless 3 finite numbers."""
     why = f'viewpoint must be 3 finite coordinates (x, y, z) in meters, got {viewpoint!r}'
     try:

@@ -25,6 +25,7 @@ from .noise import NOISE_REFERENCE, noise_coefficient, tolerance_scale
 from .ransac import (
     RANSAC_POINTS,
     Segmentation,
+    Viewpoint,
     as_points,
     check_magnitude,
     check_shape,
@@ -275,7 +276,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                    ransac_points: int | None = RANSAC_POINTS, sampled_separation: bool | None = None,
                    shape: tuple[int, int] | None = None, connectivity: bool = True,
                    noise_model: str = 'constant', noise_reference: float = NOISE_REFERENCE,
-                   viewpoint=None, jobs: int = 1) -> TuningResult:
+                   viewpoint: Viewpoint = None, jobs: int = 1) -> TuningResult:
     """Sweep the RANSAC tolerance and pick the best by ``criterion``.
 
     points: (N, 3) meters. tolerances: candidate ``t`` values in meters, or None for ``count``
@@ -547,7 +548,7 @@ def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 1
                        max_iterations: int = 1000, sample_size: int | None = 2000,
                        seed: int | None = None, shape: tuple[int, int] | None = None,
                        connectivity: bool = True, noise_model: str = 'constant',
-                       noise_reference: float = NOISE_REFERENCE, viewpoint=None,
+                       noise_reference: float = NOISE_REFERENCE, viewpoint: Viewpoint = None,
                        sampled_separation: bool | None = None) -> PlaneCountResult:
     """Score the first k planes (the rest unassigned) for k = 1..K and pick k (paper Fig. 2).
 
