@@ -347,7 +347,7 @@ def _within_plane(points: np.ndarray, labels: np.ndarray, seg: Segmentation, tol
         return labels
     plane = planes[np.maximum(labels, 0)]
     distance = np.abs(np.einsum('ij,ij->i', points, plane[:, :3]) + plane[:, 3])
-    scale = tolerance_scale(points, seg.noise_model, seg.noise_reference, np.asarray(seg.viewpoint))
+    scale = tolerance_scale(points, seg.noise_model, seg.noise_reference, seg.viewpoint)
     return np.where(distance <= tolerance * (1.0 if scale is None else scale), labels, -1)
 
 
@@ -370,7 +370,7 @@ def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_
         values.append(('viewpoint', ' '.join(fmt(c) for c in cfg.viewpoint)))
     if cfg.noise_model == 'depth_quadratic':  # sigma(r) = c r^2
         values.append(('noise_coefficient', fmt(noise_coefficient(work, seg.labels, seg.coefficients,
-                                                                  np.asarray(seg.viewpoint)))))
+                                                                  seg.viewpoint))))
     for k, plane in enumerate(seg.planes):
         values += [(f'plane_{k}_inliers', str(int(counts[k]))), (f'plane_{k}_rms', fmt(plane.rms))]
     return tuple(values)

@@ -97,7 +97,7 @@ def noise_line(seg: Segmentation, points: np.ndarray) -> str:
     """The noise model in words: 'constant' or 'depth_quadratic (t is t0 up to 1 m; sigma(r) = 0.0015 r^2)'."""
     if seg.noise_model == 'constant':
         return 'noise model constant'
-    c = noise_coefficient(as_points(points), seg.labels, seg.coefficients, np.asarray(seg.viewpoint))
+    c = noise_coefficient(as_points(points), seg.labels, seg.coefficients, seg.viewpoint)
     return (f'noise model {seg.noise_model} (t is t0 up to {seg.noise_reference:g} m, growing as range^2 beyond; '
             f'fitted sigma(r) = {c:.3g} r^2)')
 
@@ -107,7 +107,7 @@ def _noise_model(seg: Segmentation, points: np.ndarray) -> dict:
     if seg.noise_model == 'constant':
         return {'noise_model': seg.noise_model}
     return {'noise_model': seg.noise_model, 'noise_reference': seg.noise_reference,
-            'noise_coefficient': noise_coefficient(points, seg.labels, seg.coefficients, np.asarray(seg.viewpoint))}
+            'noise_coefficient': noise_coefficient(points, seg.labels, seg.coefficients, seg.viewpoint)}
 
 
 def _sweep_row(row, chosen: bool) -> dict:

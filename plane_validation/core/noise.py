@@ -10,6 +10,8 @@ Pure numpy, no ROS import.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 __all__ = ['NOISE_MODELS', 'NOISE_REFERENCE', 'MAX_SCALE', 'check_noise_model', 'tolerance_scale',
@@ -32,7 +34,8 @@ def check_noise_model(noise_model: str, reference: float) -> None:
 
 
 def tolerance_scale(points: np.ndarray, noise_model: str = 'constant',
-                    reference: float = NOISE_REFERENCE, viewpoint: np.ndarray | None = None) -> np.ndarray | None:
+                    reference: float = NOISE_REFERENCE, viewpoint: Sequence[float] | np.ndarray | None = None
+                    ) -> np.ndarray | None:
     """(N,) factor the tolerance is multiplied by at each point of ``points`` (N, 3) meters, or None
     for ``constant`` (a factor of 1 everywhere): max(1, (r / reference)^2), at most MAX_SCALE, r the
     range from ``viewpoint`` (3,) (default the origin). NaN rows give NaN."""
@@ -47,7 +50,7 @@ def tolerance_scale(points: np.ndarray, noise_model: str = 'constant',
 
 
 def noise_coefficient(points: np.ndarray, labels: np.ndarray, coefficients: np.ndarray,
-                      viewpoint: np.ndarray | None = None) -> float:
+                      viewpoint: Sequence[float] | np.ndarray | None = None) -> float:
     """c (1/m) of depth noise sigma(r) = c * r^2 along each viewing ray, fitted to the planes' residuals.
 
     points (N, 3) meters; labels (N,) plane index or -1; coefficients (k, 4) planes (a, b, c, d) with

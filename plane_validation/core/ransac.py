@@ -125,16 +125,15 @@ def no_returns_as_nan(points: np.ndarray, viewpoint: Viewpoint = None) -> tuple[
     or depth camera reports no point at its own origin). With a ``viewpoint`` (3,) other than the
     origin (a cloud moved to another frame), rows within AT_VIEWPOINT of it instead."""
     view = check_viewpoint(viewpoint)
-    if view.any():
-        zero = np.abs(points[:, 0] - view[0]) <= AT_VIEWPOINT
-        if not zero.any():
-            return points, 0
-        zero &= (np.abs(points[:, 1] - view[1]) <= AT_VIEWPOINT) & (np.abs(points[:, 2] - view[2]) <= AT_VIEWPOINT)
-    else:
-        zero = points[:, 0] == 0
-        if not zero.any():  # the usual frame: one comparison
-            return points, 0
-        zero &= (points[:, 1] == 0) & (points[:, 2] == 0)
+
+    def at_mark(axis: int) -> np.ndarray:
+        column = points[:, axis]
+        return np.abs(column - view[axis]) <= AT_VIEWPOINT if view.any() else column == 0
+
+    zero = at_mark(0)
+    if not zero.any():  # the usual frame: one comparison
+        return points, 0
+    zero &= at_mark(1) & at_mark(2)
     count = int(np.count_nonzero(zero))
     if count == 0:
         return points, 0

@@ -324,15 +324,16 @@ def _grid_normals(image_points: np.ndarray, valid: np.ndarray) -> np.ndarray:
         return n / np.sqrt(np.einsum('...i,...i->...', n, n))[..., None]
 
 
-#: A kd-tree over coordinates, built on first use, the coordinates and how many nearest candidates a
-#: search looks at: (tree(), coordinates (n, 3), candidates).
-_Space = tuple[Callable[[], cKDTree], np.ndarray, int]
+#: Kd-trees over coordinates and over every ACROSS_FAR_STRIDE-th of them, each built on first use, the
+#: coordinates and how many nearest candidates a search looks at: (tree(), far(), coordinates (n, 3), candidates).
+_Space = tuple[Callable[[], cKDTree], Callable[[], cKDTree], np.ndarray, int]
 #: Which candidates (m, c) of the rows (m,) are across: (rows, candidates) -> bool (m, c).
 _Test = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 def _space(coords: np.ndarray, candidates: int, tree: cKDTree | None = None) -> _Space:
-    return (lambda: tree) if tree is not None else functools.cache(lambda: cKDTree(coords)), coords, candidates
+    return ((lambda: tree) if tree is not None else functools.cache(lambda: cKDTree(coords)),
+            functools.cache(lambda: cKDTree(coords[::ACROSS_FAR_STRIDE])), coords, candidates)
 
 
 def _off(points: np.ndarray, direction: np.ndarray, off_plane: bool) -> _Test:
@@ -397,12 +398,12 @@ def _search(space: _Space, idx: np.ndarray, rows: np.ndarray, test: _Test, skip:
             ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_partners` among the nearest in ``space`` (after the first ``skip``), then, with ``far``,
     for the rows without one among every ACROSS_FAR_STRIDE-th point: (rows found (m,), partners (m,))."""
-    tree, coords, candidates = space
+    tree, far_tree, coords, candidates = space
     found_rows, found_targets = [rows[:0]], [rows[:0]]
     for stride in (1, ACROSS_FAR_STRIDE) if far else (1,):
         if len(rows) == 0 or len(coords) <= idx.shape[1]:
             break
-        sub = tree() if stride == 1 else cKDTree(coords[::stride])
+        sub = tree() if stride == 1 else far_tree()
         partner = _partners(sub, coords, idx, rows, test, candidates, skip if stride == 1 else 0, stride)[rows]
         found = partner >= 0
         found_rows.append(rows[found])
@@ -449,9 +450,10 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Nei
         near_elevation = elevation[idx]
         length = np.linalg.norm(rays, axis=1, keepdims=True)
         unit = rays / np.where(length > 0, length, 1.0)
-        widest = np.einsum('nkd,nd->nk', unit[idx], unit).min(axis=1)  # cosine of the widest neighbour's angle
-        one_ring = (near_elevation.max(axis=1) - near_elevation.min(axis=1) <= ONE_RING) & \
-            (widest < np.cos(ANOTHER_RING))
+        one_ring = near_elevation.max(axis=1) - near_elevation.min(axis=1) <= ONE_RING
+        flat_rows = np.flatnonzero(one_ring)  # of those, the ones whose widest neighbour is a ring's spacing off
+        widest = np.einsum('nkd,nd->nk', unit[idx[flat_rows]], unit[flat_rows]).min(axis=1)
+        one_ring[flat_rows] = widest < np.cos(ANOTHER_RING)
         directions = _space(unit, RING_CANDIDATES)
         nearby = _space(points, ACROSS_CANDIDATES, tree)
 

@@ -263,7 +263,7 @@ def noise_from_segmentation(seg: Segmentation, points: np.ndarray | None = None)
     own = seg.labels >= 0
     plane = seg.coefficients[seg.labels[own]]
     residual = np.einsum('ij,ij->i', pts[own], plane[:, :3]) + plane[:, 3]
-    residual /= tolerance_scale(pts[own], seg.noise_model, seg.noise_reference, np.asarray(seg.viewpoint))
+    residual /= tolerance_scale(pts[own], seg.noise_model, seg.noise_reference, seg.viewpoint)
     return float(np.sqrt(3 * np.mean(residual ** 2)))
 
 
