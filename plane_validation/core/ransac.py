@@ -803,7 +803,7 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
         return Segmentation(labels=labels, planes=(), tolerance=tolerance, n_valid=n_valid, reason=reason)
     # each region's plane refitted on its own points, then the borders settled by nearest plane
     found = _refit(search, region, found)
-    region = _compete(search, region, found, search_tolerance, neighbours)
+    region = _compete(search, region, found, search_tolerance, neighbours, viewpoint - center)
     found = _refit(search, region, found)
     searched = len(found)
     region, found = _merge_coplanar(search, region, found, search_tolerance, neighbours)
@@ -918,21 +918,32 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
 #: Rounds of border settling in _compete: a region can win back this many pixels (or graph hops)
 #: of a strip that a plane found before it took.
 COMPETE_ROUNDS = 6
+#: Border settling compares planes by the distance along each point's viewing ray (a range sensor's
+#: noise lies along the ray, so a wall's point near a corner is nearer in meters to the other face,
+#: seen at a grazing angle, but not along its ray); a ray farther than this from a plane's normal
+#: counts as this far (degrees), so that the planes a ray nearly grazes still compete.
+GRAZING_DEG = 75.0
 
 
 def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance,
-             neighbours: Neighbours) -> np.ndarray:
+             neighbours: Neighbours, viewpoint: np.ndarray) -> np.ndarray:
     """Settle the borders between regions: each searched point (3, m) takes, of its own region and
-    its neighbours' regions (8 image neighbours, or graph neighbours), the one whose plane is nearest
-    within ``tolerance`` (so a strip that an earlier plane took along an edge goes back to the
-    surface it lies on, and unassigned points next to a region join it when they fit its plane);
-    repeated COMPETE_ROUNDS times. Only points next to another region can change, and after the
-    first round only the neighbours of points that changed: only they are looked at."""
+    its neighbours' regions (8 image neighbours, or graph neighbours), the one whose plane within
+    ``tolerance`` its ray from ``viewpoint`` (3,) meets nearest (see GRAZING_DEG), so a strip that
+    an earlier plane took along an edge goes back to the surface it lies on, and unassigned points
+    next to a region join it when they fit its plane; repeated COMPETE_ROUNDS times. Only points next
+    to another region can change, and after the first round only the neighbours of points that
+    changed: only they are looked at."""
     k, m = len(found), search.shape[1]
+    normals = np.array([n for n, _ in found])
     dist = np.empty((k + 1, m))
-    dist[:k] = _distances(search, np.array([n for n, _ in found]), np.array([d for _, d in found]))
+    dist[:k] = _distances(search, normals, np.array([d for _, d in found]))
     dist[k] = np.inf
     dist[dist > tolerance] = np.inf  # only planes within t can be taken
+    rays = search - viewpoint[:, None]
+    with np.errstate(invalid='ignore', divide='ignore'):  # a point at the viewpoint: NaN, never nearer
+        rays /= np.linalg.norm(rays, axis=0)
+        dist[:k] /= np.maximum(np.abs(normals @ rays), np.cos(np.radians(GRAZING_DEG)))
     flat = dist.reshape(-1)
     region = np.where(region >= 0, region, k)
     best = flat[region * m + np.arange(m)]  # row k (no region) is inf
