@@ -309,6 +309,8 @@ def malformed(kind: str) -> tuple[Layout, bytes | None]:
         lay.fields[0].datatype = 5
     elif kind == 'duplicate':
         lay.extra_fields = [('intensity', 0, F32, 1)]
+    elif kind == 'duplicate_x':  # a second 'x' where 'y' is: it was reported as x and y overlapping
+        lay.extra_fields = [('x', 4, F32, 1)]
     elif kind == 'huge_offset':
         lay.fields[3].offset = 2**31
         data = bytes(2 * lay.row_step)
@@ -330,6 +332,7 @@ MALFORMED = [
     ('xyz_overlap', r"'x' and 'y' overlap"),
     ('integer_x', r"'x' has datatype INT32; xyz must be FLOAT32 or FLOAT64"),
     ('duplicate', r"'intensity' appears more than once"),
+    ('duplicate_x', r"'x' appears more than once"),
     ('huge_offset', r"'intensity' \(offset 2147483648, count 1\) ends 2 GiB or more into the point"),
 ]
 

@@ -51,6 +51,10 @@ def test_text_and_npy(tmp_path):
      b'1 2 3\n4 5 6\n', 'has 2 rows, the header declares 1'),
     (b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 2\nPOINTS 3\nDATA ascii\n'
      b'1 2 3\n4 5 6\n7 8 9\n', 'WIDTH x HEIGHT = 4 but POINTS 3'),
+    (b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 0\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA binary\n'
+     + bytes(24), 'COUNT must be at least 1'),  # was an IndexError
+    (b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 2 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n'
+     b'1 2 3 4\n', '1 for x, y and z'),
 ])
 def test_malformed_pcd_is_a_clear_error(tmp_path, content, words):
     path = tmp_path / 'bad.pcd'

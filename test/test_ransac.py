@@ -289,3 +289,17 @@ def test_planes_below_min_inliers_after_labelling_are_dropped():
     assert seg.n_planes >= 3
     assert all(len(p.inliers) >= 2000 for p in seg.planes)
     np.testing.assert_array_equal(np.unique(seg.labels[seg.labels >= 0]), np.arange(seg.n_planes))
+
+
+def test_a_plane_through_the_viewpoint_keeps_its_normal_from_frame_to_frame():
+    # the ground in base_link passes through the frame's origin: which side of it the origin is on was
+    # noise, and the normal flipped between frames (3 of 10 down); now its largest component is positive
+    rng = np.random.default_rng(0)
+    normals = []
+    for frame in range(8):
+        floor = np.column_stack([rng.uniform(-5, 5, 3000), rng.uniform(-5, 5, 3000), rng.normal(0, 0.01, 3000)])
+        for connectivity in (True, False):
+            normals.append(pv.detect_planes(floor, 0.03, seed=frame, connectivity=connectivity).planes[0].normal)
+    assert all(n[2] > 0.99 for n in normals)
+    lifted = pv.detect_planes(floor + [0.0, 0.0, -1.0], 0.03, seed=0).planes[0]  # the sensor 1 m above it
+    assert lifted.normal[2] < -0.99 and lifted.offset < 0  # away from the viewpoint, as for every other plane

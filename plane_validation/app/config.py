@@ -114,7 +114,8 @@ class PipelineConfig:
                                 unit='m')
     viewpoint_x: float = _p(0.0, 'where the sensor is in the cloud\'s frame, x (0, 0, 0 = its origin, as a driver '
                             'publishes a scan; e.g. 0, 0, 1.8 for a lidar 1.8 m above base_link): the origin of '
-                            'depth_quadratic\'s ranges and of the rays by which unorganized lidar rings are told',
+                            'depth_quadratic\'s ranges, of the rays by which unorganized lidar rings are told and '
+                            'border points settled, and what plane normals point away from',
                             low=-MAX_DISTANCE, high=MAX_DISTANCE, unit='m')
     viewpoint_y: float = _p(0.0, 'where the sensor is in the cloud\'s frame, y (see viewpoint_x)',
                             low=-MAX_DISTANCE, high=MAX_DISTANCE, unit='m')

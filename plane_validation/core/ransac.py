@@ -510,12 +510,14 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
 
 
 def _facing_away(seg: Segmentation, viewpoint: np.ndarray) -> Segmentation:
-    """``seg`` with each plane's normal pointing away from ``viewpoint`` (3,) (from the origin it
-    already does): a floor keeps its normal from frame to frame."""
-    if not viewpoint.any():
-        return seg
-    planes = tuple(dataclasses.replace(p, normal=-p.normal, offset=-p.offset) if p.offset + p.normal @ viewpoint > 0
-                   else p for p in seg.planes)
+    """``seg`` with each plane's normal pointing away from ``viewpoint`` (3,), so that a floor keeps
+    its normal from frame to frame; a plane within the tolerance of the viewpoint (the ground in
+    ``base_link``, whose origin lies on it) has instead the largest component of its normal positive
+    (the ground's points up): which side of it the viewpoint is on is noise."""
+    def flipped(p: Plane) -> bool:
+        side = p.offset + p.normal @ viewpoint
+        return p.normal[np.argmax(np.abs(p.normal))] < 0 if abs(side) <= seg.tolerance else side > 0
+    planes = tuple(dataclasses.replace(p, normal=-p.normal, offset=-p.offset) if flipped(p) else p for p in seg.planes)
     return dataclasses.replace(seg, planes=planes)
 
 

@@ -305,6 +305,9 @@ def _read_pcd(path: Path) -> np.ndarray:
         raise ValueError(f'{path}: PCD FIELDS, SIZE, TYPE and COUNT disagree in length')
     if n < 0:
         raise ValueError(f'{path}: PCD declares {n} points')
+    if any(c < 1 for c in counts) or any(counts[fields.index(a)] != 1 for a in 'xyz'):
+        raise ValueError(f'{path}: PCD COUNT must be at least 1 per field and 1 for x, y and z, got '
+                         f'{" ".join(map(str, counts))}')
     try:
         image = int(header['WIDTH'][0]) * int(header['HEIGHT'][0]) if 'WIDTH' in header and 'HEIGHT' in header else n
     except (IndexError, ValueError) as exc:

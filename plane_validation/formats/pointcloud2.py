@@ -185,6 +185,10 @@ def structured_array(msg: Any) -> np.ndarray:
 def _check_xyz(msg: Any) -> None:
     """Check that x, y, z exist once each with count 1 and a float datatype."""
     by_name = {str(f.name): f for f in msg.fields}
+    names = [str(f.name) for f in msg.fields]
+    for name in _XYZ:
+        if names.count(name) > 1:
+            raise ValueError(f'field {name!r} appears more than once in PointCloud2.fields')
     missing = [n for n in _XYZ if n not in by_name]
     if missing:
         have = [str(f.name) for f in msg.fields]
