@@ -378,6 +378,19 @@ def test_copies_of_three_points_are_no_more_evidence_than_three_points():
     assert 'plane 0 rests on 3 distinct points (99 with copies)' in result.verdict
 
 
+def test_planes_finer_than_the_steps_of_float32_coordinates_are_not_reliable():
+    # a 1 m box stored as float32 at a UTM northing: y comes in steps of 0.25 m, and a tiny t found
+    # 5 parallel 'planes' (the steps) with PS 1.00, reported reliable; near the origin it is fine
+    from plane_validation.core.verdict import coordinate_step
+    box = scenes.cube(6000, 0.002, side=1.0, seed=1).points
+    far = (box + [5e5, 4e6, 100.0]).astype(np.float32)
+    assert coordinate_step(far) == 0.25 and coordinate_step(box) < 1e-15
+    result = pv.tune_tolerance(far, seed=0)
+    assert not result.reliable and 'steps of 0.25 m' in result.verdict, result.verdict
+    near = pv.tune_tolerance(box.astype(np.float32), seed=0)
+    assert near.reliable and near.segmentation.n_planes == 6, near.verdict
+
+
 def test_a_stray_small_plane_beside_good_ones_keeps_them_reliable():
     """The planes on fewer than MIN_PLANE_POINTS points hold a small share here: the stairs stay reliable."""
     from plane_validation.core.verdict import MIN_PLANE_POINTS

@@ -12,7 +12,7 @@ from .scoring import segmentation_quality
 
 __all__ = ['judge', 'plane_thickness', 'plane_curvature', 'RELIABLE_PS', 'RELIABLE_GS_PLANES', 'MAX_THICKNESS',
            'MIN_CURVATURE', 'SINGLE_PLANE_THICKNESS', 'seed_agreement', 'MIN_SEED_AGREEMENT', 'STABILITY_RESEEDS',
-           'MIN_PLANE_POINTS']
+           'MIN_PLANE_POINTS', 'coordinate_step']
 
 #: Below this plane silhouette (PS, core/plane_silhouette.py) the planes are not reported as
 #: reliable. Calibrated on benchmarks/quality.py and the Kinect frames (benchmarks/README.md): good
@@ -58,6 +58,10 @@ STABILITY_RESEEDS = 3
 #: bunny 0.55-0.83 (seed 0: 0.73, the only one of its seeds the other checks call reliable). Single reseeds
 #: are not enough: one in eight finds the bunny's planes again (F1 up to 1.00), hence the mean of three.
 MIN_SEED_AGREEMENT = 0.9
+#: Planes found with a tolerance finer than the steps the planes' coordinates come in are not reliable:
+#: float32 coordinates far from the origin (a UTM northing of 4e6 m: steps of 0.25-0.5 m) lie on a few
+#: parallel layers, which a small t finds as planes (a 1 m box: 5 'planes', PS 1.00).
+COORDINATE_STEP_SAMPLE = 4096
 
 
 def seed_agreement(reference: np.ndarray, others) -> float:
@@ -109,6 +113,19 @@ def plane_curvature(points: np.ndarray, plane_rows: np.ndarray) -> float:
     return float(1 - np.var(w - design @ coef) / total) if total > 0 else 0.0
 
 
+def coordinate_step(points: np.ndarray) -> float:
+    """The step (m) between neighbouring values the coordinates of ``points`` (n, 3) can take: float32's
+    spacing at their largest magnitude when every coordinate is a float32 number, else float64's."""
+    pts = np.asarray(points, dtype=np.float64)
+    finite = pts[np.isfinite(pts).all(axis=1)]
+    if len(finite) == 0:
+        return 0.0
+    largest = float(np.abs(finite).max())
+    with np.errstate(over='ignore'):
+        single = bool(np.array_equal(finite.astype(np.float32), finite))
+    return float(np.spacing(np.float32(largest)) if single else np.spacing(largest))
+
+
 def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
           agreement: float | None = None) -> tuple[bool, str]:
     """Whether the planes of ``seg`` are reliable, with a one-line reason.
@@ -147,6 +164,14 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     if scores.plane_silhouette < RELIABLE_PS:
         problems.append(f'PS {_down(scores.plane_silhouette)} < {RELIABLE_PS}: the points do not sit clearly on '
                         'their planes')
+    rows = np.concatenate([p.inliers for p in seg.planes])
+    if len(rows) > COORDINATE_STEP_SAMPLE:
+        rows = rows[np.random.default_rng(len(rows)).integers(0, len(rows), COORDINATE_STEP_SAMPLE)]
+    step = coordinate_step(pts[rows])
+    if seg.tolerance < step:
+        problems.append(f'the coordinates come in steps of {step:.3g} m (float32 far from the origin), coarser '
+                        f'than t = {seg.tolerance:.3g} m: the planes may be those steps (subtract an offset, '
+                        'e.g. a local origin, before storing coordinates as float32)')
     if agreement is not None and agreement < MIN_SEED_AGREEMENT:  # NaN: not measured
         problems.append(f'other RANSAC seeds find other planes (agreement {_down(agreement)} < {MIN_SEED_AGREEMENT})')
     if problems:
