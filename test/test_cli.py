@@ -132,6 +132,24 @@ def test_json_has_null_for_undefined_indices(tmp_path, capsys):
     assert doc['indices']['davies_bouldin'] is None and doc['indices']['gs_planes'] == 0.0
 
 
+def test_a_fresh_seed_is_reported_so_that_the_run_can_be_repeated(corner_npy, capsys):
+    # --seed -1 reported "seed": null: such a run could not be repeated
+    for command in (['detect', '--tolerance', '0.02'], ['sweep', '--tolerances', '0.005:0.03:3'],
+                    ['planes', '--tolerance', '0.02']):
+        assert main([command[0], str(corner_npy), *command[1:], '--seed', '-1', '--json']) == 0
+        fresh = json.loads(capsys.readouterr().out)
+        assert isinstance(fresh['seed'], int) and fresh['seed'] >= 0
+        assert main([command[0], str(corner_npy), *command[1:], '--seed', str(fresh['seed']), '--json']) == 0
+        assert _untimed(json.loads(capsys.readouterr().out)) == _untimed(fresh)
+
+
+def _untimed(doc):
+    """A JSON document without its timings (any key 'seconds')."""
+    if isinstance(doc, dict):
+        return {k: _untimed(v) for k, v in doc.items() if k != 'seconds'}
+    return [_untimed(v) for v in doc] if isinstance(doc, list) else doc
+
+
 # -- sweep and planes ------------------------------------------------------------------------------
 
 def test_sweep_table_csv_plot_and_json(corner_npy, tmp_path, capsys):
@@ -342,7 +360,7 @@ def test_core_only_install_detects_and_plots(tmp_path):
 
 def test_file_commands_follow_the_parameter_table(corner_npy, tmp_path, capsys):
     assert main(['detect', str(corner_npy), '--tolerance', '0.02', '--seed', '-1', '--json']) == 0  # fresh entropy
-    assert json.loads(capsys.readouterr().out)['seed'] is None  # null: fresh entropy
+    assert json.loads(capsys.readouterr().out)['seed'] >= 0  # the fresh seed drawn, to repeat the run with
     with pytest.raises(SystemExit) as info:
         main(['detect', str(corner_npy), '--max-planes', '500'])
     assert info.value.code == 2 and 'max_planes must be in [1, 100]' in capsys.readouterr().err
@@ -428,6 +446,9 @@ def test_a_cloud_without_three_valid_points_is_an_error_with_or_without_a_tolera
     for extra in ([], ['--tolerance', '0.01']):
         assert main(['detect', str(cloud), *extra]) == 2
         assert '2 valid point(s) of 3: a plane needs at least 3' in capsys.readouterr().err
+    (tmp_path / 'zeros.xyz').write_text('0 0 0\n' * 100)  # all a driver's "no return" mark: say so
+    assert main(['detect', str(tmp_path / 'zeros.xyz')]) == 2
+    assert '0 valid point(s) of 100: a plane needs at least 3; 100 were left out as a driver' in capsys.readouterr().err
 
 
 @pytest.mark.parametrize('argv, why', [

@@ -23,6 +23,7 @@ def corner(noise_cm: float = 0.5, n: int = 3000, seed: int = 1) -> np.ndarray:
     (np.array([[1.0, 0, 0], [0, 1, 0], [0, 0, 1]]), WARN, '1 plane(s) but plane 0 rests on 3 points'),
     (np.array([[1.0, 1, 1], [1, 1, 1], [2, 2, 2]]), WARN, 'collinear'),
     (np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), WARN, 'too few valid points: 2'),  # (0, 0, 0): no return
+    (np.zeros((500, 3)), WARN, 'too few valid points: 0 of 500 (need 3); 500 were left out as a driver'),
     (np.ones((10, 2)), ERROR, 'bad input'),
     (np.array([['a', 'b', 'c']]), ERROR, 'bad input'),
 ])

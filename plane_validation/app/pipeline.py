@@ -18,7 +18,7 @@ from ..core.blas import limit_blas_threads
 from ..core.geometry import voxel_downsample
 from ..core.indices import ValidityIndices, validity_indices
 from ..core.noise import noise_coefficient, tolerance_scale
-from ..core.ransac import Segmentation, as_points, detect_planes, finite_rows, no_returns_as_nan
+from ..core.ransac import Segmentation, as_points, detect_planes, finite_rows, no_returns_as_nan, no_returns_note
 from ..core.tuning import TuningResult, TuningWorkerError, noise_from_segmentation, quick_tolerance, tune_tolerance
 from ..core.verdict import judge
 from ..formats.pointcloud2 import trailing_bytes, xyz_array
@@ -275,8 +275,8 @@ class FramePipeline:
         if shape is not None and (cfg.voxel_size > 0 or not cfg.connectivity or shape[0] * shape[1] != n_input):
             shape = None  # only regions use the image; the voxel grid does not keep it; a wrong shape is ignored
         if len(valid) < 3:
-            return _failed(WARN, f'too few valid points: {len(valid)} of {n_input} (need 3)', start,
-                           self.current_tolerance(), n_input=n_input, n_valid=len(valid))
+            why = f'too few valid points: {len(valid)} of {n_input} (need 3)' + no_returns_note(no_returns)
+            return _failed(WARN, why, start, self.current_tolerance(), n_input=n_input, n_valid=len(valid))
         tune_problem = None
         if tune_inline and self.retune_due(stamp):
             try:

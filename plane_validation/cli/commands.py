@@ -117,13 +117,15 @@ def _check_outputs(args: argparse.Namespace, *names: str) -> None:
 def _load(args: argparse.Namespace) -> tuple[np.ndarray, tuple[int, int] | None]:
     """load_cloud of ``args.cloud`` (rows at (0, 0, 0), or at the viewpoint, as NaN with
     ``args.zero_is_no_return``), refusing a cloud with fewer than 3 valid points: no plane can be found in it."""
-    from ..core.ransac import finite_rows, no_returns_as_nan
+    from ..core.ransac import finite_rows, no_returns_as_nan, no_returns_note
     points, shape = load_cloud(args.cloud)
+    no_returns = 0
     if args.zero_is_no_return:
-        points, _ = no_returns_as_nan(points, _viewpoint(args))
+        points, no_returns = no_returns_as_nan(points, _viewpoint(args))
     valid = int(np.count_nonzero(finite_rows(points)))
     if valid < 3:
-        raise ValueError(f'{valid} valid point(s) of {len(points)}: a plane needs at least 3')
+        raise ValueError(f'{valid} valid point(s) of {len(points)}: a plane needs at least 3'
+                         + no_returns_note(no_returns))
     return points, shape
 
 
@@ -151,7 +153,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
     tolerance = None if args.auto else args.tolerance
     with _about(args.cloud), progress_bar('tuning t', quiet=args.json) as progress:
         points, shape = _load(args)
-        det = detect(points, tolerance, seed=_seed(args.seed), max_planes=args.max_planes,
+        det = detect(points, tolerance, seed=args.seed, max_planes=args.max_planes,
                      min_inliers=min_inliers_value(args.min_inliers), progress=progress, shape=shape,
                      noise_model=args.noise_model, noise_reference=args.noise_reference, jobs=args.tune_jobs,
                      connectivity=args.connectivity, ransac_points=args.ransac_points or None,
@@ -198,7 +200,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     _check_outputs(args, 'plot', 'csv')
     with _about(args.cloud), progress_bar('sweeping t', quiet=args.json) as progress:
         points, shape = _load(args)
-        result = tune_tolerance(points, tolerances=args.tolerances, criterion=args.criterion, seed=_seed(args.seed),
+        result = tune_tolerance(points, tolerances=args.tolerances, criterion=args.criterion, seed=args.seed,
                                 max_planes=args.max_planes, min_inliers=min_inliers_value(args.min_inliers),
                                 progress=progress, shape=shape, noise_model=args.noise_model,
                                 noise_reference=args.noise_reference, jobs=args.tune_jobs,
@@ -240,13 +242,13 @@ def cmd_planes(args: argparse.Namespace) -> int:
         points, shape = _load(args)
         if tolerance is None:
             with progress_bar('tuning t', quiet=args.json) as progress:
-                tolerance = tune_tolerance(points, seed=_seed(args.seed), max_planes=args.max_planes,
+                tolerance = tune_tolerance(points, seed=args.seed, max_planes=args.max_planes,
                                            min_inliers=min_inliers, progress=progress, shape=shape,
                                            noise_model=args.noise_model, noise_reference=args.noise_reference,
                                            viewpoint=_viewpoint(args), jobs=args.tune_jobs).tolerance
             source = 'auto'
         result = select_plane_count(points, tolerance, args.max_planes, min_inliers=min_inliers,
-                                    seed=_seed(args.seed), shape=shape, noise_model=args.noise_model,
+                                    seed=args.seed, shape=shape, noise_model=args.noise_model,
                                     noise_reference=args.noise_reference, viewpoint=_viewpoint(args))
     written = []
     if args.plot:
@@ -433,9 +435,12 @@ def _table_type(name: str) -> Callable[[str], object]:
     return parse
 
 
-def _seed(value: int) -> int | None:
-    """The table's seed: < 0 means fresh entropy."""
-    return None if value < 0 else value
+def _resolve_seed(args: argparse.Namespace) -> None:
+    """A seed < 0 (fresh entropy) becomes a fresh non-negative one, which the output reports: the run
+    can be repeated with it."""
+    if getattr(args, 'seed', None) is not None and args.seed < 0:
+        import secrets
+        args.seed = secrets.randbits(31)  # within the seed parameter's range
 
 
 def _add_table_options(parser: argparse.ArgumentParser, names: tuple[tuple[str, str], ...]) -> None:
@@ -445,7 +450,8 @@ def _add_table_options(parser: argparse.ArgumentParser, names: tuple[tuple[str, 
     for name, metavar in names:
         spec = PARAMETERS[name]
         flag = '--' + name.replace('_', '-')
-        text = 'random seed; -1 = fresh entropy' if name == 'seed' else spec.description  # one cloud, no stamps
+        # one cloud, no stamps
+        text = 'random seed; -1 = a fresh one (--json reports it)' if name == 'seed' else spec.description
         if spec.type is bool:
             parser.add_argument(flag, dest=name, action=argparse.BooleanOptionalAction, default=spec.default,
                                 help=f'{text} (default {str(spec.default).lower()})')
@@ -632,6 +638,7 @@ def _terminate_cleanly() -> Iterator[None]:
 def main(argv: list[str] | None = None) -> int:
     try:
         args = build_parser().parse_args(argv)
+        _resolve_seed(args)
         from ..app.pipeline import limit_blas_threads
         from ..core.tuning import TuningWorkerError, workers_ignore_sigint
         limit_blas_threads()  # small matrix products; spinning BLAS threads only slow a busy machine down

@@ -142,6 +142,12 @@ def no_returns_as_nan(points: np.ndarray, viewpoint: Viewpoint = None) -> tuple[
     return out, count
 
 
+def no_returns_note(count: int) -> str:
+    """What a message about too few points adds when ``count`` rows were left out as "no return" marks."""
+    return f'; {count} were left out as a driver\'s "no return" mark (at (0, 0, 0), or at the viewpoint; ' \
+        'zero_is_no_return)' if count else ''
+
+
 #: Largest coordinate magnitude accepted, meters: squared distances of larger ones overflow float64 (a
 #: single far row below it, such as a driver's FLT_MAX, is a point far from every plane).
 MAX_COORDINATE = 1e150
