@@ -1,7 +1,9 @@
 """The steady-state frame on unorganized spinning-lidar scans (a height-1 PointCloud2, as
-velodyne_pointcloud publishes without organize_cloud): the pipeline with connected regions, with
-regions on a smaller search sample (ransac_points), with the paper's infinite planes, and Open3D's
-sequential segment_plane, side by side in one run, each with its point F1 against the scene's labels.
+velodyne_pointcloud publishes without organize_cloud, with its ring field): the pipeline with connected
+regions on the neighbourhood graph (the default), on the scan laid out as its ring image (organize_rings),
+on a smaller search sample of the graph (ransac_points), with the paper's
+infinite planes, and Open3D's sequential segment_plane, side by side in one run, each with its point F1
+against the scene's labels.
 
 Run: .venv/bin/python benchmarks/bench_lidar.py [--repeat 5]
 """
@@ -32,8 +34,9 @@ SCANS = {
     '16-beam corridor, 2 cm noise': lambda: scenes.lidar(**scenes.VLP16_CORRIDOR, seed=1),
 }
 METHODS = {
-    'regions': dict(),
-    'regions, ransac_points 8192': dict(ransac_points=8192),
+    'regions, graph': dict(),
+    'regions, ring image': dict(organize_rings=True),
+    'regions, graph, ransac_points 8192': dict(ransac_points=8192),
     'infinite planes': dict(connectivity=False),
 }
 
@@ -61,7 +64,7 @@ def table(repeat: int) -> None:
         for i in range(repeat + 1):  # the first run of each is a warm-up
             for m, pipe in pipes.items():
                 start = time.perf_counter()
-                result = pipe.process(scene.points, 10**9 * (i + 1), tune_inline=False)
+                result = pipe.process(scene.points, 10**9 * (i + 1), tune_inline=False, ring=scene.rings)
                 if i:
                     times[m].append(1000 * (time.perf_counter() - start))
                 f1[m] = segmentation_quality(result.labels, scene.labels).f1

@@ -137,8 +137,10 @@ def test_a_fresh_seed_is_reported_so_that_the_run_can_be_repeated(corner_npy, ca
     for command in (['detect', '--tolerance', '0.02'], ['sweep', '--tolerances', '0.005:0.03:3'],
                     ['planes', '--tolerance', '0.02']):
         assert main([command[0], str(corner_npy), *command[1:], '--seed', '-1', '--json']) == 0
-        fresh = json.loads(capsys.readouterr().out)
+        out = capsys.readouterr()
+        fresh = json.loads(out.out)
         assert isinstance(fresh['seed'], int) and fresh['seed'] >= 0
+        assert f'seed {fresh["seed"]} (--seed {fresh["seed"]} repeats this run)' in out.err  # also for text output
         assert main([command[0], str(corner_npy), *command[1:], '--seed', str(fresh['seed']), '--json']) == 0
         assert _untimed(json.loads(capsys.readouterr().out)) == _untimed(fresh)
 

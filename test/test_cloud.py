@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from plane_validation.formats.pointcloud2 import (
     create_cloud,
     pack_rgb,
+    ring_array,
     rosbags_types,
     structured_array,
     unpack_rgb,
@@ -413,6 +414,18 @@ def test_create_cloud_round_trip(family):
         np.testing.assert_array_equal(rec[name].view(col.dtype.str[1:]) if name == 'rgb'
                                       else rec[name], col)
     np.testing.assert_array_equal(rec['rgb'].view('<u4'), cols['rgb'].view(np.uint32))
+
+
+@pytest.mark.parametrize('family', FAMILIES)
+def test_the_ring_field_of_a_lidar_scan(family):
+    xyz = {a: np.arange(4, dtype=np.float32) for a in 'xyz'}
+    hdr = header(family, 'velodyne', 1, 0)
+    for dtype in (np.uint16, np.uint8, np.int32):
+        msg = create_cloud(hdr, {**xyz, 'ring': np.array([3, 0, 1, 2], dtype)}, types=types_of(family))
+        assert ring_array(msg).tolist() == [3, 0, 1, 2] and ring_array(msg).dtype == np.int64
+    assert ring_array(create_cloud(hdr, xyz, types=types_of(family))) is None  # no ring field
+    floats = create_cloud(hdr, {**xyz, 'ring': np.zeros(4, np.float32)}, types=types_of(family))
+    assert ring_array(floats) is None  # not a beam number
 
 
 @pytest.mark.parametrize('family', FAMILIES)

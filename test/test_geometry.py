@@ -79,3 +79,29 @@ def test_a_scene_of_outliers_only_lies_in_the_box_of_its_planes():
     scene = scenes.cube(100, outlier_fraction=0.999, seed=0)  # 100 outliers, no plane point
     assert scene.points.shape == (100, 3) and np.all(scene.labels == -1)
     assert scene.points.min() >= 0 and scene.points.max() <= 100  # the cube's 100-unit box
+
+
+def test_a_lidar_scan_shuffled_is_laid_out_as_the_drivers_ring_image():
+    from plane_validation.core.geometry import ring_image
+    organized = scenes.lidar(**scenes.VLP16_ROOM, seed=1, organized=True)
+    scan = scenes.lidar(**scenes.VLP16_ROOM, seed=1)
+    order = np.random.default_rng(0).permutation(len(scan.points))
+    image, shape, pixel = ring_image(scan.points[order], scan.rings[order])
+    assert shape == organized.shape == (16, 1800)
+    rows, cols = np.divmod(np.flatnonzero(np.isfinite(organized.points).all(axis=1)), 1800)
+    expected = ((15 - rows) * 1800 + cols)[order]  # the top ring first
+    np.testing.assert_array_equal(pixel, expected)
+    np.testing.assert_array_equal(image[pixel], scan.points[order])
+    # a 90-degree crop keeps the scan's azimuth step: the same 1800 columns, three quarters of them empty
+    front = scan.points[:, 0] > np.abs(scan.points[:, 1])
+    assert ring_image(scan.points[front], scan.rings[front])[1] == (16, 1800)
+
+
+def test_points_that_form_no_ring_image_are_refused():
+    from plane_validation.core.geometry import ring_image
+    scan = scenes.lidar(**scenes.VLP16_ROOM, seed=1)
+    two_rings = scan.rings < 2
+    assert ring_image(scan.points[two_rings], scan.rings[two_rings]) is None
+    assert ring_image(scan.points, scan.rings[:-1]) is None  # not one ring per point
+    cloud = np.random.default_rng(0).random((1000, 3))  # azimuths 0.005 degrees apart
+    assert ring_image(cloud, np.arange(1000) % 4) is None

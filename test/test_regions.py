@@ -467,3 +467,19 @@ def test_a_viewpoint_must_be_three_finite_coordinates_and_match_a_prebuilt_graph
     with pytest.raises(ValueError, match='viewpoint'):
         pv.detect_planes(pts, 0.02, graph=graph)
     assert pv.detect_planes(pts, 0.02, graph=graph, viewpoint=(0, 0, 1)).n_planes > 0
+
+
+def test_grid_normals_of_a_lidar_image_look_one_ring_away():
+    # a lidar's rings lie 13 times farther apart than its returns along a ring: normals from 3 rings away
+    # reached past a wall that 5 rings cross, and the wall fell apart (no region of it above 341 points)
+    from plane_validation.core.regions import _reach
+    scan = scenes.lidar(rings=16, seed=1, organized=True)
+    image = scan.points.reshape(*scan.shape, 3)
+    valid = np.isfinite(image).all(axis=2)
+    assert _reach(image, valid, np.linalg.norm(image, axis=2)) == (1, 14)  # the same angle both ways
+    depth = scenes.depth_camera('room', width=160, height=120, seed=0)
+    image = depth.points.reshape(*depth.shape, 3)
+    assert _reach(image, np.isfinite(image).all(axis=2), np.linalg.norm(image, axis=2)) == (3, 3)
+    seg = pv.detect_planes(scan.points, 0.05, seed=0, shape=scan.shape)
+    wall = scan.labels == 3  # x = 12 m, 3 m high: 5 rings
+    assert max(np.count_nonzero(seg.labels[wall] == j) for j in range(seg.n_planes)) > 0.6 * np.count_nonzero(wall)

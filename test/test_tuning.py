@@ -384,11 +384,16 @@ def test_planes_finer_than_the_steps_of_float32_coordinates_are_not_reliable():
     from plane_validation.core.verdict import coordinate_step
     box = scenes.cube(6000, 0.002, side=1.0, seed=1).points
     far = (box + [5e5, 4e6, 100.0]).astype(np.float32)
-    assert coordinate_step(far) == 0.25 and coordinate_step(box) < 1e-15
+    np.testing.assert_array_equal(coordinate_step(far), [0.03125, 0.25, 2.0 ** -17])
+    assert coordinate_step(box).max() < 1e-15
     result = pv.tune_tolerance(far, seed=0)
-    assert not result.reliable and 'steps of 0.25 m' in result.verdict, result.verdict
+    assert not result.reliable and 'come in steps of 0.25 m along its normal' in result.verdict, result.verdict
     near = pv.tune_tolerance(box.astype(np.float32), seed=0)
     assert near.reliable and near.segmentation.n_planes == 6, near.verdict
+    # a ground there: its points come in 0.25-0.5 m steps across it but 7.6e-6 m along its normal (z)
+    rng = np.random.default_rng(0)
+    ground = np.column_stack([rng.uniform(0, 30, 5000), rng.uniform(0, 30, 5000), rng.normal(0, 0.01, 5000)])
+    assert pv.tune_tolerance((ground + [5e5, 4.5e6, 100.0]).astype(np.float32), seed=0).reliable
 
 
 def test_a_stray_small_plane_beside_good_ones_keeps_them_reliable():

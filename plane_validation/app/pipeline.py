@@ -15,13 +15,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..core.blas import limit_blas_threads
-from ..core.geometry import voxel_downsample
+from ..core.geometry import ring_image, voxel_downsample
 from ..core.indices import ValidityIndices, validity_indices
 from ..core.noise import noise_coefficient, tolerance_scale
 from ..core.ransac import Segmentation, as_points, detect_planes, finite_rows, no_returns_as_nan, no_returns_note
 from ..core.tuning import TuningResult, TuningWorkerError, noise_from_segmentation, quick_tolerance, tune_tolerance
 from ..core.verdict import judge
-from ..formats.pointcloud2 import trailing_bytes, xyz_array
+from ..formats.pointcloud2 import ring_array, trailing_bytes, xyz_array
 from .config import PipelineConfig, min_inliers_value
 from .diagnostics import Diagnostic, Level, fmt
 
@@ -63,6 +63,15 @@ class FrameResult:
     plane_counts: tuple[int, ...] = ()  # labelled points per plane (input points, also with voxels)
     organized: np.ndarray | None = None  # all (H * W, 3) rows of an organized input
     shape: tuple[int, int] | None = None  # its (H, W)
+    ring_image: tuple[np.ndarray, tuple[int, int]] | None = None  # a scan laid out by rings: (H * W, 3), (H, W)
+
+    @property
+    def sweep_cloud(self) -> tuple[np.ndarray, tuple[int, int] | None]:
+        """What a retune after this frame sweeps: (points, shape), the image of an organized input or of
+        a ring-laid scan, else the valid points."""
+        if self.shape:
+            return self.organized, self.shape
+        return self.ring_image if self.ring_image is not None else (self.points, None)
 
     @property
     def n_planes(self) -> int:
@@ -237,7 +246,8 @@ class FramePipeline:
         except ValueError as exc:
             return self.reject(f'malformed PointCloud2: {exc}', ERROR, n_input=int(msg.height) * int(msg.width))
         shape = (int(msg.height), int(msg.width)) if msg.height > 1 else None  # organized: an image
-        result = self.process(points, stamp_ns, tune_inline=tune_inline, shape=shape)
+        ring = None if shape or not self.config.organize_rings else ring_array(msg)  # a spinning lidar's beams
+        result = self.process(points, stamp_ns, tune_inline=tune_inline, shape=shape, ring=ring)
         if extra:
             note = (f'PointCloud2.data has {extra} byte(s) beyond height*row_step = {msg.height}*{msg.row_step}; '
                     'they were ignored')
@@ -250,9 +260,11 @@ class FramePipeline:
         return _failed(level, message, time.perf_counter(), self.current_tolerance(), n_input=n_input)
 
     def process(self, points: np.ndarray, stamp_ns: int = 0, *, tune_inline: bool = True,
-                shape: tuple[int, int] | None = None) -> FrameResult:
+                shape: tuple[int, int] | None = None, ring: np.ndarray | None = None) -> FrameResult:
         """Run one frame. points: (N, 3) meters, NaN rows allowed; stamp_ns: header stamp;
-        shape: (H, W) when the rows are an organized image (a depth camera's cloud).
+        shape: (H, W) when the rows are an organized image (a depth camera's cloud); ring: (N,) each
+        point's beam when the rows are an unorganized spinning-lidar scan (searched on its ring image
+        with ``organize_rings``).
 
         Bad input never raises: it gives an ERROR (malformed array) or WARN (too few points,
         degenerate geometry) result. With ``tune_inline`` a due retune runs before detection;
@@ -277,10 +289,15 @@ class FramePipeline:
         if len(valid) < 3:
             why = f'too few valid points: {len(valid)} of {n_input} (need 3)' + no_returns_note(no_returns)
             return _failed(WARN, why, start, self.current_tolerance(), n_input=n_input, n_valid=len(valid))
+        laid = None  # (image, (H, W), the pixel of each valid point) of a scan laid out by its rings
+        if ring is not None and shape is None and cfg.organize_rings and cfg.connectivity and cfg.voxel_size <= 0 \
+                and np.shape(ring) == (n_input,):
+            laid = ring_image(valid, np.asarray(ring)[finite], cfg.viewpoint)
+        sweep_points, sweep_shape = (laid[0], laid[1]) if laid else (pts if shape else valid, shape)
         tune_problem = None
         if tune_inline and self.retune_due(stamp):
             try:
-                self.retune(pts if shape else valid, stamp, stamp_ns, shape=shape)
+                self.retune(sweep_points, stamp, stamp_ns, shape=sweep_shape)
             except TUNE_FAILURES as exc:
                 tune_problem = f'cannot tune: {exc}'
         elif self.config.auto_tune and self.tolerance is None and self.last_good is None and self.quick is None:
@@ -297,7 +314,9 @@ class FramePipeline:
         agreement = None if sweep is None or np.isnan(sweep.seed_agreement) else sweep.seed_agreement
         try:
             with np.errstate(over='ignore', invalid='ignore'):
-                if shape is not None:  # the organized rows, NaN holes and all
+                if laid is not None:  # the ring image, searched as an organized cloud
+                    work, inverse = laid[0], laid[2]
+                elif shape is not None:  # the organized rows, NaN holes and all
                     work, inverse = pts, None
                 else:
                     work, inverse = (voxel_downsample(valid, cfg.voxel_size) if cfg.voxel_size > 0 else (valid, None))
@@ -305,15 +324,15 @@ class FramePipeline:
                 seg = detect_planes(work, tolerance, max_planes=cfg.max_planes,
                                     min_inliers=min_inliers_value(cfg.min_inliers), probability=cfg.probability,
                                     max_iterations=cfg.max_iterations, seed=seed,
-                                    ransac_points=cfg.ransac_points or None, shape=shape,
+                                    ransac_points=cfg.ransac_points or None, shape=sweep_shape,
                                     connectivity=cfg.connectivity, noise_model=cfg.noise_model,
                                     noise_reference=cfg.noise_reference, viewpoint=cfg.viewpoint)
-                if inverse is not None:  # each point its voxel's plane, if it lies within t of it
+                if inverse is not None:  # each point its voxel's (pixel's) plane, if it lies within t of it
                     labels = _within_plane(valid, seg.labels[inverse], seg, tolerance)
                 else:
                     labels = seg.labels[finite] if shape else seg.labels
                 # an organized frame's indices from its valid rows: the same values, no second NaN filter
-                scored = (valid, labels) if shape is not None else (work, seg.labels)
+                scored = (valid, labels) if shape is not None or laid is not None else (work, seg.labels)
                 scores = validity_indices(*scored, sample_size=cfg.index_sample_size, seed=seed,
                                           sampled_separation=not cfg.exact_indices)
                 reliable, verdict = judge(work, seg, scores, agreement)
@@ -331,11 +350,14 @@ class FramePipeline:
                          scores, noise_from_segmentation(seg, work), work)
         if agreement is not None:
             values += (('seed_agreement', fmt(agreement)),)
+        if laid is not None:
+            values += (('ring_image', f'{laid[1][0]}x{laid[1][1]}'),)
         seconds = time.perf_counter() - start
         values += (('processing_ms', f'{1000 * seconds:.1f}'),)
         return FrameResult(points=valid, labels=labels, segmentation=seg, indices=scores, tolerance=tolerance,
                            tolerance_source=source, diagnostic=Diagnostic(level, message, values), seconds=seconds,
-                           plane_counts=tuple(int(c) for c in counts), organized=pts if shape else None, shape=shape)
+                           plane_counts=tuple(int(c) for c in counts), organized=pts if shape else None, shape=shape,
+                           ring_image=(laid[0], laid[1]) if laid else None)
 
 
 def _within_plane(points: np.ndarray, labels: np.ndarray, seg: Segmentation, tolerance: float) -> np.ndarray:

@@ -441,6 +441,7 @@ def _resolve_seed(args: argparse.Namespace) -> None:
     if getattr(args, 'seed', None) is not None and args.seed < 0:
         import secrets
         args.seed = secrets.randbits(31)  # within the seed parameter's range
+        print(f'plane-validation: seed {args.seed} (--seed {args.seed} repeats this run)', file=sys.stderr)
 
 
 def _add_table_options(parser: argparse.ArgumentParser, names: tuple[tuple[str, str], ...]) -> None:
@@ -451,7 +452,7 @@ def _add_table_options(parser: argparse.ArgumentParser, names: tuple[tuple[str, 
         spec = PARAMETERS[name]
         flag = '--' + name.replace('_', '-')
         # one cloud, no stamps
-        text = 'random seed; -1 = a fresh one (--json reports it)' if name == 'seed' else spec.description
+        text = 'random seed; -1 = a fresh one (printed on stderr)' if name == 'seed' else spec.description
         if spec.type is bool:
             parser.add_argument(flag, dest=name, action=argparse.BooleanOptionalAction, default=spec.default,
                                 help=f'{text} (default {str(spec.default).lower()})')

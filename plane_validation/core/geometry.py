@@ -1,5 +1,5 @@
 """Plane geometry for display and input reduction: outlines (centroid, in-plane frame, convex-hull
-polygon of each plane), plane colours and the voxel grid.
+polygon of each plane), plane colours, the voxel grid and a lidar scan's ring image.
 
 Pure numpy/scipy (no ROS import); the node's markers and poses are built from these.
 """
@@ -14,7 +14,7 @@ from scipy.spatial import ConvexHull, QhullError
 from .ransac import Segmentation
 
 __all__ = ['PlaneOutline', 'plane_basis', 'plane_outlines', 'hull_polygon', 'plane_colors', 'UNASSIGNED_RGB',
-           'voxel_downsample']
+           'voxel_downsample', 'ring_image', 'MAX_RING_COLUMNS']
 
 #: Largest point set whose hull is computed exactly (see hull_polygon).
 HULL_POINTS = 2048
@@ -115,3 +115,56 @@ def voxel_downsample(points: np.ndarray, voxel_size: float) -> tuple[np.ndarray,
     counts = np.bincount(inverse)
     sums = np.column_stack([np.bincount(inverse, weights=points[:, i], minlength=len(counts)) for i in range(3)])
     return sums / counts[:, None], inverse
+
+
+#: A ring image is at most this many columns wide (a scan whose azimuth step comes out finer is no
+#: spinning lidar's: 0.1 degrees is the finest in use, 3600 columns).
+MAX_RING_COLUMNS = 8192
+#: ... and its rings are rings: the median of their elevations' median absolute deviations is at most this
+#: share of the median step between rings (a 'ring' field that numbers something else is not used).
+RING_SPREAD = 0.25
+
+
+def ring_image(points: np.ndarray, ring: np.ndarray, viewpoint=(0.0, 0.0, 0.0)
+               ) -> tuple[np.ndarray, tuple[int, int], np.ndarray] | None:
+    """A spinning lidar's unorganized scan laid out as its range image, as drivers that keep it
+    organized publish it: rows the rings (``ring`` (n,), each point's beam, as the ``ring`` field of
+    velodyne_pointcloud and its kind), top down by their median elevation seen from ``viewpoint``
+    (3,) meters; columns the azimuth about z in steps of the scan's own (the median step between a
+    ring's neighbouring returns). ``points`` (n, 3) meters, finite. Returns (image (H * W, 3), NaN
+    where no return, (H, W), inverse (n,) the pixel of each point); of points on one pixel the first
+    stands for it. None when the rings do not form an image: fewer than 3 rings, rings whose elevations
+    spread more than RING_SPREAD of the step between rings, or a step finer than MAX_RING_COLUMNS per turn."""
+    ring = np.asarray(ring)
+    if len(points) == 0 or ring.shape != (len(points),):
+        return None
+    ids, row = np.unique(ring, return_inverse=True)
+    row = row.reshape(-1)
+    rays = points - np.asarray(viewpoint, dtype=float)
+    turn = 2 * np.pi
+    azimuth = np.arctan2(rays[:, 1], rays[:, 0]) % turn
+    elevation = np.arctan2(rays[:, 2], np.hypot(rays[:, 0], rays[:, 1]))
+    order = np.lexsort((azimuth, row))
+    starts = np.r_[0, np.flatnonzero(np.diff(row[order])) + 1]
+    ends = np.r_[starts[1:], len(order)]
+    median_elevation = np.array([np.median(elevation[order[a:b]]) for a, b in zip(starts, ends)])
+    spread = np.array([np.median(np.abs(elevation[order[a:b]] - m)) for a, b, m in zip(starts, ends, median_elevation)])
+    rank = np.empty(len(ids), np.int64)
+    rank[np.argsort(-median_elevation, kind='stable')] = np.arange(len(ids))  # the top ring first
+    gaps = np.diff(azimuth[order])[np.diff(row[order]) == 0]
+    gaps = gaps[gaps > 0]
+    if len(ids) < 3 or len(gaps) == 0 or \
+            np.median(spread) > RING_SPREAD * np.median(np.diff(np.sort(median_elevation))):
+        return None
+    width = int(round(turn / float(np.median(gaps))))
+    if not 3 <= width <= MAX_RING_COLUMNS:
+        return None
+    step = turn / width
+    # the scan's azimuths sit at phase + k * step: their circular mean within a step
+    phase = float(np.angle(np.mean(np.exp(1j * turn * azimuth / step)))) * step / turn
+    column = np.round((azimuth - phase) / step).astype(np.int64) % width
+    pixel = rank[row] * width + column
+    image = np.full((len(ids) * width, 3), np.nan)
+    first = np.unique(pixel, return_index=True)[1]  # the first point on each pixel
+    image[pixel[first]] = points[first]
+    return image, (len(ids), width), pixel

@@ -515,14 +515,20 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
                                      reason=reason, **model), view)
 
 
+#: A plane passes through the viewpoint when the viewpoint lies within this many times the RMS residual of
+#: the plane's points (plus a nanometre, for noise-free points): which side of it the viewpoint is on is noise.
+THROUGH_VIEWPOINT_RMS = 3.0
+
+
 def _facing_away(seg: Segmentation, viewpoint: np.ndarray) -> Segmentation:
     """``seg`` with each plane's normal pointing away from ``viewpoint`` (3,), so that a floor keeps
-    its normal from frame to frame; a plane within the tolerance of the viewpoint (the ground in
+    its normal from frame to frame; a plane through the viewpoint (THROUGH_VIEWPOINT_RMS; the ground in
     ``base_link``, whose origin lies on it) has instead the largest component of its normal positive
-    (the ground's points up): which side of it the viewpoint is on is noise."""
+    (the ground's points up)."""
     def flipped(p: Plane) -> bool:
         side = p.offset + p.normal @ viewpoint
-        return p.normal[np.argmax(np.abs(p.normal))] < 0 if abs(side) <= seg.tolerance else side > 0
+        through = abs(side) <= THROUGH_VIEWPOINT_RMS * p.rms + 1e-9
+        return p.normal[np.argmax(np.abs(p.normal))] < 0 if through else side > 0
     planes = tuple(dataclasses.replace(p, normal=-p.normal, offset=-p.offset) if flipped(p) else p for p in seg.planes)
     return dataclasses.replace(seg, planes=planes)
 

@@ -294,7 +294,7 @@ def grid_neighbours(image_points: np.ndarray, valid: np.ndarray) -> Neighbours:
     usable[:-1] &= ~(jump_d & ~far_down)
     usable[1:] &= ~(jump_d & far_down)
     pixel = np.flatnonzero(valid.reshape(-1))
-    normals = _grid_normals(image_points, valid).reshape(-1, 3)[pixel]
+    normals = _grid_normals(image_points, valid, _reach(image_points, valid, ranges)).reshape(-1, 3)[pixel]
     node = np.full(h * w, -1, dtype=np.int64)
     node[pixel] = np.arange(len(pixel))
     return Neighbours(n=len(pixel), shape=(h, w), pixel=pixel, node=node, usable=usable.reshape(-1),
@@ -311,14 +311,33 @@ def _wraps(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, typi
     return bool(np.median(gap / np.minimum(ranges[both, 0], ranges[both, -1])) <= JUMP * typical)
 
 
-def _grid_normals(image_points: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """(h, w, 3) unit normals from the image neighbours NORMAL_REACH pixels away (NaN at holes)."""
-    r = NORMAL_REACH
+def _reach(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray) -> tuple[int, int]:
+    """Pixels (down, across) that grid normals look: NORMAL_REACH along the finer axis of the image, as
+    far in angle along the other (a lidar's rings lie 10-15 times farther apart than its returns along a
+    ring: 3 rings would reach past a wall that 5 rings cross). The image's pitch along each axis is the
+    median angle between neighbouring pixels' rays, whatever the surfaces."""
+    with np.errstate(invalid='ignore', divide='ignore'):
+        rays = image_points / ranges[..., None]
+    pitch = []
+    for a, b, ok in ((rays[:, 1:], rays[:, :-1], valid[:, 1:] & valid[:, :-1]),
+                     (rays[1:], rays[:-1], valid[1:] & valid[:-1])):
+        chord = np.linalg.norm(a[ok] - b[ok], axis=-1)
+        pitch.append(float(np.median(chord)) if len(chord) else np.nan)
+    if not (np.isfinite(pitch).all() and min(pitch) > 0):
+        return NORMAL_REACH, NORMAL_REACH
+    angle = max(NORMAL_REACH * min(pitch), max(pitch))  # the same angle both ways, at least one coarse pixel
+    return max(1, round(angle / pitch[1])), max(1, round(angle / pitch[0]))
+
+
+def _grid_normals(image_points: np.ndarray, valid: np.ndarray, reach: tuple[int, int] = (NORMAL_REACH, NORMAL_REACH)
+                  ) -> np.ndarray:
+    """(h, w, 3) unit normals from the image neighbours ``reach`` (down, across) pixels away (NaN at holes)."""
+    rv, rh = reach
     pts = np.where(valid[..., None], image_points, np.nan)
-    pad = np.pad(pts, ((r, r), (r, r), (0, 0)), constant_values=np.nan)
+    pad = np.pad(pts, ((rv, rv), (rh, rh), (0, 0)), constant_values=np.nan)
     h, w = valid.shape
-    du = pad[r:r + h, 2 * r:] - pad[r:r + h, :w]
-    dv = pad[2 * r:, r:r + w] - pad[:h, r:r + w]
+    du = pad[rv:rv + h, 2 * rh:] - pad[rv:rv + h, :w]
+    dv = pad[2 * rv:, rh:rh + w] - pad[:h, rh:rh + w]
     n = np.cross(du, dv)
     with np.errstate(invalid='ignore', divide='ignore'):
         return n / np.sqrt(np.einsum('...i,...i->...', n, n))[..., None]

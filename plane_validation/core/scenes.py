@@ -18,7 +18,8 @@ __all__ = ['Scene', 'corner', 'cube', 'room', 'stairs', 'table', 'sphere', 'boxe
 @dataclass(frozen=True, eq=False)
 class Scene:
     """points: (N, 3) float64; labels: (N,) int32 true plane index or -1; planes: (k, 4) a, b, c, d;
-    shape: (H, W) when the rows are an image (a depth camera's organized cloud, NaN rows for holes)."""
+    shape: (H, W) when the rows are an image (a depth camera's organized cloud, NaN rows for holes);
+    rings: (N,) each point's beam, for a lidar scan (as a driver's ``ring`` field)."""
 
     name: str
     points: np.ndarray
@@ -26,6 +27,7 @@ class Scene:
     planes: np.ndarray
     noise: float
     shape: tuple[int, int] | None = None
+    rings: np.ndarray | None = None
 
     @property
     def n_planes(self) -> int:
@@ -358,9 +360,10 @@ def lidar(view: str = 'street', *, rings: int = 32, azimuths: int = 1800, sigma:
     points = rays[hit] * r[:, None]
     planes = np.array([np.append(rect.normal, -rect.normal @ (np.asarray(rect.origin) - eye)) for rect in rects])
     labels = which[hit].astype(np.int32)
+    beam = np.repeat(np.arange(rings, dtype=np.int32), azimuths)  # ring 0 the lowest, as velodyne_pointcloud
     if organized:
         image = np.full((len(rays), 3), np.nan)
         image[hit] = points
         points, labels = image, np.where(hit, which, -1).astype(np.int32)
     return Scene(name=f'lidar_{view}', points=points, labels=labels, planes=planes, noise=sigma,
-                 shape=(rings, azimuths) if organized else None)
+                 shape=(rings, azimuths) if organized else None, rings=beam if organized else beam[hit])

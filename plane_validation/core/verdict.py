@@ -58,7 +58,8 @@ STABILITY_RESEEDS = 3
 #: bunny 0.55-0.83 (seed 0: 0.73, the only one of its seeds the other checks call reliable). Single reseeds
 #: are not enough: one in eight finds the bunny's planes again (F1 up to 1.00), hence the mean of three.
 MIN_SEED_AGREEMENT = 0.9
-#: Planes found with a tolerance finer than the steps the planes' coordinates come in are not reliable:
+#: Planes found with a tolerance finer than the steps their points' coordinates come in along their normals are
+#: not reliable:
 #: float32 coordinates far from the origin (a UTM northing of 4e6 m: steps of 0.25-0.5 m) lie on a few
 #: parallel layers, which a small t finds as planes (a 1 m box: 5 'planes', PS 1.00).
 COORDINATE_STEP_SAMPLE = 4096
@@ -113,17 +114,17 @@ def plane_curvature(points: np.ndarray, plane_rows: np.ndarray) -> float:
     return float(1 - np.var(w - design @ coef) / total) if total > 0 else 0.0
 
 
-def coordinate_step(points: np.ndarray) -> float:
-    """The step (m) between neighbouring values the coordinates of ``points`` (n, 3) can take: float32's
-    spacing at their largest magnitude when every coordinate is a float32 number, else float64's."""
+def coordinate_step(points: np.ndarray) -> np.ndarray:
+    """(3,) the step (m) between neighbouring values each coordinate of ``points`` (n, 3) can take:
+    float32's spacing at its largest magnitude when every coordinate is a float32 number, else float64's."""
     pts = np.asarray(points, dtype=np.float64)
     finite = pts[np.isfinite(pts).all(axis=1)]
     if len(finite) == 0:
-        return 0.0
-    largest = float(np.abs(finite).max())
+        return np.zeros(3)
+    largest = np.abs(finite).max(axis=0)
     with np.errstate(over='ignore'):
         single = bool(np.array_equal(finite.astype(np.float32), finite))
-    return float(np.spacing(np.float32(largest)) if single else np.spacing(largest))
+    return np.spacing(largest.astype(np.float32)).astype(np.float64) if single else np.spacing(largest)
 
 
 def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
@@ -167,11 +168,12 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     rows = np.concatenate([p.inliers for p in seg.planes])
     if len(rows) > COORDINATE_STEP_SAMPLE:
         rows = rows[np.random.default_rng(len(rows)).integers(0, len(rows), COORDINATE_STEP_SAMPLE)]
-    step = coordinate_step(pts[rows])
-    if seg.tolerance < step:
-        problems.append(f'the coordinates come in steps of {step:.3g} m (float32 far from the origin), coarser '
-                        f'than t = {seg.tolerance:.3g} m: the planes may be those steps (subtract an offset, '
-                        'e.g. a local origin, before storing coordinates as float32)')
+    along = np.abs(seg.coefficients[:, :3]) @ coordinate_step(pts[rows])  # each plane's step along its normal
+    if (along > seg.tolerance).any():
+        coarse = int(np.argmax(along))
+        problems.append(f'plane {coarse}\'s points come in steps of {along[coarse]:.3g} m along its normal (float32 '
+                        f'far from the origin), coarser than t = {seg.tolerance:.3g} m: the planes may be those '
+                        'steps (subtract an offset, e.g. a local origin, before storing coordinates as float32)')
     if agreement is not None and agreement < MIN_SEED_AGREEMENT:  # NaN: not measured
         problems.append(f'other RANSAC seeds find other planes (agreement {_down(agreement)} < {MIN_SEED_AGREEMENT})')
     if problems:

@@ -232,6 +232,18 @@ def xyz_array(msg: Any, *, dtype: npt.DTypeLike = np.float64) -> np.ndarray:
     return out.reshape(-1, 3)
 
 
+def ring_array(msg: Any) -> np.ndarray | None:
+    """(height*width,) int64 the ``ring`` field (each point's beam, as spinning-lidar drivers publish
+    it), or None when there is no such integer field of count 1 (or the message is malformed)."""
+    field = next((f for f in msg.fields if str(f.name) == 'ring'), None)
+    if field is None or field.count != 1 or field.datatype not in (1, 2, 3, 4, 5, 6):
+        return None
+    try:
+        return structured_array(msg)['ring'].astype(np.int64)
+    except (ValueError, KeyError):
+        return None
+
+
 def trailing_bytes(msg: Any) -> int:
     """Bytes of msg.data beyond the declared height*row_step (0 for a well-formed message)."""
     return max(0, _data_bytes(msg.data).size - _uint(msg, 'height') * _uint(msg, 'row_step'))

@@ -193,11 +193,11 @@ class PlaneValidationNode(Node):
             self._start_retune(*kept)
 
     def _start_retune(self, frame, stamp_ns: int) -> None:
-        points = frame.organized if frame.shape else frame.points
+        points, shape = frame.sweep_cloud
 
         def run() -> None:
             try:
-                result = self.pipeline.retune(points, stamp_ns * 1e-9, stamp_ns, shape=frame.shape,
+                result = self.pipeline.retune(points, stamp_ns * 1e-9, stamp_ns, shape=shape,
                                               stop=lambda: self._stopping)
                 if result is not None and self.pipeline.last_tuning is result and not self._stopping:
                     self.get_logger().info(f'retuned: t = {result.tolerance:.4g} m ({result.verdict})')

@@ -88,8 +88,8 @@ def replay_offline(bag: str | Path, *, topic: str | None = None, out: str | Path
             if result.segmentation is not None and pipeline.retune_due(stamp_ns * 1e-9):
                 # as the node's background sweep: its t applies from the next frame
                 with contextlib.suppress(*TUNE_FAILURES):
-                    pipeline.retune(result.organized if result.shape else result.points, stamp_ns * 1e-9, stamp_ns,
-                                    shape=result.shape)
+                    points, shape = result.sweep_cloud
+                    pipeline.retune(points, stamp_ns * 1e-9, stamp_ns, shape=shape)
             frame = FrameSummary.from_diagnostic(index, timestamp, result.diagnostic)
             summary.frames.append(frame)
             bar.update(1)
