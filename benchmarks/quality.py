@@ -81,6 +81,9 @@ def load_clouds(only: list[str] | None = None) -> list[Cloud]:
         clouds.append(Cloud(s.name, s.points, s.labels.astype(np.int64), s.shape))
     for s in (scenes.lidar(seed=1), scenes.lidar(**scenes.VLP16_ROOM, seed=1)):
         clouds.append(Cloud(s.name, s.points, s.labels.astype(np.int64), None))
+    for s in (scenes.lidar(seed=1, organized=True), scenes.lidar(**scenes.VLP16_ROOM, seed=1, organized=True)):
+        # as a driver publishes it organized, or organize_rings lays it out: the same image
+        clouds.append(Cloud(s.name + '_organized', s.points, s.labels.astype(np.int64), s.shape))
     return [c for c in clouds if not only or c.name in only]
 
 
