@@ -131,10 +131,11 @@ def ring_image(points: np.ndarray, ring: np.ndarray, viewpoint=(0.0, 0.0, 0.0)
     organized publish it: rows the rings (``ring`` (n,), each point's beam, as the ``ring`` field of
     velodyne_pointcloud and its kind), top down by their median elevation seen from ``viewpoint``
     (3,) meters; columns the azimuth about z in steps of the scan's own (the median step between a
-    ring's neighbouring returns). ``points`` (n, 3) meters, finite. Returns (image (H * W, 3), NaN
-    where no return, (H, W), inverse (n,) the pixel of each point); of points on one pixel the first
-    stands for it. None when the rings do not form an image: fewer than 3 rings, rings whose elevations
-    spread more than RING_SPREAD of the step between rings, or a step finer than MAX_RING_COLUMNS per turn."""
+    ring's neighbouring returns), each ring's returns on the column nearest after their own phase.
+    ``points`` (n, 3) meters, finite. Returns (image (H * W, 3), NaN where no return, (H, W), inverse
+    (n,) the pixel of each point); of points on one pixel the first stands for it. None when the rings
+    do not form an image: fewer than 3 rings, rings whose elevations spread more than RING_SPREAD of
+    the step between rings, or a step finer than MAX_RING_COLUMNS per turn."""
     ring = np.asarray(ring)
     if len(points) == 0 or ring.shape != (len(points),):
         return None
@@ -160,9 +161,12 @@ def ring_image(points: np.ndarray, ring: np.ndarray, viewpoint=(0.0, 0.0, 0.0)
     if not 3 <= width <= MAX_RING_COLUMNS:
         return None
     step = turn / width
-    # the scan's azimuths sit at phase + k * step: their circular mean within a step
-    phase = float(np.angle(np.mean(np.exp(1j * turn * azimuth / step)))) * step / turn
-    column = np.round((azimuth - phase) / step).astype(np.int64) % width
+    # a ring's azimuths sit at phase + k * step (its own phase: beams may fire at other azimuths)
+    turns = np.exp(1j * turn * azimuth / step)
+    sums = np.bincount(row, weights=turns.real, minlength=len(ids)) + 1j * np.bincount(row, weights=turns.imag,
+                                                                                       minlength=len(ids))
+    phase = np.angle(sums) * step / turn
+    column = np.round((azimuth - phase[row]) / step).astype(np.int64) % width
     pixel = rank[row] * width + column
     image = np.full((len(ids) * width, 3), np.nan)
     first = np.unique(pixel, return_index=True)[1]  # the first point on each pixel
