@@ -442,3 +442,30 @@ def test_live_sweeps_the_frames_offline_sweeps_after_a_first_frame_without_plane
         assert node.pipeline.tuned_at == offline.tuned_at and node.pipeline.tolerance == offline.tolerance
     finally:
         h.close()
+
+
+def test_a_lidar_scan_with_a_ring_field_is_answered_on_its_ring_image_and_swept_there(ros):
+    # velodyne_pointcloud without organize_cloud; the first frame answers with the quick estimate while the
+    # background sweep runs on the ring image (its 8 x 900 sub-grid, not 20,000 points of the scan), whose t
+    # the next frame uses
+    import sensor_msgs.msg
+
+    from plane_validation.formats.pointcloud2 import create_cloud
+    node = PlaneValidationNode(parameter_overrides=[Parameter('seed', value=0)])
+    h = Harness(node)
+    try:
+        scan = scenes.lidar(rings=16, seed=1)
+        pts = scan.points.astype(np.float32)
+        columns = {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2], 'ring': scan.rings.astype(np.uint16)}
+
+        def frame(stamp_ns: int) -> dict[str, str]:
+            msg = create_cloud(make_header(stamp_ns), columns, types=sensor_msgs.msg)
+            return diag_values(h.send(msg, timeout=60)['diagnostics'])
+        first = frame(7_000_000_000_000)
+        assert first['ring_image'] == '16x1800' and first['tolerance_source'] == 'quick estimate (sweep pending)'
+        assert node.wait_for_sweep(timeout=60)
+        assert node.pipeline.last_tuning.sweep_points <= 8 * 900
+        second = frame(7_000_100_000_000)
+        assert second['tolerance_source'] == 'tuned at t=7000.000s' and second['planes'] == '6', second
+    finally:
+        h.close()
