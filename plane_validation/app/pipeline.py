@@ -293,11 +293,11 @@ class FramePipeline:
         if ring is not None and shape is None and cfg.organize_rings and cfg.connectivity and cfg.voxel_size <= 0 \
                 and np.shape(ring) == (n_input,):
             laid = ring_image(valid, np.asarray(ring)[finite], cfg.viewpoint)
-        sweep_points, sweep_shape = (laid[0], laid[1]) if laid else (pts if shape else valid, shape)
+        cloud, cloud_shape = (laid[0], laid[1]) if laid else (pts if shape else valid, shape)  # swept, searched
         tune_problem = None
         if tune_inline and self.retune_due(stamp):
             try:
-                self.retune(sweep_points, stamp, stamp_ns, shape=sweep_shape)
+                self.retune(cloud, stamp, stamp_ns, shape=cloud_shape)
             except TUNE_FAILURES as exc:
                 tune_problem = f'cannot tune: {exc}'
         elif self.config.auto_tune and self.tolerance is None and self.last_good is None and self.quick is None:
@@ -324,7 +324,7 @@ class FramePipeline:
                 seg = detect_planes(work, tolerance, max_planes=cfg.max_planes,
                                     min_inliers=min_inliers_value(cfg.min_inliers), probability=cfg.probability,
                                     max_iterations=cfg.max_iterations, seed=seed,
-                                    ransac_points=cfg.ransac_points or None, shape=sweep_shape,
+                                    ransac_points=cfg.ransac_points or None, shape=cloud_shape,
                                     connectivity=cfg.connectivity, noise_model=cfg.noise_model,
                                     noise_reference=cfg.noise_reference, viewpoint=cfg.viewpoint)
                 if inverse is not None:  # each point its voxel's (pixel's) plane, if it lies within t of it

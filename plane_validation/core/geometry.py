@@ -131,7 +131,7 @@ def ring_image(points: np.ndarray, ring: np.ndarray, viewpoint=(0.0, 0.0, 0.0)
     organized publish it: rows the rings (``ring`` (n,), each point's beam, as the ``ring`` field of
     velodyne_pointcloud and its kind), top down by their median elevation seen from ``viewpoint``
     (3,) meters; columns the azimuth about z in steps of the scan's own (the median step between a
-    ring's neighbouring returns), each ring's returns on the column nearest after their own phase.
+    ring's neighbouring returns), each ring's returns on the nearest column from their own phase.
     ``points`` (n, 3) meters, finite. Returns (image (H * W, 3), NaN where no return, (H, W), inverse
     (n,) the pixel of each point); of points on one pixel the first stands for it. None when the rings
     do not form an image: fewer than 3 rings, rings whose elevations spread more than RING_SPREAD of
