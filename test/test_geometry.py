@@ -97,11 +97,25 @@ def test_a_lidar_scan_shuffled_is_laid_out_as_the_drivers_ring_image():
     assert ring_image(scan.points[front], scan.rings[front])[1] == (16, 1800)
 
 
-def test_points_that_form_no_ring_image_are_refused():
+def test_points_that_form_no_ring_image_are_refused_with_a_reason():
     from plane_validation.core.geometry import ring_image
     scan = scenes.lidar(**scenes.VLP16_ROOM, seed=1)
+    rng = np.random.default_rng(0)
     two_rings = scan.rings < 2
-    assert ring_image(scan.points[two_rings], scan.rings[two_rings]) is None
-    assert ring_image(scan.points, scan.rings[:-1]) is None  # not one ring per point
-    cloud = np.random.default_rng(0).random((1000, 3))  # azimuths 0.005 degrees apart
-    assert ring_image(cloud, np.arange(1000) % 4) is None
+    kept = rng.random(len(scan.points)) < 0.3  # thinned at random (a voxel grid that keeps the ring field)
+    dual = np.concatenate([np.arange(len(scan.points)), np.flatnonzero(rng.random(len(scan.points)) < 0.1)])
+    cases = [
+        (scan.points[two_rings], scan.rings[two_rings], '2 rings'),
+        (scan.points, scan.rings[:-1], 'not one integer per point'),
+        (scan.points, scan.rings.astype(float), 'not one integer per point'),
+        (scan.points, rng.integers(0, 65536, len(scan.points)), 'rings \\(need 3 to 256\\)'),  # no beam numbers
+        (scan.points, rng.integers(0, 16, len(scan.points)), 'elevations overlap'),  # numbering something else
+        (scan.points[kept], scan.rings[kept], 'one azimuth step'),
+        (scan.points[dual] * np.where(np.arange(len(dual)) < len(scan.points), 1.0, 1.2)[:, None], scan.rings[dual],
+         'share a pixel'),  # dual returns: a second, farther return along 10 % of the beams
+    ]
+    for points, ring, why in cases:
+        with pytest.raises(ValueError, match=why):
+            ring_image(points, ring)
+    every_other = np.arange(len(scan.points)) % 2 == 0  # thinned evenly: an image of half the columns
+    assert ring_image(scan.points[every_other], scan.rings[every_other])[1] == (16, 900)

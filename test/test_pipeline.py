@@ -389,3 +389,8 @@ def test_an_unorganized_lidar_scan_with_a_ring_field_is_searched_on_its_ring_ima
     assert laid.level == OK and len(laid.labels) == len(pts)
     tuned = FramePipeline(PipelineConfig(seed=0)).process_cloud(msg)  # the first frame's sweep, on the image
     assert tuned.tolerance_source.startswith('tuned') and tuned.level == OK, tuned.message
+    # thinned at random, the ring field kept: no image; the graph, and the diagnostics say why
+    kept = np.random.default_rng(1).random(len(pts)) < 0.3
+    thinned = FramePipeline(PipelineConfig(**fixed)).process(pts[kept], 10**9, ring=rings[kept])
+    assert dict(thinned.values)['ring_image'].startswith('not used: only ') and thinned.level == OK
+    assert segmentation_quality(thinned.labels, truth[kept]).correct >= 5

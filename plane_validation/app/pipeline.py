@@ -289,10 +289,14 @@ class FramePipeline:
         if len(valid) < 3:
             why = f'too few valid points: {len(valid)} of {n_input} (need 3)' + no_returns_note(no_returns)
             return _failed(WARN, why, start, self.current_tolerance(), n_input=n_input, n_valid=len(valid))
-        laid = None  # (image, (H, W), the pixel of each valid point) of a scan laid out by its rings
-        if ring is not None and shape is None and cfg.organize_rings and cfg.connectivity and cfg.voxel_size <= 0 \
-                and np.shape(ring) == (n_input,):
-            laid = ring_image(valid, np.asarray(ring)[finite], cfg.viewpoint)
+        laid, unlaid = None, None  # (image, (H, W), the pixel of each valid point) of a scan laid out by its rings
+        if ring is not None and shape is None and cfg.organize_rings and cfg.connectivity and cfg.voxel_size <= 0:
+            try:
+                if np.shape(ring) != (n_input,):
+                    raise ValueError(f'{np.size(ring)} ring numbers for {n_input} points')
+                laid = ring_image(valid, np.asarray(ring)[finite], cfg.viewpoint)
+            except ValueError as exc:  # searched on the graph instead: say why
+                unlaid = f'not used: {exc}'
         cloud, cloud_shape = (laid[0], laid[1]) if laid else (pts if shape else valid, shape)  # swept, searched
         tune_problem = None
         if tune_inline and self.retune_due(stamp):
@@ -350,8 +354,8 @@ class FramePipeline:
                          scores, noise_from_segmentation(seg, work), work)
         if agreement is not None:
             values += (('seed_agreement', fmt(agreement)),)
-        if laid is not None:
-            values += (('ring_image', f'{laid[1][0]}x{laid[1][1]}'),)
+        if laid is not None or unlaid is not None:
+            values += (('ring_image', f'{laid[1][0]}x{laid[1][1]}' if laid else unlaid),)
         seconds = time.perf_counter() - start
         values += (('processing_ms', f'{1000 * seconds:.1f}'),)
         return FrameResult(points=valid, labels=labels, segmentation=seg, indices=scores, tolerance=tolerance,

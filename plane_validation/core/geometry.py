@@ -14,7 +14,7 @@ from scipy.spatial import ConvexHull, QhullError
 from .ransac import Segmentation
 
 __all__ = ['PlaneOutline', 'plane_basis', 'plane_outlines', 'hull_polygon', 'plane_colors', 'UNASSIGNED_RGB',
-           'voxel_downsample', 'ring_image', 'MAX_RING_COLUMNS']
+           'voxel_downsample', 'ring_image']
 
 #: Largest point set whose hull is computed exactly (see hull_polygon).
 HULL_POINTS = 2048
@@ -118,49 +118,64 @@ def voxel_downsample(points: np.ndarray, voxel_size: float) -> tuple[np.ndarray,
 
 
 #: A ring image is at most this many columns wide (a scan whose azimuth step comes out finer is no
-#: spinning lidar's: 0.1 degrees is the finest in use, 3600 columns).
+#: spinning lidar's: 0.1 degrees is the finest in use, 3600 columns) ...
 MAX_RING_COLUMNS = 8192
-#: ... and its rings are rings: the median of their elevations' median absolute deviations is at most this
-#: share of the median step between rings (a 'ring' field that numbers something else is not used).
+#: ... and has at most this many rings (128 beams is the most in use) ...
+MAX_RINGS = 256
+#: ... its rings are rings: the median of their elevations' median absolute deviations is at most this
+#: share of the median step between rings (a 'ring' field that numbers something else is not used) ...
 RING_SPREAD = 0.25
+#: ... at least this share of the steps between a ring's neighbouring returns is one azimuth step (a scan
+#: thinned at random or by a voxel grid keeping the ring field is no image: its pixels would be mostly holes) ...
+RING_REGULAR = 0.5
+#: ... and at most this share of the points falls on a pixel another point took (dual returns, two scans merged:
+#: only one point per pixel is searched).
+RING_COLLISIONS = 0.02
 
 
 def ring_image(points: np.ndarray, ring: np.ndarray, viewpoint=(0.0, 0.0, 0.0)
-               ) -> tuple[np.ndarray, tuple[int, int], np.ndarray] | None:
+               ) -> tuple[np.ndarray, tuple[int, int], np.ndarray]:
     """A spinning lidar's unorganized scan laid out as its range image, as drivers that keep it
-    organized publish it: rows the rings (``ring`` (n,), each point's beam, as the ``ring`` field of
-    velodyne_pointcloud and its kind), top down by their median elevation seen from ``viewpoint``
-    (3,) meters; columns the azimuth about z in steps of the scan's own (the median step between a
-    ring's neighbouring returns), each ring's returns on the nearest column from their own phase.
-    ``points`` (n, 3) meters, finite. Returns (image (H * W, 3), NaN where no return, (H, W), inverse
-    (n,) the pixel of each point); of points on one pixel the first stands for it. None when the rings
-    do not form an image: fewer than 3 rings, rings whose elevations spread more than RING_SPREAD of
-    the step between rings, or a step finer than MAX_RING_COLUMNS per turn."""
+    organized publish it: rows the rings (``ring`` (n,) integers, each point's beam, as the ``ring``
+    field of velodyne_pointcloud and its kind), top down by their median elevation seen from
+    ``viewpoint`` (3,) meters; columns the azimuth about z in steps of the scan's own (the median step
+    between a ring's neighbouring returns), each ring's returns on the nearest column from their own
+    phase. ``points`` (n, 3) meters, finite. Returns (image (H * W, 3), NaN where no return, (H, W),
+    inverse (n,) the pixel of each point); of points on one pixel the first stands for it.
+    ValueError saying why when the scan forms no such image (MAX_RINGS, MAX_RING_COLUMNS, RING_SPREAD,
+    RING_REGULAR, RING_COLLISIONS)."""
     ring = np.asarray(ring)
-    if len(points) == 0 or ring.shape != (len(points),):
-        return None
+    if ring.shape != (len(points),) or not np.issubdtype(ring.dtype, np.integer):
+        raise ValueError(f'the ring numbers are not one integer per point ({ring.dtype}, shape {ring.shape})')
     ids, row = np.unique(ring, return_inverse=True)
     row = row.reshape(-1)
+    if not 3 <= len(ids) <= MAX_RINGS:
+        raise ValueError(f'{len(ids)} rings (need 3 to {MAX_RINGS})')
     rays = points - np.asarray(viewpoint, dtype=float)
     turn = 2 * np.pi
     azimuth = np.arctan2(rays[:, 1], rays[:, 0]) % turn
-    elevation = np.arctan2(rays[:, 2], np.hypot(rays[:, 0], rays[:, 1]))
     order = np.lexsort((azimuth, row))
-    starts = np.r_[0, np.flatnonzero(np.diff(row[order])) + 1]
+    same_ring = np.diff(row[order]) == 0
+    gaps = np.diff(azimuth[order])[same_ring]
+    gaps = gaps[gaps > 0]
+    width = int(round(turn / float(np.median(gaps)))) if len(gaps) else 0
+    if not 3 <= width <= MAX_RING_COLUMNS:
+        raise ValueError(f'an azimuth step of {turn / max(width, 1):.3g} rad ({width} columns, need 3 to '
+                         f'{MAX_RING_COLUMNS})')
+    step = turn / width
+    regular = float(np.mean(np.abs(gaps / step - 1.0) < 0.5))
+    if regular < RING_REGULAR:
+        raise ValueError(f'only {regular:.0%} of the steps along the rings are one azimuth step (need '
+                         f'{RING_REGULAR:.0%}): thinned or filtered')
+    elevation = np.arctan2(rays[:, 2], np.hypot(rays[:, 0], rays[:, 1]))
+    starts = np.r_[0, np.flatnonzero(~same_ring) + 1]
     ends = np.r_[starts[1:], len(order)]
     median_elevation = np.array([np.median(elevation[order[a:b]]) for a, b in zip(starts, ends)])
     spread = np.array([np.median(np.abs(elevation[order[a:b]] - m)) for a, b, m in zip(starts, ends, median_elevation)])
+    if np.median(spread) > RING_SPREAD * np.median(np.diff(np.sort(median_elevation))):
+        raise ValueError('the rings\' elevations overlap: the field does not number beams')
     rank = np.empty(len(ids), np.int64)
     rank[np.argsort(-median_elevation, kind='stable')] = np.arange(len(ids))  # the top ring first
-    gaps = np.diff(azimuth[order])[np.diff(row[order]) == 0]
-    gaps = gaps[gaps > 0]
-    if len(ids) < 3 or len(gaps) == 0 or \
-            np.median(spread) > RING_SPREAD * np.median(np.diff(np.sort(median_elevation))):
-        return None
-    width = int(round(turn / float(np.median(gaps))))
-    if not 3 <= width <= MAX_RING_COLUMNS:
-        return None
-    step = turn / width
     # a ring's azimuths sit at phase + k * step (its own phase: beams may fire at other azimuths)
     turns = np.exp(1j * turn * azimuth / step)
     sums = np.bincount(row, weights=turns.real, minlength=len(ids)) + 1j * np.bincount(row, weights=turns.imag,
@@ -168,7 +183,11 @@ def ring_image(points: np.ndarray, ring: np.ndarray, viewpoint=(0.0, 0.0, 0.0)
     phase = np.angle(sums) * step / turn
     column = np.round((azimuth - phase[row]) / step).astype(np.int64) % width
     pixel = rank[row] * width + column
-    image = np.full((len(ids) * width, 3), np.nan)
     first = np.unique(pixel, return_index=True)[1]  # the first point on each pixel
+    shared = 1.0 - len(first) / len(pixel)
+    if shared > RING_COLLISIONS:
+        raise ValueError(f'{shared:.0%} of the points share a pixel (dual returns, or scans merged; at most '
+                         f'{RING_COLLISIONS:.0%})')
+    image = np.full((len(ids) * width, 3), np.nan)
     image[pixel[first]] = points[first]
     return image, (len(ids), width), pixel
