@@ -87,6 +87,8 @@ NORMAL_ANGLE_DEG = 25.0
 NORMAL_MIN_COS = float(np.cos(np.radians(NORMAL_ANGLE_DEG)))
 #: Grid normals from neighbours this many pixels away (smoother than adjacent pixels).
 NORMAL_REACH = 3
+#: The image's pitch along each axis (see _reach) is measured on every this many-th line.
+REACH_SAMPLE = 4
 #: A lidar image's normal (its pixels coarser across the rings than along them) is unknown where its pixel lies
 #: off the middle of its neighbours by more than this share of their distance: 3 cm range noise near walls
 #: swamps a normal over one ring, and such normals cut walls apart (an outside probe's VLP-16 office at 3 cm
@@ -324,12 +326,16 @@ def _reach(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray) -> t
     far in angle along the other (a lidar's rings lie 10-15 times farther apart than its returns along a
     ring: 3 rings would reach past a wall that 5 rings cross). The image's pitch along each axis is the
     median angle between neighbouring pixels' rays, whatever the surfaces."""
-    with np.errstate(invalid='ignore', divide='ignore'):
-        rays = image_points / ranges[..., None]
     pitch = []
-    for a, b, ok in ((rays[:, 1:], rays[:, :-1], valid[:, 1:] & valid[:, :-1]),
-                     (rays[1:], rays[:-1], valid[1:] & valid[:-1])):
-        chord = np.linalg.norm(a[ok] - b[ok], axis=-1)
+    for axis in (1, 0):  # neighbours along every REACH_SAMPLE-th row, then down every REACH_SAMPLE-th column
+        every = slice(None, None, REACH_SAMPLE)
+        lines = (every, slice(None)) if axis == 1 else (slice(None), every)
+        pts, ok, rng = image_points[lines], valid[lines], ranges[lines]
+        with np.errstate(invalid='ignore', divide='ignore'):
+            rays = pts / rng[..., None]
+        a, b = (rays[:, 1:], rays[:, :-1]) if axis == 1 else (rays[1:], rays[:-1])
+        both = (ok[:, 1:] & ok[:, :-1]) if axis == 1 else (ok[1:] & ok[:-1])
+        chord = np.linalg.norm(a[both] - b[both], axis=-1)
         pitch.append(float(np.median(chord)) if len(chord) else np.nan)
     if not (np.isfinite(pitch).all() and min(pitch) > 0):
         return NORMAL_REACH, NORMAL_REACH

@@ -61,7 +61,8 @@ MIN_SEED_AGREEMENT = 0.9
 #: Planes found with a tolerance finer than the steps their points' coordinates come in along their normals are
 #: not reliable:
 #: float32 coordinates far from the origin (a UTM northing of 4e6 m: steps of 0.25-0.5 m) lie on a few
-#: parallel layers, which a small t finds as planes (a 1 m box: 5 'planes', PS 1.00).
+#: parallel layers, which a small t finds as planes (a 1 m box: 5 'planes', PS 1.00). The steps are measured
+#: on about this many of the planes' points.
 COORDINATE_STEP_SAMPLE = 4096
 
 
@@ -165,9 +166,8 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     if scores.plane_silhouette < RELIABLE_PS:
         problems.append(f'PS {_down(scores.plane_silhouette)} < {RELIABLE_PS}: the points do not sit clearly on '
                         'their planes')
-    rows = np.concatenate([p.inliers for p in seg.planes])
-    if len(rows) > COORDINATE_STEP_SAMPLE:
-        rows = rows[np.random.default_rng(len(rows)).integers(0, len(rows), COORDINATE_STEP_SAMPLE)]
+    stride = max(1, int(sizes.sum()) // COORDINATE_STEP_SAMPLE)
+    rows = np.concatenate([p.inliers[::stride] for p in seg.planes])
     along = np.abs(seg.coefficients[:, :3]) @ coordinate_step(pts[rows])  # each plane's step along its normal
     if (along > seg.tolerance).any():
         coarse = int(np.argmax(along))
