@@ -236,7 +236,7 @@ def ring_array(msg: Any) -> np.ndarray | None:
     """(height*width,) int64 the ``ring`` field (each point's beam, as spinning-lidar drivers publish
     it), or None when there is no such integer field of count 1 (or the message is malformed)."""
     field = next((f for f in msg.fields if str(f.name) == 'ring'), None)
-    if field is None or field.count != 1 or field.datatype not in (1, 2, 3, 4, 5, 6):
+    if field is None or field.count != 1 or not np.issubdtype(DATATYPES.get(field.datatype, np.float32), np.integer):
         return None
     try:
         return structured_array(msg)['ring'].astype(np.int64)
