@@ -119,3 +119,7 @@ def test_points_that_form_no_ring_image_are_refused_with_a_reason():
             ring_image(points, ring)
     every_other = np.arange(len(scan.points)) % 2 == 0  # thinned evenly: an image of half the columns
     assert ring_image(scan.points[every_other], scan.rings[every_other])[1] == (16, 900)
+    # beams whose origins lie 14-20 cm above the frame's (an HDL-64): seen from it, a ring's elevation varies
+    # with range near the walls, yet the scan is an image (refused before, though as good as the graph)
+    lifted = scan.points + np.where(scan.rings % 2 == 0, 0.20, 0.14)[:, None] * [0.0, 0.0, 1.0]
+    assert ring_image(lifted, scan.rings)[1] == (16, 1800)

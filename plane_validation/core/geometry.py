@@ -123,8 +123,9 @@ MAX_RING_COLUMNS = 8192
 #: ... and has at most this many rings (128 beams is the most in use) ...
 MAX_RINGS = 256
 #: ... its rings are rings: the median of their elevations' median absolute deviations is at most this
-#: share of the median step between rings (a 'ring' field that numbers something else is not used) ...
-RING_SPREAD = 0.25
+#: share of the median step between rings (a 'ring' field that numbers something else is not used; an
+#: HDL-64's beams, whose origins lie 14-20 cm above the frame's, spread 0.5-1 step seen from it near walls) ...
+RING_SPREAD = 1.0
 #: ... at least this share of the steps between a ring's neighbouring returns is one azimuth step (a scan
 #: thinned at random or by a voxel grid keeping the ring field is no image: its pixels would be mostly holes) ...
 RING_REGULAR = 0.5
@@ -186,7 +187,7 @@ def ring_image(points: np.ndarray, ring: np.ndarray, viewpoint=(0.0, 0.0, 0.0)
     first = np.unique(pixel, return_index=True)[1]  # the first point on each pixel
     shared = 1.0 - len(first) / len(pixel)
     if shared > RING_COLLISIONS:
-        raise ValueError(f'{shared:.0%} of the points share a pixel (dual returns, or scans merged; at most '
+        raise ValueError(f'{shared:.1%} of the points share a pixel (dual returns, or scans merged; at most '
                          f'{RING_COLLISIONS:.0%})')
     image = np.full((len(ids) * width, 3), np.nan)
     image[pixel[first]] = points[first]
