@@ -203,16 +203,17 @@ def test_touching_regions_of_one_surface_are_merged_and_others_are_not():
     assert abs(abs(planes[0][0][2]) - 1) < 1e-3
 
 
+def _chain(n: int):
+    """The graph of n points joined one after another (0-1, 1-2, ...)."""
+    from plane_validation.core.regions import _neighbours
+    return _neighbours(n, np.column_stack([np.arange(n - 1), np.arange(1, n)]), None)
+
+
 def test_border_settling_breaks_exact_ties_towards_the_smaller_index_neighbour():
     # a point between two regions whose planes are exactly as far: the graph neighbour with the
     # smaller index wins (as before border settling looked only at changed points)
     from plane_validation.core.ransac import _compete
-    from plane_validation.core.regions import Neighbours
-    edges = np.array([[0, 1], [1, 2]])
-    both = np.concatenate([edges.T, edges.T[::-1]], axis=1)
-    indptr = np.zeros(4, np.int64)
-    np.cumsum(np.bincount(both[0], minlength=3), out=indptr[1:])
-    nb = Neighbours(n=3, edges=edges, adjacency=(indptr, both[1][np.argsort(both[0], kind='stable')]))
+    nb = _chain(3)
     search = np.array([[-1.0, 0.0, 1.0], [0.0, 0.5, 1.0], [0.0, 0.0, 0.0]])  # y = 0, 0.5, 1
     planes = [(np.array([0.0, 1.0, 0.0]), 0.0), (np.array([0.0, 1.0, 0.0]), -1.0)]  # y = 0 and y = 1
     origin = np.zeros(3)
@@ -224,12 +225,7 @@ def test_border_settling_compares_planes_along_the_viewing_ray():
     # a wall 2 m ahead of the sensor (y = 2) and a side face (x = 0.3) the rays graze: a wall point 2 cm
     # off the wall near the corner is 1 cm from the side face in meters, but its ray meets the wall first
     from plane_validation.core.ransac import _compete
-    from plane_validation.core.regions import Neighbours
-    edges = np.array([[0, 1], [1, 2]])
-    both = np.concatenate([edges.T, edges.T[::-1]], axis=1)
-    indptr = np.zeros(4, np.int64)
-    np.cumsum(np.bincount(both[0], minlength=3), out=indptr[1:])
-    nb = Neighbours(n=3, edges=edges, adjacency=(indptr, both[1][np.argsort(both[0], kind='stable')]))
+    nb = _chain(3)
     search = np.array([[0.3, 1.5, 0.0], [0.31, 2.02, 0.0], [0.8, 2.0, 0.0]]).T  # side, the wall point, wall
     planes = [(np.array([1.0, 0.0, 0.0]), -0.3), (np.array([0.0, 1.0, 0.0]), -2.0)]  # side, wall
     assert _compete(search, np.array([0, 0, 1]), planes, 0.05, nb, np.zeros(3)).tolist() == [0, 1, 1]
