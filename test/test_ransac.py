@@ -7,6 +7,7 @@ from scipy.spatial.transform import Rotation
 
 import plane_validation as pv
 from plane_validation import scenes
+from plane_validation.core import ransac
 
 
 def match_planes(found: np.ndarray, truth: np.ndarray) -> np.ndarray:
@@ -339,3 +340,27 @@ def test_a_search_stopped_by_max_planes_says_so(connectivity):
     # six planes for six faces: too few points are left for a seventh, so nothing was left out
     exact = pv.detect_planes(points, 2.0, max_planes=6, seed=0, connectivity=connectivity)
     assert exact.n_planes == 6 and not exact.capped
+
+
+
+@pytest.mark.parametrize('make', [lambda: scenes.room(30000, 0.005, outlier_fraction=0.2, seed=2),
+                                  lambda: scenes.boxes(20000, seed=4)])
+def test_prescoring_keeps_the_best_hypotheses(make, monkeypatch):
+    """Dropping hypotheses after PRESCORE points (their count there cannot reach the best few) scores
+    fewer distances and gives the same planes as scoring every hypothesis on the whole subset."""
+    scene = make()
+    distances = ransac._distances
+    runs = []
+    for prescore in (ransac.PRESCORE, 10**9):
+        scored = []
+
+        def spy(cols, normals, offsets):
+            scored.append(cols.shape[1] * len(normals) if cols.dtype == np.float32 else 0)
+            return distances(cols, normals, offsets)
+        monkeypatch.setattr(ransac, 'PRESCORE', prescore)
+        monkeypatch.setattr(ransac, '_distances', spy)
+        seg = pv.detect_planes(scene.points, 0.02, seed=5, max_planes=8)
+        runs.append((seg.labels, seg.coefficients, sum(scored)))
+    np.testing.assert_array_equal(runs[0][0], runs[1][0])
+    np.testing.assert_array_equal(runs[0][1], runs[1][1])
+    assert runs[0][2] < 0.8 * runs[1][2], (runs[0][2], runs[1][2])

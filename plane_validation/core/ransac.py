@@ -11,6 +11,7 @@ without losing precision to large absolute coordinates (each fit also centres it
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -29,6 +30,14 @@ BATCH = 128
 SUBSET = 4096
 #: Best subset hypotheses confirmed on all points of the RANSAC sample.
 CONFIRM = 4
+#: Hypotheses are first scored on this many of the SUBSET points (a random share of them); only
+#: those whose count there could still reach the CONFIRM best so far are scored on the rest. Most
+#: hypotheses lie far from any plane, so this skips most of the scoring.
+PRESCORE = 512
+#: ... "could still reach": a count on the PRESCORE points at most this many binomial standard
+#: deviations below the share the CONFIRM-th best holds of the whole subset (a hypothesis as good as that
+#: one is dropped with a chance of about 1 in 700).
+PRESCORE_SIGMAS = 3.0
 #: Default for ``detect_planes(ransac_points=...)``: larger clouds are searched on a random
 #: sample of this many points; every point is then labelled against the planes found.
 RANSAC_POINTS = 32768
@@ -339,6 +348,26 @@ def _within(cols: np.ndarray, normal: np.ndarray, offset: float, tolerance: Tole
     return _distances(cols, normal[None, :], np.array([offset]))[0] <= tolerance
 
 
+def _reference_share(best_counts: np.ndarray, scored: int, head_counts: np.ndarray, head: int) -> float:
+    """The inlier share a hypothesis must be able to reach to join the CONFIRM best: the CONFIRM-th best
+    count so far over the ``scored`` subset points, or before there are CONFIRM of them, a lower bound
+    (PRESCORE_SIGMAS) on the share of the CONFIRM-th best of ``head_counts`` over ``head`` points; 0 if neither."""
+    if len(best_counts) == CONFIRM:
+        return float(best_counts[-1]) / scored
+    if len(head_counts) < CONFIRM:
+        return 0.0
+    c = float(np.partition(head_counts, -CONFIRM)[-CONFIRM])
+    return max(0.0, c - PRESCORE_SIGMAS * np.sqrt(c * (1 - c / head))) / head
+
+
+@functools.lru_cache(maxsize=64)
+def _shuffled(m: int) -> np.ndarray:
+    """A fixed permutation of range(m) (read-only; it does not draw from the caller's generator)."""
+    order = np.random.default_rng(m).permutation(m)
+    order.flags.writeable = False
+    return order
+
+
 def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_iterations: int,
                 rng: np.random.Generator, region_of: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
                 point_normals: np.ndarray | None = None, sampler: Sampler | None = None
@@ -350,20 +379,35 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
     local surface normals (NaN: unknown): hypotheses are scored only by the points whose normal
     agrees with theirs. ``sampler``: draws triples of nearby points for part of the hypotheses."""
     m = cols.shape[1]
-    pick = None if m <= SUBSET else rng.choice(m, SUBSET, replace=False)
-    subset = cols if pick is None else cols[:, pick]
-    coherent = None
-    if point_normals is not None:
-        sub_normals = point_normals if pick is None else point_normals[:, pick]
-        unknown = np.isnan(sub_normals[0])
-        sub_normals = np.nan_to_num(sub_normals).astype(np.float32)
-        min_cos = np.float32(NORMAL_MIN_COS)
+    # the scored subset in random order (when it is all the points, a fixed shuffle of them), so
+    # that its first PRESCORE points are a random sample of it
+    pick = _shuffled(m) if m <= SUBSET else rng.choice(m, SUBSET, replace=False)
+    subset = cols[:, pick]
     # Scoring only ranks hypotheses: float32 halves its memory traffic, and the rounding (~1e-7 of
     # the centred coordinates) only matters for points within a hair of t. A row beyond float32's
     # range becomes inf (its distances inf or NaN): never an inlier, as in float64.
     with np.errstate(over='ignore'):
         subset32 = subset.astype(np.float32)
-    sub_tolerance = tolerance if pick is None else _at(tolerance, pick)
+    sub_tolerance = _at(tolerance, pick)
+    sub_normals = None
+    if point_normals is not None:
+        sub_normals = point_normals[:, pick]
+        unknown = np.isnan(sub_normals[0])
+        sub_normals = np.nan_to_num(sub_normals).astype(np.float32)
+    head = slice(0, min(PRESCORE, m)) if m > 2 * PRESCORE else slice(0, m)
+    tail = slice(head.stop, m)
+
+    def score(normals32: np.ndarray, offsets32: np.ndarray, part: slice) -> np.ndarray:
+        """(h,) inliers of the hypotheses among the subset's points ``part`` (whose normal agrees)."""
+        with np.errstate(over='ignore', invalid='ignore'):  # far-out rows: inf or NaN, never inliers
+            near = _distances(subset32[:, part], normals32, offsets32) <= _at(sub_tolerance, part)
+        if sub_normals is not None:
+            coherent = np.abs(normals32 @ sub_normals[:, part]) >= np.float32(NORMAL_MIN_COS)
+            coherent |= unknown[part]
+            near &= coherent
+        # a uint16 row sum is much faster than count_nonzero(axis=1); SUBSET < 65536
+        return np.add.reduce(near.view(np.uint8), axis=1, dtype=np.uint16).astype(np.int64)
+
     best_normals = np.empty((0, 3))
     best_offsets = np.empty(0)
     best_counts = np.empty(0, dtype=np.int64)
@@ -375,21 +419,25 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
         iterations += batch
         if len(normals) == 0:
             continue
-        with np.errstate(over='ignore', invalid='ignore'):  # far-out rows: inf or NaN, never inliers
-            near = _distances(subset32, normals.astype(np.float32), offsets.astype(np.float32)) <= sub_tolerance
-        if point_normals is not None:
-            coherent = np.abs(normals.astype(np.float32) @ sub_normals) >= min_cos
-            coherent |= unknown
-            near &= coherent
-        # a uint16 row sum is much faster than count_nonzero(axis=1); SUBSET < 65536
-        counts = np.add.reduce(near.view(np.uint8), axis=1, dtype=np.uint16).astype(np.int64)
+        normals32, offsets32 = normals.astype(np.float32), offsets.astype(np.float32)
+        counts = score(normals32, offsets32, head)
+        if tail.stop > tail.start:
+            share = _reference_share(best_counts, len(pick), counts, head.stop)
+            go_on = counts >= head.stop * share - PRESCORE_SIGMAS * np.sqrt(head.stop * share * (1 - share)) - 1
+            if go_on.all():
+                counts += score(normals32, offsets32, tail)
+            else:
+                counts[go_on] += score(normals32[go_on], offsets32[go_on], tail)
+                counts[~go_on] = -1  # not among the best: never kept
         # Keep the CONFIRM best hypotheses seen so far for confirmation on all points.
         best_normals = np.concatenate([best_normals, normals])
         best_offsets = np.concatenate([best_offsets, offsets])
         best_counts = np.concatenate([best_counts, counts])
         keep = np.argsort(-best_counts, kind='stable')[:CONFIRM]
+        keep = keep[best_counts[keep] >= 0]
         best_normals, best_offsets, best_counts = best_normals[keep], best_offsets[keep], best_counts[keep]
-        needed = _required_iterations(best_counts[0] / subset.shape[1], probability, sampler is not None)
+        if len(best_counts):
+            needed = _required_iterations(best_counts[0] / len(pick), probability, sampler is not None)
     if len(best_counts) == 0:
         return None
     # MSAC: the truncated squared distance prefers, of two planes with similar support, the one
