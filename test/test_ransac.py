@@ -354,7 +354,7 @@ def test_prescoring_keeps_the_best_hypotheses(make, monkeypatch):
     for prescore in (ransac.PRESCORE, 10**9):
         scored = []
 
-        def spy(cols, normals, offsets):
+        def spy(cols, normals, offsets, scored=scored):
             scored.append(cols.shape[1] * len(normals) if cols.dtype == np.float32 else 0)
             return distances(cols, normals, offsets)
         monkeypatch.setattr(ransac, 'PRESCORE', prescore)
