@@ -93,6 +93,23 @@ def test_pcd_binary_compressed_and_ascii_written_by_pypcd4(tmp_path):
         np.testing.assert_array_equal(load_points(path), grid)
 
 
+
+@pytest.mark.parametrize('declared', [300, 1200])
+def test_a_binary_compressed_pcd_whose_points_do_not_match_its_data_is_an_error(tmp_path, declared):
+    # with fewer points declared pypcd4 read the first fields' bytes as all the columns (y from the x of
+    # later points): a wrong cloud without an error
+    from pypcd4 import Encoding, PointCloud
+    grid = np.round(scenes.corner(600, 0.0, seed=2).points / 5) * 5
+    path = tmp_path / 'c.pcd'
+    PointCloud.from_xyz_points(grid.astype(np.float32)).save(path, encoding=Encoding.BINARY_COMPRESSED)
+    raw = path.read_bytes()
+    assert b'DATA binary_compressed' in raw and b'POINTS 600\n' in raw
+    path.write_bytes(raw.replace(b'POINTS 600\n', f'POINTS {declared}\n'.encode())
+                     .replace(b'WIDTH 600\n', f'WIDTH {declared}\n'.encode()))
+    with pytest.raises(ValueError, match=f'unpacks to 7200 bytes, but its {declared} points of 12 bytes'):
+        load_points(path)
+
+
 def _lidar_pcd(path: Path, points: np.ndarray, ring: np.ndarray, data: str = 'binary', ring_type: str = 'U') -> Path:
     """A spinning lidar's PCD as velodyne_pointcloud's writers lay it out: x y z intensity ring."""
     n = len(points)

@@ -386,6 +386,14 @@ def _read_pcd_scan(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int
             from pypcd4 import PointCloud  # LZF-compressed PCD
         except ImportError as exc:
             raise ValueError(f'{path}: binary_compressed PCD needs pypcd4 (pip install pypcd4)') from exc
+        # LZF block: compressed size, uncompressed size (uint32 each), then the fields one after another
+        point_bytes = sum(size * count for size, count in zip(sizes, counts))
+        if len(raw) - offset < 8:
+            raise ValueError(f'{path}: binary_compressed PCD data is cut short ({len(raw) - offset} bytes)')
+        unpacked = int(np.frombuffer(raw, '<u4', 2, offset)[1])
+        if unpacked != n * point_bytes:
+            raise ValueError(f'{path}: binary_compressed PCD data unpacks to {unpacked} bytes, but its {n} points '
+                             f'of {point_bytes} bytes need {n * point_bytes}: POINTS (or WIDTH x HEIGHT) is wrong')
         try:
             cloud = PointCloud.from_path(path)
             xyz = cloud.numpy(('x', 'y', 'z')).astype(np.float64)
