@@ -435,3 +435,35 @@ def test_answers_that_cannot_be_to_this_bags_frames_are_ignored_and_a_slow_node_
     assert not pairing.answered_last(quiet=0.0)  # quiet for less than 3 x 1 s: the last frame may come
     pairing.receive('diagnostics', answer(0))
     assert [f.index for f in pairing.frames] == [0, 1, 2] and pairing.answered_last(quiet=60.0)
+
+
+def test_an_output_bag_with_frames_without_planes_is_read_back_by_rosbags_and_rclpy_and_is_reproducible(tmp_path):
+    # rclpy's CDR ended an empty float64 sequence with alignment bytes (rosbags: "CDR message size mismatch"
+    # on the plane coefficients of a frame without planes) and left padding bytes uninitialized
+    from rclpy.serialization import deserialize_message
+    from rosbags.highlevel import AnyReader as Reader
+    from std_msgs.msg import Float64MultiArray
+    bag = tmp_path / 'in'
+    clouds = [scenes.corner(500, 1.0, scale=0.01, seed=3).points, np.full((40, 3), np.nan),
+              scenes.corner(500, 1.0, scale=0.01, seed=4).points]
+    with Writer(bag, version=9) as writer:
+        conn = writer.add_connection('/points', 'sensor_msgs/msg/PointCloud2', typestore=TS2)
+        for k, points in enumerate(clouds):
+            msg = _cloud_msg(TS2, points, 10**18 + k * 10**8, rosbags_types(TS2))
+            writer.write(conn, 10**18 + k * 10**8, TS2.serialize_cdr(msg, 'sensor_msgs/msg/PointCloud2'))
+    runs = []
+    for run in ('a', 'b'):
+        replay_offline(bag, out=tmp_path / run, echo=None, config=PipelineConfig(auto_tune=False, tolerance=0.02))
+        raw = {}
+        with Reader([tmp_path / run], default_typestore=TS2) as reader:
+            for c, _, data in reader.messages():
+                reader.deserialize(data, c.msgtype)  # every message, also the empty ones
+                raw.setdefault(c.topic, []).append(bytes(data))
+        runs.append(raw)
+    coefficients = runs[0][output_topics()['plane_coefficients']]
+    assert len(coefficients) == 3
+    empty = deserialize_message(coefficients[1], Float64MultiArray)
+    assert list(empty.data) == [] and len(deserialize_message(coefficients[0], Float64MultiArray).data) > 0
+    for topic in runs[0]:
+        if topic != '/diagnostics':  # its processing_ms differs from run to run
+            assert runs[0][topic] == runs[1][topic], topic

@@ -382,25 +382,31 @@ def _read_pcd_scan(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int
         xyz = np.column_stack([records[a][:, 0] for a in 'xyz']).astype(np.float64)
         return xyz, records['ring'][:, 0].astype(np.int64) if has_ring else None, shape
     if data == 'binary_compressed':
-        try:
-            from pypcd4 import PointCloud  # LZF-compressed PCD
-        except ImportError as exc:
-            raise ValueError(f'{path}: binary_compressed PCD needs pypcd4 (pip install pypcd4)') from exc
-        # LZF block: compressed size, uncompressed size (uint32 each), then the fields one after another
         point_bytes = sum(size * count for size, count in zip(sizes, counts))
-        if len(raw) - offset < 8:
-            raise ValueError(f'{path}: binary_compressed PCD data is cut short ({len(raw) - offset} bytes)')
-        unpacked = int(np.frombuffer(raw, '<u4', 2, offset)[1])
-        if unpacked != n * point_bytes:
-            raise ValueError(f'{path}: binary_compressed PCD data unpacks to {unpacked} bytes, but its {n} points '
-                             f'of {point_bytes} bytes need {n * point_bytes}: POINTS (or WIDTH x HEIGHT) is wrong')
-        try:
-            cloud = PointCloud.from_path(path)
-            xyz = cloud.numpy(('x', 'y', 'z')).astype(np.float64)
-            return xyz, cloud.numpy(('ring',))[:, 0].astype(np.int64) if has_ring else None, shape
-        except Exception as exc:  # pypcd4 reports problems with many exception types
-            raise ValueError(f'{path}: cannot read binary_compressed PCD: {_first_line(exc)}') from exc
+        return _read_pcd_compressed(path, raw[offset:], n, point_bytes, has_ring) + (shape,)
     raise ValueError(f'{path}: unknown PCD DATA type {data!r}')
+
+
+def _read_pcd_compressed(path: Path, data: bytes, n: int, point_bytes: int, has_ring: bool
+                         ) -> tuple[np.ndarray, np.ndarray | None]:
+    """x, y, z (n, 3) and the ring field (or None) of a binary_compressed PCD's ``data`` (its LZF block:
+    compressed size, uncompressed size (uint32 each), then the fields one after another), read by pypcd4."""
+    try:
+        from pypcd4 import PointCloud  # LZF-compressed PCD
+    except ImportError as exc:
+        raise ValueError(f'{path}: binary_compressed PCD needs pypcd4 (pip install pypcd4)') from exc
+    if len(data) < 8:
+        raise ValueError(f'{path}: binary_compressed PCD data is cut short ({len(data)} bytes)')
+    unpacked = int(np.frombuffer(data, '<u4', 2)[1])
+    if unpacked != n * point_bytes:
+        raise ValueError(f'{path}: binary_compressed PCD data unpacks to {unpacked} bytes, but its {n} points '
+                         f'of {point_bytes} bytes need {n * point_bytes}: POINTS (or WIDTH x HEIGHT) is wrong')
+    try:
+        cloud = PointCloud.from_path(path)
+        xyz = cloud.numpy(('x', 'y', 'z')).astype(np.float64)
+        return xyz, cloud.numpy(('ring',))[:, 0].astype(np.int64) if has_ring else None
+    except Exception as exc:  # pypcd4 reports problems with many exception types
+        raise ValueError(f'{path}: cannot read binary_compressed PCD: {_first_line(exc)}') from exc
 
 
 # -- writers -------------------------------------------------------------------------------------

@@ -3,22 +3,51 @@
 The bag is written under a hidden temporary directory beside ``path`` and moved into place on
 :meth:`BagRecorder.close`; :meth:`BagRecorder.abort` (an exception or a signal turned into one)
 deletes it. Data files are named as rosbag2 names them (``<name>_0.mcap`` / ``<name>_0.db3``).
+
+Messages are serialized by rosbags, not rclpy: rclpy's CDR leaves its padding bytes uninitialized (two runs
+give different bags) and ends an empty float64 sequence with alignment bytes that rosbags rejects as a
+size mismatch (a Float64MultiArray of a frame without planes); rclpy reads rosbags' CDR as well.
 """
 from __future__ import annotations
 
+import array
 import shutil
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from ..formats.bags import POINTCLOUD2, STORAGES, BagError, typestore
 from .messages import OUTPUTS, msgtype
 
-__all__ = ['BagRecorder', 'output_topics']
+__all__ = ['BagRecorder', 'output_topics', 'as_rosbags']
 
 
 def output_topics(node_name: str = 'plane_validation') -> dict[str, str]:
     """Output key -> topic name, as the node publishes them."""
     return {key: '/diagnostics' if key == 'diagnostics' else f'/{node_name}/{key}' for key in OUTPUTS}
+
+
+def as_rosbags(msg, store):
+    """The rosbags message (of ``store``'s types) with the fields of an rclpy message ``msg``."""
+    fields = {name: _value(getattr(msg, name), kind, store) for name, kind in msg.get_fields_and_field_types().items()}
+    return store.types[msgtype(type(msg))](**fields)
+
+
+def _value(value, kind: str, store):
+    """An rclpy field value as rosbags holds it: messages converted, primitive arrays as numpy arrays, a
+    byte (octet) as an int."""
+    if hasattr(value, 'get_fields_and_field_types'):
+        return as_rosbags(value, store)
+    if isinstance(value, array.array):  # a sequence of numbers: without a copy
+        return np.frombuffer(value, dtype=np.dtype(value.typecode)) if len(value) else np.array(value)
+    if isinstance(value, np.ndarray):
+        return value
+    if isinstance(value, (bytes, bytearray)):
+        return value[0] if kind == 'octet' else np.frombuffer(value, np.uint8)
+    if isinstance(value, list):
+        return [_value(v, kind.split('<', 1)[-1].rstrip('>'), store) for v in value]
+    return value
 
 
 class BagRecorder:
@@ -44,7 +73,7 @@ class BagRecorder:
             self._bag = self._tmp / path.name
             self.writer = Writer(self._bag, version=9, storage_plugin=StoragePlugin[storage.upper()])
             self.writer.open()
-            store = typestore()
+            store = self._store = typestore()
             self.connections = {'input': self.writer.add_connection(input_topic, POINTCLOUD2, typestore=store)}
             for key, topic in output_topics(node_name).items():
                 self.connections[key] = self.writer.add_connection(topic, msgtype(OUTPUTS[key]), typestore=store)
@@ -56,8 +85,9 @@ class BagRecorder:
             raise
 
     def write(self, key: str, timestamp: int, msg) -> None:
-        from rclpy.serialization import serialize_message
-        self.writer.write(self.connections[key], timestamp, serialize_message(msg))
+        connection = self.connections[key]
+        self.writer.write(connection, timestamp, self._store.serialize_cdr(as_rosbags(msg, self._store),
+                                                                             connection.msgtype))
 
     def close(self) -> Path:
         """Finish the bag and move it to ``path``."""
