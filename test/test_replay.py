@@ -324,6 +324,22 @@ def test_a_live_summary_says_where_the_unanswered_clouds_went():
     assert 'sent' not in offline and 'dropped' not in offline
 
 
+
+def test_the_summary_median_counts_only_frames_that_were_searched(tmp_path):
+    # three frames rejected in 0.0-0.1 ms set the median to 0.1 ms beside two searched in 55-113 ms
+    from plane_validation.app.diagnostics import Diagnostic, Level
+    from plane_validation.app.summary import FrameSummary, ReplaySummary
+    searched = Diagnostic(Level.OK, 'ok', (('planes', '6'), ('stop_reason', 'fewer than 3 points left'),
+                                           ('processing_ms', '80.0')))
+    rejected = Diagnostic(Level.WARN, 'too few valid points', (('planes', '0'), ('processing_ms', '0.1')))
+    frames = [FrameSummary.from_diagnostic(i, i, d) for i, d in enumerate([rejected] * 3 + [searched] * 2)]
+    assert [f.searched for f in frames] == [False] * 3 + [True] * 2
+    line = ReplaySummary(bag=Path('b'), topic='/points', output=None, frames=frames).line()
+    assert '3 rejected before the search; median 80.0 ms per searched frame' in line
+    line = ReplaySummary(bag=Path('b'), topic='/points', output=None, frames=frames[:3]).line()
+    assert '3 rejected before the search; last tolerance' in line and 'median' not in line
+
+
 def test_an_output_bag_made_meanwhile_by_another_run_is_kept_and_this_one_says_so(tmp_path):
     from plane_validation.formats.bags import BagError
     from plane_validation.ros.recorder import BagRecorder

@@ -23,12 +23,13 @@ class FrameSummary:
     level: Level
     message: str
     ms: float
+    searched: bool = True  # False: rejected before the search (malformed, too few valid points)
 
     @classmethod
     def from_diagnostic(cls, index: int, timestamp: int, diag: Diagnostic) -> FrameSummary:
         return cls(index=index, timestamp=timestamp, n_planes=int(diag.number('planes')),
                    tolerance=diag.number('tolerance'), gs_planes=diag.number('gs_planes'), level=diag.level,
-                   message=diag.message, ms=diag.number('processing_ms'))
+                   message=diag.message, ms=diag.number('processing_ms'), searched=diag.get('stop_reason') is not None)
 
     def line(self) -> str:
         return (f'frame {self.index:4d}  t={self.timestamp / 1e9:.3f}s  planes {self.n_planes:2d}  '
@@ -49,7 +50,8 @@ class ReplaySummary:
     def line(self) -> str:
         if not self.frames:
             return f'{self.bag}: no frames replayed'
-        ms = np.array([f.ms for f in self.frames])
+        ms = np.array([f.ms for f in self.frames if f.searched])
+        rejected = len(self.frames) - len(ms)
         counts = np.bincount([f.n_planes for f in self.frames])
         planes = ', '.join(f'{k} planes x{c}' for k, c in enumerate(counts) if c)
         out = f'; output bag {self.output}' if self.output else ''
@@ -58,5 +60,7 @@ class ReplaySummary:
             lost = max(self.sent - len(self.frames) - self.dropped, 0)
             dropped = (f' ({self.sent} sent: {self.dropped} dropped by the busy node, {lost} lost before it, '
                        'e.g. in the depth-1 sensor-data queue)')
-        return (f'{len(self.frames)} frames from {self.bag} [{self.topic}]{dropped}: {planes}; '
-                f'median {np.median(ms):.1f} ms per frame; last tolerance {self.frames[-1].tolerance:.4g} m{out}')
+        return (f'{len(self.frames)} frames from {self.bag} [{self.topic}]{dropped}: {planes}'
+                + (f'; {rejected} rejected before the search' if rejected else '')
+                + (f'; median {np.median(ms):.1f} ms per searched frame' if len(ms) else '')
+                + f'; last tolerance {self.frames[-1].tolerance:.4g} m{out}')
