@@ -483,3 +483,15 @@ def test_an_output_bag_with_frames_without_planes_is_read_back_by_rosbags_and_rc
     for topic in runs[0]:
         if topic != '/diagnostics':  # its processing_ms differs from run to run
             assert runs[0][topic] == runs[1][topic], topic
+
+
+
+def test_a_bag_without_a_cloud_topic_names_the_topics_it_has(tmp_path, capsys):
+    bag = tmp_path / 'chatter'
+    with Writer(bag, version=9) as writer:
+        conn = writer.add_connection('/chatter', 'std_msgs/msg/String', typestore=TS2)
+        writer.write(conn, 1, TS2.serialize_cdr(TS2.types['std_msgs/msg/String'](data='hi'), 'std_msgs/msg/String'))
+    for command in ('replay', 'detect'):
+        assert cli_main([command, str(bag)]) == 2
+        err = capsys.readouterr().err
+        assert 'no sensor_msgs/msg/PointCloud2 topic in the bag (its topics: /chatter (std_msgs/msg/String))' in err

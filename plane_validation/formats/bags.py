@@ -91,9 +91,12 @@ def pick_topic(reader, bag: Path, topic: str | None) -> list:
     """The connections of ``topic``, or of the bag's only PointCloud2 topic when None."""
     clouds = sorted({c.topic for c in reader.connections if c.msgtype == POINTCLOUD2})
     if topic is None:
+        if not clouds:
+            others = ', '.join(f'{t} ({m})' for t, m in sorted({(c.topic, c.msgtype) for c in reader.connections}))
+            raise BagError(f'{bag}: no {POINTCLOUD2} topic in the bag (its topics: {others or "none"})')
         if len(clouds) != 1:
-            found = ', '.join(clouds) or 'none'
-            raise BagError(f'{bag}: cannot pick the cloud topic automatically (PointCloud2 topics: {found}); '
+            raise BagError(f'{bag}: cannot pick the cloud topic automatically '
+                           f'(PointCloud2 topics: {", ".join(clouds)}); '
                            'name one (replay --topic TOPIC, or BAG:TOPIC for a cloud file argument)')
         topic = clouds[0]
     conns = [c for c in reader.connections if c.topic == topic]
