@@ -342,6 +342,53 @@ def test_a_360_degree_lidar_image_is_joined_across_its_seam():
     assert np.bincount(wall[wall >= 0]).max() > 0.85 * len(wall)
 
 
+
+@pytest.mark.parametrize('missing', ['every tenth', 'random tenth', 'random third'])
+def test_a_16_ring_scan_with_missing_returns_keeps_its_planes(missing):
+    # a 16-ring scan's image is searched at full resolution: every missing return cut its ring there, and
+    # with one return in ten missing (the same azimuth on every ring) no region reached min_inliers (0 planes)
+    from plane_validation.app.detection import detect
+    scene = scenes.lidar(seed=1, **scenes.VLP16_ROOM)
+    index = np.arange(len(scene.points))
+    rng = np.random.default_rng(7)
+    drop = {'every tenth': index % 10 == 0, 'random tenth': rng.random(len(index)) < 0.1,
+            'random third': rng.random(len(index)) < 0.33}[missing]
+    keep = ~drop
+    result = detect(scene.points[keep], 0.05, ring=scene.rings[keep], seed=0)
+    assert result.ring_image == '16x1800'
+    q = segmentation_quality(result.segmentation.labels, scene.labels[keep])
+    assert result.segmentation.n_planes == q.correct == 5 and q.f1 > 0.97, q
+
+
+def test_a_seam_behind_missing_returns_still_wraps():
+    scene = scenes.lidar(organized=True, rings=16, seed=1)
+    points = scene.points.copy()
+    points.reshape(16, 1800, 3)[:, [0, 1, -1]] = np.nan  # the columns at the seam: no return
+    seg = pv.detect_planes(points, 0.06, seed=0, shape=scene.shape, max_planes=12, min_inliers=0.005)
+    wall = seg.labels[(scene.labels == 3) & np.isfinite(points[:, 0])]
+    assert np.bincount(wall[wall >= 0]).max() > 0.85 * len(wall)
+
+
+def test_lidar_regions_span_short_runs_of_holes_but_not_a_depth_jump_behind_one():
+    from plane_validation.core.regions import HOLE_BRIDGE, grid_neighbours
+    # a lidar's image: its rows (rings) 10 times farther apart in angle than its columns
+    v, u = np.mgrid[0:20, 0:40]
+    depth = np.where(u < 20, 2.0, 1.0)  # the right half 1 m nearer: a depth jump at column 20
+    image = np.stack([(u - 20) / 150 * depth, (v - 10) / 15 * depth, depth], -1).astype(float)
+    image[:, 8:8 + HOLE_BRIDGE] = np.nan  # a run of holes within the far half
+    image[:, 30:31 + HOLE_BRIDGE] = np.nan  # one too long, within the near half
+    image[:, 19] = np.nan  # a hole just before the jump
+    valid = np.isfinite(image).all(axis=2)
+    neighbours = grid_neighbours(image, valid)
+    assert neighbours.bridges is not None and len(neighbours.bridges)
+    labels, count = neighbours.components(np.ones(neighbours.n, bool))
+    at = np.full(valid.shape, -1)
+    at[valid] = labels
+    assert count == 3  # columns 0-18 (across the short run), 20-29, 31+HOLE_BRIDGE-39
+    assert len(np.unique(at[:, :19][valid[:, :19]])) == 1 and len(np.unique(at[:, 20:30])) == 1
+    assert len({at[0, 0], at[0, 20], at[0, 39]}) == 3
+
+
 def test_only_a_scan_whose_last_column_is_next_to_its_first_wraps_around():
     from plane_validation.core.regions import grid_neighbours
     for scene, wraps in ((scenes.lidar(organized=True, rings=16, seed=1), True),

@@ -969,12 +969,18 @@ MERGE_SPREAD = 1.5
 def _adjacent(neighbours: Neighbours) -> tuple[np.ndarray, np.ndarray]:
     """(src, dst) point pairs of the searched points that touch: graph edges, or right and down
     neighbours on the sub-grid that may both join a region (no depth jump between them), and the last
-    and first pixels of each row when the image wraps around (a 360-degree scan)."""
+    and first pixels of each row when the image wraps around (a 360-degree scan); then the pixels on
+    either side of a short run of pixels without a point (Neighbours.bridges)."""
     if neighbours.shape is None:
         return neighbours.edges[:, 0], neighbours.edges[:, 1]
     node = np.where(neighbours.usable, neighbours.node, -1).reshape(neighbours.shape)
-    src = np.concatenate([node[:, :-1].ravel(), node[:-1].ravel()] + ([node[:, -1]] if neighbours.wraps else []))
-    dst = np.concatenate([node[:, 1:].ravel(), node[1:].ravel()] + ([node[:, 0]] if neighbours.wraps else []))
+    src = [node[:, :-1].ravel(), node[:-1].ravel()] + ([node[:, -1]] if neighbours.wraps else [])
+    dst = [node[:, 1:].ravel(), node[1:].ravel()] + ([node[:, 0]] if neighbours.wraps else [])
+    if neighbours.bridges is not None and len(neighbours.bridges):
+        usable = np.where(neighbours.usable, neighbours.node, -1)
+        src.append(usable[neighbours.bridges[:, 0]])
+        dst.append(usable[neighbours.bridges[:, 1]])
+    src, dst = np.concatenate(src), np.concatenate(dst)
     both = (src >= 0) & (dst >= 0)
     return src[both], dst[both]
 
