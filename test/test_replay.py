@@ -198,7 +198,7 @@ def _bad_bags(tmp_path: Path) -> list[tuple[str, Path, dict, str]]:
             ('no metadata', no_meta, {}, str(no_meta)),
             ('empty', empty, {}, 'no messages'),
             ('wrong type', wrong, {'topic': '/chatter'}, 'not sensor_msgs/msg/PointCloud2'),
-            ('no cloud topic', wrong, {}, 'PointCloud2 topics: none'),
+            ('no cloud topic', wrong, {}, 'no sensor_msgs/msg/PointCloud2 topic in the bag (its topics: /chatter'),
             ('missing topic', BAGS / 'cube', {'topic': '/other'}, "no topic '/other'")]
 
 
