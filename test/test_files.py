@@ -110,6 +110,17 @@ def test_a_binary_compressed_pcd_whose_points_do_not_match_its_data_is_an_error(
         load_points(path)
 
 
+
+def test_an_empty_binary_compressed_pcd_is_an_empty_cloud(tmp_path):
+    from pypcd4 import Encoding, PointCloud
+    path = tmp_path / 'empty.pcd'
+    PointCloud.from_xyz_points(np.empty((0, 3), np.float32)).save(path, encoding=Encoding.BINARY_COMPRESSED)
+    assert load_points(path).shape == (0, 3)
+    path.write_bytes(path.read_bytes().replace(b'POINTS 0\n', b'POINTS 1\n').replace(b'WIDTH 0\n', b'WIDTH 1\n'))
+    with pytest.raises(ValueError, match='cut short'):
+        load_points(path)
+
+
 def _lidar_pcd(path: Path, points: np.ndarray, ring: np.ndarray, data: str = 'binary', ring_type: str = 'U') -> Path:
     """A spinning lidar's PCD as velodyne_pointcloud's writers lay it out: x y z intensity ring."""
     n = len(points)

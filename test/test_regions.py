@@ -561,3 +561,19 @@ def test_components_of_joined_pairs_equal_scipys_connected_components(n):
         expected = connected_components(csr_matrix((np.ones(len(a)), (src, dst)), shape=(n, n)),
                                         directed=True, connection='weak')
         assert count == expected[0] and np.array_equal(labels, expected[1])
+
+
+def test_a_bridge_within_a_wrapping_row_is_found_once_and_not_taken_for_the_seam():
+    # the row's end pixels were scanned twice (the row extended past its end for the seam): a bridge from
+    # column 0 to 2 came out a second time flagged as crossing the seam, and its steps beside it differed
+    from plane_validation.core.regions import _bridges
+    x = np.array([0.0, np.nan, 0.05, 0.06, 0.07, 0.08, 0.09, 0.10, 0.11, -0.04])
+    image = np.stack([x, np.zeros(10), np.full(10, 5.0)], -1)[None]
+    valid = np.isfinite(image).all(-1)
+    bridges = _bridges(image, valid, np.linalg.norm(np.nan_to_num(image), axis=-1), 1e-4, True)
+    assert bridges.tolist() == [[0, 2, 0]]
+    x = np.array([np.nan, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08, -0.01])  # a hole at the seam
+    image = np.stack([x, np.zeros(10), np.full(10, 5.0)], -1)[None]
+    valid = np.isfinite(image).all(-1)
+    assert _bridges(image, valid, np.linalg.norm(np.nan_to_num(image), axis=-1), 1e-4, True).tolist() == [[9, 1, 1]]
+

@@ -495,3 +495,17 @@ def test_a_bag_without_a_cloud_topic_names_the_topics_it_has(tmp_path, capsys):
         assert cli_main([command, str(bag)]) == 2
         err = capsys.readouterr().err
         assert 'no sensor_msgs/msg/PointCloud2 topic in the bag (its topics: /chatter (std_msgs/msg/String))' in err
+
+
+def test_rclpy_messages_with_boolean_and_byte_sequences_convert_for_rosbags():
+    from rcl_interfaces.msg import ParameterValue
+    from rclpy.serialization import deserialize_message
+    from std_msgs.msg import ByteMultiArray
+
+    from plane_validation.ros.recorder import as_rosbags
+    value = ParameterValue(type=6, bool_array_value=[True, False], byte_array_value=[b'\x01', b'\x02'])
+    for msg, name in ((value, 'rcl_interfaces/msg/ParameterValue'),
+                      (ByteMultiArray(data=[b'\x07']), 'std_msgs/msg/ByteMultiArray')):
+        raw = bytes(TS2.serialize_cdr(as_rosbags(msg, TS2), name))
+        assert deserialize_message(raw, type(msg)) == msg
+

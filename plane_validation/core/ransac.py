@@ -394,8 +394,9 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
         sub_normals = point_normals[:, pick]
         unknown = np.isnan(sub_normals[0])
         sub_normals = np.nan_to_num(sub_normals).astype(np.float32)
-    head = slice(0, min(PRESCORE, m)) if m > 2 * PRESCORE else slice(0, m)
-    tail = slice(head.stop, m)
+    scored = len(pick)
+    head = slice(0, PRESCORE) if scored > 2 * PRESCORE else slice(0, scored)
+    tail = slice(head.stop, scored)
 
     def score(normals32: np.ndarray, offsets32: np.ndarray, part: slice) -> np.ndarray:
         """(h,) inliers of the hypotheses among the subset's points ``part`` (whose normal agrees)."""
@@ -422,7 +423,7 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
         normals32, offsets32 = normals.astype(np.float32), offsets.astype(np.float32)
         counts = score(normals32, offsets32, head)
         if tail.stop > tail.start:
-            share = _reference_share(best_counts, len(pick), counts, head.stop)
+            share = _reference_share(best_counts, scored, counts, head.stop)
             go_on = counts >= head.stop * share - PRESCORE_SIGMAS * np.sqrt(head.stop * share * (1 - share)) - 1
             if go_on.all():
                 counts += score(normals32, offsets32, tail)
@@ -437,7 +438,7 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
         keep = keep[best_counts[keep] >= 0]
         best_normals, best_offsets, best_counts = best_normals[keep], best_offsets[keep], best_counts[keep]
         if len(best_counts):
-            needed = _required_iterations(best_counts[0] / len(pick), probability, sampler is not None)
+            needed = _required_iterations(best_counts[0] / scored, probability, sampler is not None)
     if len(best_counts) == 0:
         return None
     # MSAC: the truncated squared distance prefers, of two planes with similar support, the one

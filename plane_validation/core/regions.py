@@ -258,7 +258,8 @@ class Neighbours:
         labelled = labelled.reshape(-1)
         if count > 1 and self.bridges is not None and len(self.bridges):
             a, b = labelled[self.bridges[:, 0]], labelled[self.bridges[:, 1]]
-            joined = (a > 0) & (b > 0) & (a != b) & ~self.bridges[:, 2].astype(bool)  # the seam: see _adjacent
+            # a bridge across the seam only joins regions in the coplanar merge (_adjacent), as the seam itself does
+            joined = (a > 0) & (b > 0) & (a != b) & ~self.bridges[:, 2].astype(bool)
             if joined.any():  # components of the components joined by bridges; 0 (background) stays alone
                 a, b = a[joined], b[joined]
                 order = np.argsort(a, kind='stable')
@@ -389,32 +390,35 @@ def _bridges(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, ty
     for axis in (1, 0):
         pts, ok, rng, idx = ((image_points, valid, ranges, flat) if axis == 1 else
                              (image_points.transpose(1, 0, 2), valid.T, ranges.T, flat.T))
-        length = ok.shape[1]
-        if axis == 1 and wraps:  # the row goes on past its end into its first pixels
-            extra = HOLE_BRIDGE + 1
-            pts, ok, rng, idx = (np.concatenate([x, x[:, :extra]], axis=1) for x in (pts, ok, rng, idx))
+        length, start = ok.shape[1], 0
+        if axis == 1 and wraps:  # the row goes on past either end: its last pixel before, its first ones after
+            start = 1
+            pts, ok, rng, idx = (np.concatenate([x[:, -1:], x, x[:, :HOLE_BRIDGE + 2]], axis=1)
+                                 for x in (pts, ok, rng, idx))
         with np.errstate(invalid='ignore'):
             step = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=-1)
         step[~(ok[:, 1:] & ok[:, :-1])] = np.nan
         step = np.pad(step, ((0, 0), (1, 1)), constant_values=np.nan)  # step[:, c] ends at pixel c
         cols = ok.shape[1]
         for run in range(1, HOLE_BRIDGE + 1):
-            n = cols - run - 1
+            n = min(cols - run - 1, start + length) - start  # runs starting at each pixel of the row itself
             if n <= 0:
                 break
-            span = ok[:, :n] & ok[:, run + 1:]
+            near, far_ok = ok[:, start:start + n], ok[:, start + run + 1:start + run + 1 + n]
+            span = near & far_ok
             for k in range(1, run + 1):
-                span &= ~ok[:, k:k + n]
+                span &= ~ok[:, start + k:start + k + n]
             r, c = np.nonzero(span)
             if not len(r):
                 continue
+            c = c + start
             far = c + run + 1
             with np.errstate(invalid='ignore'):
                 gap = np.linalg.norm(pts[r, c] - pts[r, far], axis=-1)
                 local = np.fmax(step[r, c], step[r, far + 1])
                 local = np.fmax(local, typical * np.minimum(rng[r, c], rng[r, far]))
                 fits = gap <= BRIDGE_SLACK * (run + 1) * local
-            out.append(np.column_stack([idx[r, c][fits], idx[r, far][fits], (far >= length)[fits]]))
+            out.append(np.column_stack([idx[r, c][fits], idx[r, far][fits], (far - start >= length)[fits]]))
     return np.concatenate(out).astype(np.int64)
 
 

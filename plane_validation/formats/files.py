@@ -395,6 +395,8 @@ def _read_pcd_compressed(path: Path, data: bytes, n: int, point_bytes: int, has_
         from pypcd4 import PointCloud  # LZF-compressed PCD
     except ImportError as exc:
         raise ValueError(f'{path}: binary_compressed PCD needs pypcd4 (pip install pypcd4)') from exc
+    if n * point_bytes == 0 and len(data) < 8:  # pypcd4 writes no data block for an empty cloud
+        return np.empty((0, 3)), (np.empty(0, np.int64) if has_ring else None)
     if len(data) < 8:
         raise ValueError(f'{path}: binary_compressed PCD data is cut short ({len(data)} bytes)')
     unpacked = int(np.frombuffer(data, '<u4', 2)[1])

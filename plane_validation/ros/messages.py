@@ -1,7 +1,7 @@
 """ROS 2 messages for one processed frame: segmented cloud, markers, poses, coefficients, diagnostics.
 
-Used by the node and by bag replay (which serializes them with ``rclpy.serialization``), so both
-publish byte-identical messages for the same frame. Needs the ROS message packages, not rclpy.
+Used by the node and by bag replay (which records them serialized by rosbags, see ros/recorder.py), so
+both publish the same messages for the same frame. Needs the ROS message packages, not rclpy.
 """
 from __future__ import annotations
 

@@ -35,10 +35,11 @@ def as_rosbags(msg, store):
 
 
 def _value(value, kind: str, store):
-    """An rclpy field value as rosbags holds it: messages converted, primitive arrays as numpy arrays, a
-    byte (octet) as an int."""
+    """An rclpy field value as rosbags holds it: messages converted, numeric arrays as numpy arrays, a
+    byte (octet) as an int. ``kind``: rclpy's field type ('octet', 'sequence<double>', 'float[4]', ...)."""
     if hasattr(value, 'get_fields_and_field_types'):
         return as_rosbags(value, store)
+    element = kind.split('<', 1)[-1].split(',')[0].rstrip('>').split('[')[0].strip()
     if isinstance(value, array.array):  # a sequence of numbers: without a copy
         return np.frombuffer(value, dtype=np.dtype(value.typecode)) if len(value) else np.array(value)
     if isinstance(value, np.ndarray):
@@ -46,7 +47,11 @@ def _value(value, kind: str, store):
     if isinstance(value, (bytes, bytearray)):
         return value[0] if kind == 'octet' else np.frombuffer(value, np.uint8)
     if isinstance(value, list):
-        return [_value(v, kind.split('<', 1)[-1].rstrip('>'), store) for v in value]
+        if element == 'boolean':
+            return np.array(value, dtype=bool)
+        if element == 'octet':
+            return np.frombuffer(b''.join(value), np.uint8).copy()
+        return [_value(v, element, store) for v in value]
     return value
 
 
