@@ -348,16 +348,20 @@ def _within(cols: np.ndarray, normal: np.ndarray, offset: float, tolerance: Tole
     return _distances(cols, normal[None, :], np.array([offset]))[0] <= tolerance
 
 
+def _low_count(count: float, n: int) -> float:
+    """PRESCORE_SIGMAS binomial standard deviations below ``count`` of ``n`` points."""
+    return count - PRESCORE_SIGMAS * np.sqrt(count * (1 - count / n))
+
+
 def _reference_share(best_counts: np.ndarray, scored: int, head_counts: np.ndarray, head: int) -> float:
     """The inlier share a hypothesis must be able to reach to join the CONFIRM best: the CONFIRM-th best
     count so far over the ``scored`` subset points, or before there are CONFIRM of them, a lower bound
-    (PRESCORE_SIGMAS) on the share of the CONFIRM-th best of ``head_counts`` over ``head`` points; 0 if neither."""
+    (_low_count) on the share of the CONFIRM-th best of ``head_counts`` over ``head`` points; 0 if neither."""
     if len(best_counts) == CONFIRM:
         return float(best_counts[-1]) / scored
     if len(head_counts) < CONFIRM:
         return 0.0
-    c = float(np.partition(head_counts, -CONFIRM)[-CONFIRM])
-    return max(0.0, c - PRESCORE_SIGMAS * np.sqrt(c * (1 - c / head))) / head
+    return max(0.0, _low_count(float(np.partition(head_counts, -CONFIRM)[-CONFIRM]), head)) / head
 
 
 @functools.lru_cache(maxsize=64)
@@ -424,7 +428,7 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
         counts = score(normals32, offsets32, head)
         if tail.stop > tail.start:
             share = _reference_share(best_counts, scored, counts, head.stop)
-            go_on = counts >= head.stop * share - PRESCORE_SIGMAS * np.sqrt(head.stop * share * (1 - share)) - 1
+            go_on = counts >= _low_count(head.stop * share, head.stop) - 1
             if go_on.all():
                 counts += score(normals32, offsets32, tail)
             else:
@@ -978,9 +982,8 @@ def _adjacent(neighbours: Neighbours) -> tuple[np.ndarray, np.ndarray]:
     src = [node[:, :-1].ravel(), node[:-1].ravel()] + ([node[:, -1]] if neighbours.wraps else [])
     dst = [node[:, 1:].ravel(), node[1:].ravel()] + ([node[:, 0]] if neighbours.wraps else [])
     if neighbours.bridges is not None and len(neighbours.bridges):
-        usable = np.where(neighbours.usable, neighbours.node, -1)
-        src.append(usable[neighbours.bridges[:, 0]])
-        dst.append(usable[neighbours.bridges[:, 1]])
+        src.append(node.reshape(-1)[neighbours.bridges[:, 0]])
+        dst.append(node.reshape(-1)[neighbours.bridges[:, 1]])
     src, dst = np.concatenate(src), np.concatenate(dst)
     both = (src >= 0) & (dst >= 0)
     return src[both], dst[both]

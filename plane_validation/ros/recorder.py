@@ -29,7 +29,10 @@ def output_topics(node_name: str = 'plane_validation') -> dict[str, str]:
 
 
 def as_rosbags(msg, store):
-    """The rosbags message (of ``store``'s types) with the fields of an rclpy message ``msg``."""
+    """The rosbags message (of ``store``'s types) with the fields of an rclpy message ``msg``; a rosbags
+    message as it is."""
+    if hasattr(msg, '__msgtype__'):
+        return msg
     fields = {name: _value(getattr(msg, name), kind, store) for name, kind in msg.get_fields_and_field_types().items()}
     return store.types[msgtype(type(msg))](**fields)
 
@@ -39,7 +42,6 @@ def _value(value, kind: str, store):
     byte (octet) as an int. ``kind``: rclpy's field type ('octet', 'sequence<double>', 'float[4]', ...)."""
     if hasattr(value, 'get_fields_and_field_types'):
         return as_rosbags(value, store)
-    element = kind.split('<', 1)[-1].split(',')[0].rstrip('>').split('[')[0].strip()
     if isinstance(value, array.array):  # a sequence of numbers: without a copy
         return np.frombuffer(value, dtype=np.dtype(value.typecode)) if len(value) else np.array(value)
     if isinstance(value, np.ndarray):
@@ -47,6 +49,7 @@ def _value(value, kind: str, store):
     if isinstance(value, (bytes, bytearray)):
         return value[0] if kind == 'octet' else np.frombuffer(value, np.uint8)
     if isinstance(value, list):
+        element = kind.split('<', 1)[-1].split(',')[0].rstrip('>').split('[')[0].strip()
         if element == 'boolean':
             return np.array(value, dtype=bool)
         if element == 'octet':
@@ -56,7 +59,7 @@ def _value(value, kind: str, store):
 
 
 class BagRecorder:
-    """Writes rclpy messages keyed 'input' or an output key. storage: 'mcap' or 'sqlite3'."""
+    """Writes rclpy (or rosbags) messages keyed 'input' or an output key. storage: 'mcap' or 'sqlite3'."""
 
     def __init__(self, path: Path, input_topic: str, node_name: str = 'plane_validation',
                  storage: str = 'mcap') -> None:

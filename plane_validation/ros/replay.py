@@ -82,7 +82,7 @@ def replay_offline(bag: str | Path, *, topic: str | None = None, out: str | Path
             msg = to_rclpy_cloud(cloud)
             result = pipeline.process_cloud(msg, tune_inline=False)
             extra = node_values(index + 1, 0, False)
-            recorder.write('input', timestamp, msg)
+            recorder.write('input', timestamp, cloud)  # as read: not converted back from rclpy
             outputs = frame_messages(msg.header, result, status_name(node_name), extra)
             for key, out_msg in outputs.items():
                 recorder.write(key, timestamp, out_msg)
