@@ -3,11 +3,15 @@ figure for a SynPEB-sized scan, which we do not ship), tune_tolerance with libra
 max_planes=60 and min_inliers=0.002, against the best fixed t over a grid.
 
 Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_many_planes.py [--repeat 3] [--jobs 0]
+
+Prints the tune's times in one process (workers already started) and, in new processes, of a first call.
 """
 from __future__ import annotations
 
 import argparse
 import statistics
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -67,12 +71,39 @@ def measure(repeat: int, jobs: int = 0) -> list[str]:
     return lines
 
 
+def first_call(jobs: int) -> float:
+    """Seconds of one tune_tolerance in a new process (what a script sees: worker start-up included)."""
+    scene = warehouse()
+    start = time.perf_counter()
+    pv.tune_tolerance(scene.points, seed=0, jobs=jobs, max_planes=60, min_inliers=0.002)
+    return time.perf_counter() - start
+
+
+def measure_first_calls(repeat: int, jobs: int) -> list[str]:
+    """first_call with ``jobs`` and with 1, each ``repeat`` times in new processes, alternating."""
+    times: dict[int, list[float]] = {1: [], jobs: []}
+    for _ in range(repeat):
+        for j in times:
+            out = subprocess.run([sys.executable, __file__, '--first-call', str(j)], check=True, capture_output=True,
+                                 text=True).stdout
+            times[j].append(float(out))
+    lines = [f'first call in a new process, jobs={j}: median {statistics.median(runs):.2f} s (min {min(runs):.2f}, '
+             f'max {max(runs):.2f}) over {repeat}' for j, runs in times.items()]
+    print(*lines, sep='\n', flush=True)
+    return lines
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--repeat', type=int, default=3)
-    parser.add_argument('--jobs', type=int, default=0, help='worker processes of the parallel runs (0: one per core)')
+    parser.add_argument('--jobs', type=int, default=0, help='processes of the parallel runs (0: one per core)')
+    parser.add_argument('--first-call', type=int, metavar='JOBS', help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.first_call is not None:
+        print(first_call(args.first_call))
+        return
     measure(args.repeat, args.jobs)
+    measure_first_calls(args.repeat, args.jobs)
 
 
 if __name__ == '__main__':

@@ -336,12 +336,35 @@ def test_dunn_and_db_of_the_chosen_planes_are_exact_on_small_clouds_and_sampled_
     assert exact.indices.separation_size == len(large)
 
 
+def _pid_after(seconds: float) -> int:
+    time.sleep(seconds)
+    return os.getpid()
+
+
+@needs_two_cores
+def test_this_process_makes_the_first_calls_while_the_workers_make_the_last():
+    from plane_validation.core.tuning import _in_order, _workers
+    with _workers(2) as run:
+        pairs = list(run(_pid_after, [(0.2,)] * 10))
+        assert sorted(i for i, _ in pairs) == list(range(10))
+        pids = list(_in_order(iter(pairs)))
+    assert pids[0] == os.getpid() and pids[-1] != os.getpid()  # the workers take the last call first
+    assert pids.count(os.getpid()) < 10
+
+
+def _exit_unless_in(pid: int) -> None:
+    """Exits a worker process; in process ``pid`` (which makes the calls still queued) it takes a second."""
+    if os.getpid() != pid:
+        os._exit(3)
+    time.sleep(1.0)
+
+
 @needs_two_cores
 def test_a_worker_process_that_dies_is_a_clear_error_and_later_sweeps_start_new_ones():
     from plane_validation.core.tuning import TuningWorkerError, _workers
     with pytest.raises(TuningWorkerError, match='worker process died'):
-        with _workers(2) as run:
-            list(run(lambda code: os._exit(code), [(3,), (3,)]))
+        with _workers(2) as run:  # this process makes the calls that are still queued: only a worker exits
+            list(run(_exit_unless_in, [(os.getpid(),)] * 8))
     scene = scenes.corner(1500, 1.0, seed=2)
     assert pv.tune_tolerance(scene.points, seed=0, jobs=2).segmentation.n_planes == 3
 

@@ -86,8 +86,9 @@ class PipelineConfig:
                          low=2, high=100)
     tune_points: int = _p(TUNE_POINTS, 'random subsample of the cloud the tuning sweep runs on',
                           low=100, high=10_000_000)
-    tune_jobs: int = _p(1, 'worker processes the tuning sweep runs its candidates in (the same t and planes for any '
-                        'value; at most one per CPU core); 0 = one per CPU core', low=1, high=1024, special=0)
+    tune_jobs: int = _p(1, 'processes the tuning sweep runs its candidates in: this one and tune_jobs - 1 workers (the '
+                        'same t and planes for any value; at most one per CPU core); 0 = one per CPU core',
+                        low=1, high=1024, special=0)
     criterion: str = _p(DEFAULT_CRITERION, 'index that picks t (dunn and the gs indices are maximized, davies_bouldin '
                         'minimized)', choices=tuple(CRITERIA))
     retune_period: float = _p(0.0, 'header time between retunes; 0 = tune on the first frame only (a failed '

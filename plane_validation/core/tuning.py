@@ -6,14 +6,15 @@ segmentation for k = 1..K (the paper's Fig. 2). Pure numpy/scipy, no ROS import.
 """
 from __future__ import annotations
 
+import collections
 import contextlib
 import contextvars
+import queue
 import signal
 import threading
 import time
-import warnings
 from collections.abc import Callable, Iterator
-from concurrent.futures import BrokenExecutor, ThreadPoolExecutor
+from concurrent.futures import BrokenExecutor, Future, ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -305,9 +306,10 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     noise_model, noise_reference, viewpoint: to :func:`detect_planes`; with ``depth_quadratic`` the
     candidates are t0, the tolerance up to the reference range (derived bounds are divided by the
     median tolerance factor of the cloud).
-    jobs: worker processes the candidates (and the reseeded reruns, beside the final detection)
-    run in; 1 = this process, 0 = one per CPU core, and never more than the cores. The result is
-    the same for any value.
+    jobs: processes the candidates (and the reseeded reruns, beside the final detection) run in,
+    this one and ``jobs`` - 1 worker processes that stay WORKER_IDLE_S for the next sweep; 1 = this
+    process only, 0 = one per CPU core, and never more than the cores. The result is the same for
+    any value.
     sweep_planes: the candidates look for up to max(max_planes, sweep_planes) planes, and only the
     final detection keeps to ``max_planes`` (t is the sensor's, whatever number of planes is wanted);
     0 = ``max_planes`` (the paper's experiments).
@@ -384,20 +386,19 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                                   final_rng, view) if connectivity else None
         if connectivity:  # the same neighbourhood graph for every candidate (None when it would be sampled)
             sweep_opts['graph'] = search_graph(sweep_pts, sweep_shape, ransac_points, viewpoint=view)
-        rows: list[TuningRow] = []
-        sweep_labels: list[np.ndarray] = []
+        rows: list[TuningRow] = [None] * len(cand)
+        sweep_labels: list[np.ndarray] = [None] * len(cand)
         candidates = run(_candidate, [(sweep_pts, t, int(ransac_seed), sweep_opts, score) for t in cand])
-        for row, labels in candidates:
-            rows.append(row)
-            sweep_labels.append(labels)
+        for done, (i, (row, labels)) in enumerate(candidates, start=1):
+            rows[i], sweep_labels[i] = row, labels
             if progress is not None:
-                progress(len(rows), len(cand))
+                progress(done, len(cand))
         best = _choose(rows, criterion, n_sweep)
         t_best = rows[best].tolerance
         # stability under reseeding, on the sweep's points and graph (a fraction of the full cloud's cost);
         # only when there are planes to find again. With workers they run beside the final detection.
         reseeds = rng.integers(0, 2**63, size=STABILITY_RESEEDS)
-        reruns = run(_labels, [(sweep_pts, t_best, int(s), sweep_opts) for s in reseeds]) \
+        reruns = _in_order(run(_labels, [(sweep_pts, t_best, int(s), sweep_opts) for s in reseeds])) \
             if rows[best].n_planes else iter(())
         final = detect_planes(pts, t_best, seed=final_rng, shape=shape,
                               graph=None if final_graph is None else final_graph.result(), **opts)
@@ -440,46 +441,122 @@ def _labels(points: np.ndarray, t: float, seed: int, opts: dict) -> np.ndarray:
     return detect_planes(points, t, seed=seed, **opts).labels
 
 
-#: Arrays from this size on are memory-mapped to the worker processes of a parallel sweep, not pickled.
-MEMMAP_BYTES = '64M'
-#: One parallel sweep at a time per process: joblib's shared worker pool cannot be resized for a
-#: sweep with another worker count while one runs (the two would wait on each other).
+#: Idle worker processes of a parallel sweep stay this long (joblib's default), so that a retune or
+#: the next sweep within it does not start them again.
+WORKER_IDLE_S = 300
+#: One parallel sweep at a time per process: the shared worker pool cannot be resized for a sweep
+#: with another worker count while one runs (the two would wait on each other).
 _PARALLEL = threading.Lock()
 
 
 @contextlib.contextmanager
-def _workers(jobs: int) -> Iterator[Callable[[Callable, list[tuple]], Iterator]]:
-    """``run(func, argument_tuples)``: an iterator of the results in order. With ``jobs`` != 1 the
-    calls start at once in joblib's reusable worker processes (0 = one per core, at most one per
-    core), and the iterator waits for each; with 1 they are made here, one by one, as it is read."""
+def _workers(jobs: int) -> Iterator[Callable[[Callable, list[tuple]], Iterator[tuple[int, object]]]]:
+    """``run(func, argument_tuples)``: an iterator of ``(i, func(*argument_tuples[i]))`` in the order the
+    calls end. With ``jobs`` != 1 this process is one of ``jobs`` (0 = one per core, never more than the
+    cores): loky's reusable worker processes take the calls one at a time from the last, and this process
+    takes them from the first while the iterator is read. It works while the workers start, and the slow
+    calls (a sweep's smallest tolerances come first) are not the last ones. With 1 the calls are made
+    here, one by one, as the iterator is read."""
     if jobs != 1:
-        from joblib import Parallel, cpu_count, delayed  # imported only for a parallel sweep: a heavy import
+        from joblib import cpu_count  # imported only for a parallel sweep: a heavy import
         jobs = cpu_count() if jobs == 0 else min(jobs, cpu_count())
     if jobs == 1:
-        yield lambda func, calls: (func(*args) for args in calls)
+        yield lambda func, calls: ((i, func(*args)) for i, args in enumerate(calls))
         return
-    started: list = []
+    from joblib.externals.loky import get_reusable_executor
+    shares: list[_Shared] = []
 
-    def run(func: Callable, calls: list[tuple]) -> Iterator:
-        with _sigint_ignored():
-            results = parallel(delayed(func)(*args) for args in calls)
-        started.append(results)
-        return results
+    def run(func: Callable, calls: list[tuple]) -> Iterator[tuple[int, object]]:
+        with _sigint_ignored():  # loky starts (or resizes) its worker processes with the first task
+            shares.append(_Shared(executor, func, calls, jobs - 1))
+        return shares[-1].results()
     try:
-        with _PARALLEL, contextlib.ExitStack() as stack:
-            with _sigint_ignored():  # joblib starts its worker processes here or with the first tasks
-                # arguments are pickled, not memory-mapped: leaving a memory-mapping Parallel waits 0.1 s
-                # for its temporary files to go; memory-mapped only from MEMMAP_BYTES (tune_points is large)
-                parallel = stack.enter_context(Parallel(n_jobs=jobs, return_as='generator', max_nbytes=MEMMAP_BYTES))
+        with _PARALLEL:
+            with _sigint_ignored():
+                executor = get_reusable_executor(max_workers=jobs - 1, timeout=WORKER_IDLE_S)
             try:
                 yield run
-            finally:  # results left unread (an exception passes through) are cancelled quietly
-                with warnings.catch_warnings():
-                    warnings.simplefilter('ignore', UserWarning)
-                    for results in started:
-                        results.close()
+            except Exception:
+                for share in shares:  # the calls left in the workers end there (an error ends them soon)
+                    share.stop()
+                raise
+            except BaseException:  # Ctrl-C, exit: the calls running in a worker are not waited for
+                busy = [future for share in shares for future in share.stop()]
+                deadline = time.monotonic() + 1.0
+                while not all(f.running() or f.done() for f in busy) and time.monotonic() < deadline:
+                    time.sleep(0.001)  # loky fails when it kills its workers before it has handed them a call
+                if busy:
+                    executor.shutdown(wait=False, kill_workers=True)
+                raise
+            finally:  # no more calls to the workers (reruns of a cloud without planes are left unread)
+                for share in shares:
+                    share.stop()
     except BrokenExecutor as exc:  # a worker was killed (out of memory, a signal): not a bug of the cloud
         raise TuningWorkerError(f'a tuning worker process died ({type(exc).__name__})') from exc
+
+
+class _Shared:
+    """The calls of one ``run``: the workers take them from the last (the next one when one ends, so
+    none waits in a queue for them), this process from the first (:meth:`results`)."""
+
+    def __init__(self, executor, func: Callable, calls: list[tuple], workers: int) -> None:
+        self.executor, self.func, self.calls = executor, func, calls
+        self.left = collections.deque(range(len(calls)))
+        self.lock = threading.Lock()
+        self.ended: queue.SimpleQueue = queue.SimpleQueue()  # (i, future) of the workers' calls
+        self.sent, self.stopped = 0, False
+        self.busy: dict[int, Future] = {}  # the workers' calls not ended
+        for _ in range(workers):
+            self._send()
+
+    def _send(self) -> None:
+        with self.lock:
+            if self.stopped or not self.left:
+                return
+            i = self.left.pop()
+            self.sent += 1
+        try:  # (also from loky's thread, when a call ends)
+            future = self.executor.submit(self.func, *self.calls[i])
+        except Exception as exc:  # a broken or shut-down pool: the error reaches the reader
+            future = Future()
+            future.set_exception(exc)
+        with self.lock:
+            self.busy[i] = future
+        future.add_done_callback(lambda f: self._ended(i, f))
+
+    def _ended(self, i: int, future: Future) -> None:
+        with self.lock:
+            self.busy.pop(i, None)
+        self.ended.put((i, future))
+        self._send()
+
+    def results(self) -> Iterator[tuple[int, object]]:
+        received = 0
+        while True:
+            while not self.ended.empty():
+                i, future = self.ended.get()
+                received += 1
+                yield i, future.result()
+            with self.lock:
+                i = self.left.popleft() if self.left else None
+            if i is None:
+                break
+            yield i, self.func(*self.calls[i])
+        while received < self.sent:
+            i, future = self.ended.get()
+            received += 1
+            yield i, future.result()
+
+    def stop(self) -> list[Future]:
+        """No more calls to the workers; the calls not ended there."""
+        with self.lock:
+            self.stopped = True
+            return list(self.busy.values())
+
+
+def _in_order(results: Iterator[tuple[int, object]]) -> Iterator:
+    """The results of ``run`` in the order of their calls (read when the first is asked for)."""
+    yield from (result for _, result in sorted(results, key=lambda pair: pair[0]))
 
 
 #: Set by :func:`workers_ignore_sigint` (a command line's choice, not the library's: a process with
