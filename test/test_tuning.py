@@ -352,6 +352,48 @@ def test_this_process_makes_the_first_calls_while_the_workers_make_the_last():
     assert pids.count(os.getpid()) < 10
 
 
+@needs_two_cores
+def test_another_thread_resizing_the_worker_pool_during_a_sweep_does_not_hang_it():
+    """loky's thread reports a call's end while another thread, holding loky's lock, waits for it."""
+    from joblib.externals.loky import get_reusable_executor
+
+    from plane_validation.core.tuning import _workers
+    done = {}
+
+    def sweep():
+        with _workers(2) as run:
+            done['sweep'] = len(list(run(_pid_after, [(0.1,)] * 20)))
+
+    def other():
+        time.sleep(0.5)
+        done['other'] = get_reusable_executor(max_workers=2).submit(os.getpid).result()
+    threads = [threading.Thread(target=f, daemon=True) for f in (sweep, other)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=30)
+    assert done.get('sweep') == 20 and 'other' in done
+
+
+@needs_two_cores
+def test_worker_processes_ignore_ctrl_c_themselves():
+    """A worker interrupted while it sends a result leaves loky's pipe unreadable; this process stops them."""
+    import re
+    import signal
+    from pathlib import Path
+
+    import psutil
+
+    from plane_validation.core.tuning import _workers
+    with _workers(2) as run:
+        pids = {pid for _, pid in run(_pid_after, [(0.2,)] * 6)} - {os.getpid()}
+    assert pids
+    for pid in pids:
+        if psutil.pid_exists(pid):
+            ignored = int(re.search(r'SigIgn:\s*([0-9a-f]+)', Path(f'/proc/{pid}/status').read_text())[1], 16)
+            assert ignored >> (signal.SIGINT - 1) & 1
+
+
 def _exit_unless_in(pid: int) -> None:
     """Exits a worker process; in process ``pid`` (which makes the calls still queued) it takes a second."""
     if os.getpid() != pid:

@@ -467,20 +467,17 @@ def _workers(jobs: int) -> Iterator[Callable[[Callable, list[tuple]], Iterator[t
     shares: list[_Shared] = []
 
     def run(func: Callable, calls: list[tuple]) -> Iterator[tuple[int, object]]:
-        with _sigint_ignored():  # loky starts (or resizes) its worker processes with the first task
+        with _sigint_ignored():  # loky starts (or resizes) its worker processes with the first calls
             shares.append(_Shared(executor, func, calls, jobs - 1))
         return shares[-1].results()
     try:
         with _PARALLEL:
             with _sigint_ignored():
-                executor = get_reusable_executor(max_workers=jobs - 1, timeout=WORKER_IDLE_S)
+                executor = get_reusable_executor(max_workers=jobs - 1, timeout=WORKER_IDLE_S,
+                                                  initializer=_worker_ignores_sigint)
             try:
                 yield run
-            except Exception:
-                for share in shares:  # the calls left in the workers end there (an error ends them soon)
-                    share.stop()
-                raise
-            except BaseException:  # Ctrl-C, exit: the calls running in a worker are not waited for
+            except BaseException:  # an error, Ctrl-C: the calls running in a worker are not waited for
                 busy = [future for share in shares for future in share.stop()]
                 deadline = time.monotonic() + 1.0
                 while not all(f.running() or f.done() for f in busy) and time.monotonic() < deadline:
@@ -495,27 +492,38 @@ def _workers(jobs: int) -> Iterator[Callable[[Callable, list[tuple]], Iterator[t
         raise TuningWorkerError(f'a tuning worker process died ({type(exc).__name__})') from exc
 
 
+def _worker_ignores_sigint() -> None:
+    """A worker process's first step: a Ctrl-C reaches the sweep's process, which stops the workers (a
+    worker interrupted while it sends a result leaves loky's pipe unreadable: the process then hangs)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 class _Shared:
     """The calls of one ``run``: the workers take them from the last (the next one when one ends, so
-    none waits in a queue for them), this process from the first (:meth:`results`)."""
+    none waits in a queue for them), this process from the first (:meth:`results`). The calls after the
+    first ones are handed out by a thread of their own: loky's thread, which reports a call's end, must
+    not wait for loky's lock (another thread that resizes the pool holds it while it waits for that one)."""
 
     def __init__(self, executor, func: Callable, calls: list[tuple], workers: int) -> None:
         self.executor, self.func, self.calls = executor, func, calls
         self.left = collections.deque(range(len(calls)))
         self.lock = threading.Lock()
         self.ended: queue.SimpleQueue = queue.SimpleQueue()  # (i, future) of the workers' calls
+        self.free: queue.SimpleQueue = queue.SimpleQueue()  # a worker is free (or stop)
         self.sent, self.stopped = 0, False
         self.busy: dict[int, Future] = {}  # the workers' calls not ended
         for _ in range(workers):
             self._send()
+        threading.Thread(target=self._feed, name='tuning-feed', daemon=True).start()
 
-    def _send(self) -> None:
+    def _send(self) -> bool:
+        """Hands a worker the last call left; False when there is none (or after stop)."""
         with self.lock:
             if self.stopped or not self.left:
-                return
+                return False
             i = self.left.pop()
             self.sent += 1
-        try:  # (also from loky's thread, when a call ends)
+        try:
             future = self.executor.submit(self.func, *self.calls[i])
         except Exception as exc:  # a broken or shut-down pool: the error reaches the reader
             future = Future()
@@ -523,12 +531,19 @@ class _Shared:
         with self.lock:
             self.busy[i] = future
         future.add_done_callback(lambda f: self._ended(i, f))
+        return True
+
+    def _feed(self) -> None:
+        while True:
+            self.free.get()
+            if not self._send():
+                return
 
     def _ended(self, i: int, future: Future) -> None:
         with self.lock:
             self.busy.pop(i, None)
         self.ended.put((i, future))
-        self._send()
+        self.free.put(None)
 
     def results(self) -> Iterator[tuple[int, object]]:
         received = 0
@@ -551,7 +566,9 @@ class _Shared:
         """No more calls to the workers; the calls not ended there."""
         with self.lock:
             self.stopped = True
-            return list(self.busy.values())
+            busy = list(self.busy.values())
+        self.free.put(None)  # the feeding thread ends
+        return busy
 
 
 def _in_order(results: Iterator[tuple[int, object]]) -> Iterator:
