@@ -2,7 +2,7 @@
 
 For each Kinect frame of ../shared/data: tune_tolerance with the library defaults as a user's script
 calls it on a loaded file (organized: the shape load_cloud gives; and as an unorganized array),
-the organized one again with tune_jobs 0 (a worker process per core, started before the timing),
+the organized one again with tune_jobs 0 (one process per core: this one and workers started before the timing),
 then Open3D's 5 x segment_plane at t = 1 cm. Medians over --repeat runs, interleaved.
 
 Run: .venv/bin/python benchmarks/bench_autotune.py [PCD ...] [--repeat 5]
