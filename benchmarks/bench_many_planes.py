@@ -20,6 +20,9 @@ import plane_validation as pv
 from plane_validation.core import scenes
 from plane_validation.core.scoring import segmentation_quality
 
+#: tune_tolerance's arguments beside the library defaults (issue 13's call).
+PARAMS = dict(max_planes=60, min_inliers=0.002)
+
 
 def warehouse(n_points: int = 250_000, noise: float = 0.003, seed: int = 0) -> scenes.Scene:
     """A 12 x 8 x 4 m hall (6 faces), six crates (5 faces each) and two hanging panels: 38 planes."""
@@ -38,7 +41,6 @@ def measure(repeat: int, jobs: int = 0) -> list[str]:
     fixed t; the lines printed. The workers are started before the timing (a first parallel call
     also pays their start-up, reported on its own)."""
     scene = warehouse()
-    params = dict(max_planes=60, min_inliers=0.002)
     lines = [f'{scene.name}: {len(scene.points)} points, {len(scene.planes)} planes, '
              f'noise ±{1000 * scene.noise:.0f} mm']
     start = time.perf_counter()
@@ -49,7 +51,7 @@ def measure(repeat: int, jobs: int = 0) -> list[str]:
     for i in range(repeat):
         for j in times:
             start = time.perf_counter()
-            result = pv.tune_tolerance(scene.points, seed=i, jobs=j, **params)
+            result = pv.tune_tolerance(scene.points, seed=i, jobs=j, **PARAMS)
             times[j].append(time.perf_counter() - start)
     q = segmentation_quality(result.segmentation.labels, scene.labels)
     for j, runs in times.items():
@@ -61,7 +63,7 @@ def measure(repeat: int, jobs: int = 0) -> list[str]:
                  f'(PS {result.indices.plane_silhouette:.2f})')
     best = None
     for t in np.geomspace(0.001, 0.05, 10):
-        seg = pv.detect_planes(scene.points, t, seed=0, **params)
+        seg = pv.detect_planes(scene.points, t, seed=0, **PARAMS)
         qt = segmentation_quality(seg.labels, scene.labels)
         if best is None or (qt.correct, qt.f1) > (best[1].correct, best[1].f1):
             best = (t, qt)
@@ -75,7 +77,7 @@ def first_call(jobs: int) -> float:
     """Seconds of one tune_tolerance in a new process (what a script sees: worker start-up included)."""
     scene = warehouse()
     start = time.perf_counter()
-    pv.tune_tolerance(scene.points, seed=0, jobs=jobs, max_planes=60, min_inliers=0.002)
+    pv.tune_tolerance(scene.points, seed=0, jobs=jobs, **PARAMS)
     return time.perf_counter() - start
 
 
