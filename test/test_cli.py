@@ -396,6 +396,11 @@ def test_a_failed_demo_leaves_no_output_folder(tmp_path, capsys):
     assert main(['demo', '--bag', str(tmp_path / 'empty'), '--out', str(out)]) == 2
     assert 'not a rosbag2 bag' in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ['empty']
+    out.mkdir(parents=True)  # a folder an earlier demo filled: its picture goes with its bag
+    (out / 'empty.planes').mkdir()
+    (out / 'last_frame.png').write_bytes(b'an earlier run')
+    assert main(['demo', '--bag', str(tmp_path / 'empty'), '--out', str(out)]) == 2
+    assert not any(out.iterdir())
 
 
 #: A Ctrl-C while the command line or the node loads numpy, scipy and rclpy (their first second): an

@@ -288,6 +288,20 @@ def test_failed_sweeps_are_retried_ever_less_often():
     assert pipe.failures == 0 and not pipe.retune_due(stamp + 1000.0)
 
 
+def test_a_sweep_whose_verdict_is_not_reliable_is_used_and_tried_again_on_a_later_frame():
+    pipe = FramePipeline(PipelineConfig(auto_tune=True, seed=0))
+    blob = np.random.default_rng(0).normal(0, 0.3, (3000, 3)) + [0, 0, 3]  # a first frame of clutter
+    corner = scenes.corner(3000, 0.2, scale=0.01, seed=1).points + [0, 0, 1]  # then a 1 m corner, 2 mm noise
+    first = pipe.process(blob, 10**9)
+    assert first.n_planes > 0 and first.level == WARN, first.message
+    assert first.tolerance_source == 'tuned at t=1.000s (its sweep was not reliable: tuned again on a later frame)'
+    assert not pipe.retune_due(1.9) and pipe.retune_due(1.0 + RETRY_AFTER_S)  # as after a failed sweep
+    later = pipe.process(corner, 2 * 10**9)
+    assert later.level == OK and later.tolerance_source == 'tuned at t=2.000s', later.message
+    assert later.tolerance < 0.5 * first.tolerance and later.n_planes == 3
+    assert pipe.failures == 0 and not pipe.retune_due(1000.0)  # reliable: kept (retune_period 0)
+
+
 def test_a_sweep_asked_to_stop_adopts_nothing():
     pipe = FramePipeline(PipelineConfig(auto_tune=True, seed=0))
     asked = []

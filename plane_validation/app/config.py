@@ -92,7 +92,7 @@ class PipelineConfig:
     criterion: str = _p(DEFAULT_CRITERION, 'index that picks t (dunn and the gs indices are maximized, davies_bouldin '
                         'minimized)', choices=tuple(CRITERIA))
     retune_period: float = _p(0.0, 'header time between retunes; 0 = tune on the first frame only (a failed '
-                              'sweep is retried, less often after each failure)',
+                              'sweep, or one whose verdict is not reliable, is retried, less often after each)',
                               low=0.0, high=1e6, unit='s')
     max_planes: int = _p(10, 'stop after this many planes (a tuning sweep looks for at least '
                          f'{SWEEP_MAX_PLANES}: t is the sensor\'s, whatever number of planes is wanted)',

@@ -139,8 +139,8 @@ class FramePipeline:
     last_good: float | None = None       # the last tuned tolerance, kept across reconfiguration
     quick: float | None = None           # quick_tolerance of a frame, until a sweep succeeds
     tune_error: str | None = None        # why the last sweep failed (None after a success)
-    failed_at: float | None = None       # clock (s) of the frame the last failed sweep ran on
-    failures: int = 0                    # sweeps failed in a row
+    failed_at: float | None = None       # clock (s) of the frame the last failed or unreliable sweep ran on
+    failures: int = 0                    # sweeps in a row that failed or whose verdict was not reliable
     _last_stamp: int | None = field(default=None, repr=False)  # header stamp (ns) of the last frame
     _repeats: int = field(default=0, repr=False)  # frames that repeated a stamp (each credited FROZEN_FRAME_S)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
@@ -171,7 +171,9 @@ class FramePipeline:
             if not self.config.auto_tune:
                 return self.config.tolerance, 'fixed', None
             if self.tolerance is not None and not tuning_failed:
-                return self.tolerance, f'tuned at t={self.tuned_stamp:.3f}s', self.last_tuning
+                doubt = '' if self.last_tuning is None or self.last_tuning.reliable else \
+                    ' (its sweep was not reliable: tuned again on a later frame)'
+                return self.tolerance, f'tuned at t={self.tuned_stamp:.3f}s{doubt}', self.last_tuning
             why = 'tuning failed' if tuning_failed else 'sweep pending'
             if self.last_good is not None:
                 return self.last_good, f'last tuned ({why})', None
@@ -225,8 +227,9 @@ class FramePipeline:
         stamp: the frame's clock (s, FrameResult.clock); stamp_ns: its header stamp (seeds the sweep;
         None: a caller without one, seeded as 0, its stamp taken as the clock).
         Raises one of TUNE_FAILURES when no sweep is possible, or when it finds no plane in this
-        frame (its t would say nothing about the next). ``stop``: asked after each candidate; True
-        abandons the sweep (None is returned, nothing adopted)."""
+        frame (its t would say nothing about the next). A sweep whose verdict is not reliable (a first
+        frame of clutter) is adopted, and retried like a failed one. ``stop``: asked after each
+        candidate; True abandons the sweep (None is returned, nothing adopted)."""
         header_s = stamp if stamp_ns is None else stamp_ns * 1e-9
         stamp_ns = stamp_ns or 0
         with self._lock:
@@ -253,7 +256,8 @@ class FramePipeline:
             if generation == self._generation:  # a parameter change during the sweep voids it
                 self.tolerance, self.tuned_at, self.last_tuning = result.tolerance, stamp, result
                 self.tuned_stamp = header_s
-                self.last_good, self.tune_error, self.failed_at, self.failures = result.tolerance, None, None, 0
+                self.last_good, self.tune_error = result.tolerance, None
+                self.failed_at, self.failures = (None, 0) if result.reliable else (stamp, self.failures + 1)
         return result
 
     @staticmethod

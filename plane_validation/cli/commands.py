@@ -375,9 +375,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
     made = [d for d in (out_dir, *out_dir.parents) if not d.exists()]  # the folders this run creates
     out_dir.mkdir(parents=True, exist_ok=True)
     out_bag = out_dir / f'{Path(args.bag).name}.planes'
+    png = out_dir / 'last_frame.png'
     if out_bag.exists():
         import shutil
         shutil.rmtree(out_bag)
+    png.unlink(missing_ok=True)  # the last run's picture goes with its bag, whatever becomes of this run
     print(f'Replaying {args.bag} live over DDS into plane_validation_node (auto-tuned tolerance, seed 0)...')
     start = time.perf_counter()
     try:
@@ -389,7 +391,6 @@ def cmd_demo(args: argparse.Namespace) -> int:
             folder.rmdir()
         raise
     print(summary.line())
-    png = out_dir / 'last_frame.png'
     if summary.last_segmented is not None:
         plot_cloud_message(summary.last_segmented, png, title=f'{Path(args.bag).name}: last frame')
     print(f'Outputs: node outputs recorded in the rosbag2 bag {out_bag} (input cloud, segmented, planes, '

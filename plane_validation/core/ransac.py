@@ -556,6 +556,8 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     unassigned, as they touch no other region.
     """
     pts = as_points(points)
+    if isinstance(tolerance, (bool, np.bool_)):
+        raise ValueError(f'tolerance must be a finite distance > 0, got {tolerance!r}')
     tolerance = float(tolerance)
     if not np.isfinite(tolerance) or tolerance <= 0:
         raise ValueError(f'tolerance must be a finite distance > 0, got {tolerance!r}')
