@@ -250,7 +250,8 @@ def test_skipping_hypotheses_by_their_coherent_inliers_keeps_the_same_planes(mon
         points, shape, t = scene.points, None, 0.03
     calls = []
     largest = regions.Neighbours.largest
-    monkeypatch.setattr(regions.Neighbours, 'largest', lambda self, mask: calls.append(1) or largest(self, mask))
+    monkeypatch.setattr(regions.Neighbours, 'largest',
+                        lambda self, mask, support=None: calls.append(1) or largest(self, mask, support))
     fast = pv.detect_planes(points, t, seed=5, shape=shape, max_planes=8)
     n_fast, calls[:] = len(calls), []
     best_region = ransac._best_region
@@ -534,12 +535,14 @@ def test_grid_normals_of_a_lidar_image_look_one_ring_away():
 
 def test_noisy_normals_of_a_lidar_image_are_unknown_not_wrong(monkeypatch):
     # 3 cm range noise in a 2.4 m corridor: a normal over one ring is noise, and such normals cut the floor
-    # and walls apart (0/8 correct, F1 0.41); unknown, they let any plane keep the point
-    from plane_validation.core import regions
+    # and walls apart (0/8 correct, F1 0.41, where only the inliers connect a region); unknown, they let
+    # any plane keep the point
+    from plane_validation.core import ransac, regions
     scan = scenes.lidar(**{**scenes.VLP16_CORRIDOR, 'sigma': 0.03}, seed=1, organized=True)
     seg = pv.detect_planes(scan.points, 0.05, seed=0, shape=scan.shape)
     assert segmentation_quality(seg.labels, scan.labels).f1 > 0.9
     monkeypatch.setattr(regions, 'LIDAR_BEND', np.inf)  # no normal unknown for noise
+    monkeypatch.setattr(ransac, 'SUPPORT', 1.0)
     seg = pv.detect_planes(scan.points, 0.05, seed=0, shape=scan.shape)
     assert segmentation_quality(seg.labels, scan.labels).f1 < 0.6
 
@@ -577,3 +580,45 @@ def test_a_bridge_within_a_wrapping_row_is_found_once_and_not_taken_for_the_seam
     valid = np.isfinite(image).all(-1)
     assert _bridges(image, valid, np.linalg.norm(np.nan_to_num(image), axis=-1), 1e-4, True).tolist() == [[9, 1, 1]]
 
+
+
+def _noisy_wall(sigma: float, seed: int = 0) -> np.ndarray:
+    """An organized 120 x 160 depth image of a wall 2 m away with depth noise ``sigma`` (m)."""
+    rng = np.random.default_rng(seed)
+    v, u = np.mgrid[0:120, 0:160]
+    depth = 2.0 + rng.normal(0, sigma, u.shape)
+    return np.stack([(u - 80) / 150.0 * depth, (v - 60) / 150.0 * depth, depth], -1).reshape(-1, 3)
+
+
+def test_a_wall_noisier_than_t_stays_one_region_on_the_image(monkeypatch):
+    # t = 0.6 sigma: 45 % of the wall lies within t, too few to hold together as 4-connected pixels;
+    # the points within SUPPORT tolerances connect them
+    pts = _noisy_wall(0.01)
+    within = np.abs(pts[:, 2] - 2.0) <= 0.006  # about the points within t of the true wall
+    seg = pv.detect_planes(pts, 0.006, seed=0, shape=(120, 160), max_planes=3, min_inliers=0.05)
+    assert seg.n_planes >= 1
+    kept = np.count_nonzero(seg.labels == 0)
+    assert kept >= 0.8 * within.sum() and abs(seg.planes[0].normal[2]) > 0.99, (kept, within.sum())
+    monkeypatch.setattr(pv.core.ransac, 'SUPPORT', 1.0)  # connected through the inliers alone: pieces
+    pieces = pv.detect_planes(pts, 0.006, seed=0, shape=(120, 160), max_planes=3, min_inliers=0.05)
+    assert np.count_nonzero(pieces.labels == 0) < 0.5 * within.sum()
+
+
+def test_a_region_is_joined_through_its_support_only_when_its_inliers_fall_apart():
+    from plane_validation.core.regions import Neighbours
+    h, w = 10, 20
+    grid = Neighbours(n=h * w, shape=(h, w), pixel=np.arange(h * w), node=np.arange(h * w),
+                      usable=np.ones(h * w, bool))
+    support = np.ones((h, w), bool)
+    two = np.zeros((h, w), bool)
+    two[:, :12], two[:, 14:] = True, True  # 60 % and 30 % of the pixels, joined by the support between them
+    kept = grid.largest(two.ravel(), support.ravel()).reshape(h, w)
+    assert np.array_equal(kept, two & (np.arange(w) < 12))  # the larger piece holds >= FRAGMENTED (half): alone
+    dots = np.zeros((h, w), bool)
+    dots[::2, ::2] = True  # single pixels, none 4-connected to another
+    assert grid.largest(dots.ravel()).sum() == 1
+    assert np.array_equal(grid.largest(dots.ravel(), support.ravel()), dots.ravel())  # joined through the support
+    gap = support.copy()
+    gap[:, 9] = False  # the support cut in two: the side with more of the dots
+    joined = grid.largest(dots.ravel(), gap.ravel()).reshape(h, w)
+    assert joined.sum() == 25 and not joined[:, 10:].any()

@@ -113,6 +113,9 @@ HOLE_BRIDGE = 3
 #: ... unless the two pixels are farther apart than this many times the run's pixel steps times the gaps
 #: beside it (a box front 8 cm before a wall, seen across one missing pixel, stays apart).
 BRIDGE_SLACK = 1.5
+#: A region whose inliers fall apart (its largest piece holds less than this share of them) is connected
+#: through its support instead (see ransac.SUPPORT).
+FRAGMENTED = 0.5
 #: Scales of :meth:`Neighbours.nearby`: a window of this many sub-grid pixels around the point
 #: (organized) or a random walk of this many graph hops (unorganized), one drawn per sample.
 NEARBY_SCALES = (1, 2, 4, 8)
@@ -269,19 +272,38 @@ class Neighbours:
                 return renumber[merged[labelled[self.pixel]]], total - 1
         return labelled[self.pixel] - 1, count
 
-    def largest(self, mask: np.ndarray) -> np.ndarray:
-        """(n,) bool: the largest connected component of ``mask`` (empty when ``mask`` is)."""
+    def largest(self, mask: np.ndarray, support: np.ndarray | None = None) -> np.ndarray:
+        """(n,) bool: the largest connected component of ``mask`` (empty when ``mask`` is). With
+        ``support`` (n,) bool, a superset of ``mask``: when that component holds less than FRAGMENTED of
+        the ``mask`` points (they fall apart, as a surface's points within t do where its noise exceeds
+        t), the ``mask`` points of the component of ``support`` that holds the most of them."""
+        out = self._largest(mask)
+        if support is None:
+            return out
+        total = int(np.count_nonzero(mask))
+        if np.count_nonzero(out) >= FRAGMENTED * total:
+            return out
+        joined = self._largest(support, mask)
+        return joined if np.count_nonzero(joined) > np.count_nonzero(out) else out
+
+    def _largest(self, within: np.ndarray, counted: np.ndarray | None = None) -> np.ndarray:
+        """(n,) bool: the component of ``within`` with the most points (of ``counted``, then only those)."""
         if self.shape is None:
-            members, labels, sizes = self._graph_components(mask)
+            members, labels, sizes = self._graph_components(within)
             out = np.zeros(self.n, bool)
             if len(members):
+                if counted is not None:
+                    keep = counted[members]
+                    sizes = np.bincount(labels[keep], minlength=len(sizes))
+                    members, labels = members[keep], labels[keep]
                 out[members[labels == int(np.argmax(sizes))]] = True
             return out
-        labels, count = self.components(mask)
+        labels, count = self.components(within)
         if count == 0:
             return np.zeros(self.n, bool)
-        sizes = np.bincount(labels[labels >= 0], minlength=count)
-        return labels == int(np.argmax(sizes))
+        inside = labels >= 0 if counted is None else counted & (labels >= 0)
+        winner = labels == int(np.argmax(np.bincount(labels[inside], minlength=count)))
+        return winner if counted is None else winner & counted
 
 
 def _row_starts(rows: np.ndarray, n: int, dtype=np.int64) -> np.ndarray:
