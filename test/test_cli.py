@@ -464,6 +464,8 @@ def test_a_cloud_without_three_valid_points_is_an_error_with_or_without_a_tolera
     (['sweep', 'x.npy', '--tolerances', '0.002:4000:10'], 'tolerance must be in'),
     (['sweep', 'x.npy', '--tolerances', '1e-9:0.01:5'], 'tolerance must be in'),
     (['scene', 'cube', '--outliers', '2'], 'argument --outliers: must be in [0, 1)'),
+    (['detect', 'x.npy', '--seed', '1e3'], "expected an integer, got '1e3'"),
+    (['detect', 'x.npy', '--max-planes', 'many'], "expected an integer, got 'many'"),
 ])
 def test_file_commands_take_the_node_parameter_ranges(argv, why, capsys):
     with pytest.raises(SystemExit) as info:

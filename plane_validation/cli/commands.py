@@ -453,7 +453,8 @@ def _table_type(name: str) -> Callable[[str], object]:
         try:
             value = spec.type(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f'expected a {spec.type.__name__}, got {text!r}') from None
+            kind = {int: 'an integer', float: 'a number', bool: 'true or false'}.get(spec.type, spec.type.__name__)
+            raise argparse.ArgumentTypeError(f'expected {kind}, got {text!r}') from None
         why = spec.problem(value)
         if why is not None:
             raise argparse.ArgumentTypeError(why)
