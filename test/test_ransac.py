@@ -162,6 +162,7 @@ def test_wrong_shape_or_dtype_raises(points):
 
 @pytest.mark.parametrize('kwargs, name', [({'tolerance': 0}, 'tolerance'), ({'tolerance': np.nan}, 'tolerance'),
                                           ({'tolerance': True}, 'tolerance'),
+                                          ({'tolerance': np.array(True)}, 'tolerance'),
                                           ({'tolerance': -1}, 'tolerance'), ({'probability': 1.0}, 'probability'),
                                           ({'max_iterations': 0}, 'max_iterations'), ({'max_planes': -1}, 'max_planes'),
                                           ({'min_inliers': -0.5}, 'min_inliers')])

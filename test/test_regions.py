@@ -249,9 +249,9 @@ def test_skipping_hypotheses_by_their_coherent_inliers_keeps_the_same_planes(mon
         scene = scenes.room(6000, 0.01, seed=3)
         points, shape, t = scene.points, None, 0.03
     calls = []
-    largest = regions.Neighbours.largest
-    monkeypatch.setattr(regions.Neighbours, 'largest',
-                        lambda self, mask, support=None: calls.append(1) or largest(self, mask, support))
+    region = regions.Neighbours.region
+    monkeypatch.setattr(regions.Neighbours, 'region',
+                        lambda self, mask, support=None: calls.append(1) or region(self, mask, support))
     fast = pv.detect_planes(points, t, seed=5, shape=shape, max_planes=8)
     n_fast, calls[:] = len(calls), []
     best_region = ransac._best_region
@@ -605,20 +605,45 @@ def test_a_wall_noisier_than_t_stays_one_region_on_the_image(monkeypatch):
 
 
 def test_a_region_is_joined_through_its_support_only_when_its_inliers_fall_apart():
-    from plane_validation.core.regions import Neighbours
+    from plane_validation.core.regions import Neighbours, fragmented
+    assert not fragmented(np.array([60, 30]))  # the larger piece holds >= FRAGMENTED (half)
+    assert not fragmented(np.array([34, 33, 33]))  # three drawer fronts: large pieces, kept apart
+    assert fragmented(np.array([5] + [1] * 95)) and not fragmented(np.zeros(0, np.int64))
     h, w = 10, 20
     grid = Neighbours(n=h * w, shape=(h, w), pixel=np.arange(h * w), node=np.arange(h * w),
                       usable=np.ones(h * w, bool))
     support = np.ones((h, w), bool)
     two = np.zeros((h, w), bool)
     two[:, :12], two[:, 14:] = True, True  # 60 % and 30 % of the pixels, joined by the support between them
-    kept = grid.largest(two.ravel(), support.ravel()).reshape(h, w)
-    assert np.array_equal(kept, two & (np.arange(w) < 12))  # the larger piece holds >= FRAGMENTED (half): alone
+    kept, taken = grid.region(two.ravel(), support.ravel())
+    assert np.array_equal(kept.reshape(h, w), two & (np.arange(w) < 12)) and np.array_equal(kept, taken)
     dots = np.zeros((h, w), bool)
     dots[::2, ::2] = True  # single pixels, none 4-connected to another
     assert grid.largest(dots.ravel()).sum() == 1
-    assert np.array_equal(grid.largest(dots.ravel(), support.ravel()), dots.ravel())  # joined through the support
+    kept, taken = grid.region(dots.ravel(), support.ravel())  # joined through the support, which it takes
+    assert np.array_equal(kept, dots.ravel()) and taken.all()
     gap = support.copy()
     gap[:, 9] = False  # the support cut in two: the side with more of the dots
     joined = grid.largest(dots.ravel(), gap.ravel()).reshape(h, w)
     assert joined.sum() == 25 and not joined[:, 10:].any()
+    # the same on a graph: a chain of 200 points, every other one in the mask, the support cut after 120
+    chain = Neighbours(n=200, edges=np.column_stack([np.arange(199), np.arange(1, 200)]))
+    every_other, support = np.arange(200) % 2 == 0, np.arange(200) != 121
+    kept, taken = chain.region(every_other, support)
+    assert np.array_equal(kept, every_other & (np.arange(200) <= 120)) and np.array_equal(taken, np.arange(200) <= 120)
+    kept, taken = chain.region(every_other)
+    assert kept.sum() == 1 and np.array_equal(kept, taken)
+
+
+def test_separate_coplanar_fronts_are_not_joined_through_a_recess_within_two_tolerances():
+    # three drawer fronts 1.8 cm before the recesses between them, noise 2 mm, t = 1 cm: the recesses lie
+    # within 2 t and face the same way, but the fronts are three large pieces, not a surface fallen apart
+    rng = np.random.default_rng(0)
+    v, u = np.mgrid[0:120, 0:160]
+    part = np.select([u < 45, (u >= 55) & (u < 105), u >= 115], [0, 1, 2], 3)
+    depth = np.where(part == 3, 2.003, 1.985) + rng.normal(0, 0.002, u.shape)
+    pts = np.stack([(u - 80) / 150 * depth, (v - 60) / 150 * depth, depth], -1).reshape(-1, 3)
+    seg = pv.detect_planes(pts, 0.01, seed=0, shape=(120, 160), max_planes=6, min_inliers=0.02)
+    part = part.reshape(-1)
+    left = [np.bincount(part[p.inliers], minlength=4) for p in seg.planes]
+    assert any(c[0] >= 0.95 * np.sum(part == 0) and c[1] + c[2] == 0 for c in left), left  # the left front alone

@@ -209,8 +209,8 @@ class FramePipeline:
 
     def due_after_failed_sweep(self, sweep_stamp: float, stamp: float) -> bool:
         """Whether a frame stamped ``stamp`` (s) is due for a retune once the sweep running on the
-        frame stamped ``sweep_stamp`` ends, should that sweep fail (the earliest case): the node keeps
-        that frame for its next sweep, so that live and offline replay sweep the same frames."""
+        frame stamped ``sweep_stamp`` ends, should that sweep fail or not be reliable (the earliest case):
+        the node keeps that frame for its next sweep, so that live and offline replay sweep the same frames."""
         with self._lock:
             cfg = self.config
             period = cfg.retune_period or self._retry_interval(self.failures + 1)

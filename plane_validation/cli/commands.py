@@ -379,7 +379,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     if out_bag.exists():
         import shutil
         shutil.rmtree(out_bag)
-    png.unlink(missing_ok=True)  # the last run's picture goes with its bag, whatever becomes of this run
+    png.unlink(missing_ok=True)  # the picture is the last run's: one that fails leaves none, not an older one
     print(f'Replaying {args.bag} live over DDS into plane_validation_node (auto-tuned tolerance, seed 0)...')
     start = time.perf_counter()
     try:

@@ -280,13 +280,15 @@ LOCAL_HIT = 0.25
 
 #: Draws (count, 3) column indices of triples of nearby points (rows with a -1 are dropped).
 Sampler = Callable[[np.random.Generator, int], np.ndarray]
-#: Maps (inlier mask (m,), plane normal (3,), support mask (m,)) to the part of the inliers a plane keeps.
-Keep = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+#: Maps (inlier mask (m,), plane normal (3,), support mask (m,)) to (the part of the inliers a plane keeps,
+#: the points it takes out of the search: those, or with them its surface's points beyond t).
+Keep = Callable[[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 #: Where the noise exceeds t, a surface's points within t are too sparse to hold together (on an image
 #: grid, below about 60 % of its pixels): the suite's synthetic room at t = 1 cm fell apart into pieces below
-#: min_inliers (F1 0.04; Open3D 0.71). A region whose inliers fall apart (regions.FRAGMENTED) is connected
-#: through the points within this many tolerances of its plane whose normals agree, and keeps those within one
-#: (F1 0.70). Always joining them instead cost planes at the best t (quality.py's depth room 8/9 -> 7/9).
+#: min_inliers (F1 0.04; Open3D 0.71). A region whose inliers fall apart (regions.fragmented) is connected
+#: through the points within this many tolerances of its plane whose normals agree, keeps those within one
+#: (F1 0.70) and takes the others out of the search (else they came back as planes parallel to it). Always
+#: joining them instead cost planes at the best t (quality.py's depth room 8/9 -> 7/9).
 SUPPORT = 2.0
 
 
@@ -383,10 +385,11 @@ def _shuffled(m: int) -> np.ndarray:
 def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_iterations: int,
                 rng: np.random.Generator, region_of: Keep | None = None,
                 point_normals: np.ndarray | None = None, sampler: Sampler | None = None
-                ) -> tuple[np.ndarray, float, np.ndarray] | None:
-    """One RANSAC run on the points ``cols`` (3, m): (normal, offset, inlier mask) after
-    refinement, or None when every sampled triple was degenerate. ``region_of`` maps an inlier mask
-    (m,) to the part a plane would really keep (its largest connected region, see :data:`Keep`); the confirmed
+                ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
+    """One RANSAC run on the points ``cols`` (3, m): (normal, offset, inlier mask, mask of the points it
+    takes out of the search) after refinement, or None when every sampled triple was degenerate. ``region_of``
+    maps an inlier mask (m,) to the part a plane would really keep (its largest connected region, see
+    :data:`Keep`) and the points it takes; the confirmed
     hypotheses are then compared by that, and the plane is refitted on it. ``point_normals`` (3, m),
     local surface normals (NaN: unknown): hypotheses are scored only by the points whose normal
     agrees with theirs. ``sampler``: draws triples of nearby points for part of the hypotheses."""
@@ -476,21 +479,21 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
         if np.array_equal(new_inliers, inliers):
             break
         inliers = new_inliers
-    return normal, offset, inliers
+    return normal, offset, inliers, inliers
 
 
 def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, offsets: np.ndarray, dist: np.ndarray,
                  keep: Keep, point_normals: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray]:
-    """Of the confirmed hypotheses (distances ``dist`` (h, m)), the one whose largest region is
-    largest (ties: MSAC); then refit on the region and take the region again, at most 3 times.
-    ``point_normals`` (3, m), NaN where unknown: a region keeps only points whose normal agrees.
-    ``keep`` gets each plane's inliers and the points within SUPPORT tolerances that connect them."""
+    """Of the confirmed hypotheses (distances ``dist`` (h, m)), the one whose region (``keep``: its
+    largest connected one, see :data:`Keep` and SUPPORT) is largest (ties: MSAC); then refit on the region
+    and take the region again, at most 3 times. ``point_normals`` (3, m), NaN where unknown: a region keeps
+    only points whose normal agrees. Returns (normal, offset, region (m,), taken (m,): see :data:`Keep`)."""
     inliers = dist <= tolerance
     support = dist <= SUPPORT * tolerance
     counts = np.count_nonzero(inliers, axis=1)
     np.minimum(dist, tolerance, out=dist)
     cost = np.einsum('ij,ij->i', dist, dist)
-    winner, region, size = -1, None, -1
+    winner, region, taken, size = -1, None, None, -1
     for h in np.lexsort((cost, -counts)):  # a hypothesis cannot keep more than its inliers: skip
         if counts[h] <= size:
             break
@@ -498,10 +501,10 @@ def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, of
             bound = np.count_nonzero(inliers[h] & ~(np.abs(normals[h] @ point_normals) < _COHERENT_BOUND))
             if bound < size or (bound == size and cost[h] >= cost[winner]):
                 continue
-        candidate = keep(inliers[h], normals[h], support[h])
+        candidate, took = keep(inliers[h], normals[h], support[h])
         found = int(np.count_nonzero(candidate))
         if found > size or (found == size and cost[h] < cost[winner]):
-            winner, region, size = int(h), candidate, found
+            winner, region, taken, size = int(h), candidate, took, found
     normal, offset = normals[winner], offsets[winner]
     for _ in range(3):
         count = int(np.count_nonzero(region))
@@ -509,14 +512,14 @@ def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, of
             break
         new_normal, new_offset = _fit_columns(np.compress(region, cols, axis=1))
         near = _distances(cols, new_normal[None, :], np.array([new_offset]))[0]
-        new_region = keep(near <= tolerance, new_normal, near <= SUPPORT * tolerance)
+        new_region, new_taken = keep(near <= tolerance, new_normal, near <= SUPPORT * tolerance)
         if np.count_nonzero(new_region) < count:
             break
         normal, offset = new_normal, new_offset
         if np.array_equal(new_region, region):
             break
-        region = new_region
-    return normal, offset, region
+        region, taken = new_region, new_taken
+    return normal, offset, region, taken
 
 
 def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
@@ -530,7 +533,10 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     With ``connectivity`` (the default) a plane is a connected planar region: each candidate's
     inliers are split into connected regions (:mod:`.regions`), the largest becomes the plane, the
     other inliers go back to the pool (so coplanar patches of separate objects become separate
-    planes), and candidates are compared by the region they would keep. ``shape=(H, W)`` says the
+    planes), and candidates are compared by the region they would keep. Where the inliers fall apart
+    into small pieces (noise above t) the region is instead connected through the points within
+    SUPPORT * t whose normals agree: it keeps its inliers, and the others of that surface leave the pool
+    unassigned. ``shape=(H, W)`` says the
     rows are an H x W image in row-major order (NaN rows for holes): neighbours are then image
     neighbours without a depth jump, and a large image is searched on a regular sub-grid;
     otherwise a nearest-neighbour graph. ``connectivity=False`` gives the paper's method: every
@@ -566,7 +572,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     unassigned, as they touch no other region.
     """
     pts = as_points(points)
-    if isinstance(tolerance, (bool, np.bool_)):
+    if np.asarray(tolerance).dtype == bool:
         raise ValueError(f'tolerance must be a finite distance > 0, got {tolerance!r}')
     tolerance = float(tolerance)
     if not np.isfinite(tolerance) or tolerance <= 0:
@@ -667,17 +673,19 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
             break
         if local is not None:  # the graph of the points left
             def region_of(mask: np.ndarray, normal: np.ndarray, support: np.ndarray,
-                          local: Neighbours = local) -> np.ndarray:
+                          local: Neighbours = local) -> tuple[np.ndarray, np.ndarray]:
                 coherent = local.coherent(normal)
-                return local.largest(mask & coherent, support & coherent)
+                return local.region(mask & coherent, support & coherent)
         elif neighbours is not None:
-            def region_of(mask: np.ndarray, normal: np.ndarray, support: np.ndarray, rest_idx=rest_idx) -> np.ndarray:
+            def region_of(mask: np.ndarray, normal: np.ndarray, support: np.ndarray,
+                          rest_idx=rest_idx) -> tuple[np.ndarray, np.ndarray]:
                 wide = np.zeros(n, bool)
                 wide[rest_idx[support]] = True
                 wide &= neighbours.coherent(normal)  # an edge's normals cut the support as they cut the region
                 full = np.zeros(n, bool)
                 full[rest_idx[mask]] = True
-                return neighbours.largest(full & wide, wide)[rest_idx]
+                kept, taken = neighbours.region(full & wide, wide)
+                return kept[rest_idx], taken[rest_idx]
         rest_normals = None if neighbours is None or neighbours.normals is None else \
             np.ascontiguousarray(neighbours.normals[rest_idx].T)
         sampler = None if neighbours is None else _nearby_sampler(neighbours, rest_idx)
@@ -685,19 +693,20 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
         if best is None:
             reason = 'every sampled triple was degenerate (nearly collinear or duplicate points)'
             break
-        normal, offset, inliers = best
+        normal, offset, inliers, taken = best
         count = int(np.count_nonzero(inliers))
         if count < min_count:
             reason = f'best remaining plane has {count} < min_inliers={min_count} points' + \
                 ('' if n == n_total else f' (in a sample of {n} of {n_total} points)')
             break
+        left = ~taken
         if region is not None:
             region[rest_idx[inliers]] = len(found)
-            rest_idx = rest_idx[~inliers]
-            local = None if local is None else local.subgraph(np.flatnonzero(~inliers))
+            rest_idx = rest_idx[left]
+            local = None if local is None else local.subgraph(np.flatnonzero(left))
         found.append((normal, offset))
-        rest = np.compress(~inliers, rest, axis=1)
-        tolerance = _at(tolerance, ~inliers)
+        rest = np.compress(left, rest, axis=1)
+        tolerance = _at(tolerance, left)
     return found, reason, region, len(found) == max_planes > 0 and rest.shape[1] >= min_count
 
 

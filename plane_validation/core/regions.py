@@ -113,9 +113,11 @@ HOLE_BRIDGE = 3
 #: ... unless the two pixels are farther apart than this many times the run's pixel steps times the gaps
 #: beside it (a box front 8 cm before a wall, seen across one missing pixel, stays apart).
 BRIDGE_SLACK = 1.5
-#: A region whose inliers fall apart (its largest piece holds less than this share of them) is connected
-#: through its support instead (see ransac.SUPPORT).
+#: A region whose inliers fall apart (its largest piece holds less than this share of them, and a typical
+#: inlier lies in a piece of less than FRAGMENT_PIECE of them) is connected through its support instead
+#: (see ransac.SUPPORT and :func:`fragmented`).
 FRAGMENTED = 0.5
+FRAGMENT_PIECE = 0.05
 #: Scales of :meth:`Neighbours.nearby`: a window of this many sub-grid pixels around the point
 #: (organized) or a random walk of this many graph hops (unorganized), one drawn per sample.
 NEARBY_SCALES = (1, 2, 4, 8)
@@ -273,37 +275,55 @@ class Neighbours:
         return labelled[self.pixel] - 1, count
 
     def largest(self, mask: np.ndarray, support: np.ndarray | None = None) -> np.ndarray:
-        """(n,) bool: the largest connected component of ``mask`` (empty when ``mask`` is). With
-        ``support`` (n,) bool, a superset of ``mask``: when that component holds less than FRAGMENTED of
-        the ``mask`` points (they fall apart, as a surface's points within t do where its noise exceeds
-        t), the ``mask`` points of the component of ``support`` that holds the most of them."""
-        out = self._largest(mask)
-        if support is None:
-            return out
-        total = int(np.count_nonzero(mask))
-        if np.count_nonzero(out) >= FRAGMENTED * total:
-            return out
-        joined = self._largest(support, mask)
-        return joined if np.count_nonzero(joined) > np.count_nonzero(out) else out
+        """(n,) bool: the largest connected component of ``mask`` (empty when ``mask`` is); with
+        ``support``, the region :meth:`region` keeps."""
+        return self.region(mask, support)[0]
 
-    def _largest(self, within: np.ndarray, counted: np.ndarray | None = None) -> np.ndarray:
-        """(n,) bool: the component of ``within`` with the most points (of ``counted``, then only those)."""
+    def region(self, mask: np.ndarray, support: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(kept, taken), (n,) bool each: the largest connected component of ``mask``, twice. With ``support``
+        (n,) bool, a superset of ``mask``, where the pieces of ``mask`` fall apart (see :func:`fragmented`;
+        a surface's points within t do where its noise exceeds t): kept, the ``mask`` points of the component
+        of ``support`` that holds the most of them; taken, that whole component (the surface's points beyond
+        t, which are no plane of their own)."""
+        out, sizes = self._component(mask)
+        if support is None or not fragmented(sizes):
+            return out, out
+        whole, _ = self._component(support, mask)
+        joined = whole & mask
+        return (joined, whole) if np.count_nonzero(joined) > np.count_nonzero(out) else (out, out)
+
+    def _component(self, within: np.ndarray, counted: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The component of ``within`` with the most points of ``counted`` (all when None), as (n,) bool,
+        and those points per component."""
         if self.shape is None:
             members, labels, sizes = self._graph_components(within)
             out = np.zeros(self.n, bool)
             if len(members):
                 if counted is not None:
-                    keep = counted[members]
-                    sizes = np.bincount(labels[keep], minlength=len(sizes))
-                    members, labels = members[keep], labels[keep]
+                    sizes = np.bincount(labels[counted[members]], minlength=len(sizes))
                 out[members[labels == int(np.argmax(sizes))]] = True
-            return out
+            return out, sizes
         labels, count = self.components(within)
         if count == 0:
-            return np.zeros(self.n, bool)
+            return np.zeros(self.n, bool), np.zeros(0, np.int64)
         inside = labels >= 0 if counted is None else counted & (labels >= 0)
-        winner = labels == int(np.argmax(np.bincount(labels[inside], minlength=count)))
-        return winner if counted is None else winner & counted
+        sizes = np.bincount(labels[inside], minlength=count)
+        return labels == int(np.argmax(sizes)), sizes
+
+
+def fragmented(sizes: np.ndarray) -> bool:
+    """Whether pieces of ``sizes`` (points each) have fallen apart, as a surface's points within t do
+    where its noise exceeds t: the largest holds less than FRAGMENTED of the points, and the piece that
+    holds a typical point (the median point, pieces taken largest first) less than FRAGMENT_PIECE. A few
+    separate coplanar objects (three drawer fronts) are large pieces, and stay apart."""
+    total = int(sizes.sum())
+    if total == 0:
+        return False
+    desc = np.sort(sizes)[::-1]
+    if desc[0] >= FRAGMENTED * total:
+        return False
+    typical = desc[int(np.searchsorted(np.cumsum(desc), total / 2))]
+    return bool(typical < FRAGMENT_PIECE * total)
 
 
 def _row_starts(rows: np.ndarray, n: int, dtype=np.int64) -> np.ndarray:
