@@ -549,6 +549,36 @@ def test_a_choice_at_the_largest_candidate_is_flagged():
     assert wide.tolerance < 60 and not wide.at_largest
 
 
+def test_a_sweep_whose_choice_is_its_derived_top_goes_on_above_it():
+    """A far depth camera whose depth comes in coarse steps (8 mm at 1 m: 13 cm at the room's 4 m walls): its
+    neighbourhoods lie on one step each, so the derived top (10 local thicknesses) is far below the noise and
+    the choice at it had most walls in pieces. The sweep now goes on above the top while the choice is the
+    largest candidate; a top that was given (t_max) is kept."""
+    from plane_validation.core.scoring import segmentation_quality
+    from plane_validation.core.tuning import TUNE_CANDIDATES
+    scene = scenes.depth_camera('room', width=320, height=240, sigma_1m=0.0, quantum_1m=0.008, seed=0)
+    kept = pv.tune_tolerance(scene.points, shape=scene.shape, seed=0, extend=0)
+    assert len(kept.rows) == TUNE_CANDIDATES and kept.at_largest
+    tuned = pv.tune_tolerance(scene.points, shape=scene.shape, seed=0)
+    assert len(tuned.rows) > TUNE_CANDIDATES and not tuned.at_largest
+    assert tuned.rows[len(kept.rows) - 1].tolerance == kept.tolerance  # the same sweep, then more above it
+    ratios = tuned.tolerances[1:] / tuned.tolerances[:-1]
+    assert np.allclose(ratios, ratios[0])  # in the same geometric step
+    before = segmentation_quality(kept.segmentation.labels, scene.labels).f1
+    after = segmentation_quality(tuned.segmentation.labels, scene.labels).f1
+    assert tuned.tolerance > kept.tolerance and after > 0.9 > before + 0.2
+    given = pv.tune_tolerance(scene.points, shape=scene.shape, seed=0, t_max=kept.tolerance)
+    assert len(given.rows) == TUNE_CANDIDATES and given.tolerance == kept.tolerance
+    with pytest.raises(ValueError, match='extend must be an integer'):
+        pv.tune_tolerance(scene.points, extend=-1)
+
+
+def test_a_sweep_whose_choice_is_below_its_top_is_not_extended():
+    from plane_validation.core.tuning import TUNE_CANDIDATES
+    result = pv.tune_tolerance(scenes.corner(2000, 1.0, seed=0).points, seed=0)
+    assert not result.at_largest and len(result.rows) == TUNE_CANDIDATES
+
+
 def test_a_small_max_planes_does_not_inflate_the_tuned_t():
     """The sweep looks for SWEEP_MAX_PLANES planes; capped at 3 it had chosen t = 0.15 m in a 6-wall room
     with 5 mm noise, where each plane took in strips of the walls left out."""

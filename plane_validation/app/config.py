@@ -80,8 +80,9 @@ class PipelineConfig:
     auto_tune: bool = _p(True, 'choose t by sweeping candidates scored with the validity indices')
     tune_min: float = _p(0.0, 'smallest tuning candidate; 0 = derive from the cloud (nearest-neighbour spacing / 20)',
                          low=1e-6, high=MAX_DISTANCE, special=0.0, unit='m')
-    tune_max: float = _p(0.0, 'largest tuning candidate; 0 = derive from the cloud (at most the bounding-box '
-                         'diagonal / 8)', low=1e-6, high=MAX_DISTANCE, special=0.0, unit='m')
+    tune_max: float = _p(0.0, 'largest tuning candidate; 0 = derive from the cloud, and sweep on above it while '
+                         'the largest candidate is chosen (up to the bounding-box diagonal / 8)', low=1e-6,
+                         high=MAX_DISTANCE, special=0.0, unit='m')
     tune_count: int = _p(TUNE_CANDIDATES, 'tuning candidates, geometrically spaced from tune_min to tune_max',
                          low=2, high=100)
     tune_points: int = _p(TUNE_POINTS, 'random subsample of the cloud the tuning sweep runs on',

@@ -54,6 +54,16 @@ __all__ = ['CRITERIA', 'DEFAULT_CRITERION', 'TUNE_CANDIDATES', 'TUNE_POINTS',
 #: Default number of tuning candidates and the subsample a sweep runs on (points).
 TUNE_CANDIDATES = 12
 TUNE_POINTS = 20000
+#: The largest derived candidate is at most this share of the bounding-box diagonal (default_tolerances).
+TOP_DIAGONAL_SHARE = 1 / 8
+#: Default of tune_tolerance's ``extend``: a sweep with a derived top whose choice is its largest candidate
+#: goes on, one candidate at a time in the same geometric step, while the choice stays the largest one, for
+#: at most this many candidates and up to TOP_DIAGONAL_SHARE of the diagonal. The derived top (10 local
+#: noise thicknesses) falls short where a neighbourhood lies on one depth step of a quantized sensor: 4 of
+#: the 5 Kinect frames of benchmarks/README.md chose their top with PS still rising (office1.pcd, walls at
+#: 4-5 m: 46 mm, the back wall in pieces). A plateau stops it: the tie rule (SILHOUETTE_TIE) keeps the
+#: smaller t unless a larger one scores clearly better.
+TUNE_EXTEND = 6
 #: The sweep looks for at least this many planes whatever max_planes is (the final detection keeps to
 #: max_planes; tune_tolerance's sweep_planes): a cap below the scene's planes would reward a t at which
 #: the planes found take in strips of the others (a 6-wall room with max_planes 2-4: t = 0.10-0.15 m
@@ -98,7 +108,8 @@ class TuningRow:
 class TuningResult:
     """Result of :func:`tune_tolerance`.
 
-    rows: every candidate, ascending tolerance. tolerance: the chosen ``t`` (meters).
+    rows: every candidate, ascending tolerance (with any added above a derived range: ``extend``).
+    tolerance: the chosen ``t`` (meters).
     segmentation: the chosen ``t`` applied to the full-resolution cloud; indices: its indices.
     noise_estimate: half-width ``e`` of the sensor noise (meters), estimated from the residuals of
     the chosen planes (for uniform noise on [-e, e] the residual RMS is e / sqrt(3)); with the
@@ -131,7 +142,8 @@ class TuningResult:
 
     @property
     def at_largest(self) -> bool:
-        """Whether the chosen t is the largest candidate (a wider range might choose a larger one)."""
+        """Whether the chosen t is the largest candidate, after any extension of the sweep (a wider range
+        might choose a larger one)."""
         return self.best == len(self.rows) - 1 and len(self.rows) > 1
 
     def scores(self, criterion: str | None = None) -> np.ndarray:
@@ -234,7 +246,8 @@ def default_tolerances(points: np.ndarray, count: int = TUNE_CANDIDATES, *, lo: 
         spacing, thickness = local_noise(pts, seed=seed)
         if hi is None:
             cap = max(10 * thickness, 5 * spacing)
-            hi = min(diagonal / 8, cap) if cap > 0 else diagonal / 8
+            top = TOP_DIAGONAL_SHARE * diagonal
+            hi = min(top, cap) if cap > 0 else top
             if lo is not None and lo >= hi:
                 raise ValueError(f'the smallest candidate {lo:g} m (t_min, the node\'s tune_min) is not below the '
                                  f'largest one derived from this cloud, {hi:.3g} m: lower it or give t_max too')
@@ -283,12 +296,17 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                    ransac_points: int | None = RANSAC_POINTS, sampled_separation: bool | None = None,
                    shape: tuple[int, int] | None = None, connectivity: bool = True,
                    noise_model: str = 'constant', noise_reference: float = NOISE_REFERENCE,
-                   viewpoint: Viewpoint = None, jobs: int = 1, sweep_planes: int = SWEEP_MAX_PLANES) -> TuningResult:
+                   viewpoint: Viewpoint = None, jobs: int = 1, sweep_planes: int = SWEEP_MAX_PLANES,
+                   extend: int = TUNE_EXTEND) -> TuningResult:
     """Sweep the RANSAC tolerance and pick the best by ``criterion``.
 
     points: (N, 3) meters. tolerances: candidate ``t`` values in meters, or None for ``count``
     candidates from ``t_min`` to ``t_max``, each derived from the cloud when None
     (:func:`default_tolerances`). criterion: one of :data:`CRITERIA`.
+    extend: when the top of the range was derived (no ``tolerances``, no ``t_max``) and the choice is the
+    largest candidate, up to this many more candidates are swept above it, one at a time in the same
+    geometric step, while the choice stays the largest and up to TOP_DIAGONAL_SHARE of the bounding-box
+    diagonal (see TUNE_EXTEND); 0 keeps the derived range (the paper's sweep).
     tune_points: the sweep runs on a random subsample of this many points (None = all); the
     chosen ``t`` is then applied to the full cloud. sample_size: silhouette sample per score.
     Candidates whose planes cover less than half the best coverage of the sweep are not eligible
@@ -319,6 +337,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         raise ValueError(f'jobs must be an integer >= 0 (0 = one per CPU core), got {jobs!r}')
     if isinstance(sweep_planes, bool) or not isinstance(sweep_planes, (int, np.integer)) or sweep_planes < 0:
         raise ValueError(f'sweep_planes must be an integer >= 0 (0 = max_planes), got {sweep_planes!r}')
+    if isinstance(extend, bool) or not isinstance(extend, (int, np.integer)) or extend < 0:
+        raise ValueError(f'extend must be an integer >= 0 (0 = keep the derived range), got {extend!r}')
     if tune_points is not None and tune_points != np.inf:  # inf: all points, as None
         if isinstance(tune_points, bool) or not np.isfinite(tune_points) or int(tune_points) != tune_points \
                 or tune_points < 3:
@@ -339,8 +359,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         else np.atleast_1d(np.asarray(tolerances, dtype=float))
     view = check_viewpoint(viewpoint)
     scale = tolerance_scale(finite, noise_model, noise_reference, view)
+    factor = 1.0 if scale is None else float(np.median(scale))
     if scale is not None and tolerances is None:  # the derived bounds are tolerances at typical range
-        factor = float(np.median(scale))
         lo = cand[0] / factor if t_min is None else cand[0]
         hi = cand[-1] / factor if t_max is None else cand[-1]
         if hi <= lo:
@@ -352,6 +372,9 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         raise ValueError('tolerances is empty: give at least one candidate (or None to derive them)')
     if not np.all(np.isfinite(cand)) or cand[0] <= 0:
         raise ValueError('tolerances must be finite and > 0')
+    # a derived top may be extended up to TOP_DIAGONAL_SHARE of the diagonal (``extend``); a given range is kept
+    top = TOP_DIAGONAL_SHARE * float(np.linalg.norm(np.ptp(finite, axis=0))) / factor \
+        if extend and tolerances is None and t_max is None and len(cand) > 1 else 0.0
     sweep_shape = None
     shape = None if shape is None else check_shape(shape, len(pts))
     step = 0 if shape is None else grid_step(shape, len(finite), tune_points)
@@ -394,6 +417,15 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
             if progress is not None:
                 progress(done, len(cand))
         best = _choose(rows, criterion, n_sweep)
+        ratio = cand[-1] / cand[-2] if top else 1.0
+        while best == len(rows) - 1 and len(rows) < len(cand) + extend and rows[-1].tolerance * ratio <= top:
+            for _, (row, labels) in run(_candidate, [(sweep_pts, rows[-1].tolerance * ratio, int(ransac_seed),
+                                                      sweep_opts, score)]):
+                rows.append(row)
+                sweep_labels.append(labels)
+            if progress is not None:
+                progress(len(rows), len(rows))
+            best = _choose(rows, criterion, n_sweep)
         t_best = rows[best].tolerance
         # stability under reseeding, on the sweep's points and graph (a fraction of the full cloud's cost);
         # only when there are planes to find again. With workers they run beside the final detection.
