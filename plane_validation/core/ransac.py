@@ -280,9 +280,10 @@ LOCAL_HIT = 0.25
 
 #: Draws (count, 3) column indices of triples of nearby points (rows with a -1 are dropped).
 Sampler = Callable[[np.random.Generator, int], np.ndarray]
-#: Maps (inlier mask (m,), plane normal (3,), support mask (m,)) to (the part of the inliers a plane keeps,
-#: the points it takes out of the search: those, or with them its surface's points beyond t).
-Keep = Callable[[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+#: Maps (inlier mask (m,), plane normal (3,), support mask (m,), mask (m,) of the points on the side of the plane
+#: its normal points to) to (the part of the inliers a plane keeps, the points it takes out of the search: those,
+#: or with them its surface's points beyond t).
+Keep = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 #: Where the noise exceeds t, a surface's points within t are too sparse to hold together (on an image
 #: grid, below about 60 % of its pixels): the suite's synthetic room at t = 1 cm fell apart into pieces below
 #: min_inliers (F1 0.04; Open3D 0.71). A region whose inliers fall apart (regions.fragmented) is connected
@@ -335,10 +336,16 @@ def _required_iterations(inlier_ratio: float, probability: float, local: bool = 
     return np.log(1 - probability) / np.log(1 - w3)
 
 
-def _distances(cols: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """(k, n) absolute distances of the points ``cols`` (3, n) to k planes (in place, one buffer)."""
+def _signed(cols: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """(k, n) signed distances of the points ``cols`` (3, n) to k planes (positive on the side the normal points to)."""
     dist = normals @ cols
     dist += offsets[:, None]
+    return dist
+
+
+def _distances(cols: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """(k, n) absolute distances of the points ``cols`` (3, n) to k planes (in place, one buffer)."""
+    dist = _signed(cols, normals, offsets)
     return np.abs(dist, out=dist)
 
 
@@ -459,9 +466,11 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
     # MSAC: the truncated squared distance prefers, of two planes with similar support, the one
     # its inliers hug (a plane tilted across a small face and its neighbours' edges loses).
     with np.errstate(over='ignore', invalid='ignore'):  # a far-out row (a driver's FLT_MAX): inf, no inlier
+        if region_of is not None:
+            signed = _signed(cols, best_normals, best_offsets)
+            return _best_region(cols, tolerance, best_normals, best_offsets, np.abs(signed), signed > 0, region_of,
+                                point_normals)
         dist = _distances(cols, best_normals, best_offsets)
-    if region_of is not None:
-        return _best_region(cols, tolerance, best_normals, best_offsets, dist, region_of, point_normals)
     np.minimum(dist, tolerance, out=dist)
     winner = int(np.argmin(np.einsum('ij,ij->i', dist, dist)))
     normal, offset = best_normals[winner], best_offsets[winner]
@@ -483,8 +492,10 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
 
 
 def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, offsets: np.ndarray, dist: np.ndarray,
-                 keep: Keep, point_normals: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray]:
-    """Of the confirmed hypotheses (distances ``dist`` (h, m)), the one whose region (``keep``: its
+                 above: np.ndarray, keep: Keep, point_normals: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, float, np.ndarray]:
+    """Of the confirmed hypotheses (distances ``dist`` (h, m), ``above`` (h, m): the points on the side of each
+    plane its normal points to), the one whose region (``keep``: its
     largest connected one, see :data:`Keep` and SUPPORT) is largest (ties: MSAC); then refit on the region
     and take the region again, at most 3 times. ``point_normals`` (3, m), NaN where unknown: a region keeps
     only points whose normal agrees. Returns (normal, offset, region (m,), taken (m,): see :data:`Keep`)."""
@@ -501,7 +512,7 @@ def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, of
             bound = np.count_nonzero(inliers[h] & ~(np.abs(normals[h] @ point_normals) < _COHERENT_BOUND))
             if bound < size or (bound == size and cost[h] >= cost[winner]):
                 continue
-        candidate, took = keep(inliers[h], normals[h], support[h])
+        candidate, took = keep(inliers[h], normals[h], support[h], above[h])
         found = int(np.count_nonzero(candidate))
         if found > size or (found == size and cost[h] < cost[winner]):
             winner, region, taken, size = int(h), candidate, took, found
@@ -511,14 +522,16 @@ def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, of
         if count < 3:
             break
         new_normal, new_offset = _fit_columns(np.compress(region, cols, axis=1))
-        near = _distances(cols, new_normal[None, :], np.array([new_offset]))[0]
-        new_region, new_taken = keep(near <= tolerance, new_normal, near <= SUPPORT * tolerance)
+        signed = _signed(cols, new_normal[None, :], np.array([new_offset]))[0]
+        near = np.abs(signed)
+        new_region, new_taken = keep(near <= tolerance, new_normal, near <= SUPPORT * tolerance, signed > 0)
         if np.count_nonzero(new_region) < count:
             break
         normal, offset = new_normal, new_offset
-        if np.array_equal(new_region, region):
-            break
+        same = np.array_equal(new_region, region)
         region, taken = new_region, new_taken
+        if same:
+            break
     return normal, offset, region, taken
 
 
@@ -672,19 +685,21 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
             reason = why if rest.shape[1] < n or n_total < 3 else f'no plane: {why}'
             break
         if local is not None:  # the graph of the points left
-            def region_of(mask: np.ndarray, normal: np.ndarray, support: np.ndarray,
+            def region_of(mask: np.ndarray, normal: np.ndarray, support: np.ndarray, above: np.ndarray,
                           local: Neighbours = local) -> tuple[np.ndarray, np.ndarray]:
                 coherent = local.coherent(normal)
-                return local.region(mask & coherent, support & coherent)
+                return local.region(mask & coherent, support & coherent, above)
         elif neighbours is not None:
-            def region_of(mask: np.ndarray, normal: np.ndarray, support: np.ndarray,
+            def region_of(mask: np.ndarray, normal: np.ndarray, support: np.ndarray, above: np.ndarray,
                           rest_idx=rest_idx) -> tuple[np.ndarray, np.ndarray]:
                 wide = np.zeros(n, bool)
                 wide[rest_idx[support]] = True
                 wide &= neighbours.coherent(normal)  # an edge's normals cut the support as they cut the region
                 full = np.zeros(n, bool)
                 full[rest_idx[mask]] = True
-                kept, taken = neighbours.region(full & wide, wide)
+                up = np.zeros(n, bool)
+                up[rest_idx[above]] = True
+                kept, taken = neighbours.region(full & wide, wide, up)
                 return kept[rest_idx], taken[rest_idx]
         rest_normals = None if neighbours is None or neighbours.normals is None else \
             np.ascontiguousarray(neighbours.normals[rest_idx].T)
