@@ -153,6 +153,10 @@ def test_retune_is_due_after_the_period_and_when_header_time_runs_backwards():
     assert not pipe.retune_due(10.5)
     assert pipe.retune_due(11.0)
     assert pipe.retune_due(3.0)  # a looping bag starts over
+    minute = FramePipeline(PipelineConfig(retune_period=60.0, seed=4))
+    minute.process(corner(1.0), 123_000_000_000, tune_inline=True)
+    clock = minute.process(corner(1.0), 183_000_000_000, tune_inline=False).clock  # 59.999999999999986 s later
+    assert minute.retune_due(clock)  # float rounding of the stamps does not hold the period back a frame
     fixed = FramePipeline(PipelineConfig(retune_period=0.0, seed=4))
     fixed.process(corner(1.0), 10_000_000_000)
     assert not fixed.retune_due(1e6) and not fixed.retune_due(0.0)
