@@ -259,6 +259,31 @@ def test_paper_quick_run(tmp_path, capsys):
             assert cells[-1] == 'no'  # the plane-free sphere is not reliable
 
 
+def test_an_interrupted_paper_run_leaves_the_earlier_set(tmp_path):
+    """An outside probe: a paper run stopped by SIGTERM left 5 new figures beside 11 old ones and the old
+    summary.md. The set is now written beside the folder and moved in at the end."""
+    from plane_validation.app.paper import CASES, linear_grid, run_paper
+    out = tmp_path / 'paper'
+    out.mkdir()
+    earlier = {f'{case.name}_{kind}.png': f'earlier {case.name} {kind}'.encode() for case in CASES
+               for kind in ('sweep', 'planes')}
+    earlier['summary.md'] = b'earlier summary'
+    for name, data in earlier.items():
+        (out / name).write_bytes(data)
+
+    def stop_after_two(done: int, *_) -> None:
+        if done == 2:
+            raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt):
+        run_paper(out, points=300, grid=linear_grid(steps=4), progress=stop_after_two)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == earlier
+    assert [p.name for p in tmp_path.iterdir()] == ['paper']  # no staging folder left
+    results = run_paper(out, cases=CASES[:1], points=300, grid=linear_grid(steps=4))
+    assert all(p.parent == out and p.read_bytes() != earlier[p.name] for p in results[0].figures)
+    assert (out / 'summary.md').read_bytes() != earlier['summary.md']
+    assert [p.name for p in tmp_path.iterdir()] == ['paper']
+
+
 # -- errors and progress ---------------------------------------------------------------------------
 
 @pytest.mark.parametrize('name, content', [
@@ -296,6 +321,7 @@ def test_usage_errors_and_bad_sources_in_process(corner_npy, tmp_path, capsys):
     np.save(tmp_path / 'two.npy', np.zeros((5, 2)))
     for argv, words in ((['detect', str(tmp_path / 'two.npy')], 'at least x y z'),
                         (['detect', f'{BAGS / "cube"}:9'], 'no cloud number 9'),
+                        (['detect', ''], 'the file name is empty'),  # an outside probe: it read '.'
                         (['detect', f'{BAGS / "cube"}:/nope'], "no topic '/nope'"),
                         (['scene', 'corner', '--out', str(tmp_path / 'x.las')], "cannot write '.las'"),
                         (['scene', 'corner', '--out', str(tmp_path / 'no' / 'x.ply')], 'does not exist'),
@@ -305,7 +331,8 @@ def test_usage_errors_and_bad_sources_in_process(corner_npy, tmp_path, capsys):
         assert main(argv) == 2, argv
         err = capsys.readouterr().err
         assert err.startswith('plane-validation: error: ') and words in err and err.count('\n') == 1, err
-        assert err.count(Path(argv[1].split(':')[0]).name) <= 1, err  # the cloud named once at most
+        name = Path(argv[1].split(':')[0]).name
+        assert not name or err.count(name) <= 1, err  # the cloud named once at most
     # relative paths and a bag with a topic are named once too
     (tmp_path / 'bad.pcd').write_bytes(b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\n'
                                        b'HEIGHT 1\nPOINTS 3\nDATA ascii\n1 2 3\n')
@@ -396,11 +423,16 @@ def test_a_failed_demo_leaves_no_output_folder(tmp_path, capsys):
     assert main(['demo', '--bag', str(tmp_path / 'empty'), '--out', str(out)]) == 2
     assert 'not a rosbag2 bag' in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ['empty']
-    out.mkdir(parents=True)  # a folder an earlier demo filled: its picture goes with its bag
-    (out / 'empty.planes').mkdir()
-    (out / 'last_frame.png').write_bytes(b'an earlier run')
+    out.mkdir(parents=True)
+    (out / 'empty.planes').mkdir()  # a bag replay wrote there: not the demo's to replace (an outside probe)
     assert main(['demo', '--bag', str(tmp_path / 'empty'), '--out', str(out)]) == 2
-    assert not any(out.iterdir())
+    assert 'an earlier demo did not write it' in capsys.readouterr().err and (out / 'empty.planes').is_dir()
+    (out / '.plane-validation-demo').write_text('empty.planes\nlast_frame.png\n')  # a folder an earlier demo filled:
+    (out / 'last_frame.png').write_bytes(b'an earlier run')  # its picture goes with its bag
+    assert main(['demo', '--bag', str(tmp_path / 'empty'), '--out', str(out)]) == 2
+    assert sorted(p.name for p in out.iterdir()) == ['.plane-validation-demo']
+    assert main(['demo', '--bag', str(tmp_path / 'empty'), '--out', str(out / '.plane-validation-demo')]) == 2
+    assert 'is a file: give a folder' in capsys.readouterr().err
 
 
 #: A Ctrl-C while the command line or the node loads numpy, scipy and rclpy (their first second): an

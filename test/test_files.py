@@ -363,6 +363,23 @@ def test_point_file_outputs_are_complete_or_absent(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ['ok.pcd']  # no temporary leftovers
 
 
+def test_points_and_labels_that_are_not_one_row_and_one_label_per_point_are_refused(tmp_path):
+    """An outside probe: an (N, 4) x y z intensity array whose size divides by 3 was written as other points,
+    and labels beyond an int32 or with fractions were cast silently."""
+    xyzi = np.array([[1, 2, 3, 100], [4, 5, 6, 200], [7, 8, 9, 300.0]])
+    for bad, why in [(xyzi, r'\(N, 3\) array'), (POINTS.T, 'transpose'), (POINTS.astype(str), 'real')]:
+        with pytest.raises(ValueError, match=why):
+            save_points(tmp_path / 'bad.ply', bad)
+    n = len(POINTS)
+    for labels, why in [(np.full(n, 2**31), 'fit an int32'), (np.full(n, 1.7), 'whole numbers'),
+                        (np.zeros((n, 1)), 'one per point')]:
+        with pytest.raises(ValueError, match=why):
+            save_points(tmp_path / 'bad.ply', POINTS, labels)
+    assert not any(tmp_path.iterdir())
+    path = save_points(tmp_path / 'ok.npy', POINTS, np.arange(n, dtype=float) - 1)  # whole floats are labels
+    np.testing.assert_array_equal(np.load(path)[:, 3], np.arange(n) - 1)
+
+
 def test_an_organized_cloud_is_written_and_read_back_organized(tmp_path):
     from plane_validation.formats.files import load_cloud
     scene = scenes.depth_camera('table', width=80, height=60, seed=1)  # NaN holes included

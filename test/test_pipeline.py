@@ -120,12 +120,14 @@ def test_parameter_change_during_a_retune_voids_it():
     def slow_retune(*args, **kwargs):
         started.set()
         return real(*args, **kwargs)
-    worker = threading.Thread(target=slow_retune, args=(corner(1.0, n=20000), 1.0, 1_000_000_000))
+    results = []
+    worker = threading.Thread(target=lambda: results.append(slow_retune(corner(1.0, n=20000), 1.0, 1_000_000_000)))
     worker.start()
     started.wait()
     pipe.reconfigure(PipelineConfig(seed=3, tune_min=0.001, tune_max=0.002, tune_count=3))
     worker.join()
     assert pipe.tolerance is None, 'a sweep for the old set-up was adopted after the change'
+    assert results == [None]  # it stopped after its current candidate (an outside probe: it ran to its end)
     assert pipe.retune_due(2.0)
 
 

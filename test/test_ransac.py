@@ -165,11 +165,25 @@ def test_wrong_shape_or_dtype_raises(points):
                                           ({'tolerance': np.array(True)}, 'tolerance'),
                                           ({'tolerance': -1}, 'tolerance'), ({'probability': 1.0}, 'probability'),
                                           ({'max_iterations': 0}, 'max_iterations'), ({'max_planes': -1}, 'max_planes'),
-                                          ({'min_inliers': -0.5}, 'min_inliers')])
+                                          ({'min_inliers': -0.5}, 'min_inliers'),
+                                          # an outside probe: numpy's or Python's messages, or taken silently
+                                          ({'seed': -1}, 'seed'), ({'seed': 1.5}, 'seed'),
+                                          ({'max_planes': None}, 'max_planes'), ({'max_planes': 2.5}, 'max_planes'),
+                                          ({'connectivity': 'no'}, 'connectivity'),
+                                          ({'shape': (100.5, 3)}, 'shape')])
 def test_invalid_parameters_raise(kwargs, name):
     args = {'tolerance': 0.01, **kwargs}
     with pytest.raises(ValueError, match=name):
         pv.detect_planes(scenes.corner(300, seed=0).points, **args)
+
+
+@pytest.mark.parametrize('call', [lambda p: pv.tune_tolerance(p, seed=-1), lambda p: pv.tune_tolerance(p, count=2.5),
+                                  lambda p: pv.tune_tolerance(p, connectivity=0),
+                                  lambda p: pv.validity_indices(p, np.zeros(len(p), int), seed=-1),
+                                  lambda p: pv.select_plane_count(p, 1.0, seed=-1)])
+def test_invalid_tuning_and_index_arguments_raise_a_clear_error(call):
+    with pytest.raises(ValueError, match='seed|count|connectivity'):
+        call(scenes.corner(300, seed=0).points)
 
 
 def test_seed_reproducible_and_none_draws_entropy():

@@ -14,6 +14,7 @@ the paper's units (faces of 100 units):
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +24,7 @@ import numpy as np
 
 from ..core import scenes
 from ..core.tuning import PlaneCountResult, TuningResult, select_plane_count, tune_tolerance
+from ..formats.files import staged_files
 from .plot import plot_plane_count, plot_sweep
 
 __all__ = ['Case', 'CASES', 'CaseResult', 'run_paper', 'summary_markdown', 'linear_grid']
@@ -128,18 +130,18 @@ def run_paper(out: str | Path, *, cases: tuple[Case, ...] = CASES, seed: int = 0
     progress: called as ``progress(done, total, case name)`` after each case.
     """
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     grid = linear_grid() if grid is None else np.asarray(grid, dtype=float)
     start = time.perf_counter()
     results = []
-    for i, case in enumerate(cases):
-        results.append(run_case(case, out, grid=grid, seed=seed, points=points))
-        if progress is not None:
-            progress(i + 1, len(cases), case.name)
-    seconds = time.perf_counter() - start
-    (out / 'summary.md').write_text(summary_markdown(results, grid=grid, seed=seed, seconds=seconds),
-                                    encoding='utf-8')
-    return results
+    with staged_files(out) as stage:  # interrupted: the folder keeps its earlier figures and summary, not a mix
+        for i, case in enumerate(cases):
+            results.append(run_case(case, stage, grid=grid, seed=seed, points=points))
+            if progress is not None:
+                progress(i + 1, len(cases), case.name)
+        seconds = time.perf_counter() - start
+        (stage / 'summary.md').write_text(summary_markdown(results, grid=grid, seed=seed, seconds=seconds),
+                                          encoding='utf-8')
+    return [dataclasses.replace(r, figures=tuple(out / p.name for p in r.figures)) for r in results]
 
 
 def _t(value: float) -> str:

@@ -234,15 +234,17 @@ class FramePipeline:
         Raises one of TUNE_FAILURES when no sweep is possible, or when it finds no plane in this
         frame (its t would say nothing about the next). A sweep whose verdict is not reliable (a first
         frame of clutter) is adopted, and retried like a failed one. ``stop``: asked after each
-        candidate; True abandons the sweep (None is returned, nothing adopted)."""
+        candidate; True abandons the sweep (None is returned, nothing adopted), as does a change of the
+        tuning set-up (:meth:`reconfigure`) while it runs."""
         header_s = stamp if stamp_ns is None else stamp_ns * 1e-9
         stamp_ns = stamp_ns or 0
         with self._lock:
             cfg, generation = self.config, self._generation
         if cfg.voxel_size > 0:
             points, shape = voxel_downsample(points[finite_rows(points)], cfg.voxel_size)[0], None
-        try:
-            result = self._sweep(cfg, points, stamp_ns, shape, stop)
+        try:  # a parameter change voids the sweep: it stops after its current candidate
+            result = self._sweep(cfg, points, stamp_ns, shape,
+                                 lambda: self._generation != generation or (stop is not None and stop()))
             if result.segmentation.n_planes == 0:
                 bounds = ' and '.join(name for name in ('tune_min', 'tune_max') if getattr(cfg, name))
                 raise ValueError(f'the sweep of the frame stamped {header_s:.3f} s found no plane at any t '

@@ -35,6 +35,8 @@ __all__ = ['main', 'build_parser', 'format_planes', 'parse_tolerances']
 #: The bag the demo replays and where its outputs go (relative to the repository / current directory).
 DEMO_BAG = 'bags/room'
 DEMO_OUT = 'out/demo'
+#: In a demo's --out folder: the names of the outputs demos wrote there, which the next one may replace.
+DEMO_MARK = '.plane-validation-demo'
 #: Where ``paper`` writes by default (the README's figures were made with ``--out docs/paper``).
 PAPER_OUT = 'out/paper'
 #: Exit status for bad usage or input (argparse uses it too).
@@ -372,10 +374,22 @@ def cmd_demo(args: argparse.Namespace) -> int:
     if not Path(args.bag).exists():
         raise ValueError(f'bag not found: {args.bag}')
     out_dir = Path(args.out)
-    made = [d for d in (out_dir, *out_dir.parents) if not d.exists()]  # the folders this run creates
-    out_dir.mkdir(parents=True, exist_ok=True)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ValueError(f'--out {out_dir} is a file: give a folder')
     out_bag = out_dir / f'{Path(args.bag).name}.planes'
     png = out_dir / 'last_frame.png'
+    mark = out_dir / DEMO_MARK
+    ours = set(mark.read_text().split()) if mark.is_file() else set()
+    if out_dir.resolve() == Path(DEMO_OUT).resolve():
+        ours |= {out_bag.name, png.name}  # the default folder is the demo's own (also from before the mark)
+    for path in (out_bag, png):
+        if (path.exists() or path.is_symlink()) and path.name not in ours:
+            raise ValueError(f'{path} exists and an earlier demo did not write it (a replay bag?): give another '
+                             '--out, or remove it')
+    if out_bag.exists() and not out_bag.is_dir():
+        raise ValueError(f'{out_bag} is a file, not a bag an earlier demo wrote: remove it or give another --out')
+    made = [d for d in (out_dir, *out_dir.parents) if not d.exists()]  # the folders this run creates
+    out_dir.mkdir(parents=True, exist_ok=True)
     if out_bag.exists():
         import shutil
         shutil.rmtree(out_bag)
@@ -391,6 +405,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
             folder.rmdir()
         raise
     print(summary.line())
+    ours |= {out_bag.name, png.name}
+    mark.write_text(''.join(f'{name}\n' for name in sorted(ours)))
     if summary.last_segmented is not None:
         plot_cloud_message(summary.last_segmented, png, title=f'{Path(args.bag).name}: last frame')
     print(f'Outputs: node outputs recorded in the rosbag2 bag {out_bag} (input cloud, segmented, planes, '

@@ -30,7 +30,7 @@ from scipy.spatial.distance import cdist, pdist
 
 from .blas import single_blas_thread
 from .plane_silhouette import dense_codes, plane_silhouette
-from .ransac import finite_rows
+from .ransac import finite_rows, generator
 
 __all__ = [
     'ValidityIndices', 'validity_indices', 'dunn_index', 'davies_bouldin_index', 'davies_bouldin_classic',
@@ -753,7 +753,7 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     if sample_size is not None and (int(sample_size) != sample_size or sample_size < 2):
         raise ValueError(f'sample_size must be None or an integer >= 2, got {sample_size!r}')
     coded = _coded(points, labels)
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    rng = generator(seed)
     n, k = len(coded.keep), len(coded.ids)
     sampled = sample_size is not None and n > int(sample_size) and k >= 2
     if sampled and sampled_separation:

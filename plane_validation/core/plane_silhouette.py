@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .ransac import as_points, finite_rows
+from .ransac import as_points, finite_rows, generator
 
 __all__ = ['plane_silhouette', 'region_frames', 'clipped_plane_distances', 'dense_codes']
 
@@ -93,7 +93,7 @@ def plane_silhouette(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     assigned = np.flatnonzero(keep & (lab >= 0))
     if len(assigned) == 0:
         return 0.0
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    rng = generator(seed)
     coverage = len(assigned) / np.count_nonzero(keep)
     if sample_size is not None and len(assigned) > FRAME_SAMPLE:  # with replacement: much cheaper on large clouds
         assigned = np.sort(assigned[rng.integers(0, len(assigned), FRAME_SAMPLE)])

@@ -136,6 +136,32 @@ def carried(seg: Segmentation, points: np.ndarray, proxy: np.ndarray) -> Segment
     return dataclasses.replace(seg, labels=labels, planes=tuple(planes), n_valid=len(valid))
 
 
+def generator(seed: int | np.random.Generator | None) -> np.random.Generator:
+    """A numpy Generator from ``seed``: an integer >= 0, a Generator (used as is) or None (fresh entropy);
+    ValueError otherwise (the command line's and the node's seed -1 is None here)."""
+    if isinstance(seed, np.random.Generator):
+        return seed
+    if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer))
+                             or seed < 0):
+        raise ValueError(f'seed must be an integer >= 0, a numpy Generator or None (fresh entropy), got {seed!r}')
+    return np.random.default_rng(seed)
+
+
+def check_integer(name: str, value, low: int) -> int:
+    """``value`` as an int, or ValueError unless it is a whole number >= ``low`` (not a bool)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer, float, np.floating)) \
+            or not np.isfinite(value) or int(value) != value or value < low:
+        raise ValueError(f'{name} must be an integer >= {low}, got {value!r}')
+    return int(value)
+
+
+def check_flag(name: str, value) -> bool:
+    """``value`` as a bool, or ValueError unless it is one (a string such as 'no' would count as true)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f'{name} must be True or False, got {value!r}')
+    return bool(value)
+
+
 def as_points(points: np.ndarray) -> np.ndarray:
     """Validate an (N, 3) real array and return it as float64 (no copy when already float64)."""
     arr = np.asarray(points)
@@ -590,12 +616,11 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     tolerance = float(tolerance)
     if not np.isfinite(tolerance) or tolerance <= 0:
         raise ValueError(f'tolerance must be a finite distance > 0, got {tolerance!r}')
-    if int(max_planes) != max_planes or max_planes < 0:
-        raise ValueError(f'max_planes must be an integer >= 0, got {max_planes!r}')
+    max_planes = check_integer('max_planes', max_planes, 0)
     if not 0 < probability < 1:
         raise ValueError(f'probability must be in (0, 1), got {probability!r}')
-    if int(max_iterations) != max_iterations or max_iterations < 1:
-        raise ValueError(f'max_iterations must be an integer >= 1, got {max_iterations!r}')
+    max_iterations = check_integer('max_iterations', max_iterations, 1)
+    connectivity = check_flag('connectivity', connectivity)
     _check_ransac_points(ransac_points)
     if shape is not None:
         shape = check_shape(shape, len(pts))
@@ -604,7 +629,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     scale = tolerance_scale(pts, noise_model, noise_reference, view)
     model = dict(noise_model=noise_model, noise_reference=float(noise_reference), viewpoint=tuple(view.tolist()))
     point_tolerance = tolerance if scale is None else tolerance * scale  # (N,) with a noise model
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    rng = generator(seed)
     if connectivity:
         seg = _detect_regions(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
                               ransac_points, shape, graph, view)
@@ -840,9 +865,9 @@ def grid_image(points: np.ndarray, finite: np.ndarray, shape: tuple[int, int], s
 def check_shape(shape, n: int) -> tuple[int, int]:
     """``shape`` as (H, W) ints with H * W == n, or ValueError."""
     try:
-        h, w = (int(v) for v in shape)
+        h, w = (check_integer('shape', v, 1) for v in shape)
     except (TypeError, ValueError):
-        raise ValueError(f'shape must be (H, W), got {shape!r}') from None
+        raise ValueError(f'shape must be (H, W), two integers >= 1, got {shape!r}') from None
     if h < 1 or w < 1 or h * w != n:
         raise ValueError(f'shape {shape!r} does not match {n} points (H * W must equal the number of rows)')
     return h, w

@@ -28,11 +28,14 @@ from .ransac import (
     Segmentation,
     Viewpoint,
     as_points,
+    check_flag,
+    check_integer,
     check_magnitude,
     check_shape,
     check_viewpoint,
     detect_planes,
     finite_rows,
+    generator,
     grid_image,
     grid_step,
     search_graph,
@@ -191,7 +194,7 @@ def local_noise(points: np.ndarray, *, k: int = 16, queries: int = 2000, seed=No
     """
     pts = _finite(as_points(points))
     check_magnitude(pts)
-    rng = np.random.default_rng(seed)
+    rng = generator(seed)
     probe = pts if len(pts) <= 50000 else pts[rng.choice(len(pts), 50000, replace=False)]
     k = min(k, len(probe))
     q = probe if len(probe) <= queries else probe[rng.choice(len(probe), queries, replace=False)]
@@ -348,20 +351,24 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         tune_points = None
     if tolerances is not None and np.ndim(tolerances) > 1:
         raise ValueError(f'tolerances must be a list of distances, got an array of shape {np.shape(tolerances)}')
+    count = check_integer('count', count, 2)
+    check_flag('connectivity', connectivity)
     start = time.perf_counter()
     pts = as_points(points)
     finite = _finite(pts)
     if len(finite) < 3:
         raise ValueError(f'need at least 3 finite points to tune, got {len(finite)}')
     check_magnitude(finite)
-    rng = np.random.default_rng(seed)
-    cand = default_tolerances(finite, count, lo=t_min, hi=t_max, seed=rng) if tolerances is None \
-        else np.atleast_1d(np.asarray(tolerances, dtype=float))
+    rng = generator(seed)
     view = check_viewpoint(viewpoint)
     scale = tolerance_scale(finite, noise_model, noise_reference, view)
     factor = 1.0 if scale is None else float(np.median(scale))
+    # with a noise model a given t_min is a t0: checked against the derived top once that is one too
+    given_lo = t_min if scale is None or t_max is not None else None
+    cand = default_tolerances(finite, count, lo=given_lo, hi=t_max, seed=rng) if tolerances is None \
+        else np.atleast_1d(np.asarray(tolerances, dtype=float))
     if scale is not None and tolerances is None:  # the derived bounds are tolerances at typical range
-        lo = cand[0] / factor if t_min is None else cand[0]
+        lo = cand[0] / factor if t_min is None else float(t_min)
         hi = cand[-1] / factor if t_max is None else cand[-1]
         if hi <= lo:
             raise ValueError(f'the smallest candidate {lo:g} m (t_min, the node\'s tune_min) is not below the '
@@ -702,7 +709,7 @@ def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 1
     meaning exact up to EXACT_SEPARATION_POINTS valid points (as in :func:`tune_tolerance`).
     """
     _check_criterion(criterion)
-    rng = np.random.default_rng(seed)
+    rng = generator(seed)
     ransac_seed, index_seed = rng.integers(0, 2**63, size=2)
     seg = detect_planes(points, tolerance, max_planes=max_planes, min_inliers=min_inliers,
                         probability=probability, max_iterations=max_iterations, seed=int(ransac_seed),

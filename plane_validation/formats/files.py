@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ['atomic_output', 'check_output', 'check_writable', 'load_cloud', 'load_points', 'load_scan', 'save_points',
-           'POINT_SUFFIXES', 'TEXT_SUFFIXES']
+__all__ = ['atomic_output', 'staged_files', 'check_output', 'check_writable', 'load_cloud', 'load_points',
+           'load_scan', 'save_points', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
 
 #: Extensions of plain point files (bags are recognised separately).
 TEXT_SUFFIXES = ('.xyz', '.txt', '.csv')
@@ -71,6 +71,8 @@ def load_scan(source: str | Path) -> tuple[np.ndarray, tuple[int, int] | None, n
     else None."""
     from .bags import parse_bag_source, read_bag_message
     from .pointcloud2 import ring_array, xyz_array
+    if not str(source).strip():
+        raise ValueError('no cloud given: the file name is empty')
     bag = parse_bag_source(source)
     if bag is None:
         if Path(source).suffix.lower() != '.pcd' or not Path(source).is_file():
@@ -127,10 +129,12 @@ def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None 
     (default 0 0 0 1 0 0 0); the other formats have no place for it.
     """
     path = Path(path)
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    lab = None if labels is None else np.asarray(labels).astype(np.int32).reshape(-1)
-    if lab is not None and len(lab) != len(pts):
-        raise ValueError(f'{len(lab)} labels for {len(pts)} points')
+    pts = np.asarray(points)
+    if pts.dtype.kind not in 'fiu' or pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f'points must be a real (N, 3) array of x y z rows, got {pts.dtype} of shape {pts.shape}'
+                         + (' (transpose a (3, N) array)' if pts.ndim == 2 and pts.shape[0] == 3 else ''))
+    pts = pts.astype(np.float64, copy=False)
+    lab = None if labels is None else _labels_of(labels, len(pts))
     if shape is not None and (int(shape[0]) < 1 or int(shape[1]) < 1 or int(shape[0]) * int(shape[1]) != len(pts)):
         raise ValueError(f'shape {tuple(shape)} does not match {len(pts)} points')
     check_output(path)
@@ -143,6 +147,20 @@ def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None 
     with atomic_output(path) as tmp:
         writers.get(suffix, _write_text)(tmp, pts, lab)
     return path
+
+
+def _labels_of(labels, n: int) -> np.ndarray:
+    """(n,) int32 plane labels from ``labels``; ValueError unless they are n whole numbers that fit an int32."""
+    lab = np.asarray(labels)
+    if lab.ndim != 1 or len(lab) != n:
+        raise ValueError(f'labels must be one per point: a ({n},) array, got shape {lab.shape}')
+    if lab.dtype.kind not in 'iub' and not (lab.dtype.kind == 'f' and np.all(np.isfinite(lab)) and
+                                             np.all(lab == np.round(lab))):
+        raise ValueError(f'labels must be whole numbers, got {lab.dtype}')
+    info = np.iinfo(np.int32)
+    if len(lab) and (lab.min() < info.min or lab.max() > info.max):
+        raise ValueError(f'labels must fit an int32 ({info.min}..{info.max}), got {lab.min()}..{lab.max()}')
+    return lab.astype(np.int32)
 
 
 def check_output(path: str | Path, *, inputs: tuple[str | Path, ...] = ()) -> None:
@@ -197,6 +215,23 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
             raise OSError(f'cannot write {path}: {exc.strerror or exc}') from exc
     finally:
         tmp.unlink(missing_ok=True)
+
+
+@contextmanager
+def staged_files(folder: str | Path) -> Iterator[Path]:
+    """A temporary folder beside ``folder`` (created) for a set of output files: when the block ends normally
+    they replace their namesakes in ``folder``, one by one (each atomically); otherwise they are deleted, and an
+    interrupted run leaves the folder's earlier set as it was, not a mix of two runs."""
+    import shutil
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(dir=folder.parent, prefix=f'.{folder.name}.', suffix='.partial'))
+    try:
+        yield stage
+        for path in sorted(stage.iterdir()):
+            os.replace(path, folder / path.name)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
 
 
 # -- readers -------------------------------------------------------------------------------------
