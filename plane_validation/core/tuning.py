@@ -65,7 +65,9 @@ TOP_DIAGONAL_SHARE = 1 / 8
 #: noise thicknesses) falls short where a neighbourhood lies on one depth step of a quantized sensor: 4 of
 #: the 5 Kinect frames of benchmarks/README.md chose their top with PS still rising (office1.pcd, walls at
 #: 4-5 m: 46 mm, the back wall in pieces). A plateau stops it: the tie rule (SILHOUETTE_TIE) keeps the
-#: smaller t unless a larger one scores clearly better.
+#: smaller t unless a larger one scores clearly better. The separation criteria have no such rule, and Dunn and
+#: Davies-Bouldin improve with t past every plane (with the extension: Dunn's depth_stairs 9/12 -> 2/12 correct,
+#: Davies-Bouldin's depth_room t 123 -> 613 mm): their sweeps keep the derived range.
 TUNE_EXTEND = 6
 #: The sweep looks for at least this many planes whatever max_planes is (the final detection keeps to
 #: max_planes; tune_tolerance's sweep_planes): a cap below the scene's planes would reward a t at which
@@ -309,7 +311,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     extend: when the top of the range was derived (no ``tolerances``, no ``t_max``) and the choice is the
     largest candidate, up to this many more candidates are swept above it, one at a time in the same
     geometric step, while the choice stays the largest and up to TOP_DIAGONAL_SHARE of the bounding-box
-    diagonal (see TUNE_EXTEND); 0 keeps the derived range (the paper's sweep).
+    diagonal (see TUNE_EXTEND); 0 keeps the derived range (the paper's sweep). Not with Dunn or Davies-Bouldin:
+    they grow (fall) with t without a plateau, and have no tie rule to stop at one.
     tune_points: the sweep runs on a random subsample of this many points (None = all); the
     chosen ``t`` is then applied to the full cloud. sample_size: silhouette sample per score.
     Candidates whose planes cover less than half the best coverage of the sweep are not eligible
@@ -381,7 +384,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         raise ValueError('tolerances must be finite and > 0')
     # a derived top may be extended up to TOP_DIAGONAL_SHARE of the diagonal (``extend``); a given range is kept
     top = TOP_DIAGONAL_SHARE * float(np.linalg.norm(np.ptp(finite, axis=0))) / factor \
-        if extend and tolerances is None and t_max is None and len(cand) > 1 else 0.0
+        if extend and tolerances is None and t_max is None and len(cand) > 1 and criterion not in SEPARATION_CRITERIA \
+        else 0.0
     sweep_shape = None
     shape = None if shape is None else check_shape(shape, len(pts))
     step = 0 if shape is None else grid_step(shape, len(finite), tune_points)
