@@ -62,8 +62,8 @@ TOP_DIAGONAL_SHARE = 1 / 8
 #: Default of tune_tolerance's ``extend``: a sweep with a derived top whose choice is its largest candidate
 #: goes on, one candidate at a time in the same geometric step, while the choice stays the largest one, for
 #: at most this many candidates and up to TOP_DIAGONAL_SHARE of the diagonal. The derived top (10 local
-#: noise thicknesses) falls short where a neighbourhood lies on one depth step of a quantized sensor: 4 of
-#: the 5 Kinect frames of benchmarks/README.md chose their top with PS still rising (office1.pcd, walls at
+#: noise thicknesses) falls short where a neighbourhood lies on one depth step of a quantized sensor: the 5
+#: Kinect frames of benchmarks/README.md chose their top, 4 with PS still rising (office1.pcd, walls at
 #: 4-5 m: 46 mm, the back wall in pieces). A plateau stops it: the tie rule (SILHOUETTE_TIE) keeps the
 #: smaller t unless a larger one scores clearly better. The separation criteria have no such rule, and Dunn and
 #: Davies-Bouldin improve with t past every plane (with the extension: Dunn's depth_stairs 9/12 -> 2/12 correct,
