@@ -281,7 +281,27 @@ def test_an_interrupted_paper_run_leaves_the_earlier_set(tmp_path):
     results = run_paper(out, cases=CASES[:1], points=300, grid=linear_grid(steps=4))
     assert all(p.parent == out and p.read_bytes() != earlier[p.name] for p in results[0].figures)
     assert (out / 'summary.md').read_bytes() != earlier['summary.md']
-    assert [p.name for p in tmp_path.iterdir()] == ['paper']
+    assert [p.name for p in tmp_path.iterdir()] == ['paper'] and not list(out.glob('.*'))
+
+
+def test_staged_files_land_in_a_folder_on_another_file_system(tmp_path):
+    """An outside review: staged beside the folder, a mount point's or a link's set could not be moved in
+    (EXDEV) and a whole paper run was lost at its end."""
+    import tempfile
+
+    from plane_validation.formats.files import staged_files
+    shm = Path('/dev/shm')
+    if not shm.is_dir() or shm.stat().st_dev == tmp_path.stat().st_dev:
+        pytest.skip('no second file system at /dev/shm')
+    target = Path(tempfile.mkdtemp(dir=shm))
+    try:
+        (tmp_path / 'out').symlink_to(target)
+        with staged_files(tmp_path / 'out') as stage:
+            (stage / 'a.txt').write_text('new')
+        assert (target / 'a.txt').read_text() == 'new' and [p.name for p in target.iterdir()] == ['a.txt']
+    finally:
+        import shutil
+        shutil.rmtree(target)
 
 
 # -- errors and progress ---------------------------------------------------------------------------
@@ -433,6 +453,21 @@ def test_a_failed_demo_leaves_no_output_folder(tmp_path, capsys):
     assert sorted(p.name for p in out.iterdir()) == ['.plane-validation-demo']
     assert main(['demo', '--bag', str(tmp_path / 'empty'), '--out', str(out / '.plane-validation-demo')]) == 2
     assert 'is a file: give a folder' in capsys.readouterr().err
+    # the mark holds a name a line: 'x y.planes' is not 'y.planes' (an outside review: it was split at spaces)
+    (out / '.plane-validation-demo').write_text('x y.planes\n')
+    (out / 'y.planes').mkdir()
+    (tmp_path / 'y').mkdir()
+    assert main(['demo', '--bag', str(tmp_path / 'y'), '--out', str(out)]) == 2
+    assert 'an earlier demo did not write it' in capsys.readouterr().err and (out / 'y.planes').is_dir()
+
+
+def test_the_demo_s_default_folder_is_its_own_only_for_its_default_bag(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)  # the default --out, out/demo, with a bag replay wrote there
+    (tmp_path / 'cube').mkdir()
+    (tmp_path / 'out' / 'demo' / 'cube.planes').mkdir(parents=True)
+    assert main(['demo', '--bag', 'cube']) == 2
+    assert 'an earlier demo did not write it' in capsys.readouterr().err
+    assert (tmp_path / 'out' / 'demo' / 'cube.planes').is_dir()
 
 
 #: A Ctrl-C while the command line or the node loads numpy, scipy and rclpy (their first second): an

@@ -182,6 +182,9 @@ def test_invalid_parameters_raise(kwargs, name):
                                   lambda p: pv.validity_indices(p, np.zeros(len(p), int), seed=-1),
                                   lambda p: pv.select_plane_count(p, 1.0, seed=-1)])
 def test_invalid_tuning_and_index_arguments_raise_a_clear_error(call):
+    points = scenes.corner(300, seed=0).points
+    for seed in (np.random.SeedSequence(3), np.random.PCG64(3), [1, 2], np.int64(5)):  # what default_rng takes
+        assert pv.detect_planes(points, 0.01, seed=seed).n_planes >= 1
     with pytest.raises(ValueError, match='seed|count|connectivity'):
         call(scenes.corner(300, seed=0).points)
 

@@ -379,9 +379,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     out_bag = out_dir / f'{Path(args.bag).name}.planes'
     png = out_dir / 'last_frame.png'
     mark = out_dir / DEMO_MARK
-    ours = set(mark.read_text().split()) if mark.is_file() else set()
-    if out_dir.resolve() == Path(DEMO_OUT).resolve():
-        ours |= {out_bag.name, png.name}  # the default folder is the demo's own (also from before the mark)
+    ours = set(mark.read_text().splitlines()) if mark.is_file() else set()
+    if out_dir.resolve() == Path(DEMO_OUT).resolve():  # what demos wrote there before the mark
+        ours |= {f'{Path(DEMO_BAG).name}.planes', png.name}
     for path in (out_bag, png):
         if (path.exists() or path.is_symlink()) and path.name not in ours:
             raise ValueError(f'{path} exists and an earlier demo did not write it (a replay bag?): give another '

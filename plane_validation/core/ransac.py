@@ -137,14 +137,19 @@ def carried(seg: Segmentation, points: np.ndarray, proxy: np.ndarray) -> Segment
 
 
 def generator(seed: int | np.random.Generator | None) -> np.random.Generator:
-    """A numpy Generator from ``seed``: an integer >= 0, a Generator (used as is) or None (fresh entropy);
-    ValueError otherwise (the command line's and the node's seed -1 is None here)."""
+    """A numpy Generator from ``seed``: an integer >= 0, a Generator (used as is), None (fresh entropy), or what
+    else ``np.random.default_rng`` takes (a SeedSequence, a BitGenerator, integers); ValueError otherwise (the
+    command line's and the node's seed -1 is None here)."""
     if isinstance(seed, np.random.Generator):
         return seed
-    if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer))
-                             or seed < 0):
-        raise ValueError(f'seed must be an integer >= 0, a numpy Generator or None (fresh entropy), got {seed!r}')
-    return np.random.default_rng(seed)
+    why = f'seed must be an integer >= 0, a numpy Generator or None (fresh entropy), got {seed!r}'
+    if isinstance(seed, (bool, np.bool_, float, np.floating, str)) or \
+            (isinstance(seed, (int, np.integer)) and seed < 0):
+        raise ValueError(why)
+    try:
+        return np.random.default_rng(seed)
+    except (TypeError, ValueError):
+        raise ValueError(why) from None
 
 
 def check_integer(name: str, value, low: int) -> int:

@@ -219,13 +219,14 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
 
 @contextmanager
 def staged_files(folder: str | Path) -> Iterator[Path]:
-    """A temporary folder beside ``folder`` (created) for a set of output files: when the block ends normally
+    """A hidden temporary folder in ``folder`` (created) for a set of output files: when the block ends normally
     they replace their namesakes in ``folder``, one by one (each atomically); otherwise they are deleted, and an
-    interrupted run leaves the folder's earlier set as it was, not a mix of two runs."""
+    interrupted run leaves the folder's earlier set as it was, not a mix of two runs. Inside the folder, not
+    beside it: on the same file system also when ``folder`` is a mount point or a link to another one."""
     import shutil
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(dir=folder.parent, prefix=f'.{folder.name}.', suffix='.partial'))
+    stage = Path(tempfile.mkdtemp(dir=folder, prefix='.', suffix='.partial'))
     try:
         yield stage
         for path in sorted(stage.iterdir()):
