@@ -728,7 +728,7 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
                 full = np.zeros(n, bool)
                 full[rest_idx[mask]] = True
                 up = np.zeros(n, bool)
-                up[rest_idx[above]] = True
+                up[rest_idx[support & above]] = True  # only the support's side is read: a far smaller scatter
                 kept, taken = neighbours.region(full & wide, wide, up)
                 return kept[rest_idx], taken[rest_idx]
         rest_normals = None if neighbours is None or neighbours.normals is None else \

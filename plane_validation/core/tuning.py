@@ -343,8 +343,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         raise ValueError(f'jobs must be an integer >= 0 (0 = one per CPU core), got {jobs!r}')
     if isinstance(sweep_planes, bool) or not isinstance(sweep_planes, (int, np.integer)) or sweep_planes < 0:
         raise ValueError(f'sweep_planes must be an integer >= 0 (0 = max_planes), got {sweep_planes!r}')
-    if isinstance(extend, bool) or not isinstance(extend, (int, np.integer)) or extend < 0:
-        raise ValueError(f'extend must be an integer >= 0 (0 = keep the derived range), got {extend!r}')
+    extend = check_integer('extend', extend, 0)
     if tune_points is not None and tune_points != np.inf:  # inf: all points, as None
         if isinstance(tune_points, bool) or not np.isfinite(tune_points) or int(tune_points) != tune_points \
                 or tune_points < 3:
