@@ -599,6 +599,20 @@ def test_detect_and_sweep_take_the_search_settings_a_lidar_needs(tmp_path, capsy
     assert doc['tolerance'] == pytest.approx(tuned.tolerance, rel=1e-12)
 
 
+def test_detect_takes_the_sub_grid_of_an_organized_cloud(tmp_path, capsys):
+    from plane_validation.formats.files import save_points
+    scene = scenes.depth_camera('table', width=200, height=150, seed=1)  # below the default grid_points
+    path = tmp_path / 'table.pcd'
+    save_points(path, scene.points, shape=scene.shape)
+    assert main(['detect', str(path), '--tolerance', '0.03', '--grid-points', '5000', '--json']) == 0
+    doc = json.loads(capsys.readouterr().out)
+    pts = scene.points.astype(np.float32).astype(np.float64)  # as the file holds them
+    coarse = pv.detect_planes(pts, 0.03, seed=0, shape=scene.shape, grid_points=5000)
+    default = pv.detect_planes(pts, 0.03, seed=0, shape=scene.shape)
+    counts = [p['inliers'] for p in doc['planes']]
+    assert counts == [len(p.inliers) for p in coarse.planes] != [len(p.inliers) for p in default.planes]
+
+
 def test_the_file_commands_take_the_viewpoint(tmp_path, capsys):
     # a 16-beam scan 1.8 m above the file's origin (base_link): --viewpoint-z gives its own frame's planes
     scan = scenes.lidar(**scenes.VLP16_ROOM, seed=1)

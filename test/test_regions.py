@@ -105,6 +105,27 @@ def test_large_organized_frame_is_searched_on_a_sub_grid_and_fully_labelled():
     assert q.correct >= 5 and q.f1 > 0.9, q
 
 
+def test_grid_points_sets_the_sub_grid_of_an_image_and_ransac_points_does_not():
+    from plane_validation.core.ransac import search_graph
+    scene = scenes.depth_camera('table', seed=1)  # 640 x 480, ~190,000 valid pixels
+    valid = int(np.isfinite(scene.points).all(axis=1).sum())
+    steps = {g: search_graph(scene.points, scene.shape, grid_points=g).step for g in (None, 60000, 20000, 5000)}
+    assert steps == {None: 1, 60000: 2, 20000: 4, 5000: 7}, steps
+    assert all(steps[g] == np.ceil(np.sqrt(valid / g)) for g in (60000, 20000, 5000))
+    assert search_graph(scene.points, scene.shape, ransac_points=1000).step == 3  # the default grid_points
+    graph = search_graph(scene.points, scene.shape, grid_points=20000)
+    assert graph.grid_points == 20000 and graph.neighbours.shape == (120, 160)  # every 4th row and column
+    coarse = pv.detect_planes(scene.points, 0.03, seed=0, shape=scene.shape, grid_points=20000)
+    assert np.array_equal(coarse.labels, pv.detect_planes(scene.points, 0.03, seed=0, shape=scene.shape,
+                                                          grid_points=20000, graph=graph).labels)
+    q = segmentation_quality(coarse.labels, scene.labels)
+    assert q.correct >= 5 and q.f1 > 0.95, q  # every pixel labelled from the coarser search
+    with pytest.raises(ValueError, match='grid_points'):
+        pv.detect_planes(scene.points, 0.03, shape=scene.shape, grid_points=2.5)
+    with pytest.raises(ValueError, match='grid_points'):
+        search_graph(scene.points, scene.shape, grid_points=0)
+
+
 def test_a_prebuilt_search_graph_gives_the_same_planes_as_building_it_per_call():
     from plane_validation.core.ransac import search_graph
     pts, _ = _wall_with_box()
@@ -131,7 +152,8 @@ def test_a_search_graph_of_another_layout_is_refused():
     from plane_validation.core.ransac import search_graph
     pts, _ = _wall_with_box()
     graph = search_graph(pts, (120, 160))
-    for kwargs in (dict(), dict(shape=(160, 120)), dict(shape=(120, 160), ransac_points=1000)):
+    for kwargs in (dict(), dict(shape=(160, 120)), dict(shape=(120, 160), ransac_points=1000),
+                   dict(shape=(120, 160), grid_points=5000)):
         with pytest.raises(ValueError, match='built for'):
             pv.detect_planes(pts, 0.01, graph=graph, **kwargs)
     other = pts.copy()

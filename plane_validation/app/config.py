@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..core.noise import NOISE_MODELS, NOISE_REFERENCE
-from ..core.ransac import RANSAC_POINTS
+from ..core.ransac import GRID_POINTS, RANSAC_POINTS
 from ..core.tuning import CRITERIA, DEFAULT_CRITERION, SWEEP_MAX_PLANES, TUNE_CANDIDATES, TUNE_POINTS
 
 __all__ = ['Parameter', 'PipelineConfig', 'PARAMETERS', 'parameters_markdown', 'min_inliers_value']
@@ -109,6 +109,9 @@ class PipelineConfig:
                              'of on the index sample')
     ransac_points: int = _p(RANSAC_POINTS, 'RANSAC searches a random sample of this many points, then labels '
                             'every point; 0 = all', low=1000, high=100_000_000, special=0)
+    grid_points: int = _p(GRID_POINTS, 'an organized cloud (image) with more valid pixels is searched on a regular '
+                          'sub-grid of about this many, then every pixel is labelled; 0 = every pixel',
+                          low=1000, high=100_000_000, special=0)
     connectivity: bool = _p(True, 'a plane is a connected region (organized clouds: image neighbours without a depth '
                             'jump); false = every point within t of an infinite plane (the paper)')
     organize_rings: bool = _p(True, 'an unorganized scan whose PointCloud2 has a \'ring\' field (velodyne_pointcloud '

@@ -57,7 +57,7 @@ FROZEN_FRAME_S = 0.1
 #: Configuration fields whose change voids the tuned tolerance (and a sweep in progress).
 TUNING_FIELDS = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points', 'criterion', 'max_planes',
                  'min_inliers', 'voxel_size', 'probability', 'max_iterations', 'index_sample_size',
-                 'exact_indices', 'ransac_points', 'connectivity', 'noise_model', 'noise_reference',
+                 'exact_indices', 'ransac_points', 'grid_points', 'connectivity', 'noise_model', 'noise_reference',
                  'viewpoint_x', 'viewpoint_y', 'viewpoint_z', 'zero_is_no_return')
 
 
@@ -278,7 +278,8 @@ class FramePipeline:
                               max_iterations=cfg.max_iterations, sample_size=cfg.index_sample_size,
                               tune_points=cfg.tune_points, t_min=cfg.tune_min or None, t_max=cfg.tune_max or None,
                               count=cfg.tune_count, seed=frame_seed(cfg.seed, stamp_ns),
-                              ransac_points=cfg.ransac_points or None, sampled_separation=not cfg.exact_indices,
+                              ransac_points=cfg.ransac_points or None, grid_points=cfg.grid_points or None,
+                              sampled_separation=not cfg.exact_indices,
                               shape=shape, connectivity=cfg.connectivity, noise_model=cfg.noise_model,
                               noise_reference=cfg.noise_reference, viewpoint=cfg.viewpoint, jobs=cfg.tune_jobs)
 
@@ -369,7 +370,8 @@ class FramePipeline:
                 seg = detect_planes(work, tolerance, max_planes=cfg.max_planes,
                                     min_inliers=min_inliers_value(cfg.min_inliers), probability=cfg.probability,
                                     max_iterations=cfg.max_iterations, seed=seed,
-                                    ransac_points=cfg.ransac_points or None, shape=cloud_shape,
+                                    ransac_points=cfg.ransac_points or None, grid_points=cfg.grid_points or None,
+                                    shape=cloud_shape,
                                     connectivity=cfg.connectivity, noise_model=cfg.noise_model,
                                     noise_reference=cfg.noise_reference, viewpoint=cfg.viewpoint)
                 if inverse is not None:  # each point its voxel's (pixel's) plane, if it lies within t of it

@@ -173,6 +173,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
                      min_inliers=min_inliers_value(args.min_inliers), progress=progress, shape=shape,
                      noise_model=args.noise_model, noise_reference=args.noise_reference, jobs=args.tune_jobs,
                      connectivity=args.connectivity, ransac_points=args.ransac_points or None,
+                     grid_points=args.grid_points or None,
                      viewpoint=_viewpoint(args), ring=ring, organize_rings=args.organize_rings)
     written = []
     if args.out:
@@ -228,7 +229,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                                       max_planes=args.max_planes, min_inliers=min_inliers_value(args.min_inliers),
                                       progress=progress, noise_model=args.noise_model,
                                       noise_reference=args.noise_reference, jobs=args.tune_jobs,
-                                      ransac_points=args.ransac_points or None)
+                                      ransac_points=args.ransac_points or None,
+                                      grid_points=args.grid_points or None)
     written = []
     if args.csv:
         written.append(write_sweep_csv(args.csv, result))
@@ -521,9 +523,10 @@ def _viewpoint(args: argparse.Namespace) -> tuple[float, float, float]:
 
 
 def _add_search_options(parser: argparse.ArgumentParser) -> None:
-    """--connectivity/--no-connectivity, --ransac-points and --organize-rings/--no-organize-rings for detect
-    and sweep."""
-    _add_table_options(parser, (('connectivity', ''), ('ransac_points', 'N'), ('organize_rings', '')))
+    """--connectivity/--no-connectivity, --ransac-points, --grid-points and --organize-rings/--no-organize-rings
+    for detect and sweep."""
+    _add_table_options(parser, (('connectivity', ''), ('ransac_points', 'N'), ('grid_points', 'N'),
+                                ('organize_rings', '')))
 
 
 def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:

@@ -41,6 +41,11 @@ PRESCORE_SIGMAS = 3.0
 #: Default for ``detect_planes(ransac_points=...)``: larger clouds are searched on a random
 #: sample of this many points; every point is then labelled against the planes found.
 RANSAC_POINTS = 32768
+#: Default for ``detect_planes(grid_points=...)``: an image (``shape``) with more valid pixels is searched on a
+#: regular sub-grid of about this many (a step of 3 pixels on a 640x480 Kinect frame). Fewer is faster but
+#: loses small faces: at 20,000 (a step of 4) the Kinect frame's search is a third faster, but milk_cartoon's
+#: auto-tuned planes go from 4 to 2 (the objects' fronts; benchmarks/README.md, fourteenth session).
+GRID_POINTS = RANSAC_POINTS
 #: Random points the degeneracy (spread) test looks at.
 SPREAD_POINTS = 1024
 #: A sample triple whose sine of the angle at its first point is below this is degenerate.
@@ -571,7 +576,8 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
                   max_iterations: int = 1000, seed: int | np.random.Generator | None = None,
                   ransac_points: int | None = RANSAC_POINTS, shape: tuple[int, int] | None = None,
                   connectivity: bool = True, graph: SearchGraph | None = None, noise_model: str = 'constant',
-                  noise_reference: float = NOISE_REFERENCE, viewpoint: Viewpoint = None) -> Segmentation:
+                  noise_reference: float = NOISE_REFERENCE, viewpoint: Viewpoint = None,
+                  grid_points: int | None = GRID_POINTS) -> Segmentation:
     """Find planes one by one with RANSAC, removing each plane's points before the next search.
 
     With ``connectivity`` (the default) a plane is a connected planar region: each candidate's
@@ -596,7 +602,9 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     seed: int, Generator, or None for fresh entropy.
     ransac_points: when there are more valid points, the sequential search runs on a random
         sample of this many (min_inliers scaled to the sample); None = always on all points.
-    graph: the :func:`search_graph` of these points, shape and ransac_points, to reuse across calls
+    grid_points: with ``shape`` and connectivity, an image with more valid pixels is searched on a regular
+        sub-grid of about this many (:func:`grid_step`); None = every pixel.
+    graph: the :func:`search_graph` of these points, shape, ransac_points and grid_points, to reuse across calls
         on one cloud (a tolerance sweep); None builds it here.
     noise_model: 'constant', or 'depth_quadratic': a point at range r from the sensor is within
         t * max(1, (r / noise_reference)^2) of a plane (:mod:`.noise`).
@@ -627,6 +635,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     max_iterations = check_integer('max_iterations', max_iterations, 1)
     connectivity = check_flag('connectivity', connectivity)
     _check_ransac_points(ransac_points)
+    _check_ransac_points(grid_points, 'grid_points')
     if shape is not None:
         shape = check_shape(shape, len(pts))
     check_magnitude(pts)
@@ -637,7 +646,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     rng = generator(seed)
     if connectivity:
         seg = _detect_regions(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
-                              ransac_points, shape, graph, view)
+                              ransac_points, shape, graph, view, grid_points)
         return _facing_away(dataclasses.replace(seg, tolerance=tolerance, **model), view)
 
     cols = np.ascontiguousarray(pts.T)
@@ -812,9 +821,9 @@ def _label_all(valid: np.ndarray, search: np.ndarray, valid_idx: np.ndarray, cen
     return tuple(planes)
 
 
-def _check_ransac_points(ransac_points) -> None:
-    if ransac_points is not None and (int(ransac_points) != ransac_points or ransac_points < 3):
-        raise ValueError(f'ransac_points must be None or an integer >= 3, got {ransac_points!r}')
+def _check_ransac_points(value, name: str = 'ransac_points') -> None:
+    if value is not None and (int(value) != value or value < 3):
+        raise ValueError(f'{name} must be None or an integer >= 3, got {value!r}')
 
 
 #: An image whose (sub-)grid would have fewer rows or columns than this is searched as an unorganized
@@ -887,7 +896,7 @@ class SearchGraph:
     center: (3,) meters subtracted before the search; neighbours: their graph; nearest: when the
     search is a sample of an unorganized cloud, for each valid row (ascending) the position in
     search_idx of the searched point nearest to it (the point then takes that one's region). It
-    depends only on the cloud, ``shape`` and ``ransac_points``, not on the tolerance: a sweep builds
+    depends only on the cloud, ``shape``, ``ransac_points`` and ``grid_points``, not on the tolerance: a sweep builds
     it once (:func:`search_graph`) and passes it to every :func:`detect_planes` call on that cloud.
     viewpoint: (3,) meters, the sensor it was built for.
     """
@@ -902,19 +911,22 @@ class SearchGraph:
     n_valid: int
     nearest: np.ndarray | None = None
     viewpoint: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    grid_points: int | None = GRID_POINTS
 
 
 def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
                  ransac_points: int | None = RANSAC_POINTS, rng: np.random.Generator | None = None,
-                 viewpoint: Viewpoint = None) -> SearchGraph | None:
+                 viewpoint: Viewpoint = None, grid_points: int | None = GRID_POINTS) -> SearchGraph | None:
     """The :class:`SearchGraph` of ``points`` (N, 3) meters seen from ``viewpoint`` (as in
-    :func:`detect_planes`). An unorganized cloud of more than ``ransac_points`` valid points is
+    :func:`detect_planes`). An image (``shape``) of more than ``grid_points`` valid pixels is searched on a
+    regular sub-grid of about that many; an unorganized cloud of more than ``ransac_points`` valid points is
     searched on a random sample drawn from ``rng``; without ``rng`` such a cloud has no fixed graph
     and None is returned."""
     pts = as_points(points)
     _check_ransac_points(ransac_points)
+    _check_ransac_points(grid_points, 'grid_points')
     return _search_graph(pts, finite_rows(pts), None if shape is None else check_shape(shape, len(pts)),
-                         ransac_points, rng, check_viewpoint(viewpoint))
+                         ransac_points, rng, check_viewpoint(viewpoint), grid_points)
 
 
 def check_viewpoint(viewpoint: Viewpoint) -> np.ndarray:
@@ -930,13 +942,14 @@ def check_viewpoint(viewpoint: Viewpoint) -> np.ndarray:
 
 
 def _search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | None, ransac_points: int | None,
-                  rng: np.random.Generator | None, viewpoint: np.ndarray) -> SearchGraph | None:
+                  rng: np.random.Generator | None, viewpoint: np.ndarray, grid_points: int | None
+                  ) -> SearchGraph | None:
     """:func:`search_graph` of checked points ``pts`` with their finite rows ``finite`` (N,)."""
     valid_idx = np.flatnonzero(finite)
     n_valid = len(valid_idx)
     center = np.median(pts[valid_idx[::max(1, n_valid // 1024)]], axis=0) if n_valid else np.zeros(3)
     nearest = None
-    step = 0 if shape is None else grid_step(shape, n_valid, ransac_points)
+    step = 0 if shape is None else grid_step(shape, n_valid, grid_points)
     if step:
         grid, pixels = grid_image(pts, finite, shape, step)
         neighbours = grid_neighbours(grid - viewpoint if viewpoint.any() else grid, pixels >= 0)  # sensor ranges
@@ -953,23 +966,25 @@ def _search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | 
         neighbours = graph_neighbours(searched, viewpoint=viewpoint - center)
     return SearchGraph(n_points=len(pts), search_idx=search_idx, step=step, center=center, neighbours=neighbours,
                        shape=shape, ransac_points=ransac_points, n_valid=n_valid, nearest=nearest,
-                       viewpoint=tuple(viewpoint.tolist()))
+                       viewpoint=tuple(viewpoint.tolist()), grid_points=grid_points)
 
 
 def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
                     probability: float, max_iterations: int, rng: np.random.Generator,
                     ransac_points: int | None, shape: tuple[int, int] | None,
-                    graph: SearchGraph | None, viewpoint: np.ndarray) -> Segmentation:
+                    graph: SearchGraph | None, viewpoint: np.ndarray, grid_points: int | None) -> Segmentation:
     """detect_planes with connected regions (see its docstring)."""
     finite = finite_rows(pts)
     valid_idx = np.flatnonzero(finite)
     n_valid = len(valid_idx)
     min_count = resolve_min_inliers(min_inliers, n_valid)
     if graph is None:
-        graph = _search_graph(pts, finite, shape, ransac_points, rng, viewpoint)
-    elif (graph.n_points, graph.shape, graph.ransac_points) != (len(pts), shape, ransac_points):
-        raise ValueError(f'graph was built for {graph.n_points} points, shape {graph.shape} and ransac_points '
-                         f'{graph.ransac_points}, not {len(pts)}, {shape} and {ransac_points}')
+        graph = _search_graph(pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
+    elif (graph.n_points, graph.shape, graph.ransac_points, graph.grid_points) != \
+            (len(pts), shape, ransac_points, grid_points):
+        raise ValueError(f'graph was built for {graph.n_points} points, shape {graph.shape}, ransac_points '
+                         f'{graph.ransac_points} and grid_points {graph.grid_points}, not {len(pts)}, {shape}, '
+                         f'{ransac_points} and {grid_points}')
     elif graph.viewpoint != tuple(viewpoint.tolist()):
         raise ValueError(f'graph was built for viewpoint {graph.viewpoint}, not {tuple(viewpoint.tolist())}')
     elif graph.n_valid != n_valid or not finite[graph.search_idx].all():

@@ -24,6 +24,7 @@ from .blas import single_blas_thread
 from .indices import ValidityIndices, validity_indices
 from .noise import NOISE_REFERENCE, noise_coefficient, tolerance_scale
 from .ransac import (
+    GRID_POINTS,
     RANSAC_POINTS,
     Segmentation,
     Viewpoint,
@@ -302,7 +303,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                    shape: tuple[int, int] | None = None, connectivity: bool = True,
                    noise_model: str = 'constant', noise_reference: float = NOISE_REFERENCE,
                    viewpoint: Viewpoint = None, jobs: int = 1, sweep_planes: int = SWEEP_MAX_PLANES,
-                   extend: int = TUNE_EXTEND) -> TuningResult:
+                   extend: int = TUNE_EXTEND, grid_points: int | None = GRID_POINTS) -> TuningResult:
     """Sweep the RANSAC tolerance and pick the best by ``criterion``.
 
     points: (N, 3) meters. tolerances: candidate ``t`` values in meters, or None for ``count``
@@ -320,7 +321,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     max(3 SE, 0.01) of the best (indistinguishable given the silhouette sampling), the smallest
     ``t`` wins; see :func:`_choose` for the single-plane case.
     progress: called as ``progress(done, total)`` after each candidate (e.g. to drive a progress bar).
-    ransac_points, sampled_separation: passed to :func:`detect_planes` and :func:`validity_indices`;
+    ransac_points, grid_points, sampled_separation: passed to :func:`detect_planes` and :func:`validity_indices`;
     sampled_separation None (the default) means exact up to EXACT_SEPARATION_POINTS valid points and
     on the index sample beyond (exact minimum distances between large planes far apart cost seconds).
     The candidates' Dunn and Davies-Bouldin are computed on the index sample unless one of them is
@@ -397,8 +398,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     n_sweep = int(np.count_nonzero(finite_rows(sweep_pts)))
     ransac_seed, index_seed = rng.integers(0, 2**63, size=2)
     opts = dict(max_planes=max_planes, min_inliers=min_inliers, probability=probability,
-                max_iterations=max_iterations, ransac_points=ransac_points, connectivity=connectivity,
-                noise_model=noise_model, noise_reference=noise_reference, viewpoint=view)
+                max_iterations=max_iterations, ransac_points=ransac_points, grid_points=grid_points,
+                connectivity=connectivity, noise_model=noise_model, noise_reference=noise_reference, viewpoint=view)
     # a count means the same share of the cloud on the subsample (as ransac_points scales it)
     # t is a property of the sensor, not of how many planes the caller wants: the sweep looks for at least
     # sweep_planes (a cap that stops it early makes the planes take in strips of the surfaces left out)
@@ -416,9 +417,10 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         # a sweep that fails or is abandoned does not wait for the graph (the thread ends on its own)
         stack.callback(pool.shutdown, wait=False, cancel_futures=True)
         final_graph = pool.submit(contextvars.copy_context().run, search_graph, pts, shape, ransac_points,
-                                  final_rng, view) if connectivity else None
+                                  final_rng, view, grid_points) if connectivity else None
         if connectivity:  # the same neighbourhood graph for every candidate (None when it would be sampled)
-            sweep_opts['graph'] = search_graph(sweep_pts, sweep_shape, ransac_points, viewpoint=view)
+            sweep_opts['graph'] = search_graph(sweep_pts, sweep_shape, ransac_points, viewpoint=view,
+                                               grid_points=grid_points)
         rows: list[TuningRow] = [None] * len(cand)
         sweep_labels: list[np.ndarray] = [None] * len(cand)
         candidates = run(_candidate, [(sweep_pts, t, int(ransac_seed), sweep_opts, score) for t in cand])
