@@ -634,8 +634,8 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
         raise ValueError(f'probability must be in (0, 1), got {probability!r}')
     max_iterations = check_integer('max_iterations', max_iterations, 1)
     connectivity = check_flag('connectivity', connectivity)
-    _check_ransac_points(ransac_points)
-    _check_ransac_points(grid_points, 'grid_points')
+    _check_search_size('ransac_points', ransac_points)
+    _check_search_size('grid_points', grid_points)
     if shape is not None:
         shape = check_shape(shape, len(pts))
     check_magnitude(pts)
@@ -821,7 +821,8 @@ def _label_all(valid: np.ndarray, search: np.ndarray, valid_idx: np.ndarray, cen
     return tuple(planes)
 
 
-def _check_ransac_points(value, name: str = 'ransac_points') -> None:
+def _check_search_size(name: str, value) -> None:
+    """ValueError unless ``value`` (``ransac_points`` or ``grid_points``) is None or a whole number >= 3."""
     if value is not None and (int(value) != value or value < 3):
         raise ValueError(f'{name} must be None or an integer >= 3, got {value!r}')
 
@@ -923,8 +924,8 @@ def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
     searched on a random sample drawn from ``rng``; without ``rng`` such a cloud has no fixed graph
     and None is returned."""
     pts = as_points(points)
-    _check_ransac_points(ransac_points)
-    _check_ransac_points(grid_points, 'grid_points')
+    _check_search_size('ransac_points', ransac_points)
+    _check_search_size('grid_points', grid_points)
     return _search_graph(pts, finite_rows(pts), None if shape is None else check_shape(shape, len(pts)),
                          ransac_points, rng, check_viewpoint(viewpoint), grid_points)
 
