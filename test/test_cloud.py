@@ -424,8 +424,10 @@ def test_the_ring_field_of_a_lidar_scan(family):
         msg = create_cloud(hdr, {**xyz, 'ring': np.array([3, 0, 1, 2], dtype)}, types=types_of(family))
         assert ring_array(msg).tolist() == [3, 0, 1, 2] and ring_array(msg).dtype == np.int64
     assert ring_array(create_cloud(hdr, xyz, types=types_of(family))) is None  # no ring field
-    floats = create_cloud(hdr, {**xyz, 'ring': np.zeros(4, np.float32)}, types=types_of(family))
-    assert ring_array(floats) is None  # not a beam number
+    floats = create_cloud(hdr, {**xyz, 'ring': np.array([3, 0, 1, 2], np.float32)}, types=types_of(family))
+    assert ring_array(floats).tolist() == [3, 0, 1, 2] and ring_array(floats).dtype == np.int64  # whole numbers
+    halves = create_cloud(hdr, {**xyz, 'ring': np.array([3, 0, 1, 2.5])}, types=types_of(family))
+    assert ring_array(halves).dtype == np.float64  # left for ring_image to refuse with its reason
 
 
 @pytest.mark.parametrize('family', FAMILIES)

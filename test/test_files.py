@@ -153,8 +153,12 @@ def test_a_lidar_scan_keeps_its_ring_field(tmp_path):
         np.testing.assert_allclose(xyz, points, rtol=1e-7)  # ascii: the decimal digits, not the float32
         assert shape is None and rings.dtype == np.int64
         np.testing.assert_array_equal(rings, ring)
-    # a float field called ring numbers no beams; a cloud without one has none
-    assert load_scan(_lidar_pcd(tmp_path / 'f.pcd', points, ring, ring_type='F'))[2] is None
+    # a float ring field of whole numbers numbers the beams as well; of other values it is kept for ring_image to
+    # refuse (and the report to say why); a cloud without one has none
+    floated = load_scan(_lidar_pcd(tmp_path / 'f.pcd', points, ring, ring_type='F'))[2]
+    assert floated.dtype == np.int64 and np.array_equal(floated, ring)
+    halves = load_scan(_lidar_pcd(tmp_path / 'h.pcd', points, ring + 0.5, ring_type='F'))[2]
+    assert halves.dtype == np.float32 and np.array_equal(halves, ring + np.float32(0.5))
     assert load_scan(tmp_path / 'b.pcd')[2] is not None and load_scan(str(BAGS / 'room'))[2] is None
 
 
@@ -259,6 +263,15 @@ def test_saved_labels_in_every_point_format(tmp_path):
         np.testing.assert_allclose(load_points(path), POINTS, atol=1e-8)
 
 
+def test_an_npy_of_coordinates_in_rows_is_refused_not_read_as_three_points(tmp_path):
+    path = tmp_path / 'cols.npy'
+    np.save(path, POINTS.T)  # (3, N): what a column-major habit writes
+    with pytest.raises(ValueError, match=r'shape \(3, \d+\) looks like the coordinates in rows'):
+        load_points(path)
+    np.save(path, POINTS[:3])  # three points of x y z: a (3, 3) table is read as points
+    np.testing.assert_array_equal(load_points(path), POINTS[:3])
+
+
 def test_structured_npy_with_xyz_fields(tmp_path):
     table = np.zeros(len(POINTS), [('intensity', 'f4'), ('x', 'f8'), ('y', 'f8'), ('z', 'f8')])
     table['x'], table['y'], table['z'] = POINTS.T
@@ -330,6 +343,7 @@ def test_written_bag_reads_back_and_is_not_overwritten(tmp_path, name):
     ('empty.npy', b'', 'not a .npy file'),
     ('garbage.xyz', bytes(range(256)) * 8, 'not a table of numbers'),
     ('two.csv', b'1,2\n3,4\n', 'at least x y z'),
+    ('columns.csv', b'0,1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16\n' * 3, 'a point per column'),  # coordinates in rows
     ('cloud.las', b'LASF', "unsupported file type '.las'"),
     ('noxyz.ply', b'ply\nformat ascii 1.0\nelement vertex 1\nproperty float a\nend_header\n1\n', 'no x, y, z'),
     ('faces.ply', b'ply\nformat ascii 1.0\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n',

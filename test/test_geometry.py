@@ -108,6 +108,7 @@ def test_points_that_form_no_ring_image_are_refused_with_a_reason():
         (scan.points[two_rings], scan.rings[two_rings], '2 rings'),
         (scan.points, scan.rings[:-1], 'not one integer per point'),
         (scan.points, scan.rings.astype(float), 'not one integer per point'),
+        (scan.points, scan.rings + 0.5, 'not whole numbers'),
         (scan.points, rng.integers(0, 65536, len(scan.points)), 'rings \\(need 3 to 256\\)'),  # no beam numbers
         (scan.points, rng.integers(0, 16, len(scan.points)), 'elevations overlap'),  # numbering something else
         (scan.points[kept], scan.rings[kept], 'one azimuth step'),

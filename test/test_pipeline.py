@@ -414,6 +414,16 @@ def test_an_unorganized_lidar_scan_with_a_ring_field_is_searched_on_its_ring_ima
     thinned = FramePipeline(PipelineConfig(**fixed)).process(pts[kept], 10**9, ring=rings[kept])
     assert dict(thinned.values)['ring_image'].startswith('not used: only ') and thinned.level == OK
     assert segmentation_quality(thinned.labels, truth[kept]).correct >= 5
+    # a float32 ring field (some drivers write it so): whole numbers are beams; other values are not, and it says so
+    as_floats = create_cloud(header, {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2], 'ring': rings.astype(np.float32)},
+                             types=types)
+    floated = FramePipeline(PipelineConfig(**fixed)).process_cloud(as_floats)
+    assert dict(floated.values)['ring_image'] == '16x1800' and np.array_equal(floated.labels, laid.labels)
+    halves = create_cloud(header, {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2],
+                                   'ring': rings.astype(np.float32) + np.float32(0.5)}, types=types)
+    halved = FramePipeline(PipelineConfig(**fixed)).process_cloud(halves)
+    assert 'not whole numbers' in dict(halved.values)['ring_image'] and halved.level == OK
+    assert np.array_equal(halved.labels, graph.labels)  # searched on the graph, as without a ring field
 
 
 def test_a_stream_whose_stamps_do_not_advance_still_retries_a_failed_sweep():

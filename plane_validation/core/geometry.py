@@ -147,7 +147,9 @@ def ring_image(points: np.ndarray, ring: np.ndarray, viewpoint=(0.0, 0.0, 0.0)
     RING_REGULAR, RING_COLLISIONS)."""
     ring = np.asarray(ring)
     if ring.shape != (len(points),) or not np.issubdtype(ring.dtype, np.integer):
-        raise ValueError(f'the ring numbers are not one integer per point ({ring.dtype}, shape {ring.shape})')
+        kind = 'values that are not whole numbers' if ring.dtype.kind == 'f' and ring.shape == (len(points),) \
+            else f'shape {ring.shape}'
+        raise ValueError(f'the ring numbers are not one integer per point ({ring.dtype} {kind})')
     ids, row = np.unique(ring, return_inverse=True)
     row = row.reshape(-1)
     if not 3 <= len(ids) <= MAX_RINGS:

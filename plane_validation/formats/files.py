@@ -20,12 +20,16 @@ from pathlib import Path
 
 import numpy as np
 
+from .pointcloud2 import beam_numbers
+
 __all__ = ['atomic_output', 'staged_files', 'check_output', 'check_writable', 'load_cloud', 'load_points',
            'load_scan', 'save_points', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
 
 #: Extensions of plain point files (bags are recognised separately).
 TEXT_SUFFIXES = ('.xyz', '.txt', '.csv')
 POINT_SUFFIXES = ('.pcd', '.ply', '.npy') + TEXT_SUFFIXES
+#: A table of 3 or 4 rows wider than this is taken for coordinates in rows (a point per column), and refused.
+WIDEST_POINT_ROW = 16
 
 #: PCD TYPE letter and SIZE -> numpy dtype character.
 _PCD_TYPES = {('F', 4): 'f4', ('F', 8): 'f8', ('I', 1): 'i1', ('I', 2): 'i2', ('I', 4): 'i4', ('I', 8): 'i8',
@@ -256,6 +260,9 @@ def _xyz_columns(path: Path, table: np.ndarray) -> np.ndarray:
         raise ValueError(f'{path}: expected numbers, got dtype {table.dtype}')
     if table.ndim != 2 or table.shape[1] < 3:
         raise ValueError(f'{path}: expected rows of at least x y z, got shape {table.shape}')
+    if table.shape[0] in (3, 4) and table.shape[1] > WIDEST_POINT_ROW:
+        raise ValueError(f'{path}: shape {table.shape} looks like the coordinates in rows (x, y, z[, w]) with a '
+                         f'point per column; write one point per row, (N, 3) (transpose it)')
     return table[:, :3]
 
 
@@ -355,8 +362,8 @@ def _check_binary_size(path: Path, held: int, n: int, point_bytes: int) -> None:
                          f'({n * point_bytes}): POINTS too small, or other data appended')
 
 def _read_pcd_scan(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int, int] | None]:
-    """(n, 3) float64 x, y, z of a PCD file, its ``ring`` field (n,) int64 when it has an integer
-    one of count 1 (else None), and its image shape (H, W) when HEIGHT > 1 (else None)."""
+    """(n, 3) float64 x, y, z of a PCD file, its ``ring`` field (n,) as :func:`beam_numbers` gives it when
+    it has one of count 1 (else None), and its image shape (H, W) when HEIGHT > 1 (else None)."""
     raw = path.read_bytes()
     parsed = _pcd_header(raw)
     if parsed is None:
@@ -390,7 +397,7 @@ def _read_pcd_scan(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int
     shape = (int(header['HEIGHT'][0]), int(header['WIDTH'][0])) if 'HEIGHT' in header and 'WIDTH' in header else None
     shape = shape if shape and shape[0] > 1 else None
     k = fields.index('ring') if 'ring' in fields else -1
-    has_ring = k >= 0 and counts[k] == 1 and types[k].upper() in ('I', 'U')
+    has_ring = k >= 0 and counts[k] == 1  # integer, or float holding whole numbers (beam_numbers)
     if data == 'ascii':
         try:
             table = _loadtxt(raw[offset:].decode('ascii', errors='replace').splitlines())
@@ -406,7 +413,7 @@ def _read_pcd_scan(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int
         if not rows:
             return np.empty((0, 3)), (np.empty(0, np.int64) if has_ring else None), shape
         xyz = np.column_stack([table[:, columns[fields.index(a)]] for a in 'xyz']).astype(np.float64)
-        return xyz, table[:, columns[k]].astype(np.int64) if has_ring else None, shape
+        return xyz, beam_numbers(table[:, columns[k]]) if has_ring else None, shape
     if data == 'binary':
         try:
             dtype = np.dtype([(f if f != '_' else f'_pad{i}', '<' + _PCD_TYPES[(t.upper(), s)], (c,))
@@ -416,7 +423,7 @@ def _read_pcd_scan(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int
         _check_binary_size(path, len(raw) - offset, n, dtype.itemsize)
         records = np.frombuffer(raw, dtype=dtype, count=n, offset=offset)
         xyz = np.column_stack([records[a][:, 0] for a in 'xyz']).astype(np.float64)
-        return xyz, records['ring'][:, 0].astype(np.int64) if has_ring else None, shape
+        return xyz, beam_numbers(records['ring'][:, 0]) if has_ring else None, shape
     if data == 'binary_compressed':
         point_bytes = sum(size * count for size, count in zip(sizes, counts))
         return _read_pcd_compressed(path, raw[offset:], n, point_bytes, has_ring) + (shape,)
@@ -442,7 +449,7 @@ def _read_pcd_compressed(path: Path, data: bytes, n: int, point_bytes: int, has_
     try:
         cloud = PointCloud.from_path(path)
         xyz = cloud.numpy(('x', 'y', 'z')).astype(np.float64)
-        return xyz, cloud.numpy(('ring',))[:, 0].astype(np.int64) if has_ring else None
+        return xyz, beam_numbers(cloud.numpy(('ring',))[:, 0]) if has_ring else None
     except Exception as exc:  # pypcd4 reports problems with many exception types
         raise ValueError(f'{path}: cannot read binary_compressed PCD: {_first_line(exc)}') from exc
 
