@@ -55,6 +55,19 @@ def test_outlines_lie_in_their_planes():
         assert outline.extent == pytest.approx(100.0, rel=0.05)  # the cube's side
 
 
+def test_outlines_are_the_hull_polygon_of_the_in_plane_coordinates():
+    # plane_outlines rotates only the hull's candidates of a large plane; the polygon is hull_polygon's of all
+    scene = scenes.cube(30000, 0.3, seed=4)
+    seg = pv.detect_planes(scene.points, 0.5, seed=0)
+    for k, outline in enumerate(plane_outlines(scene.points, seg.labels, seg)):
+        members = scene.points[seg.labels == k]
+        axes = outline.rotation[:, :2]
+        local = axes.T @ (members - outline.centroid).T
+        assert local.shape[1] > 2048  # above HULL_POINTS: the candidates' path
+        np.testing.assert_allclose(outline.corners, outline.centroid + (axes @ local[:, hull_polygon(local)]).T,
+                                   atol=1e-9)
+
+
 def test_collinear_plane_points_get_their_length_as_extent():
     # a plane z = 0 whose points lie on one line along x (a scan line), below and above HULL_POINTS
     for n in (200, 5000):

@@ -52,15 +52,23 @@ def hull_polygon(local: np.ndarray, max_points: int = HULL_POINTS) -> np.ndarray
     exact hull (it lies inside it and touches it at the 8 extremes), at a fraction of the cost.
     """
     m = local.shape[1]
-    if m < 3:
-        return np.arange(m)
-    candidates = np.arange(m)
-    if m > max_points:
-        extremes = np.argmax(_DIRECTIONS @ local, axis=1)
-        sample = np.random.default_rng(m).integers(0, m, max_points)
-        candidates = np.concatenate([extremes, sample])  # Qhull merges repeated points
+    if m <= max_points:
+        return _hull(local)
+    candidates = _hull_candidates(np.argmax(_DIRECTIONS @ local, axis=1), m, max_points)
+    return candidates[_hull(local[:, candidates])]
+
+
+def _hull_candidates(extremes: np.ndarray, m: int, max_points: int) -> np.ndarray:
+    """The points of m that :func:`hull_polygon` takes the hull of: the ``extremes`` (8,) and its fixed sample."""
+    return np.concatenate([extremes, np.random.default_rng(m).integers(0, m, max_points)])  # Qhull merges repeats
+
+
+def _hull(local: np.ndarray) -> np.ndarray:
+    """The exact :func:`hull_polygon` of ``local`` (2, m)."""
+    if local.shape[1] < 3:
+        return np.arange(local.shape[1])
     try:
-        return candidates[ConvexHull(local[:, candidates].T).vertices]
+        return ConvexHull(local.T).vertices
     except (QhullError, ValueError):  # collinear: the two ends along the longer side
         axis = int(np.argmax(np.ptp(local, axis=1)))
         return np.array([int(np.argmin(local[axis])), int(np.argmax(local[axis]))])
@@ -70,20 +78,23 @@ def plane_outlines(points: np.ndarray, labels: np.ndarray, seg: Segmentation) ->
     """Outline of each plane of ``seg`` from its points: ``points`` (n, 3) meters with plane
     ``labels`` (n,). A plane without points gets its foot point from the origin as centroid
     and no corners."""
-    cols = np.ascontiguousarray(np.asarray(points, dtype=np.float64).T)
+    cols = np.ascontiguousarray(np.asarray(points, dtype=np.float64).T)  # (3, n): each plane's mean is then fast
     out = []
     for k, plane in enumerate(seg.planes):
-        members = np.compress(labels == k, cols, axis=1)
+        members = np.compress(labels == k, cols, axis=1)  # (3, m)
         rotation = plane_basis(plane.normal)
+        axes = rotation[:, :2]  # (3, 2): in-plane x, y
         if members.shape[1] == 0:
             out.append(PlaneOutline(-plane.offset * plane.normal, rotation, np.empty((0, 3)), 1.0))
             continue
         centroid = members.mean(axis=1)
-        members -= centroid[:, None]
-        local = rotation[:, :2].T @ members  # (2, m) in-plane coordinates
-        polygon = local[:, hull_polygon(local)]
+        if members.shape[1] > HULL_POINTS:  # in-plane coordinates of the hull's candidates only
+            extremes = np.argmax((_DIRECTIONS @ axes.T) @ members, axis=1)
+            members = members[:, _hull_candidates(extremes, members.shape[1], HULL_POINTS)]
+        local = axes.T @ (members - centroid[:, None])  # (2, c)
+        polygon = local[:, _hull(local)]
         extent = float(np.ptp(polygon, axis=1).max())
-        out.append(PlaneOutline(centroid, rotation, centroid + (rotation[:, :2] @ polygon).T, extent))
+        out.append(PlaneOutline(centroid, rotation, centroid + (axes @ polygon).T, extent))
     return tuple(out)
 
 
