@@ -18,7 +18,14 @@ import quality  # noqa: E402
 import plane_validation as pv  # noqa: E402
 from plane_validation.core import scenes  # noqa: E402
 from plane_validation.core.scoring import segmentation_quality  # noqa: E402
-from plane_validation.core.verdict import MAX_THICKNESS, plane_curvature, plane_thickness  # noqa: E402
+from plane_validation.core.verdict import (  # noqa: E402
+    MAX_FILL,
+    MAX_THICKNESS,
+    plane_curvature,
+    plane_fill,
+    plane_layering,
+    plane_thickness,
+)
 from plane_validation.formats.files import load_cloud  # noqa: E402
 
 DATA = quality.GT.parent
@@ -30,10 +37,13 @@ def row(name: str, kind: str, points: np.ndarray, result, truth: np.ndarray | No
     seg = result.segmentation
     thickness = plane_thickness(points, seg)
     curved = [plane_curvature(points, p.inliers) for p, t in zip(seg.planes, thickness) if t > MAX_THICKNESS]
+    fill = plane_fill(points, seg)
+    layering = plane_layering(points, seg)[fill >= MAX_FILL]
     f1 = f'{segmentation_quality(seg.labels, truth).f1:.3f}' if truth is not None else '—'
     x = result.indices
     return (f'| {name} | {kind} | {f1} | {1000 * result.tolerance:.3g} | {seg.n_planes} | {x.plane_silhouette:.2f} | '
             f'{x.gs_planes:.2f} | {max(thickness, default=0):.2f} | {max(curved, default=0):.2f} | '
+            f'{max(fill, default=0):.2f} | {max(layering, default=0):.2f} | '
             f'{result.seed_agreement:.2f} | '
             f'{"**reliable**" if result.reliable else "not reliable"} | {result.verdict} |')
 
@@ -47,8 +57,8 @@ def main() -> None:
 def table() -> None:
     """Print the calibration table."""
     print('| cloud | kind | F1 | t (mm) | planes | PS | GSplanes | max thickness | max curvature of a thick plane | '
-          'seed agreement | verdict | why |')
-    print('|---|---|--:|--:|--:|--:|--:|--:|--:|--:|---|---|')
+          'max fill | max layering of a filled plane | seed agreement | verdict | why |')
+    print('|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|---|---|')
     for c in quality.load_clouds():
         result = pv.tune_tolerance(c.points, seed=0, shape=c.shape, **quality._params(c))
         print(row(c.name, 'labelled', c.points, result, c.labels), flush=True)
@@ -60,11 +70,32 @@ def table() -> None:
             free[name] = load_cloud(DATA / name)[0]
     for name, points in free.items():
         print(row(name, 'plane-free', points, pv.tune_tolerance(points, seed=0), None), flush=True)
+    for name, (points, truth) in clutter().items():
+        print(row(name, 'clutter', points, pv.tune_tolerance(points, seed=0), truth), flush=True)
     for name in KINECT:
         if (DATA / f'{name}.pcd').exists():
             points, shape = load_cloud(DATA / f'{name}.pcd')
             print(row(name, 'Kinect, unlabelled', points, pv.tune_tolerance(points, seed=0, shape=shape), None),
                   flush=True)
+
+
+def clutter() -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """An outside probe's scenes (points, labels): one plane with clutter or outliers (labelled -1), and two
+    parallel sheets 5 cm apart, which a large t finds as one plane."""
+    rng = np.random.default_rng(1)
+    floor = np.column_stack([rng.uniform(-2, 2, (6000, 2)), rng.normal(0, 0.005, 6000)])
+    bush = rng.uniform([0, 0, 0.02], [1, 1, 1], (1500, 3))  # a 1 m bush of 1,500 points on a 4 m floor
+    out = {'floor with a bush': (np.vstack([floor, bush]) + [0, 0, -1.5], np.repeat([0, -1], [6000, 1500]))}
+    for share in (0.3, 0.5):
+        rng = np.random.default_rng(3)
+        m = int(3000 * share / (1 - share))
+        plane = np.column_stack([rng.uniform(-1, 1, (3000, 2)), rng.normal(0, 0.005, 3000)])
+        out[f'plane, {share:.0%} outliers'] = (np.vstack([plane, rng.uniform(-1, 1, (m, 3))]) + [3, -2, 5],
+                                              np.repeat([0, -1], [3000, m]))
+    rng = np.random.default_rng(3)
+    sheets = [np.column_stack([rng.uniform(-1, 1, (3000, 2)), z + rng.normal(0, 0.003, 3000)]) for z in (0.0, 0.05)]
+    out['two sheets 5 cm apart'] = (np.vstack(sheets) + [0, 0, 2], np.repeat([0, 1], 3000))
+    return out
 
 
 if __name__ == '__main__':

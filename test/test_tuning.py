@@ -325,6 +325,37 @@ def test_a_narrow_noisy_strip_is_a_plane_and_a_curved_slab_is_not():
         assert ('slab' in verdict) != flat and ('curved slab' in verdict) != flat, verdict
 
 
+def test_two_surfaces_found_as_one_or_a_chunk_of_clutter_are_not_reliable_planes():
+    # the outside probe's cases: two sheets 4 cm apart found as one plane; a floor with clutter found as a slab
+    from plane_validation.core.ransac import Plane, Segmentation
+    from plane_validation.core.verdict import MAX_FILL, MAX_LAYERING, plane_fill, plane_layering
+    rng = np.random.default_rng(0)
+
+    def judged(pts, labels, planes, t):
+        seg = Segmentation(labels=labels, reason='', tolerance=t, n_valid=len(pts), planes=tuple(
+            Plane(normal=np.asarray(n, float), offset=d, inliers=np.flatnonzero(labels == j), rms=0.0)
+            for j, (n, d) in enumerate(planes)))
+        return plane_fill(pts, seg), plane_layering(pts, seg), judge(pts, seg, pv.validity_indices(pts, labels, seed=0))
+
+    sheets = np.column_stack([rng.uniform(-1, 1, (4000, 2)), np.repeat([0.0, 0.04], 2000) + rng.normal(0, 0.002, 4000)])
+    fill, layering, (reliable, verdict) = judged(sheets, np.zeros(4000, np.int32), [((0, 0, 1), -0.02)], 0.03)
+    assert layering[0] > 0.98 and not reliable and 'two parallel layers' in verdict, verdict
+    fill, layering, (reliable, verdict) = judged(sheets, np.repeat([0, 1], 2000).astype(np.int32),
+                                                 [((0, 0, 1), 0.0), ((0, 0, 1), -0.04)], 0.01)
+    assert fill.max() < MAX_FILL and layering.max() < 0.7 and reliable, verdict  # the two planes they are
+    uniform = np.column_stack([rng.uniform(-1, 1, (4000, 2)), rng.uniform(-0.01, 0.01, 4000)])  # the paper's noise
+    fill, layering, (reliable, verdict) = judged(uniform, np.zeros(4000, np.int32), [((0, 0, 1), 0.0)], 0.01)
+    assert fill[0] > 0.55 and 0.7 < layering[0] < MAX_LAYERING and reliable, verdict  # it fills t; one layer
+    floor = np.column_stack([rng.uniform(-2, 2, (6000, 2)), rng.normal(0, 0.005, 6000)])
+    chunk = rng.uniform([0.0, 0.0, 0.3], [0.3, 0.3, 0.5], (1000, 3))  # clutter, cut by a plane z = 0.4, t = 0.1
+    labels = np.repeat([0, 1], [6000, 1000]).astype(np.int32)
+    fill, _, (reliable, verdict) = judged(np.vstack([floor, chunk]), labels, [((0, 0, 1), 0.0), ((0, 0, 1), -0.4)],
+                                          0.1)
+    assert fill[0] < 0.1 and fill[1] > MAX_FILL and not reliable and 'is a slab' in verdict, verdict
+    fill, _, (reliable, verdict) = judged(floor, np.zeros(6000, np.int32), [((0, 0, 1), 0.0)], 0.1)
+    assert reliable, verdict  # the floor alone
+
+
 def test_dunn_and_db_of_the_chosen_planes_are_exact_on_small_clouds_and_sampled_on_large_ones():
     small = scenes.boxes(5000, noise=0.005, outlier_fraction=0.0, seed=1).points
     large = scenes.boxes(60000, noise=0.005, outlier_fraction=0.0, seed=1).points
