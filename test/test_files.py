@@ -492,6 +492,28 @@ def test_a_text_table_may_start_with_a_row_of_column_names(tmp_path):
             load_points(tmp_path / name)
 
 
+def test_a_header_row_says_which_columns_are_x_y_z(tmp_path):
+    """An outside probe: the header was skipped but the first three columns read as x, y, z, so
+    ``intensity,x,y,z`` gave (intensity, x, y) and ``z,y,x`` swapped x and z, silently."""
+    xyz = np.array([[1.0, 2, 3], [4, 5, 6], [7, 8, 9]])
+    cases = (('ixyz.csv', 'intensity,x,y,z', [3, 0, 1, 2]), ('zyx.csv', 'z,y,x', [2, 1, 0]),
+             ('quoted.csv', '"Y","X","Z"', [1, 0, 2]), ('cloudcompare.txt', '//Z Y X R', [2, 1, 0, 3]),
+             ('units.csv', 'i,z [m],y [m],x (m)', [3, 2, 1, 0]))
+    for name, header, order in cases:
+        table = np.column_stack([xyz, np.full(3, 7.0)])[:, order]
+        sep = ',' if name.endswith('.csv') else ' '
+        (tmp_path / name).write_text(header + '\n' + '\n'.join(sep.join(f'{v:g}' for v in row) for row in table))
+        np.testing.assert_array_equal(load_points(tmp_path / name), xyz, err_msg=name)
+    for name, text, why in (('noz.csv', 'intensity,x,y\n1,2,3\n', 'name each of x, y and z once, got the columns '
+                                                                     'intensity, x, y'),
+                            ('twice.csv', 'x,y,z,x\n1,2,3,4\n', 'name each of x, y and z once'),
+                            ('wide.csv', 'intensity,x,y,z\n1,2,3\n', 'header row names 4 columns, the rows have 3')):
+        (tmp_path / name).write_text(text)
+        with pytest.raises(ValueError, match=why) as info:
+            load_points(tmp_path / name)
+        assert str(tmp_path / name) in str(info.value)
+
+
 def test_a_folder_of_storage_files_without_metadata_names_them(tmp_path):
     bag = save_points(tmp_path / 'one.mcap', POINTS)
     folder = tmp_path / 'folder'

@@ -12,6 +12,7 @@ Bags (``BAG[:TOPIC[:INDEX]]``): see :mod:`plane_validation.bagcloud`.
 from __future__ import annotations
 
 import os
+import re
 import tempfile
 import warnings
 from collections.abc import Iterator
@@ -40,8 +41,9 @@ def load_points(source: str | Path) -> np.ndarray:
     """(N, 3) float64 x, y, z of a point file or of one cloud in a bag.
 
     source: a .pcd, .ply, .npy or whitespace/comma separated text file (.xyz .txt .csv: the
-    first three columns), or ``BAG[:TOPIC[:INDEX]]`` with BAG a rosbag2 directory, .mcap, .db3
-    or ROS 1 .bag (see :func:`plane_validation.formats.bags.parse_bag_source`).
+    columns a first row of column names calls x, y, z, else the first three), or ``BAG[:TOPIC[:INDEX]]``
+    with BAG a rosbag2 directory, .mcap, .db3 or ROS 1 .bag
+    (see :func:`plane_validation.formats.bags.parse_bag_source`).
     Raises ValueError naming the problem.
     """
     from .bags import parse_bag_source, read_bag_points
@@ -287,9 +289,9 @@ def _loadtxt(source, delimiter: str | None = None, skiprows: int = 0) -> np.ndar
         return np.loadtxt(source, delimiter=delimiter, ndmin=2, skiprows=skiprows, encoding='utf-8-sig')
 
 
-def _header_rows(path: Path, delimiter: str | None) -> int:
-    """1 when the first line is a row of column names (``x,y,z,intensity_8bit``, CloudCompare's
-    ``//X,Y,Z``: every field holds a letter and is no number), else 0 (``1,2,3`` in an .xyz is data)."""
+def _column_names(path: Path, delimiter: str | None) -> list[str] | None:
+    """The first line's fields when it is a row of column names (``x,y,z,intensity_8bit``, CloudCompare's
+    ``//X,Y,Z``: every field holds a letter and is no number), else None (``1,2,3`` in an .xyz is data)."""
     with open(path, 'rb') as f:
         first = f.readline(4096).decode('utf-8-sig', errors='replace').strip()
     fields = [t.strip() for t in first.split(delimiter)] if first else []
@@ -300,16 +302,37 @@ def _header_rows(path: Path, delimiter: str | None) -> int:
         except ValueError:
             return any(c.isalpha() for c in text)
         return False
-    return int(bool(fields) and all(name(t) for t in fields))
+    return fields if fields and all(name(t) for t in fields) else None
+
+
+def _xyz_positions(path: Path, names: list[str]) -> list[int]:
+    """The columns of x, y and z in a header row ``names``: case-insensitive, quoted or not, the first with
+    CloudCompare's ``//`` prefix, a unit after the name allowed (``x [m]``, ``x (m)``); ValueError otherwise."""
+    plain = [re.sub(r'\s*[\[(][^\])]*[\])]$', '', n.strip('"\'').strip()).lower() for n in names]
+    plain[0] = plain[0].removeprefix('//').strip()
+    for axis in 'xyz':
+        if plain.count(axis) != 1:
+            raise ValueError(f'{path}: the header row must name each of x, y and z once, got the columns '
+                             f'{", ".join(names)}')
+    return [plain.index(axis) for axis in 'xyz']
 
 
 def _read_text(path: Path) -> np.ndarray:
+    """x, y, z of a text table: the columns a header row names so, else the first three."""
     delimiter = ',' if path.suffix.lower() == '.csv' else None
+    names = _column_names(path, delimiter)
+    columns = None if names is None else _xyz_positions(path, names)
     try:
-        table = _loadtxt(path, delimiter, _header_rows(path, delimiter))
+        table = _loadtxt(path, delimiter, int(names is not None))
     except Exception as exc:  # ValueError on non-numbers, UnicodeDecodeError on binary bytes
         raise ValueError(f'{path}: not a table of numbers ({_first_line(exc)})') from exc
-    return np.empty((0, 3)) if table.size == 0 else _xyz_columns(path, table)
+    if table.size == 0:
+        return np.empty((0, 3))
+    if columns is not None:
+        if table.shape[1] != len(names):
+            raise ValueError(f'{path}: the header row names {len(names)} columns, the rows have {table.shape[1]}')
+        table = table[:, columns]
+    return _xyz_columns(path, table)
 
 
 def _read_ply(path: Path) -> np.ndarray:
