@@ -160,6 +160,23 @@ def test_wrong_shape_or_dtype_raises(points):
         pv.detect_planes(points, 0.01)
 
 
+def test_fit_plane_fits_n_by_3_points_and_refuses_others():
+    """An outside probe: a (3, N) array gave an N-vector "normal" (through an N x N matrix), (N, 4) a 4-vector,
+    2 points an arbitrary plane, a NaN row numpy's LinAlgError and 1-D input an AxisError."""
+    rng = np.random.default_rng(0)
+    points = np.column_stack([rng.uniform(0, 1, (50, 2)), np.full(50, 2.0)])  # the plane z = 2
+    normal, offset = pv.fit_plane(points)
+    np.testing.assert_allclose(abs(normal @ [0, 0, 1]), 1.0)
+    np.testing.assert_allclose(offset * np.sign(normal[2]), -2.0)
+    for bad, why in [(points.T, r'shape \(N, 3\), got \(3, 50\)'), (np.column_stack([points, points[:, :1]]), 'shape'),
+                     (points[:, 2], 'shape'), (points[:2], 'at least 3 points, got 2'),
+                     (np.vstack([points, [np.nan] * 3]), '1 of 51 rows hold NaN or inf'),
+                     (np.vstack([points, [np.inf, 0, 0]]), 'finite'), (points[:, [0, 0, 2]], 'collinear'),
+                     (np.ones((5, 3)), 'identical')]:
+        with pytest.raises(ValueError, match=why):
+            pv.fit_plane(bad)
+
+
 @pytest.mark.parametrize('kwargs, name', [({'tolerance': 0}, 'tolerance'), ({'tolerance': np.nan}, 'tolerance'),
                                           ({'tolerance': True}, 'tolerance'),
                                           ({'tolerance': np.array(True)}, 'tolerance'),

@@ -254,8 +254,20 @@ def resolve_min_inliers(min_inliers: int | float, n_valid: int) -> int:
 
 
 def fit_plane(points: np.ndarray) -> tuple[np.ndarray, float]:
-    """Least-squares plane through (n, 3) points (PCA): returns (unit normal (3,), offset)."""
-    return _fit_columns(np.array(points, dtype=np.float64).T)  # a copy: _fit_columns centres it
+    """Least-squares plane through (N, 3) points, meters (PCA): returns (unit normal (3,), offset), the plane
+    normal . p + offset = 0. ValueError unless N >= 3 rows, all finite, that span a plane (not all on a line)."""
+    pts = as_points(points)
+    bad = len(pts) - int(np.count_nonzero(finite_rows(pts)))
+    if bad:
+        raise ValueError(f'points must be finite: {bad} of {len(pts)} rows hold NaN or inf (leave them out first)')
+    if len(pts) < 3:
+        raise ValueError(f'a plane needs at least 3 points, got {len(pts)}')
+    check_magnitude(pts)
+    cols = np.array(pts.T)  # a copy: _fit_columns centres it
+    why = _degeneracy(cols)
+    if why is not None:
+        raise ValueError(f'no plane fits these points: {why}')
+    return _fit_columns(cols)
 
 
 def _fit_columns(cols: np.ndarray) -> tuple[np.ndarray, float]:
