@@ -176,6 +176,22 @@ def test_sweep_table_csv_plot_and_json(corner_npy, tmp_path, capsys):
     assert [row['gs_planes'] for row in doc['sweep']] == pytest.approx(list(result.scores('gs_planes')), rel=1e-9)
 
 
+def test_a_figure_takes_the_format_of_its_extension(corner_npy, tmp_path, capsys):
+    """An outside probe: sweep --plot s.pdf and planes --plot p.ply wrote PNG bytes under any name, while
+    detect --png x.ply failed only after the detection, with matplotlib's message not naming the file."""
+    for argv, name, magic in ((['sweep', str(corner_npy), '--tolerances', '0.01:0.04:3'], 'sweep.pdf', b'%PDF'),
+                              (['planes', str(corner_npy), '--tolerance', '0.02'], 'planes.svg', b'<?xml'),
+                              (['detect', str(corner_npy), '--tolerance', '0.02'], 'cloud.pdf', b'%PDF')):
+        option = '--png' if argv[0] == 'detect' else '--plot'
+        assert main([*argv, option, str(tmp_path / name)]) == 0
+        assert (tmp_path / name).read_bytes().startswith(magic), name
+        # refused before the cloud is read: the missing cloud is not what is reported
+        assert main([argv[0], str(tmp_path / 'missing.npy'), option, str(tmp_path / 'figure.ply')]) == 2
+        err = capsys.readouterr().err
+        assert f"error: {tmp_path / 'figure.ply'}: cannot write a figure as '.ply' (use " in err and '.pdf' in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['cloud.pdf', 'planes.svg', 'sweep.pdf']
+
+
 def test_planes_command(corner_npy, tmp_path, capsys):
     png = tmp_path / 'planes.png'
     assert main(['planes', str(corner_npy), '--tolerance', '0.02', '--max-planes', '5', '--plot', str(png)]) == 0

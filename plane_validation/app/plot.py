@@ -1,4 +1,5 @@
-"""PNG pictures (matplotlib, headless Agg backend): segmented clouds, and index curves vs t and vs k."""
+"""Pictures (matplotlib, headless Agg backend): segmented clouds, and index curves vs t and vs k; PNG, or the
+format of the file's extension (:func:`figure_format`)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,10 +8,48 @@ import numpy as np
 
 from ..formats.files import atomic_output
 
+#: Formats matplotlib lists but does not write by itself: pgf is LaTeX code that needs a TeX installation.
+NOT_WRITTEN = frozenset({'pgf'})
+
+
+def figure_format(path: str | Path) -> str:
+    """The format a figure is written in at ``path``: its extension's (PNG without one); ValueError naming the
+    file unless matplotlib writes that format. Checked before the work, as :func:`.files.check_output` is."""
+    from matplotlib.figure import Figure
+
+    path = Path(path)
+    formats = sorted(set(Figure().canvas.get_supported_filetypes()) - NOT_WRITTEN)
+    suffix = path.suffix.lower().lstrip('.') or 'png'
+    if suffix not in formats:
+        raise ValueError(f'{path}: cannot write a figure as {path.suffix!r} (use '
+                         f'{", ".join("." + f for f in formats)})')
+    return suffix
+
+
+def _save_figure(fig, path: Path, *, palette: bool = False) -> Path:
+    """Save ``fig`` at ``path`` in its :func:`figure_format`, complete or not at all; ``palette``: a PNG
+    with 256 colours (line plots look the same at a third of the bytes)."""
+    import io
+
+    from PIL import Image
+
+    fmt = figure_format(path)
+    with atomic_output(path) as tmp:
+        if palette and fmt == 'png':
+            buffer = io.BytesIO()
+            fig.savefig(buffer, format='png')
+            buffer.seek(0)
+            with Image.open(buffer) as image:
+                image.convert('RGB').quantize(colors=256).save(tmp, format='PNG', optimize=True)
+        else:
+            fig.savefig(tmp, format=fmt)
+    return path
+
 
 def plot_planes(points: np.ndarray, labels: np.ndarray, path: str | Path, *, title: str = '',
                 max_points: int = 20000, seed: int = 0) -> Path:
-    """3-D scatter of (n, 3) points coloured by plane label (grey = unassigned), saved to ``path``."""
+    """3-D scatter of (n, 3) points coloured by plane label (grey = unassigned), saved to ``path`` (its
+    :func:`figure_format`)."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -32,10 +71,10 @@ def plot_planes(points: np.ndarray, labels: np.ndarray, path: str | Path, *, tit
     ax.set_zlabel('z [m]')
     ax.set_title(f'{title}\n{n_planes} planes (grey: unassigned)')
     fig.tight_layout()
-    with atomic_output(path) as tmp:
-        fig.savefig(tmp, format=path.suffix.lstrip('.').lower() or 'png')
-    plt.close(fig)
-    return path
+    try:
+        return _save_figure(fig, path)
+    finally:
+        plt.close(fig)
 
 
 def plot_cloud_message(msg, path: str | Path, *, title: str = '') -> Path:
@@ -70,20 +109,6 @@ def _figure(rows: int, cols: int, size: tuple[float, float]):
     return fig, fig.subplots(rows, cols, squeeze=False)
 
 
-def _save_png(fig, path: Path) -> Path:
-    """Save ``fig`` as a 256-colour palette PNG: line plots look the same at a third of the bytes."""
-    import io
-
-    from PIL import Image
-
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format='png')
-    buffer.seek(0)
-    with Image.open(buffer) as image, atomic_output(path) as tmp:
-        image.convert('RGB').quantize(colors=256).save(tmp, format='PNG', optimize=True)
-    return path
-
-
 def _finite(values) -> np.ndarray:
     """Floats with inf replaced by NaN (matplotlib leaves a gap)."""
     arr = np.asarray(values, dtype=float)
@@ -109,7 +134,7 @@ def _is_geometric(t: np.ndarray) -> bool:
 
 def plot_sweep(result, path: str | Path, *, title: str = '', unit: str = 'm',
                true_planes: int | None = None) -> Path:
-    """The paper's Fig. 1/3/4/5/7 (indices vs t) and Fig. 6/8 (planes vs t) as one PNG.
+    """The paper's Fig. 1/3/4/5/7 (indices vs t) and Fig. 6/8 (planes vs t) as one figure (:func:`figure_format`).
 
     result: a :class:`~plane_validation.tuning.TuningResult`; four panels over the candidate
     tolerances t (in ``unit``): silhouette indices, Dunn, Davies-Bouldin, number of planes; the
@@ -161,7 +186,7 @@ def plot_sweep(result, path: str | Path, *, title: str = '', unit: str = 'm',
     verdict = 'reliable' if result.reliable else 'NOT reliable'
     fig.suptitle(f'{title + ": " if title else ""}validity indices vs tolerance; chosen t = {chosen:.3g} {unit}, '
                  f'{result.segmentation.n_planes} planes, {verdict}', fontsize=11)
-    return _save_png(fig, path)
+    return _save_figure(fig, path, palette=True)
 
 
 def plot_plane_count(result, path: str | Path, *, title: str = '', true_planes: int | None = None) -> Path:
@@ -214,4 +239,4 @@ def plot_plane_count(result, path: str | Path, *, title: str = '', true_planes: 
     ax_other.legend(handles[0] + twin[0], handles[1] + twin[1], fontsize=7.5, loc='best')
     fig.suptitle(f'{title + ": " if title else ""}indices vs number of planes at t = '
                  f'{result.segmentation.tolerance:.3g}; selected k = {result.n_planes}', fontsize=11)
-    return _save_png(fig, path)
+    return _save_figure(fig, path, palette=True)

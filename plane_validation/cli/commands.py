@@ -103,14 +103,24 @@ def _cloud_path(cloud: str) -> Path:
     return Path(cloud) if bag is None else bag.path
 
 
+#: Output options that write a figure, in the format of the file's extension (app.plot.figure_format).
+FIGURE_OPTIONS = ('png', 'plot')
+#: Their help: what the formats are.
+FIGURE_HELP = 'the format follows the extension: .png (also without one), .pdf, .svg, .jpg, ...'
+
+
 def _check_outputs(args: argparse.Namespace, *names: str) -> None:
     """Before the work, not after: the output options ``names`` that were given name a writable
-    place, neither the input cloud nor each other (``--out`` also a point-file type)."""
+    place, neither the input cloud nor each other (``--out`` also a point-file type, a figure option
+    a figure format)."""
     given = [(name, getattr(args, name)) for name in names if getattr(args, name, None) is not None]
     for i, (name, path) in enumerate(given):
         if not str(path).strip():
             raise ValueError(f'--{name} needs a file name, got an empty one')
         (check_output if name == 'out' else check_writable)(path, inputs=(_cloud_path(args.cloud),))
+        if name in FIGURE_OPTIONS:
+            from ..app.plot import figure_format
+            figure_format(path)
         for other, other_path in given[:i]:
             if Path(path).resolve() == Path(other_path).resolve():
                 raise ValueError(f'{path}: given to both --{other} and --{name}; choose two names')
@@ -596,7 +606,7 @@ def build_parser() -> argparse.ArgumentParser:
                         'else on stdout')
     detect.add_argument('--out', metavar='FILE', help='write the labelled cloud: .ply (plane_id), .pcd (label), '
                         '.npy (4th column), .xyz/.txt/.csv; -1 = unassigned')
-    detect.add_argument('--png', metavar='PNG', help='write a 3-D picture of the planes')
+    detect.add_argument('--png', metavar='PNG', help=f'write a 3-D picture of the planes ({FIGURE_HELP})')
     detect.set_defaults(func=cmd_detect)
 
     sweep = sub.add_parser('sweep', aliases=['tune'], help='the paper\'s experiment: every index and the number of '
@@ -613,7 +623,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f'index that chooses t (default {PARAMETERS["criterion"].default})')
     _add_detection_options(sweep)
     _add_search_options(sweep)
-    sweep.add_argument('--plot', metavar='PNG', help='write indices and planes vs t, chosen t marked')
+    sweep.add_argument('--plot', metavar='PNG', help=f'write indices and planes vs t, chosen t marked ({FIGURE_HELP})')
     sweep.add_argument('--csv', metavar='CSV', help='write one row per t: planes and every index')
     sweep.add_argument('--json', action='store_true', help='print one JSON document and nothing else on stdout')
     sweep.set_defaults(func=cmd_sweep)
@@ -627,7 +637,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help='RANSAC tolerance t in meters (default: auto-tuned)')
     _add_detection_options(planes)
     _add_table_options(planes, (('organize_rings', ''),))
-    planes.add_argument('--plot', metavar='PNG', help='write indices vs k, selected k marked')
+    planes.add_argument('--plot', metavar='PNG', help=f'write indices vs k, selected k marked ({FIGURE_HELP})')
     planes.add_argument('--json', action='store_true', help='print one JSON document and nothing else on stdout')
     planes.set_defaults(func=cmd_planes)
 
