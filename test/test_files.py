@@ -111,6 +111,30 @@ def test_a_binary_compressed_pcd_whose_points_do_not_match_its_data_is_an_error(
 
 
 
+def test_a_binary_compressed_pcd_whose_data_does_not_decompress_to_its_fields_is_an_error(tmp_path):
+    """An outside probe: a header with 3 float fields over a compressed block of 4 gave pypcd4's "object of type
+    'NoneType' has no len()"."""
+    import struct
+
+    import lzf
+    n = len(POINTS)
+    header = (f'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\nPOINTS {n}\n'
+              'DATA binary_compressed\n').encode()
+    for columns, why in ((np.column_stack([POINTS, POINTS[:, :1]]), f'decompresses to more than the {12 * n} bytes '
+                          "the header's fields need: corrupt, or FIELDS/SIZE/COUNT leave a field out"),
+                         (POINTS[:, :2], f"decompresses to {8 * n} bytes, the header's fields need {12 * n}: cut short "
+                          'or corrupt')):
+        raw = np.ascontiguousarray(columns.T, dtype='<f4').tobytes()
+        block = lzf.compress(raw, 2 * len(raw))
+        path = tmp_path / 'bad.pcd'
+        path.write_bytes(header + struct.pack('<II', len(block), 12 * n) + block)
+        with pytest.raises(ValueError, match=f'^{path}: cannot read binary_compressed PCD: the compressed data {why}$'):
+            load_points(path)
+    path.write_bytes(header + struct.pack('<II', 8, 12 * n) + b'\xff' * 8)
+    with pytest.raises(ValueError, match='the compressed data is corrupt'):
+        load_points(path)
+
+
 def test_an_empty_binary_compressed_pcd_is_an_empty_cloud(tmp_path):
     from pypcd4 import Encoding, PointCloud
     path = tmp_path / 'empty.pcd'

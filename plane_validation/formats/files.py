@@ -474,7 +474,27 @@ def _read_pcd_compressed(path: Path, data: bytes, n: int, point_bytes: int, has_
         xyz = cloud.numpy(('x', 'y', 'z')).astype(np.float64)
         return xyz, beam_numbers(cloud.numpy(('ring',))[:, 0]) if has_ring else None
     except Exception as exc:  # pypcd4 reports problems with many exception types
-        raise ValueError(f'{path}: cannot read binary_compressed PCD: {_first_line(exc)}') from exc
+        why = _lzf_problem(data, unpacked) or _first_line(exc)
+        raise ValueError(f'{path}: cannot read binary_compressed PCD: {why}') from exc
+
+
+def _lzf_problem(data: bytes, unpacked: int) -> str | None:
+    """Why the LZF block of a binary_compressed PCD's ``data`` (compressed and uncompressed size, then the block)
+    does not decompress to the ``unpacked`` bytes its header needs; None when it does."""
+    import lzf  # pypcd4's LZF module
+
+    size = int(np.frombuffer(data, '<u4', 1)[0])
+    try:
+        got = lzf.decompress(data[8:8 + size], unpacked)
+    except ValueError as exc:  # "error in compressed data"
+        return f'the compressed data is corrupt (LZF: {exc})'
+    if got is None:  # more bytes than that
+        return (f'the compressed data decompresses to more than the {unpacked} bytes the header\'s fields need: '
+                'corrupt, or FIELDS/SIZE/COUNT leave a field out')
+    if len(got) != unpacked:
+        return (f'the compressed data decompresses to {len(got)} bytes, the header\'s fields need {unpacked}: '
+                'cut short or corrupt')
+    return None
 
 
 # -- writers -------------------------------------------------------------------------------------
