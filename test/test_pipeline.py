@@ -35,6 +35,22 @@ def test_bad_frames_give_a_result_not_an_exception(points, level, words, auto):
     assert words in result.message
 
 
+def test_a_bad_stamp_or_shape_is_bad_input_and_a_whole_float_stamp_is_a_stamp():
+    """An outside probe: stamp_ns=1.5e9 raised TypeError, and shape=(-50, -60) (whose product is N) was reported as
+    a numerical failure."""
+    pts = corner()  # 3000 points
+    floated = FramePipeline(FIXED).process(pts, 1.5e9)
+    assert floated.level == OK, floated.message
+    np.testing.assert_array_equal(floated.labels, FramePipeline(FIXED).process(pts, 1_500_000_000).labels)  # its seed
+    assert FramePipeline(FIXED).process(pts, 2**70).level == OK  # beyond int64 too (np.isfinite refuses such ints)
+    for stamp in (1.5, np.nan, '1', None, True):
+        result = FramePipeline(FIXED).process(pts, stamp)
+        assert result.level == ERROR and result.message == f'bad input: stamp_ns must be an integer, got {stamp!r}'
+    for shape in ((-50, -60), (50.5, 60), (1, 2, 3), 'ab'):
+        result = FramePipeline(FIXED).process(pts, 0, shape=shape)
+        assert result.level == ERROR and result.message.startswith('bad input: shape must be (H, W), two integers')
+
+
 @pytest.mark.parametrize('auto, inline', [(False, True), (True, True), (True, False)])
 def test_huge_coordinates_are_an_error_not_an_exception(auto, inline):
     pipe = FramePipeline(PipelineConfig(auto_tune=auto, tolerance=0.01))

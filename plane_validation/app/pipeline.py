@@ -21,6 +21,8 @@ from ..core.noise import noise_coefficient
 from ..core.ransac import (
     Segmentation,
     as_points,
+    check_integer,
+    check_shape,
     detect_planes,
     finite_rows,
     no_returns_as_nan,
@@ -308,12 +310,12 @@ class FramePipeline:
 
     def process(self, points: np.ndarray, stamp_ns: int = 0, *, tune_inline: bool = True,
                 shape: tuple[int, int] | None = None, ring: np.ndarray | None = None) -> FrameResult:
-        """Run one frame. points: (N, 3) meters, NaN rows allowed; stamp_ns: header stamp;
-        shape: (H, W) when the rows are an organized image (a depth camera's cloud); ring: (N,) each
-        point's beam when the rows are an unorganized spinning-lidar scan (searched on its ring image
-        with ``organize_rings``).
+        """Run one frame. points: (N, 3) meters, NaN rows allowed; stamp_ns: header stamp, a whole number of
+        nanoseconds (also as a float); shape: (H, W) when the rows are an organized image (a depth camera's
+        cloud; ignored unless H * W = N); ring: (N,) each point's beam when the rows are an unorganized
+        spinning-lidar scan (searched on its ring image with ``organize_rings``).
 
-        Bad input never raises: it gives an ERROR (malformed array) or WARN (too few points,
+        Bad input never raises: it gives an ERROR (malformed array, stamp or shape) or WARN (too few points,
         degenerate geometry) result. With ``tune_inline`` a due retune runs before detection;
         the node passes False and runs :meth:`retune` in a background thread instead. When the
         sweep fails (e.g. a tuning range the cloud cannot honour), the frame is still detected
@@ -321,12 +323,14 @@ class FramePipeline:
         and reported as WARN.
         """
         start = time.perf_counter()
-        stamp, repeated = self._clock(int(stamp_ns))
-        cfg = self.config
         try:
+            stamp_ns = check_integer('stamp_ns', stamp_ns, None)
+            stamp, repeated = self._clock(stamp_ns)
             given = as_points(points)
+            shape = None if shape is None else check_shape(shape, None)
         except ValueError as exc:
             return _failed(ERROR, f'bad input: {exc}', start, self.current_tolerance())
+        cfg = self.config
         pts, no_returns = no_returns_as_nan(given, cfg.viewpoint) if cfg.zero_is_no_return else (given, 0)
         finite = finite_rows(pts)
         valid = np.compress(finite, pts, axis=0)  # much faster than a boolean index

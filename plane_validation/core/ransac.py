@@ -157,11 +157,12 @@ def generator(seed: int | np.random.Generator | None) -> np.random.Generator:
         raise ValueError(why) from None
 
 
-def check_integer(name: str, value, low: int) -> int:
-    """``value`` as an int, or ValueError unless it is a whole number >= ``low`` (not a bool)."""
+def check_integer(name: str, value, low: int | None) -> int:
+    """``value`` as an int, or ValueError unless it is a whole number (not a bool), >= ``low`` unless that is None."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer, float, np.floating)) \
-            or not np.isfinite(value) or int(value) != value or value < low:
-        raise ValueError(f'{name} must be an integer >= {low}, got {value!r}')
+            or (isinstance(value, (float, np.floating)) and not np.isfinite(value)) or int(value) != value \
+            or (low is not None and value < low):
+        raise ValueError(f'{name} must be an integer{"" if low is None else f" >= {low}"}, got {value!r}')
     return int(value)
 
 
@@ -889,13 +890,13 @@ def grid_image(points: np.ndarray, finite: np.ndarray, shape: tuple[int, int], s
     return image, pixels
 
 
-def check_shape(shape, n: int) -> tuple[int, int]:
-    """``shape`` as (H, W) ints with H * W == n, or ValueError."""
+def check_shape(shape, n: int | None) -> tuple[int, int]:
+    """``shape`` as (H, W) ints with H * W == n (any n when None), or ValueError."""
     try:
         h, w = (check_integer('shape', v, 1) for v in shape)
     except (TypeError, ValueError):
         raise ValueError(f'shape must be (H, W), two integers >= 1, got {shape!r}') from None
-    if h < 1 or w < 1 or h * w != n:
+    if n is not None and h * w != n:
         raise ValueError(f'shape {shape!r} does not match {n} points (H * W must equal the number of rows)')
     return h, w
 
