@@ -234,6 +234,19 @@ def test_data_longer_than_needed_is_fine(family):
     np.testing.assert_array_equal(xyz_array(msg), expected_xyz(layout))
 
 
+@pytest.mark.parametrize('height', [1, 3])
+def test_a_strided_data_array_is_copied(height):
+    """An outside probe: a non-contiguous uint8 array as data was refused as malformed, with numpy's "the last axis
+    must be contiguous"."""
+    layout = packed_layout(XYZ32, 24, height=height)
+    msg = make_msg('rosbags', layout)
+    every_other = np.zeros(2 * len(msg.data), np.uint8)
+    every_other[::2] = msg.data
+    msg.data = every_other[::2]  # the same bytes, 2 apart
+    np.testing.assert_array_equal(xyz_array(msg), expected_xyz(layout))
+    assert structured_array(msg).shape == (24,)
+
+
 @pytest.mark.parametrize('family', FAMILIES)
 @pytest.mark.parametrize('height, width', [(0, 0), (1, 0), (0, 7), (3, 0)])
 def test_empty_clouds(family, height, width):

@@ -12,7 +12,8 @@ What is copied:
   width * point_step`` or ``height == 1`` or ``width == 1``. The view is writable iff
   ``msg.data`` is (an rclpy ``array.array`` is; while the view lives that ``array.array``
   cannot be resized). With row padding between multi-point rows the (height*width,) result
-  is a compact copy of the points (all fields).
+  is a compact copy of the points (all fields). A numpy ``msg.data`` whose bytes are not contiguous
+  (a strided slice) is copied first.
 * :func:`xyz_array` always returns a new C-contiguous (N, 3) array (one strided pass per call).
 * :func:`create_cloud` writes the columns once into a fresh buffer; an rclpy message's ``data``
   setter then copies that ``array.array`` once more unless ``ROS_PYTHON_CHECK_FIELDS=1``.
@@ -90,7 +91,7 @@ def _data_bytes(data: Any) -> np.ndarray:
     if isinstance(data, np.ndarray):
         if data.dtype != np.uint8:
             raise ValueError(f'PointCloud2.data must hold uint8, got an array of {data.dtype}')
-        return data.reshape(-1)  # view when contiguous (the normal case), copy otherwise
+        return np.ascontiguousarray(data).reshape(-1)  # view when contiguous (the normal case), copy otherwise
     try:
         return np.frombuffer(data, dtype=np.uint8)  # array.array, bytes, bytearray, memoryview
     except (TypeError, ValueError, BufferError):
