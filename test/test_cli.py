@@ -548,6 +548,9 @@ def test_a_cloud_without_three_valid_points_is_an_error_with_or_without_a_tolera
     (['sweep', 'x.npy', '--tolerances', '1e-9:0.01:5'], 'tolerance must be in'),
     (['scene', 'cube', '--outliers', '2'], 'argument --outliers: must be in [0, 1)'),
     (['detect', 'x.npy', '--seed', '1e3'], "expected an integer, got '1e3'"),
+    # an outside probe: scene and paper took any negative seed as a fresh one
+    (['scene', 'cube', '--seed', '-5'], 'seed must be in [-1, 2147483647], got -5'),
+    (['paper', '--seed', '-5'], 'seed must be in [-1, 2147483647], got -5'),
     (['detect', 'x.npy', '--max-planes', 'many'], "expected an integer, got 'many'"),
 ])
 def test_file_commands_take_the_node_parameter_ranges(argv, why, capsys):

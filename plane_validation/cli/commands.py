@@ -652,7 +652,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help='fraction of uniform outliers')
     scene.add_argument('--scale', type=_positive_float, metavar='S',
                        help='multiply all coordinates (0.01: paper units -> m)')
-    scene.add_argument('--seed', type=int, default=0, metavar='S', help='random seed (default 0)')
+    _add_table_options(scene, (('seed', 'S'),))
     scene.add_argument('--out', metavar='FILE', help='.ply, .pcd, .npy, .xyz/.txt/.csv (with the true plane of each '
                        'point), or a bag: a new directory, .mcap or .db3 (one PointCloud2 on /points); '
                        'default NAME.ply')
@@ -662,7 +662,7 @@ def build_parser() -> argparse.ArgumentParser:
                            description='Corner at e = 0, 2.5, 7.5, cube at e = 0, 1, 2.5, 7.5 and a plane-free '
                            'sphere: indices vs t, planes vs t, indices vs k, and a Markdown summary table.')
     paper.add_argument('--out', default=PAPER_OUT, metavar='DIR', help=f'output directory (default {PAPER_OUT})')
-    paper.add_argument('--seed', type=int, default=0, metavar='S', help='random seed (default 0)')
+    _add_table_options(paper, (('seed', 'S'),))
     paper.add_argument('--points', type=_positive_int, metavar='N', help='points per corner/sphere, twice for the cube '
                        '(default 3000, as in the paper; smaller for a quick look)')
     paper.add_argument('--steps', type=_at_least_two, default=60, metavar='N',
