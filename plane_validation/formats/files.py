@@ -481,7 +481,7 @@ def _read_pcd_compressed(path: Path, data: bytes, n: int, point_bytes: int, has_
 def _lzf_problem(data: bytes, unpacked: int) -> str | None:
     """Why the LZF block of a binary_compressed PCD's ``data`` (compressed and uncompressed size, then the block)
     does not decompress to the ``unpacked`` bytes its header needs; None when it does."""
-    import lzf  # pypcd4's LZF module
+    import lzf  # pypcd4's LZF module (python-neo-lzf): there whenever pypcd4 is
 
     size = int(np.frombuffer(data, '<u4', 1)[0])
     try:
