@@ -70,32 +70,16 @@ def table() -> None:
             free[name] = load_cloud(DATA / name)[0]
     for name, points in free.items():
         print(row(name, 'plane-free', points, pv.tune_tolerance(points, seed=0), None), flush=True)
-    for name, (points, truth) in clutter().items():
-        print(row(name, 'clutter', points, pv.tune_tolerance(points, seed=0), truth), flush=True)
+    probe = {'floor with a bush': scenes.clutter('bush', seed=1), 'plane, 30% outliers': scenes.clutter(
+        'outliers', share=0.3, seed=3), 'plane, 50% outliers': scenes.clutter('outliers', share=0.5, seed=3),
+        'two sheets 5 cm apart': scenes.clutter('sheets', seed=3)}  # an outside probe's scenes
+    for name, scene in probe.items():
+        print(row(name, 'clutter', scene.points, pv.tune_tolerance(scene.points, seed=0), scene.labels), flush=True)
     for name in KINECT:
         if (DATA / f'{name}.pcd').exists():
             points, shape = load_cloud(DATA / f'{name}.pcd')
             print(row(name, 'Kinect, unlabelled', points, pv.tune_tolerance(points, seed=0, shape=shape), None),
                   flush=True)
-
-
-def clutter() -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """An outside probe's scenes (points, labels): one plane with clutter or outliers (labelled -1), and two
-    parallel sheets 5 cm apart, which a large t finds as one plane."""
-    rng = np.random.default_rng(1)
-    floor = np.column_stack([rng.uniform(-2, 2, (6000, 2)), rng.normal(0, 0.005, 6000)])
-    bush = rng.uniform([0, 0, 0.02], [1, 1, 1], (1500, 3))  # a 1 m bush of 1,500 points on a 4 m floor
-    out = {'floor with a bush': (np.vstack([floor, bush]) + [0, 0, -1.5], np.repeat([0, -1], [6000, 1500]))}
-    for share in (0.3, 0.5):
-        rng = np.random.default_rng(3)
-        m = int(3000 * share / (1 - share))
-        plane = np.column_stack([rng.uniform(-1, 1, (3000, 2)), rng.normal(0, 0.005, 3000)])
-        out[f'plane, {share:.0%} outliers'] = (np.vstack([plane, rng.uniform(-1, 1, (m, 3))]) + [3, -2, 5],
-                                              np.repeat([0, -1], [3000, m]))
-    rng = np.random.default_rng(3)
-    sheets = [np.column_stack([rng.uniform(-1, 1, (3000, 2)), z + rng.normal(0, 0.003, 3000)]) for z in (0.0, 0.05)]
-    out['two sheets 5 cm apart'] = (np.vstack(sheets) + [0, 0, 2], np.repeat([0, 1], 3000))
-    return out
 
 
 if __name__ == '__main__':

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ['Scene', 'corner', 'cube', 'room', 'stairs', 'table', 'sphere', 'boxes', 'SCENES', 'depth_camera',
-           'lidar', 'SENSOR_VIEWS', 'LIDAR_VIEWS', 'VLP16_ROOM', 'VLP16_CORRIDOR']
+__all__ = ['Scene', 'corner', 'cube', 'room', 'stairs', 'table', 'sphere', 'boxes', 'SCENES', 'clutter', 'CLUTTER',
+           'depth_camera', 'lidar', 'SENSOR_VIEWS', 'LIDAR_VIEWS', 'VLP16_ROOM', 'VLP16_CORRIDOR']
 
 
 @dataclass(frozen=True, eq=False)
@@ -203,6 +203,38 @@ def sphere(n_points: int = 5000, noise: float = 0.0, *, radius: float = 1.0, out
     outliers = rng.uniform(-radius, radius, size=(n_out, 3))
     return Scene(name='sphere', points=np.concatenate([pts, outliers]) * scale,
                  labels=np.full(n_points, -1, dtype=np.int32), planes=np.empty((0, 4)), noise=noise * scale)
+
+
+#: The kinds of :func:`clutter`.
+CLUTTER = ('bush', 'outliers', 'sheets')
+
+
+def clutter(kind: str = 'bush', *, share: float = 0.5, seed=None) -> Scene:
+    """Scenes that a large t cuts into false planes (an outside probe's; meters, labels -1 for clutter):
+    'bush', a 4 m floor (6,000 points, sigma 5 mm) under a 1 m cube of 1,500 random points; 'outliers', a
+    2 m plane (3,000 points, sigma 5 mm) with a ``share`` of uniform outliers in a 2 m cube around it;
+    'sheets', two 2 m sheets 5 cm apart (3,000 points each, sigma 3 mm)."""
+    rng = np.random.default_rng(seed)
+    if kind == 'bush':
+        floor = np.column_stack([rng.uniform(-2, 2, (6000, 2)), rng.normal(0, 0.005, 6000)])
+        points = np.vstack([floor, rng.uniform([0, 0, 0.02], [1, 1, 1], (1500, 3))]) + [0, 0, -1.5]
+        labels, planes = np.repeat([0, -1], [6000, 1500]), [[0, 0, 1, 1.5]]
+    elif kind == 'outliers':
+        if not 0 <= share < 1:
+            raise ValueError(f'share must be in [0, 1), got {share}')
+        m = int(3000 * share / (1 - share))
+        plane = np.column_stack([rng.uniform(-1, 1, (3000, 2)), rng.normal(0, 0.005, 3000)])
+        points = np.vstack([plane, rng.uniform(-1, 1, (m, 3))]) + [3, -2, 5]
+        labels, planes = np.repeat([0, -1], [3000, m]), [[0, 0, 1, -5]]
+    elif kind == 'sheets':
+        sheets = [np.column_stack([rng.uniform(-1, 1, (3000, 2)), z + rng.normal(0, 0.003, 3000)]) for z in (0, 0.05)]
+        points, labels = np.vstack(sheets) + [0, 0, 2], np.repeat([0, 1], 3000)
+        planes = [[0, 0, 1, -2], [0, 0, 1, -2.05]]
+    else:
+        raise ValueError(f'unknown clutter kind {kind!r}; choose one of {", ".join(CLUTTER)}')
+    noise = 0.003 if kind == 'sheets' else 0.005
+    return Scene(name=f'clutter_{kind}', points=points, labels=labels.astype(np.int32), planes=np.array(planes, float),
+                 noise=noise)
 
 
 #: Scene generators by name, for the CLI and the bag maker.
