@@ -21,6 +21,7 @@ from plane_validation.core.scoring import segmentation_quality  # noqa: E402
 from plane_validation.core.verdict import (  # noqa: E402
     MAX_FILL,
     MAX_THICKNESS,
+    plane_beyond,
     plane_curvature,
     plane_fill,
     plane_layering,
@@ -39,11 +40,12 @@ def row(name: str, kind: str, points: np.ndarray, result, truth: np.ndarray | No
     curved = [plane_curvature(points, p.inliers) for p, t in zip(seg.planes, thickness) if t > MAX_THICKNESS]
     fill = plane_fill(points, seg)
     layering = plane_layering(points, seg)[fill >= MAX_FILL]
+    beyond = plane_beyond(points, seg)
     f1 = f'{segmentation_quality(seg.labels, truth).f1:.3f}' if truth is not None else '—'
     x = result.indices
     return (f'| {name} | {kind} | {f1} | {1000 * result.tolerance:.3g} | {seg.n_planes} | {x.plane_silhouette:.2f} | '
             f'{x.gs_planes:.2f} | {max(thickness, default=0):.2f} | {max(curved, default=0):.2f} | '
-            f'{max(fill, default=0):.2f} | {max(layering, default=0):.2f} | '
+            f'{max(beyond, default=0):.2f} | {max(fill, default=0):.2f} | {max(layering, default=0):.2f} | '
             f'{result.seed_agreement:.2f} | '
             f'{"**reliable**" if result.reliable else "not reliable"} | {result.verdict} |')
 
@@ -57,8 +59,8 @@ def main() -> None:
 def table() -> None:
     """Print the calibration table."""
     print('| cloud | kind | F1 | t (mm) | planes | PS | GSplanes | max thickness | max curvature of a thick plane | '
-          'max fill | max layering of a filled plane | seed agreement | verdict | why |')
-    print('|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|---|---|')
+          'max beyond | max fill | max layering of a filled plane | seed agreement | verdict | why |')
+    print('|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|---|---|')
     for c in quality.load_clouds():
         result = pv.tune_tolerance(c.points, seed=0, shape=c.shape, **quality._params(c))
         print(row(c.name, 'labelled', c.points, result, c.labels), flush=True)

@@ -42,7 +42,10 @@ def test_a_bad_stamp_or_shape_is_bad_input_and_a_whole_float_stamp_is_a_stamp():
     floated = FramePipeline(FIXED).process(pts, 1.5e9)
     assert floated.level == OK, floated.message
     np.testing.assert_array_equal(floated.labels, FramePipeline(FIXED).process(pts, 1_500_000_000).labels)  # its seed
-    assert FramePipeline(FIXED).process(pts, 2**70).level == OK  # beyond int64 too (np.isfinite refuses such ints)
+    assert FramePipeline(FIXED).process(pts, 2**63 - 1).level == OK  # int64's largest (np.isfinite refuses 2**70)
+    for stamp in (2**63, 10**400, -2**63 - 1):  # 10**400 raised OverflowError (an outside review)
+        result = FramePipeline(FIXED).process(pts, stamp)
+        assert result.level == ERROR and result.message.startswith('bad input: stamp_ns must fit in 64 bits')
     for stamp in (1.5, np.nan, '1', None, True):
         result = FramePipeline(FIXED).process(pts, stamp)
         assert result.level == ERROR and result.message == f'bad input: stamp_ns must be an integer, got {stamp!r}'
@@ -440,6 +443,8 @@ def test_an_unorganized_lidar_scan_with_a_ring_field_is_searched_on_its_ring_ima
     halved = FramePipeline(PipelineConfig(**fixed)).process_cloud(halves)
     assert 'not whole numbers' in dict(halved.values)['ring_image'] and halved.level == OK
     assert np.array_equal(halved.labels, graph.labels)  # searched on the graph, as without a ring field
+    given = FramePipeline(PipelineConfig(**fixed)).process(pts, 10**9, ring=rings.astype(np.float32))  # the API too
+    assert dict(given.values)['ring_image'] == '16x1800' and np.array_equal(given.labels, laid.labels)
 
 
 def test_a_stream_whose_stamps_do_not_advance_still_retries_a_failed_sweep():

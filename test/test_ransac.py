@@ -171,10 +171,13 @@ def test_fit_plane_fits_n_by_3_points_and_refuses_others():
     for bad, why in [(points.T, r'shape \(N, 3\), got \(3, 50\)'), (np.column_stack([points, points[:, :1]]), 'shape'),
                      (points[:, 2], 'shape'), (points[:2], 'at least 3 points, got 2'),
                      (np.vstack([points, [np.nan] * 3]), '1 of 51 rows hold NaN or inf'),
-                     (np.vstack([points, [np.inf, 0, 0]]), 'finite'), (points[:, [0, 0, 2]], 'collinear'),
+                     (np.vstack([points, [np.inf, 0, 0]]), 'finite'), (points[:, [0, 0, 2]], 'lie on one line'),
                      (np.ones((5, 3)), 'identical')]:
         with pytest.raises(ValueError, match=why):
             pv.fit_plane(bad)
+    on_line = np.vstack([np.column_stack([np.linspace(0, 1, 98), np.zeros((98, 2))]), [[0.5, 1, 0], [0.2, -1, 0]]])
+    normal, offset = pv.fit_plane(on_line)  # 98 points on a line and 2 off it: they span z = 0
+    np.testing.assert_allclose(np.abs(normal), [0, 0, 1], atol=1e-12)
 
 
 @pytest.mark.parametrize('kwargs, name', [({'tolerance': 0}, 'tolerance'), ({'tolerance': np.nan}, 'tolerance'),

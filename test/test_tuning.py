@@ -328,7 +328,14 @@ def test_a_narrow_noisy_strip_is_a_plane_and_a_curved_slab_is_not():
 def test_two_surfaces_found_as_one_or_a_chunk_of_clutter_are_not_reliable_planes():
     # the outside probe's cases: two sheets 4 cm apart found as one plane; a floor with clutter found as a slab
     from plane_validation.core.ransac import Plane, Segmentation
-    from plane_validation.core.verdict import MAX_FILL, MAX_LAYERING, plane_fill, plane_layering
+    from plane_validation.core.verdict import (
+        MAX_BEYOND,
+        MAX_FILL,
+        MAX_LAYERING,
+        plane_beyond,
+        plane_fill,
+        plane_layering,
+    )
     rng = np.random.default_rng(0)
 
     def judged(pts, labels, planes, t):
@@ -347,11 +354,20 @@ def test_two_surfaces_found_as_one_or_a_chunk_of_clutter_are_not_reliable_planes
     fill, layering, (reliable, verdict) = judged(uniform, np.zeros(4000, np.int32), [((0, 0, 1), 0.0)], 0.01)
     assert fill[0] > 0.55 and 0.7 < layering[0] < MAX_LAYERING and reliable, verdict  # it fills t; one layer
     floor = np.column_stack([rng.uniform(-2, 2, (6000, 2)), rng.normal(0, 0.005, 6000)])
-    chunk = rng.uniform([0.0, 0.0, 0.3], [0.3, 0.3, 0.5], (1000, 3))  # clutter, cut by a plane z = 0.4, t = 0.1
-    labels = np.repeat([0, 1], [6000, 1000]).astype(np.int32)
-    fill, _, (reliable, verdict) = judged(np.vstack([floor, chunk]), labels, [((0, 0, 1), 0.0), ((0, 0, 1), -0.4)],
-                                          0.1)
-    assert fill[0] < 0.1 and fill[1] > MAX_FILL and not reliable and 'is a slab' in verdict, verdict
+    chunk = rng.uniform([0.0, 0.0, 0.2], [0.4, 0.4, 0.6], (2000, 3))  # clutter, cut by a plane z = 0.4, t = 0.1
+    labels = np.r_[np.zeros(6000), np.where(np.abs(chunk[:, 2] - 0.4) <= 0.1, 1, -1)].astype(np.int32)
+    cloud = np.vstack([floor, chunk])
+    seg = Segmentation(labels=labels, reason='', tolerance=0.1, n_valid=len(cloud), planes=tuple(
+        Plane(normal=np.array([0.0, 0, 1]), offset=d, inliers=np.flatnonzero(labels == j), rms=0.0)
+        for j, d in enumerate((0.0, -0.4))))
+    beyond = plane_beyond(cloud, seg)
+    reliable, verdict = judge(cloud, seg, pv.validity_indices(cloud, labels, seed=0))
+    assert beyond[0] < 0.1 and beyond[1] > MAX_BEYOND and not reliable and 'cut out of a volume' in verdict, verdict
+    strip = np.column_stack([rng.uniform(-0.6, 0.6, 4000), rng.uniform(-0.08, 0.08, 4000), rng.normal(0, 0.012, 4000)])
+    for t, flat in ((0.02, True), (0.005, False)):  # a noisy strip cut at 1.7 sigma is a plane; at sigma / 2 not
+        near = np.where(np.abs(strip[:, 2]) <= t, 0, -1).astype(np.int32)
+        _, _, (reliable, verdict) = judged(strip, near, [((0, 0, 1), 0.0)], t)
+        assert reliable == flat, verdict
     fill, _, (reliable, verdict) = judged(floor, np.zeros(6000, np.int32), [((0, 0, 1), 0.0)], 0.1)
     assert reliable, verdict  # the floor alone
 

@@ -325,6 +325,8 @@ class FramePipeline:
         start = time.perf_counter()
         try:
             stamp_ns = check_integer('stamp_ns', stamp_ns, None)
+            if not -2**63 <= stamp_ns < 2**63:  # a header stamp (int32 s, uint32 ns) always fits
+                raise ValueError(f'stamp_ns must fit in 64 bits (nanoseconds), got {stamp_ns}')
             stamp, repeated = self._clock(stamp_ns)
             given = as_points(points)
             shape = None if shape is None else check_shape(shape, None)

@@ -14,7 +14,7 @@ from scipy.spatial import ConvexHull, QhullError
 from .ransac import Segmentation
 
 __all__ = ['PlaneOutline', 'plane_basis', 'plane_outlines', 'hull_polygon', 'plane_colors', 'UNASSIGNED_RGB',
-           'voxel_downsample', 'ring_image']
+           'voxel_downsample', 'ring_image', 'beam_numbers']
 
 #: Largest point set whose hull is computed exactly (see hull_polygon).
 HULL_POINTS = 2048
@@ -145,6 +145,20 @@ RING_REGULAR = 0.5
 RING_COLLISIONS = 0.02
 
 
+def beam_numbers(ring: np.ndarray) -> np.ndarray:
+    """A ``ring`` field's values (n,) as int64 when they are whole numbers (an integer field, or a float one
+    holding whole numbers only, as some drivers write it); other values unchanged, for :func:`ring_image` to
+    refuse with its reason."""
+    ring = np.asarray(ring)
+    if np.issubdtype(ring.dtype, np.integer):
+        return ring.astype(np.int64)
+    if ring.dtype.kind != 'f':
+        return ring
+    with np.errstate(invalid='ignore'):
+        whole = bool(np.all(np.abs(ring) < 2.0 ** 63) and np.array_equal(ring, np.round(ring)))  # NaN: not whole
+    return ring.astype(np.int64) if whole else ring
+
+
 def ring_image(points: np.ndarray, ring: np.ndarray, viewpoint=(0.0, 0.0, 0.0)
                ) -> tuple[np.ndarray, tuple[int, int], np.ndarray]:
     """A spinning lidar's unorganized scan laid out as its range image, as drivers that keep it
@@ -156,11 +170,13 @@ def ring_image(points: np.ndarray, ring: np.ndarray, viewpoint=(0.0, 0.0, 0.0)
     inverse (n,) the pixel of each point); of points on one pixel the first stands for it.
     ValueError saying why when the scan forms no such image (MAX_RINGS, MAX_RING_COLUMNS, RING_SPREAD,
     RING_REGULAR, RING_COLLISIONS)."""
-    ring = np.asarray(ring)
-    if ring.shape != (len(points),) or not np.issubdtype(ring.dtype, np.integer):
-        kind = 'values that are not whole numbers' if ring.dtype.kind == 'f' and ring.shape == (len(points),) \
-            else f'shape {ring.shape}'
-        raise ValueError(f'the ring numbers are not one integer per point ({ring.dtype} {kind})')
+    ring = beam_numbers(ring)
+    if ring.shape != (len(points),):
+        raise ValueError(f'the ring numbers are not one integer per point (shape {ring.shape}, '
+                         f'{len(points)} points)')
+    if not np.issubdtype(ring.dtype, np.integer):
+        kind = 'values that are not whole numbers' if ring.dtype.kind == 'f' else 'not numbers'
+        raise ValueError(f'the ring numbers are not one integer per point ({ring.dtype}: {kind})')
     ids, row = np.unique(ring, return_inverse=True)
     row = row.reshape(-1)
     if not 3 <= len(ids) <= MAX_RINGS:

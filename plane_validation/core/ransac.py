@@ -265,9 +265,12 @@ def fit_plane(points: np.ndarray) -> tuple[np.ndarray, float]:
         raise ValueError(f'a plane needs at least 3 points, got {len(pts)}')
     check_magnitude(pts)
     cols = np.array(pts.T)  # a copy: _fit_columns centres it
-    why = _degeneracy(cols)
-    if why is not None:
-        raise ValueError(f'no plane fits these points: {why}')
+    centered = cols - cols.mean(axis=1, keepdims=True)
+    spread = np.linalg.eigvalsh(centered @ centered.T)  # ascending; every point counts (no outlier guard here)
+    if spread[2] <= 0:
+        raise ValueError('no plane fits these points: they are all identical')
+    if spread[1] <= MIN_SINE ** 2 * spread[2]:
+        raise ValueError('no plane fits these points: they all lie on one line')
     return _fit_columns(cols)
 
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .pointcloud2 import beam_numbers
+from ..core.geometry import beam_numbers
 
 __all__ = ['atomic_output', 'staged_files', 'check_output', 'check_writable', 'load_cloud', 'load_points',
            'load_scan', 'save_points', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
@@ -295,6 +295,8 @@ def _column_names(path: Path, delimiter: str | None) -> list[str] | None:
     with open(path, 'rb') as f:
         first = f.readline(4096).decode('utf-8-sig', errors='replace').strip()
     fields = [t.strip() for t in first.split(delimiter)] if first else []
+    if delimiter is None:  # 'x [m] y [m] z [m]': a unit split off its name is no column of its own
+        fields = [t for t in fields if not (t[:1] in '[(' and t[-1:] in '])')]
 
     def name(text: str) -> bool:
         try:
@@ -305,15 +307,18 @@ def _column_names(path: Path, delimiter: str | None) -> list[str] | None:
     return fields if fields and all(name(t) for t in fields) else None
 
 
-def _xyz_positions(path: Path, names: list[str]) -> list[int]:
+def _xyz_positions(path: Path, names: list[str]) -> list[int] | None:
     """The columns of x, y and z in a header row ``names``: case-insensitive, quoted or not, the first with
-    CloudCompare's ``//`` prefix, a unit after the name allowed (``x [m]``, ``x (m)``); ValueError otherwise."""
+    CloudCompare's ``//`` prefix, a unit after the name allowed (``x [m]``, ``x (m)``); None when it names none
+    of them (``easting,northing,height``: the first three columns, as without a header); ValueError when it
+    names only some, or one twice."""
     plain = [re.sub(r'\s*[\[(][^\])]*[\])]$', '', n.strip('"\'').strip()).lower() for n in names]
     plain[0] = plain[0].removeprefix('//').strip()
-    for axis in 'xyz':
-        if plain.count(axis) != 1:
-            raise ValueError(f'{path}: the header row must name each of x, y and z once, got the columns '
-                             f'{", ".join(names)}')
+    if not {'x', 'y', 'z'} & set(plain):
+        return None
+    if any(plain.count(axis) != 1 for axis in 'xyz'):
+        raise ValueError(f'{path}: the header row must name each of x, y and z once, got the columns '
+                         f'{", ".join(names)}')
     return [plain.index(axis) for axis in 'xyz']
 
 

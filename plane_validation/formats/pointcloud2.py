@@ -28,8 +28,10 @@ from typing import Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
+from ..core.geometry import beam_numbers
+
 __all__ = [
-    'DATATYPES', 'CloudTypes', 'beam_numbers', 'RosbagsTypes', 'structured_array', 'xyz_array', 'create_cloud',
+    'DATATYPES', 'CloudTypes', 'RosbagsTypes', 'structured_array', 'xyz_array', 'create_cloud',
     'rosbags_types', 'pack_rgb', 'unpack_rgb', 'trailing_bytes',
 ]
 
@@ -234,7 +236,8 @@ def xyz_array(msg: Any, *, dtype: npt.DTypeLike = np.float64) -> np.ndarray:
 
 def ring_array(msg: Any) -> np.ndarray | None:
     """(height*width,) the ``ring`` field (each point's beam, as spinning-lidar drivers publish it) as
-    :func:`beam_numbers` gives it; None when there is no ``ring`` field of count 1 (or the message is malformed)."""
+    :func:`~plane_validation.core.geometry.beam_numbers` gives it; None when there is no ``ring`` field of
+    count 1 (or the message is malformed)."""
     field = next((f for f in msg.fields if str(f.name) == 'ring'), None)
     if field is None or field.count != 1 or field.datatype not in DATATYPES:
         return None
@@ -243,18 +246,6 @@ def ring_array(msg: Any) -> np.ndarray | None:
     except (ValueError, KeyError):
         return None
     return beam_numbers(ring)
-
-
-def beam_numbers(ring: np.ndarray) -> np.ndarray:
-    """A ``ring`` field's values (n,) as int64 when they are whole numbers (an integer field, or a float
-    one holding whole numbers only, as some drivers write it); other values unchanged, for
-    :func:`~plane_validation.core.geometry.ring_image` to refuse with its reason."""
-    ring = np.asarray(ring)
-    if np.issubdtype(ring.dtype, np.integer):
-        return ring.astype(np.int64)
-    with np.errstate(invalid='ignore'):
-        whole = bool(np.all(np.abs(ring) < 2 ** 31) and np.array_equal(ring, np.round(ring)))  # NaN: not whole
-    return ring.astype(np.int64) if whole else ring
 
 
 def trailing_bytes(msg: Any) -> int:
