@@ -40,12 +40,12 @@ CURVATURE_POINTS = 30
 #: points found as a small plane do not make a good segmentation unreliable); the planes on too few
 #: points (MIN_PLANE_POINTS) are forgiven below the same share.
 MINOR_SHARE = 0.1
-#: A plane with at least this many points of the cloud at t..2t from it (within its in-plane extent) per point within
-#: t is cut out of a volume (see plane_beyond): clutter or outliers (the clutter scenes' slabs at their tuned t: 0.5-3.3),
-#: or t far below its surface's noise (Gaussian noise cut at t = sigma: 0.40, at t = sigma / 2: 0.87). A surface has
-#: few points there: the planes of good segmentations at their tuned t that hold 2 % of the points or more, at most
-#: 0.49 (office1's back wall beside its door recess); smaller ones up to 2.0, at most 2.5 % of the points in all
-#: (benchmarks/README.md). Such planes may hold less than MINOR_SHARE of the planes' points.
+#: A plane with at least this many points of the cloud at t..2t from it (within its in-plane extent) per point
+#: within t is cut out of a volume (see plane_beyond): clutter or outliers (the clutter scenes' slabs at their tuned
+#: t: 0.5-3.3), or t far below its surface's noise (Gaussian noise cut at t = sigma: 0.40, at t = sigma / 2: 0.87).
+#: A surface has few points there: the planes of good segmentations at their tuned t that hold 2 % of the points or
+#: more, at most 0.49 (office1's back wall beside its door recess); smaller ones up to 2.0, at most 2.5 % of the
+#: points in all (benchmarks/README.md). Such planes may hold less than MINOR_SHARE of the planes' points.
 MAX_BEYOND = 0.6
 #: Residuals whose spread is below this share of their size are one value up to rounding (plane_layering: 0).
 LAYERING_ROUNDING = 1e-9
