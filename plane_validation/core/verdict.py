@@ -49,8 +49,8 @@ MINOR_SHARE = 0.1
 MAX_BEYOND = 0.6
 #: Residuals whose spread is below this share of their size are one value up to rounding (plane_layering: 0).
 LAYERING_ROUNDING = 1e-9
-#: The cloud's points plane_beyond counts among, at most (a fixed random subset).
-BEYOND_SAMPLE = 20000
+#: The cloud's points plane_beyond counts among, at most (every so many rows).
+BEYOND_SAMPLE = 10000
 #: A plane whose points fill its band of +-t at least this much (see plane_fill: RMS distance over t; even filling
 #: is 0.58, Gaussian noise cut at 2 sigma 0.44) ...
 MAX_FILL = 0.45
@@ -107,7 +107,7 @@ def plane_thickness(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     """Per plane sqrt(l0 / l1) of its inlier scatter (smallest over middle eigenvalue): RMS
     thickness over in-plane spread, 0 for a perfect plane, ~0.15 for the paper's corner at e = 7.5,
     ~0.3 for a slab cut out of a sphere."""
-    return np.array([_thickness(inl) for inl in _samples(points, seg)])
+    return np.array([_thickness(_pca(inl)) for inl in _samples(points, seg)])
 
 
 def plane_fill(points: np.ndarray, seg: Segmentation) -> np.ndarray:
@@ -125,33 +125,40 @@ def plane_layering(points: np.ndarray, seg: Segmentation) -> np.ndarray:
 
 
 def plane_beyond(points: np.ndarray, seg: Segmentation) -> np.ndarray:
-    """Per plane the points of the cloud ``points`` (N, 3) meters (at most BEYOND_SAMPLE of them) at t..2t from it,
+    """Per plane the points of the cloud ``points`` (N, 3) meters (about BEYOND_SAMPLE of them) at t..2t from it,
     per point within t, both counted within its in-plane extent (the box of 99 % of its inliers along their
     principal axes): under 0.1 on a surface whose noise is well inside t, about 1 in a volume of clutter."""
-    return _beyond(as_points(points), seg, _samples(points, seg))
+    pts = as_points(points)
+    return _beyond(pts, seg, [_pca(inl) for inl in _samples(pts, seg)])
 
 
-def _beyond(pts: np.ndarray, seg: Segmentation, samples: list[np.ndarray]) -> np.ndarray:
-    rows = np.random.default_rng(len(pts)).integers(0, len(pts), min(len(pts), BEYOND_SAMPLE)) \
-        if len(pts) > BEYOND_SAMPLE else np.arange(len(pts))
-    cloud = pts[rows]
-    cloud = cloud[np.isfinite(cloud).all(axis=1)]
+def _beyond(pts: np.ndarray, seg: Segmentation, frames: list) -> np.ndarray:
+    """:func:`plane_beyond` from each plane's inlier :func:`_pca`; all planes at once."""
+    cloud = np.ascontiguousarray(pts[::max(1, -(-len(pts) // BEYOND_SAMPLE))])  # every so many rows, read in order
+    cloud = np.compress(np.isfinite(cloud @ np.ones(3)), cloud, axis=0)  # a NaN or inf coordinate makes the sum one
     scale = tolerance_scale(cloud, seg.noise_model, seg.noise_reference, seg.viewpoint)
-    t = seg.tolerance * (1.0 if scale is None else scale)
-    out = []
-    for inl, plane in zip(samples, seg.planes):
-        if len(inl) < 3:
-            out.append(0.0)
-            continue
-        centre = inl.mean(axis=0)
-        axes = np.linalg.eigh((inl - centre).T @ (inl - centre))[1][:, 1:]  # (3, 2): the in-plane principal axes
-        lo, hi = np.percentile((inl - centre) @ axes, EXTENT_PERCENTILES, axis=0)
-        uv = (cloud - centre) @ axes
-        d = np.abs(cloud @ plane.normal + plane.offset)
-        inside = ((uv >= lo) & (uv <= hi)).all(axis=1)
-        within = np.count_nonzero(inside & (d <= t))
-        out.append(np.count_nonzero(inside & (d > t) & (d <= 2 * t)) / max(within, 1))
-    return np.array(out, dtype=float)
+    t = seg.tolerance * (1.0 if scale is None else scale[:, None])
+    k = len(seg.planes)
+    axes, lo, hi = np.zeros((3, 2 * k)), np.full(2 * k, np.inf), np.full(2 * k, -np.inf)  # no inliers: nothing inside
+    for j, pca in enumerate(frames):
+        if pca is not None:
+            centre, centred, _, vectors = pca
+            axes[:, 2 * j:2 * j + 2] = vectors[:, 1:]  # the in-plane principal axes
+            low, high = _extent(vectors[:, 1:].T @ centred.T)
+            lo[2 * j:2 * j + 2], hi[2 * j:2 * j + 2] = low + centre @ vectors[:, 1:], high + centre @ vectors[:, 1:]
+    box = cloud @ axes  # (m, 2k)
+    box = (box >= lo) & (box <= hi)
+    d = np.abs(cloud @ np.array([p.normal for p in seg.planes]).T + np.array([p.offset for p in seg.planes]))
+    d[~(box[:, 0::2] & box[:, 1::2])] = np.inf  # (m, k): outside a plane's extent counts for neither
+    within = np.count_nonzero(d <= t, axis=0)
+    return (np.count_nonzero(d <= 2 * t, axis=0) - within) / np.maximum(within, 1)
+
+
+def _extent(uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) (2,) of points ``uv`` (2, m): their EXTENT_PERCENTILES along each axis, as order statistics."""
+    ends = [int(q / 100 * (uv.shape[1] - 1) + 0.5) for q in EXTENT_PERCENTILES]
+    part = np.partition(uv, ends, axis=1)
+    return part[:, ends[0]], part[:, ends[1]]
 
 
 def _samples(points: np.ndarray, seg: Segmentation) -> list[np.ndarray]:
@@ -159,12 +166,22 @@ def _samples(points: np.ndarray, seg: Segmentation) -> list[np.ndarray]:
     return [_inlier_sample(points, plane.inliers) for plane in seg.planes]
 
 
-def _thickness(inl: np.ndarray) -> float:
-    """:func:`plane_thickness` of one plane's inliers ``inl`` (m, 3)."""
+def _pca(inl: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """(centre (3,), centred (m, 3), eigenvalues (3,) ascending, eigenvectors (3, 3) as columns) of one plane's
+    inliers ``inl`` (m, 3); None for fewer than 3."""
     if len(inl) < 3:
+        return None
+    centre = inl.mean(axis=0)
+    centred = inl - centre
+    values, vectors = np.linalg.eigh(centred.T @ centred)
+    return centre, centred, values, vectors
+
+
+def _thickness(pca) -> float:
+    """:func:`plane_thickness` of one plane from its :func:`_pca`."""
+    if pca is None:
         return np.inf
-    centered = inl - inl.mean(axis=0)
-    ev = np.linalg.eigvalsh(centered.T @ centered)
+    ev = pca[2]
     return float(np.sqrt(max(ev[0], 0.0) / ev[1])) if ev[1] > 0 else np.inf
 
 
@@ -247,12 +264,13 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
         return False, f'no plane found ({seg.reason})'
     pts = as_points(points)
     samples = _samples(pts, seg)
-    thickness = np.array([_thickness(inl) for inl in samples])
+    frames = [_pca(inl) for inl in samples]
+    thickness = np.array([_thickness(pca) for pca in frames])
     sizes = np.array([len(p.inliers) for p in seg.planes], dtype=float)
     curvature = np.array([plane_curvature(pts, p.inliers) if t > MAX_THICKNESS else 0.0
                           for p, t in zip(seg.planes, thickness)])
     slab = (thickness > MAX_THICKNESS) & (curvature >= MIN_CURVATURE)
-    beyond = _beyond(pts, seg, samples)
+    beyond = _beyond(pts, seg, frames)
     fill = np.array([_fill(inl, plane, seg) for inl, plane in zip(samples, seg.planes)])
     problems = []  # every test that fails, so that fixing one cause does not reveal another
     distinct = np.array([_distinct(pts, p.inliers) for p in seg.planes])
