@@ -523,16 +523,16 @@ def test_a_header_row_says_which_columns_are_x_y_z(tmp_path):
     cases = (('ixyz.csv', 'intensity,x,y,z', [3, 0, 1, 2]), ('zyx.csv', 'z,y,x', [2, 1, 0]),
              ('quoted.csv', '"Y","X","Z"', [1, 0, 2]), ('cloudcompare.txt', '//Z Y X R', [2, 1, 0, 3]),
              ('units.csv', 'i,z [m],y [m],x (m)', [3, 2, 1, 0]), ('units.xyz', 'y [m] x [m] z [m] i', [1, 0, 2, 3]),
-             # no x, y or z named (or not as a column of this file): the first three columns, as without a header
-             ('utm.csv', 'easting,northing,height,i', [0, 1, 2, 3]), ('commas.txt', 'x,y,z,i', [0, 1, 2, 3]))
+             ('utm.csv', 'i,Northing,Easting,Height', [3, 1, 0, 2]), ('commas.txt', 'x,y,z,i', [0, 1, 2, 3]))
     for name, header, order in cases:
         table = np.column_stack([xyz, np.full(3, 7.0)])[:, order]
         sep = ',' if name.endswith('.csv') else ' '
         (tmp_path / name).write_text(header + '\n' + '\n'.join(sep.join(f'{v:g}' for v in row) for row in table))
         np.testing.assert_array_equal(load_points(tmp_path / name), xyz, err_msg=name)
-    for name, text, why in (('noz.csv', 'intensity,x,y\n1,2,3\n', 'name each of x, y and z once, got the columns '
-                                                                     'intensity, x, y'),
+    for name, text, why in (('noz.csv', 'intensity,x,y\n1,2,3\n', 'name each of x, y and z once .*, got the '
+                                                                     'columns intensity, x, y'),
                             ('twice.csv', 'x,y,z,x\n1,2,3,4\n', 'name each of x, y and z once'),
+                            ('none.csv', 'intensity,x_m,y_m,z_m\n1,2,3,4\n', 'name each of x, y and z once'),
                             ('wide.csv', 'intensity,x,y,z\n1,2,3\n', 'header row names 4 columns, the rows have 3')):
         (tmp_path / name).write_text(text)
         with pytest.raises(ValueError, match=why) as info:

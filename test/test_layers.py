@@ -48,6 +48,21 @@ def test_core_formats_and_app_import_without_ros_or_rosbags():
     assert loaded == expected and {'core.ransac', 'formats.bags', 'app.pipeline', 'app.plot'} <= loaded
 
 
+def test_replay_and_demo_without_ros_say_so_in_one_line():
+    script = textwrap.dedent('''
+        import sys
+        import no_ros
+        no_ros.install()
+        from plane_validation.cli.commands import main
+        sys.exit(main(sys.argv[1:]))
+    ''')
+    for argv in (['replay', str(ROOT / 'bags' / 'cube')], ['demo', '--out', 'unused']):
+        proc = subprocess.run([sys.executable, '-c', script, *argv], capture_output=True, text=True, timeout=120,
+                              cwd=Path(__file__).parent)
+        assert proc.returncode == 2 and 'Traceback' not in proc.stderr, proc.stderr
+        assert 'needs the ROS 2 Python packages' in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
 def test_the_blocker_does_block_ros():
     proc = _run_without_ros('ros')
     assert proc.returncode != 0 and 'blocked: ' in proc.stderr

@@ -362,8 +362,20 @@ def _config(args: argparse.Namespace):
     return dataclasses.replace(PipelineConfig(), **changes).validate()
 
 
+def _ros_replay():
+    """The ROS layer's replay module; ValueError (a one-line error) when the ROS 2 packages are not installed."""
+    try:
+        from ..ros import replay
+    except ImportError as exc:  # ModuleNotFoundError in a core-only install
+        raise ValueError(f'this command needs the ROS 2 Python packages ({exc.name or exc} is missing): install it '
+                         "with its ros extra (pip install '.[ros]', as ./run does), or source a ROS 2 Jazzy "
+                         'installation') from exc
+    return replay
+
+
 def cmd_replay(args: argparse.Namespace) -> int:
-    from ..ros.replay import replay_live, replay_offline
+    replay = _ros_replay()
+    replay_live, replay_offline = replay.replay_live, replay.replay_offline
     cfg = _config(args)
     if args.out is not None and not args.out.strip():
         raise ValueError('--out needs a folder name, got an empty one')
@@ -382,7 +394,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
 def cmd_demo(args: argparse.Namespace) -> int:
     from ..app.pipeline import PipelineConfig
     from ..app.plot import plot_cloud_message
-    from ..ros.replay import replay_live
+    replay_live = _ros_replay().replay_live
     if not Path(args.bag).exists():
         raise ValueError(f'bag not found: {args.bag}')
     out_dir = Path(args.out)

@@ -267,7 +267,7 @@ def fit_plane(points: np.ndarray) -> tuple[np.ndarray, float]:
     cols = np.array(pts.T)  # a copy: _fit_columns centres it
     centered = cols - cols.mean(axis=1, keepdims=True)
     spread = np.linalg.eigvalsh(centered @ centered.T)  # ascending; every point counts (no outlier guard here)
-    if spread[2] <= 0:
+    if spread[2] <= 0 or np.all(pts == pts[0]):  # the mean need not round-trip: compare the points themselves
         raise ValueError('no plane fits these points: they are all identical')
     if spread[1] <= MIN_SINE ** 2 * spread[2]:
         raise ValueError('no plane fits these points: they all lie on one line')

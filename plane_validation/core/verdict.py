@@ -10,10 +10,11 @@ from .indices import ValidityIndices
 from .noise import tolerance_scale
 from .plane_silhouette import EXTENT_PERCENTILES
 from .ransac import Segmentation, as_points
+from .regions import NORMAL_MIN_COS
 from .scoring import segmentation_quality
 
 __all__ = ['judge', 'plane_thickness', 'plane_curvature', 'plane_fill', 'plane_layering', 'plane_beyond', 'MAX_FILL',
-           'MAX_LAYERING', 'MAX_BEYOND',
+           'MAX_LAYERING', 'MAX_BEYOND', 'MAX_ROUNDNESS',
            'RELIABLE_PS', 'RELIABLE_GS_PLANES', 'MAX_THICKNESS',
            'MIN_CURVATURE', 'SINGLE_PLANE_THICKNESS', 'seed_agreement', 'MIN_SEED_AGREEMENT', 'STABILITY_RESEEDS',
            'MIN_PLANE_POINTS', 'coordinate_step']
@@ -34,21 +35,28 @@ MAX_THICKNESS = 0.2
 #: a slab cut out of a curved surface (sphere 0.98, the bunny's slabs 0.30-0.96), not a narrow strip
 #: or a noisy plane (far stair risers: at most 0.18 on the depth-camera stairs; benchmarks/README.md).
 MIN_CURVATURE = 0.25
-#: ... measured on at least this many points (a quadric has 6 parameters).
+#: A plane this thick for its width (see plane_thickness: its spread along the normal is this share of its spread
+#: across its narrower in-plane side) has no plane shape: a pole, a cable or an edge thinner than 2 t, whose normal
+#: is not determined (about 1). Good planes at their tuned t: at most 0.43 (benchmarks/README.md). Such planes, too,
+#: may hold less than MINOR_SHARE of the planes' points.
+MAX_ROUNDNESS = 0.7
+#: ... (the curvature) measured on at least this many points (a quadric has 6 parameters).
 CURVATURE_POINTS = 30
 #: ... unless the thicker planes hold less than this share of the planes' points (a few stray
 #: points found as a small plane do not make a good segmentation unreliable); the planes on too few
 #: points (MIN_PLANE_POINTS) are forgiven below the same share.
 MINOR_SHARE = 0.1
-#: A plane with at least this many points of the cloud at t..2t from it (within its in-plane extent) per point
-#: within t is cut out of a volume (see plane_beyond): clutter or outliers (the clutter scenes' slabs at their tuned
-#: t: 0.5-3.3), or t far below its surface's noise (Gaussian noise cut at t = sigma: 0.40, at t = sigma / 2: 0.87).
-#: A surface has few points there: the planes of good segmentations at their tuned t that hold 2 % of the points or
-#: more, at most 0.49 (office1's back wall beside its door recess); smaller ones up to 2.0, at most 2.5 % of the
-#: points in all (benchmarks/README.md). Such planes may hold less than MINOR_SHARE of the planes' points.
+#: A plane with at least this many points of the cloud at t..2t from it (within its in-plane extent, not on a thin
+#: plane parallel to it) per point within t is cut out of a volume (see plane_beyond): clutter (the bush's slabs at
+#: their tuned t: 0.8; not the slabs of a plane in 50 % outliers, as thick as the outliers' cube: 0.15), or t far
+#: below its surface's noise (Gaussian noise cut at t = sigma: 0.40, at t = sigma / 2: 0.87). A surface has few points
+#: there: the planes of good segmentations at their tuned t that hold 2 % of the points or more, at most 0.49;
+#: smaller ones up to 2.0, at most 2.5 % of the points in all (benchmarks/README.md). Such planes may hold less than
+#: MINOR_SHARE of the planes' points.
 MAX_BEYOND = 0.6
-#: Residuals whose spread is below this share of their size are one value up to rounding (plane_layering: 0).
-LAYERING_ROUNDING = 1e-9
+#: Residuals whose spread is below this share of the coordinates' size are one value up to rounding (plane_layering:
+#: 0): a few units in the last place of a float64.
+LAYERING_ROUNDING = 1e-14
 #: The cloud's points plane_beyond counts among, at most (every so many rows).
 BEYOND_SAMPLE = 10000
 #: A plane whose points fill its band of +-t at least this much (see plane_fill: RMS distance over t; even filling
@@ -121,24 +129,31 @@ def plane_layering(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     """Per plane the share (0..1) of its residuals' variance that the best split of them at one value into
     two groups explains (1-D two-means): near 1 when its points lie on two parallel layers, 0.64 for
     Gaussian and 0.75 for uniform noise. ``points`` (N, 3) meters."""
-    return np.array([_layering(inl @ plane.normal) for inl, plane in zip(_samples(points, seg), seg.planes)])
+    return np.array([_layering(inl, plane) for inl, plane in zip(_samples(points, seg), seg.planes)])
 
 
 def plane_beyond(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     """Per plane the points of the cloud ``points`` (N, 3) meters (about BEYOND_SAMPLE of them) at t..2t from it,
-    per point within t, both counted within its in-plane extent (the box of 99 % of its inliers along their
-    principal axes): under 0.1 on a surface whose noise is well inside t, about 1 in a volume of clutter."""
+    but on no thin plane (plane_fill < MAX_FILL) within regions.NORMAL_ANGLE_DEG of parallel to it, per point
+    within t; both counted within its in-plane extent (between the EXTENT_PERCENTILES of its inliers along their
+    principal axes). Under 0.1 on a surface whose noise is well inside t, about 1 in a volume of clutter."""
     pts = as_points(points)
-    return _beyond(pts, seg, [_pca(inl) for inl in _samples(pts, seg)])
+    samples = _samples(pts, seg)
+    return _beyond(pts, seg, [_pca(inl) for inl in samples], np.array([_fill(inl, p, seg) for inl, p in
+                                                                       zip(samples, seg.planes)]))
 
 
-def _beyond(pts: np.ndarray, seg: Segmentation, frames: list) -> np.ndarray:
-    """:func:`plane_beyond` from each plane's inlier :func:`_pca`; all planes at once."""
-    cloud = np.ascontiguousarray(pts[::max(1, -(-len(pts) // BEYOND_SAMPLE))])  # every so many rows, read in order
-    cloud = np.compress(np.isfinite(cloud @ np.ones(3)), cloud, axis=0)  # a NaN or inf coordinate makes the sum one
+def _beyond(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray) -> np.ndarray:
+    """:func:`plane_beyond` from each plane's inlier :func:`_pca` and :func:`plane_fill`; all planes at once."""
+    k = len(seg.planes)
+    if k == 0:
+        return np.zeros(0)
+    step = max(1, -(-len(pts) // BEYOND_SAMPLE))
+    cloud = np.ascontiguousarray(pts[::step])  # every so many rows, read in order
+    finite = np.isfinite(cloud @ np.ones(3))  # a NaN or inf coordinate makes the sum one
+    cloud, labels = np.compress(finite, cloud, axis=0), np.compress(finite, np.asarray(seg.labels)[::step])
     scale = tolerance_scale(cloud, seg.noise_model, seg.noise_reference, seg.viewpoint)
     t = seg.tolerance * (1.0 if scale is None else scale[:, None])
-    k = len(seg.planes)
     axes, lo, hi = np.zeros((3, 2 * k)), np.full(2 * k, np.inf), np.full(2 * k, -np.inf)  # no inliers: nothing inside
     for j, pca in enumerate(frames):
         if pca is not None:
@@ -151,7 +166,11 @@ def _beyond(pts: np.ndarray, seg: Segmentation, frames: list) -> np.ndarray:
     d = np.abs(cloud @ np.array([p.normal for p in seg.planes]).T + np.array([p.offset for p in seg.planes]))
     d[~(box[:, 0::2] & box[:, 1::2])] = np.inf  # (m, k): outside a plane's extent counts for neither
     within = np.count_nonzero(d <= t, axis=0)
-    return (np.count_nonzero(d <= 2 * t, axis=0) - within) / np.maximum(within, 1)
+    normals = np.array([p.normal for p in seg.planes])
+    # the points of a thin plane nearby, parallel to this one (a rug on a floor), are a surface, not volume
+    surface = (np.abs(normals @ normals.T) >= NORMAL_MIN_COS) & (fill < MAX_FILL)[None, :]  # (k, k)
+    beyond = (d > t) & (d <= 2 * t) & ~np.where(labels[:, None] >= 0, surface.T[np.maximum(labels, 0)], False)
+    return np.count_nonzero(beyond, axis=0) / np.maximum(within, 1)
 
 
 def _extent(uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -194,14 +213,16 @@ def _fill(inl: np.ndarray, plane, seg: Segmentation) -> float:
     return float(np.sqrt(np.mean(ratio ** 2)))
 
 
-def _layering(residuals: np.ndarray) -> float:
-    """:func:`plane_layering` of one plane's ``residuals`` (m,), meters; 0 when they are one value up to rounding."""
-    if len(residuals) < 4:
+def _layering(inl: np.ndarray, plane) -> float:
+    """:func:`plane_layering` of one ``plane`` from its inliers ``inl`` (m, 3); 0 when their residuals are one
+    value up to the rounding of their coordinates."""
+    if len(inl) < 4:
         return 0.0
+    residuals = inl @ plane.normal + plane.offset
     r = np.sort(residuals) - residuals.mean()  # centred: the whole group's mean term drops out
     total = float(r @ r)
-    if total <= (LAYERING_ROUNDING * np.abs(residuals).max()) ** 2 * len(r):
-        return 0.0  # an exact plane, or one layer: the split's sums would be rounding noise
+    if total <= (LAYERING_ROUNDING * np.abs(inl).max()) ** 2 * len(r):
+        return 0.0  # one layer: the split's sums would be rounding noise
     sums = np.cumsum(r)[:-1]
     left = np.arange(1, len(r))
     between = (sums ** 2 / left + sums ** 2 / (len(r) - left)).max()  # the right group's sum is -left's
@@ -270,8 +291,8 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     curvature = np.array([plane_curvature(pts, p.inliers) if t > MAX_THICKNESS else 0.0
                           for p, t in zip(seg.planes, thickness)])
     slab = (thickness > MAX_THICKNESS) & (curvature >= MIN_CURVATURE)
-    beyond = _beyond(pts, seg, frames)
     fill = np.array([_fill(inl, plane, seg) for inl, plane in zip(samples, seg.planes)])
+    beyond = _beyond(pts, seg, frames, fill)
     problems = []  # every test that fails, so that fixing one cause does not reveal another
     distinct = np.array([_distinct(pts, p.inliers) for p in seg.planes])
     tiny = distinct < MIN_PLANE_POINTS
@@ -284,12 +305,19 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
         worst = int(np.argmax(np.where(slab, sizes, -1)))
         problems.append(f'plane {worst} is a curved slab (thickness ratio {_up(thickness[worst])} > {MAX_THICKNESS}, '
                         f'{curvature[worst]:.0%} of its residual variance is curvature)')
+    round_ = thickness >= MAX_ROUNDNESS
+    if sizes[round_].sum() >= MINOR_SHARE * sizes.sum():
+        worst = int(np.argmax(np.where(round_, sizes, -1)))
+        why = f'thickness ratio {_down(thickness[worst])} >= {MAX_ROUNDNESS}' if np.isfinite(thickness[worst]) \
+            else 'its points lie on a line'
+        problems.append(f'plane {worst} is as thick as it is wide ({why}): a pole, a cable or an edge, whose normal '
+                        'is not determined')
     volume = beyond >= MAX_BEYOND
     if sizes[volume].sum() >= MINOR_SHARE * sizes.sum():
         worst = int(np.argmax(np.where(volume, sizes, -1)))
         problems.append(f'plane {worst} is cut out of a volume (the cloud has {_up(beyond[worst])} points at t..2t '
                         f'from it per point within t, >= {MAX_BEYOND}): clutter or outliers, or t below the noise')
-    layering = np.array([_layering(inl @ plane.normal) if f >= MAX_FILL else 0.0  # only filled planes can fail
+    layering = np.array([_layering(inl, plane) if f >= MAX_FILL else 0.0  # only filled planes can fail
                          for inl, plane, f in zip(samples, seg.planes, fill)])
     layered = (layering >= MAX_LAYERING) & (fill >= MAX_FILL)
     if sizes[layered].sum() >= MINOR_SHARE * sizes.sum():

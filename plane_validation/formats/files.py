@@ -297,6 +297,8 @@ def _column_names(path: Path, delimiter: str | None) -> list[str] | None:
     fields = [t.strip() for t in first.split(delimiter)] if first else []
     if delimiter is None:  # 'x [m] y [m] z [m]': a unit split off its name is no column of its own
         fields = [t for t in fields if not (t[:1] in '[(' and t[-1:] in '])')]
+        if len(fields) == 1 and ',' in fields[0]:  # 'x,y,z' over columns separated by spaces
+            fields = [t.strip() for t in fields[0].split(',')]
 
     def name(text: str) -> bool:
         try:
@@ -307,19 +309,22 @@ def _column_names(path: Path, delimiter: str | None) -> list[str] | None:
     return fields if fields and all(name(t) for t in fields) else None
 
 
-def _xyz_positions(path: Path, names: list[str]) -> list[int] | None:
-    """The columns of x, y and z in a header row ``names``: case-insensitive, quoted or not, the first with
-    CloudCompare's ``//`` prefix, a unit after the name allowed (``x [m]``, ``x (m)``); None when it names none
-    of them (``easting,northing,height``: the first three columns, as without a header); ValueError when it
-    names only some, or one twice."""
+#: Header names taken for x, y and z (lower case, units and quotes removed), besides the letters themselves.
+AXIS_NAMES = {'x': ('x', 'easting', 'east'), 'y': ('y', 'northing', 'north'),
+              'z': ('z', 'height', 'elevation', 'altitude', 'up')}
+
+
+def _xyz_positions(path: Path, names: list[str]) -> list[int]:
+    """The columns of x, y and z in a header row ``names`` (AXIS_NAMES): case-insensitive, quoted or not, the first
+    with CloudCompare's ``//`` prefix, a unit after the name allowed (``x [m]``, ``x (m)``); ValueError unless each
+    is named once."""
     plain = [re.sub(r'\s*[\[(][^\])]*[\])]$', '', n.strip('"\'').strip()).lower() for n in names]
     plain[0] = plain[0].removeprefix('//').strip()
-    if not {'x', 'y', 'z'} & set(plain):
-        return None
-    if any(plain.count(axis) != 1 for axis in 'xyz'):
-        raise ValueError(f'{path}: the header row must name each of x, y and z once, got the columns '
-                         f'{", ".join(names)}')
-    return [plain.index(axis) for axis in 'xyz']
+    found = [[i for i, n in enumerate(plain) if n in AXIS_NAMES[axis]] for axis in 'xyz']
+    if any(len(f) != 1 for f in found):
+        raise ValueError(f'{path}: the header row must name each of x, y and z once (or easting, northing, '
+                         f'height), got the columns {", ".join(names)}')
+    return [f[0] for f in found]
 
 
 def _read_text(path: Path) -> np.ndarray:
