@@ -163,10 +163,10 @@ def _beyond(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray) 
             lo[2 * j:2 * j + 2], hi[2 * j:2 * j + 2] = low + centre @ vectors[:, 1:], high + centre @ vectors[:, 1:]
     box = cloud @ axes  # (m, 2k)
     box = (box >= lo) & (box <= hi)
-    d = np.abs(cloud @ np.array([p.normal for p in seg.planes]).T + np.array([p.offset for p in seg.planes]))
+    normals = np.array([p.normal for p in seg.planes])
+    d = np.abs(cloud @ normals.T + np.array([p.offset for p in seg.planes]))
     d[~(box[:, 0::2] & box[:, 1::2])] = np.inf  # (m, k): outside a plane's extent counts for neither
     within = np.count_nonzero(d <= t, axis=0)
-    normals = np.array([p.normal for p in seg.planes])
     # the points of a thin plane nearby, parallel to this one (a rug on a floor), are a surface, not volume
     surface = (np.abs(normals @ normals.T) >= NORMAL_MIN_COS) & (fill < MAX_FILL)[None, :]  # (k, k)
     beyond = (d > t) & (d <= 2 * t) & ~np.where(labels[:, None] >= 0, surface.T[np.maximum(labels, 0)], False)
