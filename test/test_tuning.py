@@ -386,7 +386,7 @@ def test_two_surfaces_found_as_one_or_a_chunk_of_clutter_are_not_reliable_planes
                                    scenes.clutter('outliers', share=0.3, seed=3)], ids=['bush', 'sheets', 'outliers'])
 def test_an_auto_tune_called_reliable_found_the_planes(scene):
     # the sweep cuts clutter into slabs, or takes two sheets as one plane (benchmarks/README.md); the verdict must
-    # then not call the result reliable (not yet so with 50 % outliers: its slabs are as thick as the outlier cube)
+    # then not call the result reliable (not yet so with 50 % outliers: t cuts their cube into three parallel slabs)
     from plane_validation.core.scoring import segmentation_quality
     result = pv.tune_tolerance(scene.points, seed=0)
     quality = segmentation_quality(result.segmentation.labels, scene.labels)

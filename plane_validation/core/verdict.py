@@ -48,7 +48,7 @@ CURVATURE_POINTS = 30
 MINOR_SHARE = 0.1
 #: A plane with at least this many points of the cloud at t..2t from it (within its in-plane extent, not on a thin
 #: plane parallel to it) per point within t is cut out of a volume (see plane_beyond): clutter (the bush's slabs at
-#: their tuned t: 0.8; not the slabs of a plane in 50 % outliers, as thick as the outliers' cube: 0.15), or t far
+#: their tuned t: 0.8; not a 2 m cube of outliers cut into three parallel slabs by t = 0.4 m: 0), or t far
 #: below its surface's noise (Gaussian noise cut at t = sigma: 0.40, at t = sigma / 2: 0.87). A surface has few points
 #: there: the planes of good segmentations at their tuned t that hold 2 % of the points or more, at most 0.49;
 #: smaller ones up to 2.0, at most 2.5 % of the points in all (benchmarks/README.md). Such planes may hold less than
