@@ -523,7 +523,9 @@ def test_a_header_row_says_which_columns_are_x_y_z(tmp_path):
     cases = (('ixyz.csv', 'intensity,x,y,z', [3, 0, 1, 2]), ('zyx.csv', 'z,y,x', [2, 1, 0]),
              ('quoted.csv', '"Y","X","Z"', [1, 0, 2]), ('cloudcompare.txt', '//Z Y X R', [2, 1, 0, 3]),
              ('units.csv', 'i,z [m],y [m],x (m)', [3, 2, 1, 0]), ('units.xyz', 'y [m] x [m] z [m] i', [1, 0, 2, 3]),
-             ('utm.csv', 'i,Northing,Easting,Height', [3, 1, 0, 2]), ('commas.txt', 'x,y,z,i', [0, 1, 2, 3]))
+             ('utm.csv', 'i,Northing,Easting,Height', [3, 1, 0, 2]), ('commas.txt', 'x,y,z,i', [0, 1, 2, 3]),
+             ('comment.txt', '# i x y z', [3, 0, 1, 2]),  # names in a comment (the table reader skips it)
+             ('remark.txt', '# exported by a scanner', [0, 1, 2, 3]))  # a comment of other words: no header
     for name, header, order in cases:
         table = np.column_stack([xyz, np.full(3, 7.0)])[:, order]
         sep = ',' if name.endswith('.csv') else ' '

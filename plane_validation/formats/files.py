@@ -294,6 +294,8 @@ def _column_names(path: Path, delimiter: str | None) -> list[str] | None:
     ``//X,Y,Z``: every field holds a letter and is no number), else None (``1,2,3`` in an .xyz is data)."""
     with open(path, 'rb') as f:
         first = f.readline(4096).decode('utf-8-sig', errors='replace').strip()
+    comment = first.startswith('#')  # '# x y z i': names in a comment, which the table reader skips
+    first = first.lstrip('#').strip()
     fields = [t.strip() for t in first.split(delimiter)] if first else []
     if delimiter is None:  # 'x [m] y [m] z [m]': a unit split off its name is no column of its own
         fields = [t for t in fields if not (t[:1] in '[(' and t[-1:] in '])')]
@@ -306,7 +308,16 @@ def _column_names(path: Path, delimiter: str | None) -> list[str] | None:
         except ValueError:
             return any(c.isalpha() for c in text)
         return False
-    return fields if fields and all(name(t) for t in fields) else None
+    if not (fields and all(name(t) for t in fields)):
+        return None
+    if comment and not {_plain(n) for n in fields} & {a for names in AXIS_NAMES.values() for a in names}:
+        return None  # a comment of other words ('# exported by ...'), not a row of column names
+    return fields
+
+
+def _plain(name: str) -> str:
+    """A header name in lower case without quotes, CloudCompare's '//' and a unit ('x [m]', 'x (m)')."""
+    return re.sub(r'\s*[\[(][^\])]*[\])]$', '', name.strip('"\'').strip()).lower().removeprefix('//').strip()
 
 
 #: Header names taken for x, y and z (lower case, units and quotes removed), besides the letters themselves.
@@ -318,8 +329,7 @@ def _xyz_positions(path: Path, names: list[str]) -> list[int]:
     """The columns of x, y and z in a header row ``names`` (AXIS_NAMES): case-insensitive, quoted or not, the first
     with CloudCompare's ``//`` prefix, a unit after the name allowed (``x [m]``, ``x (m)``); ValueError unless each
     is named once."""
-    plain = [re.sub(r'\s*[\[(][^\])]*[\])]$', '', n.strip('"\'').strip()).lower() for n in names]
-    plain[0] = plain[0].removeprefix('//').strip()
+    plain = [_plain(n) for n in names]
     found = [[i for i, n in enumerate(plain) if n in AXIS_NAMES[axis]] for axis in 'xyz']
     if any(len(f) != 1 for f in found):
         raise ValueError(f'{path}: the header row must name each of x, y and z once (or easting, northing, '
