@@ -160,7 +160,8 @@ def _beyond(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray) 
             centre, centred, _, vectors = pca
             axes[:, 2 * j:2 * j + 2] = vectors[:, 1:]  # the in-plane principal axes
             low, high = _extent(vectors[:, 1:].T @ centred.T)
-            lo[2 * j:2 * j + 2], hi[2 * j:2 * j + 2] = low + centre @ vectors[:, 1:], high + centre @ vectors[:, 1:]
+            shift = centre @ vectors[:, 1:]  # the box in the cloud's coordinates
+            lo[2 * j:2 * j + 2], hi[2 * j:2 * j + 2] = low + shift, high + shift
     box = cloud @ axes  # (m, 2k)
     box = (box >= lo) & (box <= hi)
     normals = np.array([p.normal for p in seg.planes])
@@ -239,12 +240,15 @@ def plane_curvature(points: np.ndarray, plane_rows: np.ndarray) -> float:
     """Share (0..1) of the variance of a plane's residuals that a quadric surface w = q(u, v) over its
     in-plane coordinates explains: near 0 when they are noise, near 1 on a patch of a curved surface.
     plane_rows: the plane's inlier rows of ``points`` (N, 3)."""
-    inl = _inlier_sample(points, plane_rows)
-    if len(inl) < CURVATURE_POINTS:
+    return _curvature(_pca(_inlier_sample(points, plane_rows)))
+
+
+def _curvature(pca) -> float:
+    """:func:`plane_curvature` of one plane from its inliers' :func:`_pca`."""
+    if pca is None or len(pca[1]) < CURVATURE_POINTS:
         return 1.0  # too few to tell noise from curvature: a thick one counts against the verdict
-    centered = inl - inl.mean(axis=0)
-    _, axes = np.linalg.eigh(centered.T @ centered)
-    w, u, v = (centered @ axes).T
+    _, centred, _, axes = pca
+    w, u, v = (centred @ axes).T
     design = np.column_stack([u * u, u * v, v * v, u, v, np.ones_like(u)])
     coef, *_ = np.linalg.lstsq(design, w, rcond=None)
     total = float(np.var(w))
@@ -288,8 +292,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     frames = [_pca(inl) for inl in samples]
     thickness = np.array([_thickness(pca) for pca in frames])
     sizes = np.array([len(p.inliers) for p in seg.planes], dtype=float)
-    curvature = np.array([plane_curvature(pts, p.inliers) if t > MAX_THICKNESS else 0.0
-                          for p, t in zip(seg.planes, thickness)])
+    curvature = np.array([_curvature(pca) if t > MAX_THICKNESS else 0.0 for pca, t in zip(frames, thickness)])
     slab = (thickness > MAX_THICKNESS) & (curvature >= MIN_CURVATURE)
     fill = np.array([_fill(inl, plane, seg) for inl, plane in zip(samples, seg.planes)])
     beyond = _beyond(pts, seg, frames, fill)
@@ -301,27 +304,20 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
         copies = f' ({int(sizes[few])} with copies)' if distinct[few] < sizes[few] else ''
         problems.append(f'plane {few} rests on {distinct[few]}{" distinct" if copies else ""} points{copies} '
                         f'(< {MIN_PLANE_POINTS}): too few to tell a plane from chance')
-    if sizes[slab].sum() >= MINOR_SHARE * sizes.sum():
-        worst = int(np.argmax(np.where(slab, sizes, -1)))
+    if (worst := _worst(slab, sizes)) is not None:
         problems.append(f'plane {worst} is a curved slab (thickness ratio {_up(thickness[worst])} > {MAX_THICKNESS}, '
                         f'{curvature[worst]:.0%} of its residual variance is curvature)')
-    round_ = thickness >= MAX_ROUNDNESS
-    if sizes[round_].sum() >= MINOR_SHARE * sizes.sum():
-        worst = int(np.argmax(np.where(round_, sizes, -1)))
+    if (worst := _worst(thickness >= MAX_ROUNDNESS, sizes)) is not None:
         why = f'thickness ratio {_down(thickness[worst])} >= {MAX_ROUNDNESS}' if np.isfinite(thickness[worst]) \
             else 'its points lie on a line'
         problems.append(f'plane {worst} is as thick as it is wide ({why}): a pole, a cable or an edge, whose normal '
                         'is not determined')
-    volume = beyond >= MAX_BEYOND
-    if sizes[volume].sum() >= MINOR_SHARE * sizes.sum():
-        worst = int(np.argmax(np.where(volume, sizes, -1)))
+    if (worst := _worst(beyond >= MAX_BEYOND, sizes)) is not None:
         problems.append(f'plane {worst} is cut out of a volume (the cloud has {_up(beyond[worst])} points at t..2t '
                         f'from it per point within t, >= {MAX_BEYOND}): clutter or outliers, or t below the noise')
     layering = np.array([_layering(inl, plane) if f >= MAX_FILL else 0.0  # only filled planes can fail
                          for inl, plane, f in zip(samples, seg.planes, fill)])
-    layered = (layering >= MAX_LAYERING) & (fill >= MAX_FILL)
-    if sizes[layered].sum() >= MINOR_SHARE * sizes.sum():
-        worst = int(np.argmax(np.where(layered, sizes, -1)))
+    if (worst := _worst(layering >= MAX_LAYERING, sizes)) is not None:
         problems.append(f'plane {worst}\'s points lie on two parallel layers near the edges of its band of +-t '
                         f'({layering[worst]:.0%} of its residual variance is the step between them, RMS distance '
                         f'{_up(fill[worst])} t): two surfaces found as one')
@@ -344,6 +340,14 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     if problems:
         return False, f'{seg.n_planes} plane(s) but ' + '; '.join(problems)
     return True, f'{seg.n_planes} plane(s), PS {scores.plane_silhouette:.2f}'
+
+
+def _worst(failed: np.ndarray, sizes: np.ndarray) -> int | None:
+    """The largest of the planes that ``failed`` (k,) bool a test, when together they hold MINOR_SHARE or more of
+    the planes' points ``sizes`` (k,); else None."""
+    if sizes[failed].sum() < MINOR_SHARE * sizes.sum():
+        return None
+    return int(np.argmax(np.where(failed, sizes, -1)))
 
 
 def _distinct(points: np.ndarray, rows: np.ndarray) -> int:
