@@ -542,6 +542,21 @@ def test_a_header_row_says_which_columns_are_x_y_z(tmp_path):
         assert str(tmp_path / name) in str(info.value)
 
 
+def test_rows_ending_in_a_comma_have_no_empty_last_column(tmp_path):
+    """Some exporters end every CSV row with the delimiter ('1,2,3,'): the empty field after it was read as a
+    fourth column and the file refused ("could not convert string ''"), with or without a header row."""
+    xyz = [[1.0, 2, 3], [4, 5, 6], [7, 8, 9]]
+    rows = '1,2,3,\n4,5,6,\n7,8,9,\n'
+    for name, text in (('plain.csv', rows), ('named.csv', 'x,y,z,\n' + rows),
+                       ('zyx.csv', 'z,y,x,\n3,2,1,\n6,5,4,\n9,8,7,\n'), ('remark.csv', '# exported\n' + rows),
+                       ('header_only.csv', 'x,y,z,\n1,2,3\n4,5,6\n7,8,9\n')):
+        (tmp_path / name).write_text(text)
+        np.testing.assert_array_equal(load_points(tmp_path / name), xyz, err_msg=name)
+    (tmp_path / 'gap.csv').write_text('1,,3\n4,5,6\n')  # an empty field inside a row is still no number
+    with pytest.raises(ValueError, match="not a table of numbers"):
+        load_points(tmp_path / 'gap.csv')
+
+
 def test_a_folder_of_storage_files_without_metadata_names_them(tmp_path):
     bag = save_points(tmp_path / 'one.mcap', POINTS)
     folder = tmp_path / 'folder'

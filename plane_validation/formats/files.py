@@ -282,11 +282,22 @@ def _read_npy(path: Path) -> np.ndarray:
     return _xyz_columns(path, table)
 
 
-def _loadtxt(source, delimiter: str | None = None, skiprows: int = 0) -> np.ndarray:
-    """np.loadtxt as an (n, m) table (UTF-8, a byte-order mark skipped); no data is an empty table, not a warning."""
+def _loadtxt(source, delimiter: str | None = None, skiprows: int = 0, usecols: int | None = None) -> np.ndarray:
+    """np.loadtxt as an (n, m) table (UTF-8, a byte-order mark skipped); no data is an empty table, not a warning.
+    usecols: only the first this many columns (None: all)."""
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', UserWarning)  # "input contained no data"
-        return np.loadtxt(source, delimiter=delimiter, ndmin=2, skiprows=skiprows, encoding='utf-8-sig')
+        return np.loadtxt(source, delimiter=delimiter, ndmin=2, skiprows=skiprows, encoding='utf-8-sig',
+                          usecols=None if usecols is None else range(usecols))
+
+
+def _first_row(path: Path) -> str:
+    """The first line of a text table that is not blank or a comment, stripped ('' when there is none)."""
+    with open(path, encoding='utf-8-sig', errors='replace') as f:
+        for _, line in zip(range(1000), f):
+            if (text := line.strip()) and not text.startswith('#'):
+                return text
+    return ''
 
 
 def _column_names(path: Path, delimiter: str | None) -> list[str] | None:
@@ -297,6 +308,8 @@ def _column_names(path: Path, delimiter: str | None) -> list[str] | None:
     comment = first.startswith('#')  # '# x y z i': names in a comment, which the table reader skips
     first = first.lstrip('#').strip()
     fields = [t.strip() for t in first.split(delimiter)] if first else []
+    while delimiter and len(fields) > 1 and not fields[-1]:
+        fields.pop()  # 'x,y,z,': a trailing delimiter ends the row, it starts no column
     if delimiter is None:  # 'x [m] y [m] z [m]': a unit split off its name is no column of its own
         fields = [t for t in fields if not (t[:1] in '[(' and t[-1:] in '])')]
         if len(fields) == 1 and ',' in fields[0]:  # 'x,y,z' over columns separated by spaces
@@ -342,8 +355,11 @@ def _read_text(path: Path) -> np.ndarray:
     delimiter = ',' if path.suffix.lower() == '.csv' else None
     names = _column_names(path, delimiter)
     columns = None if names is None else _xyz_positions(path, names)
+    used = None  # rows ending in the delimiter ('1,2,3,', as some exporters write): the empty last field is no column
+    if delimiter and (first := _first_row(path)).endswith(delimiter):
+        used = len(first.split(delimiter)) - 1
     try:
-        table = _loadtxt(path, delimiter, int(names is not None))
+        table = _loadtxt(path, delimiter, int(names is not None), used)
     except Exception as exc:  # ValueError on non-numbers, UnicodeDecodeError on binary bytes
         raise ValueError(f'{path}: not a table of numbers ({_first_line(exc)})') from exc
     if table.size == 0:
