@@ -597,6 +597,11 @@ def test_detect_leaves_out_points_at_the_origin_unless_told_otherwise(tmp_path, 
     assert f'{len(points)} points, {len(scene.points)} valid' in capsys.readouterr().out
     assert main(['detect', str(path), '--tolerance', '0.01', '--no-zero-is-no-return']) == 0
     assert f'{len(points)} points, {len(points)} valid' in capsys.readouterr().out
+    # an outside probe: --out wrote the left-out rows as NaN, not as the input's (0, 0, 0)
+    assert main(['detect', str(path), '--tolerance', '0.01', '--out', str(tmp_path / 'out.npy')]) == 0
+    written = np.load(tmp_path / 'out.npy')
+    np.testing.assert_array_equal(written[:, :3], points)
+    assert (written[len(scene.points):, 3] == -1).all()
 
 
 def test_detect_and_sweep_take_the_search_settings_a_lidar_needs(tmp_path, capsys):

@@ -126,9 +126,10 @@ def _check_outputs(args: argparse.Namespace, *names: str) -> None:
                 raise ValueError(f'{path}: given to both --{other} and --{name}; choose two names')
 
 
-def _load(args: argparse.Namespace) -> tuple[np.ndarray, tuple[int, int] | None, np.ndarray | None]:
+def _load(args: argparse.Namespace) -> tuple[np.ndarray, tuple[int, int] | None, np.ndarray | None, np.ndarray]:
     """load_scan of ``args.cloud`` (rows at (0, 0, 0), or at the viewpoint, as NaN with
-    ``args.zero_is_no_return``), refusing a cloud with fewer than 3 valid points: no plane can be found in it."""
+    ``args.zero_is_no_return``), refusing a cloud with fewer than 3 valid points: no plane can be found in it;
+    then the points as read (what an output file repeats)."""
     from ..core.ransac import finite_rows, no_returns_as_nan, no_returns_note
     from ..formats.files import pcd_viewpoint
     points, shape, ring = load_scan(args.cloud)
@@ -145,14 +146,14 @@ def _load(args: argparse.Namespace) -> tuple[np.ndarray, tuple[int, int] | None,
     args.viewpoint_from_file = [v is None and o != 0 for v, o in zip(given, origin)]
     for axis, value, default in zip('xyz', given, origin):
         setattr(args, f'viewpoint_{axis}', float(default if value is None else value))
-    no_returns = 0
+    read, no_returns = points, 0
     if args.zero_is_no_return:
         points, no_returns = no_returns_as_nan(points, _viewpoint(args))
     valid = int(np.count_nonzero(finite_rows(points)))
     if valid < 3:
         raise ValueError(f'{valid} valid point(s) of {len(points)}: a plane needs at least 3'
                          + no_returns_note(no_returns))
-    return points, shape, ring
+    return points, shape, ring, read
 
 
 @contextmanager
@@ -178,7 +179,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
     _check_outputs(args, 'out', 'png')
     tolerance = None if args.auto else args.tolerance
     with _about(args.cloud), progress_bar('tuning t', quiet=args.json) as progress:
-        points, shape, ring = _load(args)
+        points, shape, ring, read = _load(args)
         det = detect(points, tolerance, seed=args.seed, max_planes=args.max_planes,
                      min_inliers=min_inliers_value(args.min_inliers), progress=progress, shape=shape,
                      noise_model=args.noise_model, noise_reference=args.noise_reference, jobs=args.tune_jobs,
@@ -189,7 +190,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
     if args.out:
         from ..formats.files import save_points
         pose = (*_viewpoint(args), *(args.file_viewpoint[3:] if args.file_viewpoint is not None else (1, 0, 0, 0)))
-        written.append(save_points(args.out, points, det.segmentation.labels, shape=shape, viewpoint=pose))
+        written.append(save_points(args.out, read, det.segmentation.labels, shape=shape, viewpoint=pose))
     if args.png:
         from ..app.plot import plot_planes
         valid = np.isfinite(points).all(axis=1)
@@ -232,7 +233,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     _check_outputs(args, 'plot', 'csv')
     with _about(args.cloud), progress_bar('sweeping t', quiet=args.json) as progress:
-        points, shape, ring = _load(args)
+        points, shape, ring, _ = _load(args)
         result, ring_note = tune_scan(points, ring=ring, organize_rings=args.organize_rings, shape=shape,
                                       connectivity=args.connectivity, viewpoint=_viewpoint(args), seed=args.seed,
                                       tolerances=args.tolerances, criterion=args.criterion,
@@ -278,7 +279,7 @@ def cmd_planes(args: argparse.Namespace) -> int:
     min_inliers = min_inliers_value(args.min_inliers)
     tolerance, source = args.tolerance, 'fixed'
     with _about(args.cloud):
-        points, shape, ring = _load(args)
+        points, shape, ring, _ = _load(args)
         if tolerance is None:  # as detect tunes it (a lidar scan on its ring image)
             with progress_bar('tuning t', quiet=args.json) as progress:
                 tolerance = tune_scan(points, ring=ring, organize_rings=args.organize_rings, shape=shape,
