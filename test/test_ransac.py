@@ -190,7 +190,14 @@ def test_fit_plane_fits_n_by_3_points_and_refuses_others():
                                           ({'seed': -1}, 'seed'), ({'seed': 1.5}, 'seed'),
                                           ({'max_planes': None}, 'max_planes'), ({'max_planes': 2.5}, 'max_planes'),
                                           ({'connectivity': 'no'}, 'connectivity'),
-                                          ({'shape': (100.5, 3)}, 'shape')])
+                                          ({'shape': (100.5, 3)}, 'shape'),
+                                          # a second probe: taken silently, or an error from numpy's internals
+                                          ({'tolerance': '0.05'}, 'tolerance'), ({'probability': None}, 'probability'),
+                                          ({'ransac_points': np.inf}, 'ransac_points'),
+                                          ({'ransac_points': np.nan}, 'ransac_points'),
+                                          ({'min_inliers': '0.1'}, 'min_inliers'), ({'graph': 'x'}, 'graph'),
+                                          ({'noise_model': 'depth_quadratic', 'noise_reference': True},
+                                           'noise_reference')])
 def test_invalid_parameters_raise(kwargs, name):
     args = {'tolerance': 0.01, **kwargs}
     with pytest.raises(ValueError, match=name):
@@ -200,13 +207,27 @@ def test_invalid_parameters_raise(kwargs, name):
 @pytest.mark.parametrize('call', [lambda p: pv.tune_tolerance(p, seed=-1), lambda p: pv.tune_tolerance(p, count=2.5),
                                   lambda p: pv.tune_tolerance(p, connectivity=0),
                                   lambda p: pv.validity_indices(p, np.zeros(len(p), int), seed=-1),
-                                  lambda p: pv.select_plane_count(p, 1.0, seed=-1)])
+                                  lambda p: pv.select_plane_count(p, 1.0, seed=-1),
+                                  lambda p: pv.tune_tolerance(p, max_planes='3', seed=0),
+                                  lambda p: pv.tune_tolerance(p, t_min=np.nan, seed=0),
+                                  lambda p: pv.validity_indices(p, np.zeros(len(p), int), sample_size=np.inf),
+                                  lambda p: pv.validity_indices(p, np.zeros(len(p), int), sampled_separation='no'),
+                                  lambda p: pv.validity_indices(p, np.full(len(p), 2**63 + 1, np.uint64))])
 def test_invalid_tuning_and_index_arguments_raise_a_clear_error(call):
     points = scenes.corner(300, seed=0).points
     for seed in (np.random.SeedSequence(3), np.random.PCG64(3), [1, 2], np.int64(5)):  # what default_rng takes
         assert pv.detect_planes(points, 0.01, seed=seed).n_planes >= 1
-    with pytest.raises(ValueError, match='seed|count|connectivity'):
+    with pytest.raises(ValueError, match='seed|count|connectivity|max_planes|t_min|sample_size|sampled_separation|'
+                                         'labels must fit'):
         call(scenes.corner(300, seed=0).points)
+
+
+def test_a_min_inliers_given_as_a_0d_array_means_its_number():
+    """A second outside probe: np.array(0.5) was taken as the count int(0.5), not as the fraction 0.5."""
+    points = scenes.corner(600, noise=0.01, seed=0).points  # three faces of about a third each
+    for value in (0.5, np.float32(0.5), np.array(0.5)):
+        assert pv.detect_planes(points, 0.05, seed=0, min_inliers=value).n_planes == 0, value
+    assert pv.detect_planes(points, 0.05, seed=0, min_inliers=np.array(100)).n_planes == 3
 
 
 def test_seed_reproducible_and_none_draws_entropy():

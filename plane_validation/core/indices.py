@@ -30,7 +30,7 @@ from scipy.spatial.distance import cdist, pdist
 
 from .blas import single_blas_thread
 from .plane_silhouette import dense_codes, plane_silhouette
-from .ransac import finite_rows, generator
+from .ransac import check_flag, check_integer, finite_rows, generator
 
 __all__ = [
     'ValidityIndices', 'validity_indices', 'dunn_index', 'davies_bouldin_index', 'davies_bouldin_classic',
@@ -111,6 +111,8 @@ def _check(points: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarr
             raise ValueError('labels must be integers')
     elif lab.dtype.kind not in 'iub':
         raise ValueError(f'labels must be integers, got dtype {lab.dtype}')
+    if lab.dtype.kind in 'uf' and len(lab) and lab.max() > np.iinfo(np.int64).max:  # would wrap to negative
+        raise ValueError(f'labels must fit in 64-bit signed integers, got {lab.max()}')
     return pts.astype(np.float64, copy=False), lab.astype(np.int64)
 
 
@@ -750,8 +752,9 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
 
     Cost: O(sample_size^2) for the sampled silhouettes; exact silhouettes are O(N^2).
     """
-    if sample_size is not None and (int(sample_size) != sample_size or sample_size < 2):
-        raise ValueError(f'sample_size must be None or an integer >= 2, got {sample_size!r}')
+    if sample_size is not None:
+        sample_size = check_integer('sample_size', sample_size, 2)
+    sampled_separation = check_flag('sampled_separation', sampled_separation)
     coded = _coded(points, labels)
     rng = generator(seed)
     n, k = len(coded.keep), len(coded.ids)

@@ -29,7 +29,8 @@ def check_noise_model(noise_model: str, reference: float) -> None:
     """Raise ValueError on an unknown model or a reference range that is not a distance > 0."""
     if noise_model not in NOISE_MODELS:
         raise ValueError(f'unknown noise_model {noise_model!r}; choose one of {", ".join(NOISE_MODELS)}')
-    if not (np.isfinite(reference) and reference > 0):
+    if isinstance(reference, (bool, np.bool_)) or not isinstance(reference, (int, np.integer, float, np.floating)) \
+            or not (np.isfinite(reference) and reference > 0):
         raise ValueError(f'noise_reference must be a finite range > 0 m, got {reference!r}')
 
 

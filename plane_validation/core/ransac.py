@@ -166,6 +166,17 @@ def check_integer(name: str, value, low: int | None) -> int:
     return int(value)
 
 
+def check_number(name: str, value, what: str = 'a number') -> float:
+    """``value`` as a float, or ValueError unless it is a real number (a numpy scalar or 0-d array too; not a bool,
+    a string or None) that is finite; ``what`` says what was expected."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer, float, np.floating)) \
+            or not np.isfinite(value):
+        raise ValueError(f'{name} must be {what}, got {value!r}')
+    return float(value)
+
+
 def check_flag(name: str, value) -> bool:
     """``value`` as a bool, or ValueError unless it is one (a string such as 'no' would count as true)."""
     if not isinstance(value, (bool, np.bool_)):
@@ -247,8 +258,11 @@ def check_magnitude(points: np.ndarray) -> None:
 
 def resolve_min_inliers(min_inliers: int | float, n_valid: int) -> int:
     """An absolute count, or a fraction of ``n_valid`` when ``min_inliers`` is a float < 1."""
-    if isinstance(min_inliers, (bool, np.bool_)) or not np.isfinite(min_inliers) or min_inliers < 0:
-        raise ValueError(f'min_inliers must be a count >= 0 or a fraction in [0, 1), got {min_inliers!r}')
+    why = f'min_inliers must be a count >= 0 or a fraction in [0, 1), got {min_inliers!r}'
+    if isinstance(min_inliers, np.ndarray) and min_inliers.ndim == 0:
+        min_inliers = min_inliers[()]  # a 0-d array means its number: a fraction stays a fraction
+    if check_number('min_inliers', min_inliers, 'a count >= 0 or a fraction in [0, 1)') < 0:
+        raise ValueError(why)
     if isinstance(min_inliers, (float, np.floating)) and min_inliers < 1:
         return max(3, int(np.ceil(min_inliers * n_valid)))
     return max(3, int(min_inliers))
@@ -640,13 +654,11 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     unassigned, as they touch no other region.
     """
     pts = as_points(points)
-    if np.asarray(tolerance).dtype == bool:
+    if check_number('tolerance', tolerance, 'a finite distance > 0') <= 0:
         raise ValueError(f'tolerance must be a finite distance > 0, got {tolerance!r}')
-    tolerance = float(tolerance)
-    if not np.isfinite(tolerance) or tolerance <= 0:
-        raise ValueError(f'tolerance must be a finite distance > 0, got {tolerance!r}')
+    tolerance = check_number('tolerance', tolerance)
     max_planes = check_integer('max_planes', max_planes, 0)
-    if not 0 < probability < 1:
+    if not 0 < check_number('probability', probability, 'in (0, 1)') < 1:
         raise ValueError(f'probability must be in (0, 1), got {probability!r}')
     max_iterations = check_integer('max_iterations', max_iterations, 1)
     connectivity = check_flag('connectivity', connectivity)
@@ -839,8 +851,11 @@ def _label_all(valid: np.ndarray, search: np.ndarray, valid_idx: np.ndarray, cen
 
 def _check_search_size(name: str, value) -> None:
     """ValueError unless ``value`` (``ransac_points`` or ``grid_points``) is None or a whole number >= 3."""
-    if value is not None and (int(value) != value or value < 3):
-        raise ValueError(f'{name} must be None or an integer >= 3, got {value!r}')
+    if value is not None:
+        try:
+            check_integer(name, value, 3)
+        except ValueError:
+            raise ValueError(f'{name} must be None or an integer >= 3, got {value!r}') from None
 
 
 #: An image whose (sub-)grid would have fewer rows or columns than this is searched as an unorganized
@@ -997,6 +1012,8 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
     min_count = resolve_min_inliers(min_inliers, n_valid)
     if graph is None:
         graph = _search_graph(pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
+    elif not isinstance(graph, SearchGraph):
+        raise ValueError(f'graph must be a SearchGraph (search_graph) or None, got {type(graph).__name__}')
     elif (graph.n_points, graph.shape, graph.ransac_points, graph.grid_points) != \
             (len(pts), shape, ransac_points, grid_points):
         raise ValueError(f'graph was built for {graph.n_points} points, shape {graph.shape}, ransac_points '

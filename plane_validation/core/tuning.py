@@ -32,6 +32,7 @@ from .ransac import (
     check_flag,
     check_integer,
     check_magnitude,
+    check_number,
     check_shape,
     check_viewpoint,
     detect_planes,
@@ -345,6 +346,9 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     if isinstance(sweep_planes, bool) or not isinstance(sweep_planes, (int, np.integer)) or sweep_planes < 0:
         raise ValueError(f'sweep_planes must be an integer >= 0 (0 = max_planes), got {sweep_planes!r}')
     extend = check_integer('extend', extend, 0)
+    max_planes = check_integer('max_planes', max_planes, 0)
+    t_min, t_max = (None if t is None else check_number(name, t, 'None or a distance > 0 (m)')
+                    for name, t in (('t_min', t_min), ('t_max', t_max)))
     if tune_points is not None and tune_points != np.inf:  # inf: all points, as None
         if isinstance(tune_points, bool) or not np.isfinite(tune_points) or int(tune_points) != tune_points \
                 or tune_points < 3:
