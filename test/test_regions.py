@@ -211,6 +211,23 @@ def test_sampling_nearby_points_finds_small_planes_that_global_triples_miss(monk
     assert local > 0 and found[local] >= 58 and found[0.0] < found[local], found
 
 
+def test_a_graph_pickles_without_its_caches():
+    """A parallel sweep pickles the search graph for its workers while this process, searching too, fills in the
+    graph's cached properties; pickling the live __dict__ failed ("dictionary changed size during iteration")."""
+    import pickle
+
+    from plane_validation.core.ransac import search_graph
+    graph = search_graph(scenes.cube(3000, 1.0, seed=1).points, None, None)
+    warm = graph.neighbours
+    expected = warm.components(np.arange(warm.n) % 10 == 0)  # a small mask: fills edge_rows
+    assert 'edge_rows' in warm.__dict__
+    copy = pickle.loads(pickle.dumps(graph)).neighbours
+    assert 'edge_rows' not in copy.__dict__
+    got = copy.components(np.arange(copy.n) % 10 == 0)
+    np.testing.assert_array_equal(got[0], expected[0])
+    assert got[1] == expected[1]
+
+
 def test_touching_regions_of_one_surface_are_merged_and_others_are_not():
     from plane_validation.core.ransac import _fit_columns, _merge_coplanar
     from plane_validation.core.regions import graph_neighbours

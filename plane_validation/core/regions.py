@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from scipy import ndimage
@@ -149,6 +149,15 @@ class Neighbours:
     # grid form: (b, 3) pixel pairs on either side of a run of pixels without a point that a region spans
     # (_bridges), and whether the pair crosses the image's seam (1)
     bridges: np.ndarray | None = None
+
+    def __getstate__(self) -> dict:
+        """The fields, without the cached properties: a parallel sweep pickles the graph for its workers while this
+        process, searching too, may be filling those in (pickling the live __dict__ then failed: "dictionary
+        changed size during iteration")."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
 
     def nearby(self, nodes: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """A random point near each of ``nodes`` (m,): within a window of NEARBY_SCALES pixels
