@@ -316,6 +316,37 @@ def test_node_process_stops_cleanly_on_signal(ros, sig):
     assert 'Traceback' not in err + out
 
 
+def test_spin_ends_when_the_context_shuts_down_without_waking_the_executor():
+    """An outside probe: about 1 in 6 SIGTERMs during a parallel sweep shut the context down but left rclpy.spin
+    waiting forever (no wake-up reached its wait); spin looks at the context every SPIN_CHECK_S."""
+    import threading
+
+    from rclpy.context import Context
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+    from plane_validation.ros.node import SPIN_CHECK_S, spin
+
+    class Deaf(SingleThreadedExecutor):
+        def wake(self) -> None:  # the shutdown's wake-up is lost
+            pass
+
+    context = Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node('deaf_spin', context=context)
+    timer = threading.Timer(0.3, context.try_shutdown)
+    timer.start()
+    start = time.monotonic()
+    try:
+        spin(node, Deaf(context=context))
+    except ExternalShutdownException:
+        pass
+    finally:
+        timer.cancel()
+        node.destroy_node()
+        context.try_shutdown()
+    assert time.monotonic() - start < 0.3 + 3 * SPIN_CHECK_S
+
+
 def test_node_with_invalid_startup_parameters_exits_with_a_reason():
     import os
     import subprocess
