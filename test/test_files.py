@@ -552,6 +552,9 @@ def test_rows_ending_in_a_comma_have_no_empty_last_column(tmp_path):
                        ('header_only.csv', 'x,y,z,\n1,2,3\n4,5,6\n7,8,9\n')):
         (tmp_path / name).write_text(text)
         np.testing.assert_array_equal(load_points(tmp_path / name), xyz, err_msg=name)
+    (tmp_path / 'ragged.csv').write_text('1,2,3\n4,5,6,\n')  # rows of other widths: said without numpy's advice
+    with pytest.raises(ValueError, match=r'number of columns changed from 3 to 4 at row 2\)$'):
+        load_points(tmp_path / 'ragged.csv')
     (tmp_path / 'gap.csv').write_text('1,,3\n4,5,6\n')  # an empty field inside a row is still no number
     with pytest.raises(ValueError, match="not a table of numbers"):
         load_points(tmp_path / 'gap.csv')

@@ -361,7 +361,8 @@ def _read_text(path: Path) -> np.ndarray:
     try:
         table = _loadtxt(path, delimiter, int(names is not None), used)
     except Exception as exc:  # ValueError on non-numbers, UnicodeDecodeError on binary bytes
-        raise ValueError(f'{path}: not a table of numbers ({_first_line(exc)})') from exc
+        why = _first_line(exc).split('; use `usecols`')[0]  # numpy's advice is for its API, not for a file's user
+        raise ValueError(f'{path}: not a table of numbers ({why})') from exc
     if table.size == 0:
         return np.empty((0, 3))
     if columns is not None:
