@@ -67,6 +67,13 @@ def test_every_command_has_help(capsys):
     with pytest.raises(SystemExit):
         main(['sweep', '--help'])
     assert '--tolerances A:B:N' in capsys.readouterr().out
+    # the ranges the options take, from the parameter table (an outside probe: the README did not say them)
+    from plane_validation.app.config import PARAMETERS
+    with pytest.raises(SystemExit):
+        main(['detect', '--help'])
+    text = ' '.join(capsys.readouterr().out.split())
+    assert PARAMETERS['max_planes'].allowed == 'in [1, 100]' and '(default 10; in [1, 100])' in text
+    assert f'meters ({PARAMETERS["tolerance"].allowed})' in text
 
 
 # -- detect ----------------------------------------------------------------------------------------

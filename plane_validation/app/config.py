@@ -44,6 +44,17 @@ class Parameter:
             return float(value)
         return value
 
+    @property
+    def allowed(self) -> str:
+        """The values allowed, for a help text: 'in [low, high] unit[ or special]', 'one of ...', or ''."""
+        if self.choices:
+            return f'one of {", ".join(self.choices)}'
+        if self.low is None:
+            return ''
+        unit = f' {self.unit}' if self.unit else ''
+        special = f' or {_fmt(self.special)}' if self.special is not None else ''
+        return f'in [{_fmt(self.low)}, {_fmt(self.high)}]{unit}{special}'
+
     def problem(self, value: Any) -> str | None:
         """Why ``value`` is not allowed, or None."""
         kind = self.type
@@ -55,9 +66,7 @@ class Parameter:
         if self.low is None or value == self.special:
             return None
         if not (self.low <= value <= self.high):  # also catches NaN
-            unit = f' {self.unit}' if self.unit else ''
-            special = f' or {_fmt(self.special)}' if self.special is not None else ''
-            return f'{self.name} must be in [{_fmt(self.low)}, {_fmt(self.high)}]{unit}{special}, got {value!r}'
+            return f'{self.name} must be {self.allowed}, got {value!r}'
         return None
 
 

@@ -529,8 +529,9 @@ def _add_table_options(parser: argparse.ArgumentParser, names: tuple[tuple[str, 
             parser.add_argument(flag, dest=name, type=_table_type(name), default=None, metavar=metavar,
                                 help=f'{text} (default: a PCD file\'s VIEWPOINT, else {spec.default})')
         else:
+            allowed = f'; {spec.allowed}' if spec.allowed and not spec.choices else ''  # choices: argparse lists them
             parser.add_argument(flag, dest=name, type=_table_type(name), default=spec.default, metavar=metavar,
-                                help=f'{text} (default {spec.default})')
+                                help=f'{text} (default {spec.default}{allowed})')
 
 
 def _add_detection_options(parser: argparse.ArgumentParser) -> None:
@@ -610,7 +611,7 @@ def build_parser() -> argparse.ArgumentParser:
     detect.add_argument('cloud', metavar='CLOUD', help=CLOUD_HELP)
     which = detect.add_mutually_exclusive_group()
     which.add_argument('--tolerance', type=_table_type('tolerance'), metavar='T',
-                       help='fixed RANSAC tolerance t in meters')
+                       help=f'fixed RANSAC tolerance t in meters ({PARAMETERS["tolerance"].allowed})')
     which.add_argument('--auto', '--tune', dest='auto', action='store_true',
                        help=f'auto-tune t by a sweep chosen by {DEFAULT_CRITERION} (the default without --tolerance)')
     _add_detection_options(detect)
@@ -647,7 +648,7 @@ def build_parser() -> argparse.ArgumentParser:
                             'its ring image); the planes are then searched on the points as given.')
     planes.add_argument('cloud', metavar='CLOUD', help=CLOUD_HELP)
     planes.add_argument('--tolerance', type=_table_type('tolerance'), metavar='T',
-                        help='RANSAC tolerance t in meters (default: auto-tuned)')
+                        help=f'RANSAC tolerance t in meters (default: auto-tuned; {PARAMETERS["tolerance"].allowed})')
     _add_detection_options(planes)
     _add_table_options(planes, (('organize_rings', ''),))
     planes.add_argument('--plot', metavar='PNG', help=f'write indices vs k, selected k marked ({FIGURE_HELP})')
