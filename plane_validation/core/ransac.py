@@ -654,9 +654,9 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     unassigned, as they touch no other region.
     """
     pts = as_points(points)
-    if check_number('tolerance', tolerance, 'a finite distance > 0') <= 0:
-        raise ValueError(f'tolerance must be a finite distance > 0, got {tolerance!r}')
-    tolerance = check_number('tolerance', tolerance)
+    given, tolerance = tolerance, check_number('tolerance', tolerance, 'a finite distance > 0')
+    if tolerance <= 0:
+        raise ValueError(f'tolerance must be a finite distance > 0, got {given!r}')
     max_planes = check_integer('max_planes', max_planes, 0)
     if not 0 < check_number('probability', probability, 'in (0, 1)') < 1:
         raise ValueError(f'probability must be in (0, 1), got {probability!r}')
