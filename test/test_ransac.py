@@ -230,6 +230,13 @@ def test_a_min_inliers_given_as_a_0d_array_means_its_number():
     assert pv.detect_planes(points, 0.05, seed=0, min_inliers=np.array(100)).n_planes == 3
 
 
+def test_a_count_beyond_int64_is_a_count_and_beyond_float_a_clear_error():
+    points = scenes.corner(300, noise=0.01, seed=0).points
+    assert pv.detect_planes(points, 0.05, seed=0, min_inliers=10 ** 20).n_planes == 0  # was numpy's TypeError
+    with pytest.raises(ValueError, match='min_inliers must be'):
+        pv.detect_planes(points, 0.05, seed=0, min_inliers=10 ** 400)  # was OverflowError
+
+
 def test_seed_reproducible_and_none_draws_entropy():
     scene = scenes.room(5000, 0.02, outlier_fraction=0.2, seed=9)
     a = pv.detect_planes(scene.points, 0.03, seed=42)

@@ -1,4 +1,5 @@
 """Tolerance tuning and plane-count selection: the paper's experiments on synthetic scenes."""
+import dataclasses
 import os
 import re
 import threading
@@ -391,6 +392,73 @@ def test_an_auto_tune_called_reliable_found_the_planes(scene):
     result = pv.tune_tolerance(scene.points, seed=0)
     quality = segmentation_quality(result.segmentation.labels, scene.labels)
     assert not result.reliable or (quality.f1 >= 0.9 and quality.correct == scene.n_planes), (result.verdict, quality)
+
+
+@pytest.mark.parametrize('tolerances', [{0.01, 0.02}, (t for t in [0.01]), '0.01', [True, 0.01], [[0.01]]])
+def test_candidate_tolerances_other_than_numbers_are_refused(tolerances):
+    # an outside probe: a set or a generator raised a TypeError from float(), a string and a bool were taken
+    with pytest.raises(ValueError, match='tolerances must be'):
+        pv.tune_tolerance(scenes.corner(300, seed=0).points, tolerances, seed=0)
+
+
+def test_best_by_names_the_criteria():
+    counts = pv.select_plane_count(scenes.corner(300, noise=0.01, side=1.0, seed=0).points, 0.03, seed=0)
+    assert counts.best_by('gs_planes') >= 1
+    with pytest.raises(ValueError, match='unknown criterion'):
+        counts.best_by('foo')  # was an AttributeError
+
+
+def _two_sheets(gap: float) -> tuple[np.ndarray, np.ndarray]:
+    """Two 2 m sheets ``gap`` meters apart, 3,000 points each with 3 mm noise, and their labels."""
+    rng = np.random.default_rng(7)
+    sheets = [np.column_stack([rng.uniform(-1, 1, (3000, 2)), z + rng.normal(0, 0.003, 3000)]) for z in (0, gap)]
+    return np.vstack(sheets), np.repeat([0, 1], 3000).astype(np.int32)
+
+
+@pytest.mark.parametrize('case', ['bush', 'sheets_5cm', 'sheets_2cm'])
+def test_the_sweep_does_not_choose_clutter_cut_into_slabs_or_two_surfaces_taken_as_one(case):
+    # PS rises as t cuts clutter into slabs or takes two sheets as one plane: the bush was tuned to 141 mm (the floor
+    # and three slabs, F1 0.90), the sheets 5 cm apart to 43 mm and 2 cm apart to 26 mm (one plane, F1 0.50). The
+    # bush's and the 5 cm sheets' choice fails the surface tests; the 2 cm sheets' passes, but a smaller candidate
+    # (17 mm) took them as one
+    from plane_validation.core.scoring import segmentation_quality
+    from plane_validation.core.tuning import UNSOUND_SHARE
+    if case == 'bush':
+        scene = scenes.clutter('bush', seed=0)
+        points, labels = scene.points, scene.labels
+    else:
+        points, labels = _two_sheets(0.05 if case == 'sheets_5cm' else 0.02)
+    result = pv.tune_tolerance(points, seed=0)
+    quality = segmentation_quality(result.segmentation.labels, labels)
+    assert quality.correct == len(np.unique(labels[labels >= 0])) and quality.f1 >= 0.97, (result.tolerance, quality)
+    assert result.reliable, result.verdict
+    chosen = result.rows[result.best]
+    assert not chosen.unsound and chosen.volume_share + chosen.merged_share < UNSOUND_SHARE
+    # it was chosen again: a larger candidate scores a higher PS
+    assert max(r.indices.plane_silhouette for r in result.rows) > chosen.indices.plane_silhouette + 0.01
+    assert any(r.unsound for r in result.rows[result.best:])
+    # the paper's method (no connected regions) keeps the plain choice
+    paper = pv.tune_tolerance(points, seed=0, connectivity=False)
+    assert paper.tolerance > result.tolerance
+
+
+def test_an_unsound_choice_is_made_again_among_the_sound_candidates_below_it():
+    from plane_validation.core import tuning
+    base = pv.tune_tolerance(scenes.corner(600, noise=0.01, side=1.0, seed=0).points, seed=0).rows[-1]
+
+    def row(t: float, ps: float, volume: float = 0.0, merged: float = 0.0) -> tuning.TuningRow:
+        return dataclasses.replace(base, tolerance=t, indices=dataclasses.replace(base.indices, plane_silhouette=ps),
+                                   n_planes=2, inlier_counts=(100, 100), volume_share=volume, merged_share=merged)
+    below_noise = row(0.001, 0.5, volume=1.0)
+    rows = [below_noise, row(0.002, 0.8), row(0.004, 0.85), row(0.008, 0.95, volume=0.1)]
+    assert tuning._choose(rows, 'plane_silhouette', 200) == 3
+    assert tuning._sound_choice(rows, 'plane_silhouette', 200) == 2  # the choice is unsound: again among 1 and 2
+    rows = [row(0.001, 0.7), row(0.002, 0.8), row(0.004, 0.9, merged=1.0), row(0.008, 0.95)]
+    assert tuning._sound_choice(rows, 'plane_silhouette', 200) == 1  # a sound choice above a merge: below it
+    rows = [below_noise, row(0.002, 0.8, merged=0.5), row(0.004, 0.85), row(0.008, 0.95, volume=0.1)]
+    assert tuning._sound_choice(rows, 'plane_silhouette', 200) == 3  # nothing sound below the merge: kept
+    rows = [row(0.001, 0.5, volume=0.019), row(0.002, 0.8), row(0.004, 0.95, volume=0.019)]
+    assert tuning._sound_choice(rows, 'plane_silhouette', 200) == 2  # under UNSOUND_SHARE
 
 
 def test_clutter_scenes_are_labelled_and_refuse_unknown_kinds():

@@ -28,7 +28,8 @@ __all__ = ['jsonable', 'dumps', 'planes_json', 'indices_json', 'detection_docume
 INDEX_FIELDS = ('dunn', 'davies_bouldin', 'davies_bouldin_classic', 'silhouette', 'gs', 'gs_planes',
                 'plane_silhouette', 'silhouette_se', 'gs_se', 'gs_planes_se')
 #: Columns of the sweep CSV, one row per candidate tolerance.
-SWEEP_COLUMNS = ('tolerance', 'n_planes', 'assigned_points') + INDEX_FIELDS + ('max_thickness', 'seconds', 'chosen')
+SWEEP_COLUMNS = ('tolerance', 'n_planes', 'assigned_points') + INDEX_FIELDS + \
+    ('max_thickness', 'volume_share', 'merged_share', 'seconds', 'chosen')
 
 
 def jsonable(value: Any) -> Any:
@@ -115,7 +116,8 @@ def _noise_model(seg: Segmentation, points: np.ndarray) -> dict:
 def _sweep_row(row, chosen: bool) -> dict:
     out = {'tolerance': row.tolerance, 'n_planes': row.n_planes, 'assigned_points': sum(row.inlier_counts)}
     out.update({name: getattr(row.indices, name) for name in INDEX_FIELDS})
-    out.update(max_thickness=row.max_thickness, seconds=row.seconds, chosen=chosen)
+    out.update(max_thickness=row.max_thickness, volume_share=row.volume_share, merged_share=row.merged_share,
+               seconds=row.seconds, chosen=chosen)
     return out
 
 

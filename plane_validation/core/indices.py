@@ -742,7 +742,8 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     Dunn comes out larger and DB smaller than exact; compare such values only with values from
     the same sample size. GS values are unchanged (the same sample, rows and seed either way).
 
-    Label -1 points form one extra cluster for everything but GS_planes, which ignores them.
+    Label -1 points (any negative label: unassigned) form one extra cluster for everything but GS_planes, which
+    ignores them.
     Defined values, never exceptions: fewer than two clusters -> dunn 0.0, davies_bouldin inf,
     davies_bouldin_classic 0.0, silhouette and gs 0.0; fewer than two planes -> gs_planes 0.0;
     touching or coincident clusters (dist 0) -> dunn 0.0, davies_bouldin inf; every cluster a

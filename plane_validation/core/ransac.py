@@ -171,10 +171,15 @@ def check_number(name: str, value, what: str = 'a number') -> float:
     a string or None) that is finite; ``what`` says what was expected."""
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value[()]
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer, float, np.floating)) \
-            or not np.isfinite(value):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer, float, np.floating)):
         raise ValueError(f'{name} must be {what}, got {value!r}')
-    return float(value)
+    try:  # a Python int may be beyond float's range (np.isfinite cannot take it either)
+        number = float(value)
+    except OverflowError:
+        number = np.inf
+    if not np.isfinite(number):
+        raise ValueError(f'{name} must be {what}, got {value!r}')
+    return number
 
 
 def check_flag(name: str, value) -> bool:

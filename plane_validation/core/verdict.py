@@ -13,8 +13,8 @@ from .ransac import Segmentation, as_points
 from .regions import NORMAL_MIN_COS
 from .scoring import segmentation_quality
 
-__all__ = ['judge', 'plane_thickness', 'plane_curvature', 'plane_fill', 'plane_layering', 'plane_beyond', 'MAX_FILL',
-           'MAX_LAYERING', 'MAX_BEYOND', 'MAX_ROUNDNESS',
+__all__ = ['judge', 'surface_failures', 'plane_thickness', 'plane_curvature', 'plane_fill', 'plane_layering',
+           'plane_beyond', 'MAX_FILL', 'MAX_LAYERING', 'MAX_BEYOND', 'MAX_ROUNDNESS',
            'RELIABLE_PS', 'RELIABLE_GS_PLANES', 'MAX_THICKNESS',
            'MIN_CURVATURE', 'SINGLE_PLANE_THICKNESS', 'seed_agreement', 'MIN_SEED_AGREEMENT', 'STABILITY_RESEEDS',
            'MIN_PLANE_POINTS', 'coordinate_step']
@@ -141,6 +141,26 @@ def plane_beyond(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     samples = _samples(pts, seg)
     return _beyond(pts, seg, [_pca(inl) for inl in samples], np.array([_fill(inl, p, seg) for inl, p in
                                                                        zip(samples, seg.planes)]))
+
+
+def surface_failures(points: np.ndarray, seg: Segmentation) -> tuple[np.ndarray, np.ndarray]:
+    """Per plane of ``seg`` on ``points`` (N, 3) meters, the surface tests of :func:`judge` it fails: (cut out of
+    a volume: plane_beyond >= MAX_BEYOND; two surfaces found as one: plane_layering >= MAX_LAYERING with plane_fill
+    >= MAX_FILL), two (k,) bool arrays."""
+    pts = as_points(points)
+    samples = _samples(pts, seg)
+    beyond, layering, _ = _surface(pts, seg, samples, [_pca(inl) for inl in samples])
+    return beyond >= MAX_BEYOND, layering >= MAX_LAYERING
+
+
+def _surface(pts: np.ndarray, seg: Segmentation, samples: list, frames: list
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(plane_beyond, plane_layering (0 where the plane does not fill its band), plane_fill), each (k,), from the
+    planes' inlier ``samples`` and their ``frames`` (_pca)."""
+    fill = np.array([_fill(inl, plane, seg) for inl, plane in zip(samples, seg.planes)])
+    layering = np.array([_layering(inl, plane) if f >= MAX_FILL else 0.0  # only filled planes can fail
+                         for inl, plane, f in zip(samples, seg.planes, fill)])
+    return _beyond(pts, seg, frames, fill), layering, fill
 
 
 def _beyond(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray) -> np.ndarray:
@@ -294,8 +314,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     sizes = np.array([len(p.inliers) for p in seg.planes], dtype=float)
     curvature = np.array([_curvature(pca) if t > MAX_THICKNESS else 0.0 for pca, t in zip(frames, thickness)])
     slab = (thickness > MAX_THICKNESS) & (curvature >= MIN_CURVATURE)
-    fill = np.array([_fill(inl, plane, seg) for inl, plane in zip(samples, seg.planes)])
-    beyond = _beyond(pts, seg, frames, fill)
+    beyond, layering, fill = _surface(pts, seg, samples, frames)
     problems = []  # every test that fails, so that fixing one cause does not reveal another
     distinct = np.array([_distinct(pts, p.inliers) for p in seg.planes])
     tiny = distinct < MIN_PLANE_POINTS
@@ -315,8 +334,6 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     if (worst := _worst(beyond >= MAX_BEYOND, sizes)) is not None:
         problems.append(f'plane {worst} is cut out of a volume (the cloud has {_up(beyond[worst])} points at t..2t '
                         f'from it per point within t, >= {MAX_BEYOND}): clutter or outliers, or t below the noise')
-    layering = np.array([_layering(inl, plane) if f >= MAX_FILL else 0.0  # only filled planes can fail
-                         for inl, plane, f in zip(samples, seg.planes, fill)])
     if (worst := _worst(layering >= MAX_LAYERING, sizes)) is not None:
         problems.append(f'plane {worst}\'s points lie on two parallel layers near the edges of its band of +-t '
                         f'({layering[worst]:.0%} of its residual variance is the step between them, RMS distance '
