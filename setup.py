@@ -38,6 +38,7 @@ setup(
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', glob('config/*.yaml') + glob('config/*.xml')),
         ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
+        ('share/' + PACKAGE + '/bags/room', glob('bags/room/*')),  # the demo's bag (cli demo_bag)
     ],
     # ament convention: runtime dependencies are declared in package.xml and resolved by
     # rosdep; pip users take them from the extras below.

@@ -56,6 +56,18 @@ def corner_npy(tmp_path_factory) -> Path:
     return path
 
 
+def test_the_demo_finds_its_bag_outside_the_checkout_root(tmp_path, monkeypatch):
+    from plane_validation.cli.commands import DEMO_BAG, demo_bag
+    monkeypatch.chdir(tmp_path)
+    assert demo_bag().resolve() == (Path(__file__).resolve().parents[1] / DEMO_BAG).resolve()
+
+
+def test_the_package_runs_as_a_module():
+    done = subprocess.run([sys.executable, '-m', 'plane_validation', '--help'], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0 and done.stdout.startswith('usage: plane-validation'), done.stderr
+
+
 def test_every_command_has_help(capsys):
     for command in ('detect', 'sweep', 'tune', 'planes', 'scene', 'paper', 'replay', 'demo'):
         with pytest.raises(SystemExit) as info:
@@ -160,6 +172,22 @@ def _untimed(doc):
 
 
 # -- sweep and planes ------------------------------------------------------------------------------
+
+def test_an_interrupted_sweep_or_detect_writes_none_of_its_files(corner_npy, tmp_path, monkeypatch):
+    # an outside probe: Ctrl-C while sweep drew its plot left the new CSV beside the last run's plot
+    from plane_validation.app import plot
+    csv_path, png, ply = tmp_path / 's.csv', tmp_path / 's.png', tmp_path / 'd.ply'
+    csv_path.write_text('old'), png.write_text('old')
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(plot, 'plot_sweep', interrupted)
+    monkeypatch.setattr(plot, 'plot_planes', interrupted)
+    assert main(['sweep', str(corner_npy), '--csv', str(csv_path), '--plot', str(png)]) == 130  # as after Ctrl-C
+    assert main(['detect', str(corner_npy), '--out', str(ply), '--png', str(png)]) == 130
+    assert csv_path.read_text() == 'old' and png.read_text() == 'old' and not ply.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['s.csv', 's.png']  # no temporary files left
+
 
 def test_sweep_table_csv_plot_and_json(corner_npy, tmp_path, capsys):
     csv_path, png = tmp_path / 'sweep.csv', tmp_path / 'sweep.png'

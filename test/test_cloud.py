@@ -596,3 +596,12 @@ def test_property_random_layouts_decode_exactly(layout_seed, family):
     contiguous = (layout.height == 1 or layout.width == 1
                   or layout.row_step == layout.width * layout.point_step)
     assert np.shares_memory(rec, buffer_of(msg)) == contiguous
+
+
+def test_a_message_without_a_field_list_is_a_clear_error():
+    from types import SimpleNamespace  # a hand-made message (an outside probe: it raised a TypeError)
+    msg = SimpleNamespace(height=1, width=1, fields=None, is_bigendian=False, point_step=12, row_step=12,
+                          data=bytes(12), is_dense=True)
+    with pytest.raises(ValueError, match='PointCloud2.fields must be a list of PointField'):
+        xyz_array(msg)
+    assert ring_array(SimpleNamespace(fields=[])) is None

@@ -57,12 +57,19 @@ def test_text_and_npy(tmp_path):
      + bytes(24), 'COUNT must be at least 1'),  # was an IndexError
     (b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 2 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n'
      b'1 2 3 4\n', '1 for x, y and z'),
+    (b'VERSION 0.7\nFIELDS x y z f\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1000000000000\nWIDTH 1\nHEIGHT 1\n'
+     b'POINTS 1\nDATA binary\n' + bytes(12), 'bad.pcd: a PCD point of more than 2 GiB'),  # was numpy's "C int" error
 ])
 def test_malformed_pcd_is_a_clear_error(tmp_path, content, words):
     path = tmp_path / 'bad.pcd'
     path.write_bytes(content)
     with pytest.raises(ValueError, match=words):
         load_points(path)
+
+
+def test_an_empty_file_name_is_refused():
+    with pytest.raises(ValueError, match='the file name is empty'):  # an outside probe: it read '.' as a bag
+        load_points('')
 
 
 def test_detect_command(tmp_path, capsys):

@@ -44,6 +44,17 @@ def corner_points(noise: float = 0.0, seed: int = 1, n: int = 3000) -> np.ndarra
     return scenes.corner(n, noise, scale=0.01, seed=seed).points  # a 1 m corner in meters; noise in cm
 
 
+def test_help_prints_the_topics_and_parameters_instead_of_starting_the_node(capsys):
+    # an outside probe: --help was left to rclpy, which ignores it, and the node started silently
+    from plane_validation.app.config import PARAMETERS
+    from plane_validation.ros.node import main
+    assert main(['--help']) == 0 and main(['-h', '--ros-args', '-p', 'tolerance:=0.05']) == 0
+    text = capsys.readouterr().out
+    assert text.startswith('usage: plane_validation_node') and '~/segmented' in text
+    assert all(f'  {name} (default ' in text for name in (*PARAMETERS, 'reliability'))
+    assert not rclpy.ok()  # rclpy was not started
+
+
 def test_georeferenced_points_go_out_as_float64_and_sensor_frames_as_float32():
     from plane_validation.ros.messages import segmented_cloud
     pipe = FramePipeline(PipelineConfig(**FIXED))

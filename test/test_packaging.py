@@ -24,11 +24,11 @@ pytestmark = pytest.mark.ros  # rclpy and the ROS message packages (and DDS for 
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = 'plane_validation'
-#: what a colcon workspace needs of the repository (not .venv, bags/, benchmarks/, test/, ...)
-SOURCES = ['package.xml', 'setup.py', 'setup.cfg', 'resource', PACKAGE, 'config', 'launch']
+#: what a colcon workspace needs of the repository (not .venv, benchmarks/, test/, the other bags, ...)
+SOURCES = ['package.xml', 'setup.py', 'setup.cfg', 'resource', PACKAGE, 'config', 'launch', 'bags/room']
 EXECUTABLES = ['plane_validation_node', 'plane-validation']
 SHARE_FILES = ['package.xml', 'config/params.yaml', 'config/fastdds_large_clouds.xml',
-               'launch/plane_validation.launch.py']
+               'launch/plane_validation.launch.py', 'bags/room/metadata.yaml', 'bags/room/room.mcap']
 BUILD_TIMEOUT = 300.0
 
 EXEC_DEPENDS = ['rclpy', 'sensor_msgs', 'std_msgs', 'geometry_msgs', 'visualization_msgs',
@@ -231,6 +231,15 @@ def test_colcon_build_needs_no_ros_wheels(prefix):
     assert len(requires) == 1
     hard = requires[0].read_text(encoding='utf-8').split('\n[', 1)[0].split()
     assert [r for r in hard if r.startswith(('ros-', 'ros_'))] == [], hard
+
+
+def test_installed_package_finds_its_demo_bag_from_anywhere(prefix, tmp_path):
+    # an outside probe: `plane-validation demo` found its bag only in the checkout's root
+    code = 'from plane_validation.cli.commands import demo_bag; print(demo_bag())'
+    env = dict(os.environ, PYTHONPATH=str(_site_packages(prefix)))
+    found = subprocess.run([sys.executable, '-c', code], cwd=tmp_path, env=env, capture_output=True, text=True,
+                           timeout=60)
+    assert Path(found.stdout.strip()) == prefix / 'share' / PACKAGE / 'bags' / 'room', found.stderr
 
 
 def test_installed_launch_file_starts_the_node_with_params_and_remapping(prefix):

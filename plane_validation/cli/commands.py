@@ -28,11 +28,12 @@ import numpy as np
 
 from ..app.config import min_inliers_value
 from ..app.report import format_planes
-from ..formats.files import check_output, check_writable, load_scan
+from ..formats.files import atomic_outputs, check_output, check_writable, load_scan
 
 __all__ = ['main', 'build_parser', 'format_planes', 'parse_tolerances']
 
-#: The bag the demo replays and where its outputs go (relative to the repository / current directory).
+#: The bag the demo replays and where its outputs go (relative to the repository / current directory); an
+#: installed package has the bag in its share folder (setup.py), which the demo uses from anywhere else.
 DEMO_BAG = 'bags/room'
 DEMO_OUT = 'out/demo'
 #: In a demo's --out folder: the names of the outputs demos wrote there, which the next one may replace.
@@ -186,15 +187,20 @@ def cmd_detect(args: argparse.Namespace) -> int:
                      connectivity=args.connectivity, ransac_points=args.ransac_points or None,
                      grid_points=args.grid_points or None,
                      viewpoint=_viewpoint(args), ring=ring, organize_rings=args.organize_rings)
-    written = []
-    if args.out:
-        from ..formats.files import save_points
-        pose = (*_viewpoint(args), *(args.file_viewpoint[3:] if args.file_viewpoint is not None else (1, 0, 0, 0)))
-        written.append(save_points(args.out, read, det.segmentation.labels, shape=shape, viewpoint=pose))
-    if args.png:
-        from ..app.plot import plot_planes
-        valid = np.isfinite(points).all(axis=1)
-        written.append(plot_planes(points[valid], det.segmentation.labels[valid], args.png, title=str(args.cloud)))
+    from ..formats.bags import BAG_SUFFIXES
+    bag = args.out is not None and Path(args.out).suffix.lower() in (*BAG_SUFFIXES, '')
+    files = [path for path in (None if bag else args.out, args.png) if path]
+    with atomic_outputs(*files) as staged:  # an interrupted run writes none of them (a bag: it, last, or nothing)
+        at = dict(zip(files, staged))
+        if args.png:
+            from ..app.plot import plot_planes
+            valid = np.isfinite(points).all(axis=1)
+            plot_planes(points[valid], det.segmentation.labels[valid], at[args.png], title=str(args.cloud))
+        if args.out:
+            from ..formats.files import save_points
+            pose = (*_viewpoint(args), *(args.file_viewpoint[3:] if args.file_viewpoint is not None else (1, 0, 0, 0)))
+            save_points(at.get(args.out, args.out), read, det.segmentation.labels, shape=shape, viewpoint=pose)
+    written = [Path(path) for path in (args.out, args.png) if path]
     if args.json:
         _emit_json(detection_document(args.cloud, det, max_planes=args.max_planes,
                                       min_inliers=min_inliers_value(args.min_inliers),
@@ -242,12 +248,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                                       noise_reference=args.noise_reference, jobs=args.tune_jobs,
                                       ransac_points=args.ransac_points or None,
                                       grid_points=args.grid_points or None)
-    written = []
-    if args.csv:
-        written.append(write_sweep_csv(args.csv, result))
-    if args.plot:
-        from ..app.plot import plot_sweep
-        written.append(plot_sweep(result, args.plot, title=Path(str(args.cloud)).name))
+    written = [Path(path) for path in (args.csv, args.plot) if path]
+    with atomic_outputs(*written) as staged:  # an interrupted run writes neither
+        at = dict(zip(written, staged))
+        if args.csv:
+            write_sweep_csv(at[Path(args.csv)], result)
+        if args.plot:
+            from ..app.plot import plot_sweep
+            plot_sweep(result, at[Path(args.plot)], title=Path(str(args.cloud)).name)
     if args.json:
         _emit_json(sweep_document(args.cloud, points, result, seed=args.seed, ring_image=ring_note))
         return 0
@@ -392,12 +400,26 @@ def cmd_replay(args: argparse.Namespace) -> int:
     return 0
 
 
+def demo_bag() -> Path:
+    """DEMO_BAG: in the current directory, else beside the package in its checkout, else in the share folder of
+    the prefix it is installed in (pip, colcon); the first that exists (DEMO_BAG when none does)."""
+    package = Path(__file__).resolve().parents[1]
+    prefix = package.parents[3] if package.parent.name in ('site-packages', 'dist-packages') else None
+    places = [Path(DEMO_BAG), package.parent / DEMO_BAG]
+    if prefix is not None:
+        places.append(prefix / 'share' / 'plane_validation' / DEMO_BAG)
+    return next((place for place in places if place.is_dir()), Path(DEMO_BAG))
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     from ..app.pipeline import PipelineConfig
     from ..app.plot import plot_cloud_message
     replay_live = _ros_replay().replay_live
+    if args.bag is None:
+        args.bag = str(demo_bag())
     if not Path(args.bag).exists():
-        raise ValueError(f'bag not found: {args.bag}')
+        raise ValueError(f'bag not found: {args.bag}' + (' (the package\'s demo bag: run from its checkout, or give '
+                                                         '--bag)' if Path(args.bag) == Path(DEMO_BAG) else ''))
     out_dir = Path(args.out)
     if out_dir.exists() and not out_dir.is_dir():
         raise ValueError(f'--out {out_dir} is a file: give a folder')
@@ -587,7 +609,8 @@ def build_parser() -> argparse.ArgumentParser:
                           description='Replay a bundled bag live over DDS through plane_validation_node (started '
                           'in this process, auto-tuned tolerance, seed 0), print each answered frame and record '
                           'everything the node publishes into a bag, with a picture of the last frame.')
-    demo.add_argument('--bag', default=DEMO_BAG, help=f'the bag to replay (default {DEMO_BAG}; see bags/README.md)')
+    demo.add_argument('--bag', default=None, help=f'the bag to replay (default {DEMO_BAG}, from the checkout or the '
+                      'installed package; see bags/README.md)')
     demo.add_argument('--out', default=DEMO_OUT, help='directory for the output bag and PNG')
     demo.add_argument('--rate', type=_positive_float, default=0.25,
                       help='playback speed (default 0.25: slow enough that the node answers every frame)')

@@ -16,15 +16,15 @@ import re
 import tempfile
 import warnings
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 import numpy as np
 
 from ..core.geometry import beam_numbers
 
-__all__ = ['atomic_output', 'staged_files', 'check_output', 'check_writable', 'load_cloud', 'load_points',
-           'load_scan', 'save_points', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
+__all__ = ['atomic_output', 'atomic_outputs', 'staged_files', 'check_output', 'check_writable', 'load_cloud',
+           'load_points', 'load_scan', 'save_points', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
 
 #: Extensions of plain point files (bags are recognised separately).
 TEXT_SUFFIXES = ('.xyz', '.txt', '.csv')
@@ -48,6 +48,8 @@ def load_points(source: str | Path) -> np.ndarray:
     """
     from .bags import parse_bag_source, read_bag_points
 
+    if not str(source).strip():
+        raise ValueError('no cloud given: the file name is empty')
     bag = parse_bag_source(source)
     if bag is not None:
         return read_bag_points(bag)
@@ -221,6 +223,15 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
             raise OSError(f'cannot write {path}: {exc.strerror or exc}') from exc
     finally:
         tmp.unlink(missing_ok=True)
+
+
+@contextmanager
+def atomic_outputs(*paths: str | Path) -> Iterator[list[Path]]:
+    """:func:`atomic_output` for files a command writes together: a temporary path for each of ``paths``; once the
+    block ends normally they replace their paths (one after the other, after all are written), otherwise all are
+    deleted: an interrupted run leaves none of its files, not some beside an earlier run's others."""
+    with ExitStack() as stack:
+        yield [stack.enter_context(atomic_output(path)) for path in paths]
 
 
 @contextmanager
@@ -448,6 +459,9 @@ def _read_pcd_scan(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int
     if any(c < 1 for c in counts) or any(counts[fields.index(a)] != 1 for a in 'xyz'):
         raise ValueError(f'{path}: PCD COUNT must be at least 1 per field and 1 for x, y and z, got '
                          f'{" ".join(map(str, counts))}')
+    if sum(size * count for size, count in zip(sizes, counts)) >= 2 ** 31:  # beyond what a numpy record can hold
+        raise ValueError(f'{path}: a PCD point of more than 2 GiB (SIZE x COUNT {" ".join(map(str, counts))}): '
+                         'a corrupt header?')
     try:
         image = int(header['WIDTH'][0]) * int(header['HEIGHT'][0]) if 'WIDTH' in header and 'HEIGHT' in header else n
     except (IndexError, ValueError) as exc:

@@ -110,7 +110,7 @@ def _field_layout(msg: Any) -> tuple[np.dtype, int]:
     formats: list[Any] = []
     offsets: list[int] = []
     end = 0
-    for field in msg.fields:
+    for field in _fields(msg):
         name = str(field.name)
         code, offset, count = field.datatype, field.offset, field.count
         if code not in DATATYPES:
@@ -185,10 +185,20 @@ def structured_array(msg: Any) -> np.ndarray:
     return grid.reshape(-1)  # view if rows are back to back (or a single row), else a copy
 
 
+def _fields(msg: Any) -> list:
+    """``msg.fields`` as a list; ValueError when it is not a sequence (a hand-made message)."""
+    fields = getattr(msg, 'fields', None)
+    try:
+        return list(fields)
+    except TypeError:
+        raise ValueError(f'PointCloud2.fields must be a list of PointField, got {fields!r}') from None
+
+
 def _check_xyz(msg: Any) -> None:
     """Check that x, y, z exist once each with count 1 and a float datatype."""
-    by_name = {str(f.name): f for f in msg.fields}
-    names = [str(f.name) for f in msg.fields]
+    fields = _fields(msg)
+    by_name = {str(f.name): f for f in fields}
+    names = [str(f.name) for f in fields]
     for name in _XYZ:
         if names.count(name) > 1:
             raise ValueError(f'field {name!r} appears more than once in PointCloud2.fields')
@@ -238,7 +248,7 @@ def ring_array(msg: Any) -> np.ndarray | None:
     """(height*width,) the ``ring`` field (each point's beam, as spinning-lidar drivers publish it) as
     :func:`~plane_validation.core.geometry.beam_numbers` gives it; None when there is no ``ring`` field of
     count 1 (or the message is malformed)."""
-    field = next((f for f in msg.fields if str(f.name) == 'ring'), None)
+    field = next((f for f in _fields(msg) if str(f.name) == 'ring'), None)
     if field is None or field.count != 1 or field.datatype not in DATATYPES:
         return None
     try:

@@ -252,7 +252,26 @@ def spin(node: Node, executor: SingleThreadedExecutor | None = None) -> None:
         executor.remove_node(node)
 
 
+def usage() -> str:
+    """The node's --help: how to start it, its topics and its parameters (from the parameter tables)."""
+    lines = ['usage: plane_validation_node [--ros-args [-p NAME:=VALUE ...] [--params-file FILE] '
+             '[-r cloud:=TOPIC]]', '',
+             'Subscribes to sensor_msgs/PointCloud2 on "cloud"; publishes '
+             + ', '.join(f'~/{key}' for key in list(OUTPUTS)[:-1]) + ' and /diagnostics.',
+             'config/params.yaml lists every parameter with its default. Parameters:']
+    for spec in (*PARAMETERS.values(), *NODE_PARAMETERS.values()):
+        allowed = f'; {spec.allowed}' if spec.allowed else ''
+        lines.append(f'  {spec.name} (default {spec.default}{allowed}): {spec.description}')
+    return '\n'.join(lines)
+
+
 def main(args: list[str] | None = None) -> int:
+    own = list(sys.argv[1:] if args is None else args)
+    if '--ros-args' in own:
+        own = own[:own.index('--ros-args')]
+    if '-h' in own or '--help' in own:  # rclpy would ignore them and start the node
+        print(usage())
+        return 0
     try:
         limit_blas_threads()
         rclpy.init(args=args)
