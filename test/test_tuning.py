@@ -418,9 +418,8 @@ def _two_sheets(gap: float) -> tuple[np.ndarray, np.ndarray]:
 @pytest.mark.parametrize('case', ['bush', 'sheets_5cm', 'sheets_2cm'])
 def test_the_sweep_does_not_choose_clutter_cut_into_slabs_or_two_surfaces_taken_as_one(case):
     # PS rises as t cuts clutter into slabs or takes two sheets as one plane: the bush was tuned to 141 mm (the floor
-    # and three slabs, F1 0.90), the sheets 5 cm apart to 43 mm and 2 cm apart to 26 mm (one plane, F1 0.50). The
-    # bush's and the 5 cm sheets' choice fails the surface tests; the 2 cm sheets' passes, but a smaller candidate
-    # (17 mm) took them as one
+    # and three slabs, F1 0.90), the sheets 5 cm apart to 43 mm and 2 cm apart to 17 mm (one plane, F1 0.50); each
+    # choice fails the surface tests (a merge below a sound choice: the next test)
     from plane_validation.core.scoring import segmentation_quality
     from plane_validation.core.tuning import UNSOUND_SHARE
     if case == 'bush':
@@ -446,9 +445,9 @@ def test_an_unsound_choice_is_made_again_among_the_sound_candidates_below_it():
     from plane_validation.core import tuning
     base = pv.tune_tolerance(scenes.corner(600, noise=0.01, side=1.0, seed=0).points, seed=0).rows[-1]
 
-    def row(t: float, ps: float, volume: float = 0.0, merged: float = 0.0) -> tuning.TuningRow:
+    def row(t: float, ps: float, volume: float = 0.0, merged: float = 0.0, counts=(100, 100)) -> tuning.TuningRow:
         return dataclasses.replace(base, tolerance=t, indices=dataclasses.replace(base.indices, plane_silhouette=ps),
-                                   n_planes=2, inlier_counts=(100, 100), volume_share=volume, merged_share=merged)
+                                   n_planes=len(counts), inlier_counts=counts, volume_share=volume, merged_share=merged)
     below_noise = row(0.001, 0.5, volume=1.0)
     rows = [below_noise, row(0.002, 0.8), row(0.004, 0.85), row(0.008, 0.95, volume=0.1)]
     assert tuning._choose(rows, 'plane_silhouette', 200) == 3
@@ -459,6 +458,8 @@ def test_an_unsound_choice_is_made_again_among_the_sound_candidates_below_it():
     assert tuning._sound_choice(rows, 'plane_silhouette', 200) == 3  # nothing sound below the merge: kept
     rows = [row(0.001, 0.5, volume=0.019), row(0.002, 0.8), row(0.004, 0.95, volume=0.019)]
     assert tuning._sound_choice(rows, 'plane_silhouette', 200) == 2  # under UNSOUND_SHARE
+    rows = [row(0.0005, 0.3, counts=(40, 40)), below_noise, row(0.008, 0.95, volume=0.1)]
+    assert tuning._sound_choice(rows, 'plane_silhouette', 200) == 2  # a few slivers below: not eligible, kept
 
 
 def test_clutter_scenes_are_labelled_and_refuse_unknown_kinds():

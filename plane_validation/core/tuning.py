@@ -735,11 +735,14 @@ def _choose(rows: list[TuningRow], criterion: str, n_points: int) -> int:
 def _sound_choice(rows: list[TuningRow], criterion: str, n_points: int) -> int:
     """Index of the chosen candidate (:func:`_choose`), chosen again among the sound candidates (TuningRow.unsound)
     below the largest smaller candidate that found two surfaces as one (a larger t only merges more), else below it
-    when it is unsound itself; the first choice when no sound candidate with planes is left there."""
+    when it is unsound itself; the first choice when no sound candidate is left there that covers
+    MIN_RELATIVE_COVERAGE of the sweep's best coverage."""
     best = _choose(rows, criterion, n_points)
     merged = [i for i in range(best) if rows[i].merged_share >= UNSOUND_SHARE]
     top = max(merged) if merged else best if rows[best].unsound else None
-    sound = [] if top is None else [i for i in range(top) if rows[i].n_planes and not rows[i].unsound]
+    coverage = np.array([sum(r.inlier_counts) for r in rows])
+    eligible = coverage >= MIN_RELATIVE_COVERAGE * coverage.max()  # of the whole sweep: not a few slivers below it
+    sound = [] if top is None else [i for i in range(top) if eligible[i] and rows[i].n_planes and not rows[i].unsound]
     return sound[_choose([rows[i] for i in sound], criterion, n_points)] if sound else best
 
 
