@@ -187,6 +187,27 @@ def test_an_interrupted_sweep_or_detect_writes_none_of_its_files(corner_npy, tmp
     assert main(['detect', str(corner_npy), '--out', str(ply), '--png', str(png)]) == 130
     assert csv_path.read_text() == 'old' and png.read_text() == 'old' and not ply.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ['s.csv', 's.png']  # no temporary files left
+    monkeypatch.undo()
+    (tmp_path / 'd.csv').mkdir()  # an outside review: the plot was put in place before the CSV failed
+    assert main(['sweep', str(corner_npy), '--csv', str(tmp_path / 'd.csv'), '--plot', str(png)]) == 2
+    assert png.read_text() == 'old'
+
+
+def test_an_output_through_a_link_or_to_a_pipe_is_written_there(corner_npy, tmp_path):
+    real = tmp_path / 'real.csv'
+    real.write_text('old')
+    (tmp_path / 'link.csv').symlink_to(real)
+    assert main(['sweep', str(corner_npy), '--csv', str(tmp_path / 'link.csv')]) == 0
+    assert (tmp_path / 'link.csv').is_symlink() and real.read_text().startswith('tolerance,')
+    fifo = tmp_path / 'pipe.csv'
+    os.mkfifo(fifo)
+    import threading
+    got = []
+    reader = threading.Thread(target=lambda: got.append(fifo.read_text()))
+    reader.start()
+    assert main(['sweep', str(corner_npy), '--csv', str(fifo)]) == 0
+    reader.join(30)
+    assert got and got[0].startswith('tolerance,') and fifo.is_fifo()
 
 
 def test_sweep_table_csv_plot_and_json(corner_npy, tmp_path, capsys):

@@ -627,3 +627,14 @@ def test_a_binary_pcd_with_less_than_a_point_of_padding_is_read():
         path.write_bytes(b'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n'
                          b'POINTS 2\nDATA binary\n' + np.arange(6, dtype='<f4').tobytes() + b'\n')
         np.testing.assert_array_equal(load_points(path), np.arange(6.0).reshape(2, 3))
+
+
+def test_a_set_of_outputs_refuses_one_file_twice_and_a_directory(tmp_path):
+    from plane_validation.formats.files import atomic_outputs
+    with pytest.raises(ValueError, match='the same file is given twice'):
+        with atomic_outputs(tmp_path / 'a.csv', tmp_path / '.' / 'a.csv'):
+            pass
+    with pytest.raises(ValueError, match='is a directory'):
+        with atomic_outputs(tmp_path / 'a.csv', tmp_path):
+            pass
+    assert list(tmp_path.iterdir()) == []

@@ -49,6 +49,7 @@ def test_help_prints_the_topics_and_parameters_instead_of_starting_the_node(caps
     from plane_validation.app.config import PARAMETERS
     from plane_validation.ros.node import main
     assert main(['--help']) == 0 and main(['-h', '--ros-args', '-p', 'tolerance:=0.05']) == 0
+    assert main(['--ros-args', '-p', 'tolerance:=0.05', '--', '--help']) == 0
     text = capsys.readouterr().out
     assert text.startswith('usage: plane_validation_node') and '~/segmented' in text
     assert all(f'  {name} (default ' in text for name in (*PARAMETERS, 'reliability'))

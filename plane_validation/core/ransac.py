@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import numbers
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -171,7 +172,9 @@ def check_number(name: str, value, what: str = 'a number') -> float:
     a string or None) that is finite; ``what`` says what was expected."""
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value[()]
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer, float, np.floating)):
+    real = isinstance(value, numbers.Number) and not (isinstance(value, numbers.Complex)
+                                                      and not isinstance(value, numbers.Real))  # a Fraction, a Decimal
+    if isinstance(value, (bool, np.bool_)) or not real:
         raise ValueError(f'{name} must be {what}, got {value!r}')
     try:  # a Python int may be beyond float's range (np.isfinite cannot take it either)
         number = float(value)

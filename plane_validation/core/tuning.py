@@ -13,7 +13,7 @@ import queue
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import BrokenExecutor, Future, ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -97,11 +97,12 @@ MIN_RELATIVE_COVERAGE = 0.5
 SILHOUETTE_TIE = 0.01
 #: A candidate whose planes fail the verdict's surface tests (core/verdict.py: cut out of a volume, two surfaces
 #: found as one) on this share of their points or more is unsound. With connected regions, a sweep whose choice is
-#: unsound, or lies above an unsound candidate that found two surfaces as one, chooses again among the sound
-#: candidates below (see _sound_choice): PS rewards clutter cut into slabs and parallel surfaces merged (they cover
-#: more points, clear of the other planes), so a sweep otherwise runs on to them (benchmarks/README.md, seventeenth
-#: session: a floor under a bush chose 141 mm, F1 0.90, now 17 mm, F1 1.00; two sheets 5 cm apart were one plane,
-#: now two). The choices on the benchmark's labelled clouds and clean synthetic scenes are unsound nowhere.
+#: unsound chooses again among the sound candidates below (see _sound_choice): PS rewards clutter cut into slabs and
+#: parallel surfaces merged (they cover more points, clear of the other planes), so a sweep otherwise runs on to them
+#: (benchmarks/README.md, seventeenth session: a floor under a bush chose 141 mm, F1 0.90, now 17 mm, F1 1.00; two
+#: sheets 5 cm apart were one plane, now two). The choices on the benchmark's labelled clouds are sound. A sound choice
+#: above a merge is kept: the layering test also fires on a quantized camera's depth steps, and cutting there split
+#: a wall into its two depth layers (an outside review).
 UNSOUND_SHARE = 0.02
 
 
@@ -339,7 +340,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     max(3 SE, 0.01) of the best (indistinguishable given the silhouette sampling), the smallest
     ``t`` wins; see :func:`_choose` for the single-plane case. With ``connectivity``, a choice whose planes fail
     the verdict's surface tests (clutter cut into slabs, two surfaces as one) is made again among the smaller
-    candidates that pass them (UNSOUND_SHARE, :func:`_sound_choice`).
+    candidates that pass them and cover half the sweep's best coverage, if any (UNSOUND_SHARE, :func:`_sound_choice`).
     progress: called as ``progress(done, total)`` after each candidate (e.g. to drive a progress bar).
     ransac_points, grid_points, sampled_separation: passed to :func:`detect_planes` and :func:`validity_indices`;
     sampled_separation None (the default) means exact up to EXACT_SEPARATION_POINTS valid points and
@@ -485,12 +486,12 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
 
 
 def _check_tolerances(tolerances) -> np.ndarray:
-    """``tolerances`` (a number, or a list, tuple or 1-D array of numbers) as a float array; ValueError otherwise
-    (a string, a set, a generator, bools)."""
+    """``tolerances`` (a number, or a sequence (list, tuple, range, array.array, ...) or 1-D array of numbers) as a
+    float array; ValueError otherwise (a string, a set, a generator, bools)."""
     if isinstance(tolerances, np.ndarray) and tolerances.ndim > 1:
         raise ValueError(f'tolerances must be a list of distances, got an array of shape {tolerances.shape}')
     items = tolerances.ravel() if isinstance(tolerances, np.ndarray) else \
-        tolerances if isinstance(tolerances, (list, tuple)) else [tolerances]
+        tolerances if isinstance(tolerances, Sequence) and not isinstance(tolerances, (str, bytes)) else [tolerances]
     return np.array([check_number('tolerances', t, 'a list of distances > 0 (m)') for t in items], dtype=float)
 
 
@@ -733,16 +734,15 @@ def _choose(rows: list[TuningRow], criterion: str, n_points: int) -> int:
 
 
 def _sound_choice(rows: list[TuningRow], criterion: str, n_points: int) -> int:
-    """Index of the chosen candidate (:func:`_choose`), chosen again among the sound candidates (TuningRow.unsound)
-    below the largest smaller candidate that found two surfaces as one (a larger t only merges more), else below it
-    when it is unsound itself; the first choice when no sound candidate is left there that covers
-    MIN_RELATIVE_COVERAGE of the sweep's best coverage."""
+    """Index of the chosen candidate (:func:`_choose`); when it is unsound (TuningRow.unsound), chosen again among
+    the sound smaller candidates that cover MIN_RELATIVE_COVERAGE of the whole sweep's best coverage (the first
+    choice when there is none)."""
     best = _choose(rows, criterion, n_points)
-    merged = [i for i in range(best) if rows[i].merged_share >= UNSOUND_SHARE]
-    top = max(merged) if merged else best if rows[best].unsound else None
+    if not rows[best].unsound:
+        return best
     coverage = np.array([sum(r.inlier_counts) for r in rows])
     eligible = coverage >= MIN_RELATIVE_COVERAGE * coverage.max()  # of the whole sweep: not a few slivers below it
-    sound = [] if top is None else [i for i in range(top) if eligible[i] and rows[i].n_planes and not rows[i].unsound]
+    sound = [i for i in range(best) if eligible[i] and rows[i].n_planes and not rows[i].unsound]
     return sound[_choose([rows[i] for i in sound], criterion, n_points)] if sound else best
 
 

@@ -14,7 +14,7 @@ from .regions import NORMAL_MIN_COS
 from .scoring import segmentation_quality
 
 __all__ = ['judge', 'surface_failures', 'plane_thickness', 'plane_curvature', 'plane_fill', 'plane_layering',
-           'plane_beyond', 'MAX_FILL', 'MAX_LAYERING', 'MAX_BEYOND', 'MAX_ROUNDNESS',
+           'plane_beyond', 'MAX_FILL', 'MAX_LAYERING', 'EXACT_LAYERS', 'MAX_BEYOND', 'MAX_ROUNDNESS',
            'RELIABLE_PS', 'RELIABLE_GS_PLANES', 'MAX_THICKNESS',
            'MIN_CURVATURE', 'SINGLE_PLANE_THICKNESS', 'seed_agreement', 'MIN_SEED_AGREEMENT', 'STABILITY_RESEEDS',
            'MIN_PLANE_POINTS', 'coordinate_step']
@@ -67,9 +67,14 @@ MAX_FILL = 0.45
 #: 3 mm noise: 0.99 at RMS distances of 0.58-0.66 t). One surface's noise: Gaussian 0.64, uniform 0.75; the planes
 #: of the benchmark's clouds and the Kinect frames at their tuned t: at most 0.79, but a quantized camera's depth
 #: steps close together inside the band (icl_office_0: up to 1.00 at RMS distances of 0.01-0.12 t). A fronto-parallel
-#: wall between two depth steps q apart found at t between q / 2 and q fails it too (benchmarks/README.md). Such
+#: wall between two depth steps q apart found at t between q / 2 and q failed it too, until EXACT_LAYERS. Such
 #: planes may hold less than MINOR_SHARE of the planes' points.
 MAX_LAYERING = 0.9
+#: ... but not at or above this share: residuals that split this cleanly lie on exact layers, the depth steps of a
+#: quantizing camera (a fronto-parallel wall between two steps 2 cm apart, found as one plane at t between a half and
+#: a whole step: 0.9992-0.9993), not two surfaces with noise (sheets 2-5 cm apart with 2-3 mm noise: 0.92-0.99;
+#: benchmarks/README.md, seventeenth session). Noise-free parallel surfaces found as one pass too.
+EXACT_LAYERS = 0.995
 #: A lone plane this thin (see plane_thickness) is a plane; a thicker one may be a slab cut
 #: through stairs or a curved surface (a noisy 2 m floor with e = 1 cm is 0.01, a stair slope 0.14).
 SINGLE_PLANE_THICKNESS = 0.05
@@ -145,12 +150,17 @@ def plane_beyond(points: np.ndarray, seg: Segmentation) -> np.ndarray:
 
 def surface_failures(points: np.ndarray, seg: Segmentation) -> tuple[np.ndarray, np.ndarray]:
     """Per plane of ``seg`` on ``points`` (N, 3) meters, the surface tests of :func:`judge` it fails: (cut out of
-    a volume: plane_beyond >= MAX_BEYOND; two surfaces found as one: plane_layering >= MAX_LAYERING with plane_fill
-    >= MAX_FILL), two (k,) bool arrays."""
+    a volume: plane_beyond >= MAX_BEYOND; two surfaces found as one: plane_layering in [MAX_LAYERING, EXACT_LAYERS)
+    with plane_fill >= MAX_FILL), two (k,) bool arrays."""
     pts = as_points(points)
     samples = _samples(pts, seg)
     beyond, layering, _ = _surface(pts, seg, samples, [_pca(inl) for inl in samples])
-    return beyond >= MAX_BEYOND, layering >= MAX_LAYERING
+    return beyond >= MAX_BEYOND, _two_surfaces(layering)
+
+
+def _two_surfaces(layering: np.ndarray) -> np.ndarray:
+    """(k,) bool: planes whose plane_layering (0 where the plane does not fill its band) says two surfaces."""
+    return (layering >= MAX_LAYERING) & (layering < EXACT_LAYERS)
 
 
 def _surface(pts: np.ndarray, seg: Segmentation, samples: list, frames: list
@@ -334,7 +344,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     if (worst := _worst(beyond >= MAX_BEYOND, sizes)) is not None:
         problems.append(f'plane {worst} is cut out of a volume (the cloud has {_up(beyond[worst])} points at t..2t '
                         f'from it per point within t, >= {MAX_BEYOND}): clutter or outliers, or t below the noise')
-    if (worst := _worst(layering >= MAX_LAYERING, sizes)) is not None:
+    if (worst := _worst(_two_surfaces(layering), sizes)) is not None:
         problems.append(f'plane {worst}\'s points lie on two parallel layers near the edges of its band of +-t '
                         f'({layering[worst]:.0%} of its residual variance is the step between them, RMS distance '
                         f'{_up(fill[worst])} t): two surfaces found as one')

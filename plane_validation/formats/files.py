@@ -204,8 +204,13 @@ def _in_a_directory(path: Path) -> None:
 @contextmanager
 def atomic_output(path: str | Path) -> Iterator[Path]:
     """A temporary path beside ``path`` (same suffix) that replaces ``path`` when the block ends
-    normally and is deleted otherwise, so an output file is complete or absent."""
+    normally and is deleted otherwise, so an output file is complete or absent. A symbolic link's target is
+    replaced (not the link); an existing device or pipe (``/dev/stdout``) is written in place."""
     path = Path(path)
+    if path.exists() and not path.is_file() and not path.is_dir():  # a device or a pipe: no file to stage
+        yield path
+        return
+    path = path.resolve() if path.is_symlink() else path
     try:
         fd, name = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.stem}.', suffix=path.suffix)
     except OSError as exc:  # named by the output, not by the temporary file
@@ -230,8 +235,14 @@ def atomic_outputs(*paths: str | Path) -> Iterator[list[Path]]:
     """:func:`atomic_output` for files a command writes together: a temporary path for each of ``paths``; once the
     block ends normally they replace their paths (one after the other, after all are written), otherwise all are
     deleted: an interrupted run leaves none of its files, not some beside an earlier run's others."""
+    targets = [Path(path) for path in paths]
+    for path in targets:  # refused before anything is written: a late failure would leave the others replaced
+        if path.is_dir():
+            raise ValueError(f'{path} is a directory: give a file name')
+    if len({path.resolve() for path in targets}) < len(targets):
+        raise ValueError(f'the same file is given twice: {", ".join(map(str, targets))}')
     with ExitStack() as stack:
-        yield [stack.enter_context(atomic_output(path)) for path in paths]
+        yield [stack.enter_context(atomic_output(path)) for path in targets]
 
 
 @contextmanager

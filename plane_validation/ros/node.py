@@ -258,7 +258,8 @@ def usage() -> str:
              '[-r cloud:=TOPIC]]', '',
              'Subscribes to sensor_msgs/PointCloud2 on "cloud"; publishes '
              + ', '.join(f'~/{key}' for key in list(OUTPUTS)[:-1]) + ' and /diagnostics.',
-             'config/params.yaml lists every parameter with its default. Parameters:']
+             'config/params.yaml (installed in share/plane_validation/config) lists every parameter with its '
+             'default. Parameters:']
     for spec in (*PARAMETERS.values(), *NODE_PARAMETERS.values()):
         allowed = f'; {spec.allowed}' if spec.allowed else ''
         lines.append(f'  {spec.name} (default {spec.default}{allowed}): {spec.description}')
@@ -267,8 +268,9 @@ def usage() -> str:
 
 def main(args: list[str] | None = None) -> int:
     own = list(sys.argv[1:] if args is None else args)
-    if '--ros-args' in own:
-        own = own[:own.index('--ros-args')]
+    if '--ros-args' in own:  # the node's own arguments: those before it and after a '--' that ends the ROS ones
+        ros = own[own.index('--ros-args') + 1:]
+        own = own[:own.index('--ros-args')] + (ros[ros.index('--') + 1:] if '--' in ros else [])
     if '-h' in own or '--help' in own:  # rclpy would ignore them and start the node
         print(usage())
         return 0
