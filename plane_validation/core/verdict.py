@@ -67,13 +67,15 @@ MAX_FILL = 0.45
 #: 3 mm noise: 0.99 at RMS distances of 0.58-0.66 t). One surface's noise: Gaussian 0.64, uniform 0.75; the planes
 #: of the benchmark's clouds and the Kinect frames at their tuned t: at most 0.79, but a quantized camera's depth
 #: steps close together inside the band (icl_office_0: up to 1.00 at RMS distances of 0.01-0.12 t). A fronto-parallel
-#: wall between two depth steps q apart found at t between q / 2 and q failed it too, until EXACT_LAYERS. Such
+#: wall between two depth steps q apart found at t between q / 2 and q fails it too (benchmarks/README.md). Such
 #: planes may hold less than MINOR_SHARE of the planes' points.
 MAX_LAYERING = 0.9
-#: ... but not at or above this share: residuals that split this cleanly lie on exact layers, the depth steps of a
-#: quantizing camera (a fronto-parallel wall between two steps 2 cm apart, found as one plane at t between a half and
-#: a whole step: 0.9992-0.9993), not two surfaces with noise (sheets 2-5 cm apart with 2-3 mm noise: 0.92-0.99;
-#: benchmarks/README.md, seventeenth session). Noise-free parallel surfaces found as one pass too.
+#: Residuals that one split explains to this share or more lie on exact layers: a quantizing camera's depth steps (a
+#: fronto-parallel wall between two steps 2 cm apart, found as one plane at t between a half and a whole step:
+#: 0.9992-0.9993) or two surfaces with little noise (sheets 2.5 cm apart with under 0.7 mm noise), which the layering
+#: cannot tell apart; surfaces with 2-3 mm noise 2-5 cm apart: 0.92-0.99 (benchmarks/README.md, seventeenth session).
+#: The verdict fails both (a false alarm on the wall beats a silent merge); surface_failures, for the sweep's second
+#: choice, leaves them out.
 EXACT_LAYERS = 0.995
 #: A lone plane this thin (see plane_thickness) is a plane; a thicker one may be a slab cut
 #: through stairs or a curved surface (a noisy 2 m floor with e = 1 cm is 0.01, a stair slope 0.14).
@@ -149,18 +151,13 @@ def plane_beyond(points: np.ndarray, seg: Segmentation) -> np.ndarray:
 
 
 def surface_failures(points: np.ndarray, seg: Segmentation) -> tuple[np.ndarray, np.ndarray]:
-    """Per plane of ``seg`` on ``points`` (N, 3) meters, the surface tests of :func:`judge` it fails: (cut out of
-    a volume: plane_beyond >= MAX_BEYOND; two surfaces found as one: plane_layering in [MAX_LAYERING, EXACT_LAYERS)
-    with plane_fill >= MAX_FILL), two (k,) bool arrays."""
+    """Per plane of ``seg`` on ``points`` (N, 3) meters, the surface tests of :func:`judge` it fails beyond doubt:
+    (cut out of a volume: plane_beyond >= MAX_BEYOND; two surfaces with noise found as one: plane_layering in
+    [MAX_LAYERING, EXACT_LAYERS) with plane_fill >= MAX_FILL), two (k,) bool arrays."""
     pts = as_points(points)
     samples = _samples(pts, seg)
     beyond, layering, _ = _surface(pts, seg, samples, [_pca(inl) for inl in samples])
-    return beyond >= MAX_BEYOND, _two_surfaces(layering)
-
-
-def _two_surfaces(layering: np.ndarray) -> np.ndarray:
-    """(k,) bool: planes whose plane_layering (0 where the plane does not fill its band) says two surfaces."""
-    return (layering >= MAX_LAYERING) & (layering < EXACT_LAYERS)
+    return beyond >= MAX_BEYOND, (layering >= MAX_LAYERING) & (layering < EXACT_LAYERS)
 
 
 def _surface(pts: np.ndarray, seg: Segmentation, samples: list, frames: list
@@ -344,7 +341,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     if (worst := _worst(beyond >= MAX_BEYOND, sizes)) is not None:
         problems.append(f'plane {worst} is cut out of a volume (the cloud has {_up(beyond[worst])} points at t..2t '
                         f'from it per point within t, >= {MAX_BEYOND}): clutter or outliers, or t below the noise')
-    if (worst := _worst(_two_surfaces(layering), sizes)) is not None:
+    if (worst := _worst(layering >= MAX_LAYERING, sizes)) is not None:
         problems.append(f'plane {worst}\'s points lie on two parallel layers near the edges of its band of +-t '
                         f'({layering[worst]:.0%} of its residual variance is the step between them, RMS distance '
                         f'{_up(fill[worst])} t): two surfaces found as one')
