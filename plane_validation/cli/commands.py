@@ -187,8 +187,8 @@ def cmd_detect(args: argparse.Namespace) -> int:
                      connectivity=args.connectivity, ransac_points=args.ransac_points or None,
                      grid_points=args.grid_points or None,
                      viewpoint=_viewpoint(args), ring=ring, organize_rings=args.organize_rings)
-    from ..formats.bags import BAG_SUFFIXES
-    bag = args.out is not None and Path(args.out).suffix.lower() in (*BAG_SUFFIXES, '')
+    from ..formats.files import is_bag_output
+    bag = args.out is not None and is_bag_output(args.out)
     files = [path for path in (None if bag else args.out, args.png) if path]
     with atomic_outputs(*files) as staged:  # an interrupted run writes none of them (a bag: it, last, or nothing)
         at = dict(zip(files, staged))

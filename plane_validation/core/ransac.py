@@ -11,6 +11,7 @@ without losing precision to large absolute coordinates (each fit also centres it
 from __future__ import annotations
 
 import dataclasses
+import decimal
 import functools
 import numbers
 from collections.abc import Callable, Sequence
@@ -172,9 +173,7 @@ def check_number(name: str, value, what: str = 'a number') -> float:
     a string or None) that is finite; ``what`` says what was expected."""
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value[()]
-    real = isinstance(value, numbers.Number) and not (isinstance(value, numbers.Complex)
-                                                      and not isinstance(value, numbers.Real))  # a Fraction, a Decimal
-    if isinstance(value, (bool, np.bool_)) or not real:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Real, decimal.Decimal)):
         raise ValueError(f'{name} must be {what}, got {value!r}')
     try:  # a Python int may be beyond float's range (np.isfinite cannot take it either)
         number = float(value)

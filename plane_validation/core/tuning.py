@@ -510,7 +510,7 @@ def _candidate(points: np.ndarray, t: float, seed: int, opts: dict, score: dict)
     sizes = np.array([len(p.inliers) for p in seg.planes], dtype=float)
     volume, merged = surface_failures(points, seg) if seg.n_planes else (np.zeros(0, bool),) * 2
     total = max(sizes.sum(), 1.0)
-    return TuningRow(tolerance=float(t), n_planes=seg.n_planes, inlier_counts=tuple(len(p.inliers) for p in seg.planes),
+    return TuningRow(tolerance=float(t), n_planes=seg.n_planes, inlier_counts=tuple(int(n) for n in sizes),
                      indices=scores, seconds=time.perf_counter() - start,
                      max_thickness=float(thickness.max()) if len(thickness) else 0.0,
                      volume_share=float(sizes[volume & ~merged].sum() / total),

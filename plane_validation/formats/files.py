@@ -24,7 +24,7 @@ import numpy as np
 from ..core.geometry import beam_numbers
 
 __all__ = ['atomic_output', 'atomic_outputs', 'staged_files', 'check_output', 'check_writable', 'load_cloud',
-           'load_points', 'load_scan', 'save_points', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
+           'load_points', 'load_scan', 'save_points', 'is_bag_output', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
 
 #: Extensions of plain point files (bags are recognised separately).
 TEXT_SUFFIXES = ('.xyz', '.txt', '.csv')
@@ -147,14 +147,21 @@ def save_points(path: str | Path, points: np.ndarray, labels: np.ndarray | None 
         raise ValueError(f'shape {tuple(shape)} does not match {len(pts)} points')
     check_output(path)
     suffix = path.suffix.lower()
-    from .bags import BAG_SUFFIXES, write_bag_points
-    if suffix in BAG_SUFFIXES or suffix == '':
+    if is_bag_output(path):
+        from .bags import write_bag_points
         return write_bag_points(path, pts, lab, shape=shape)
     writers = {'.ply': _write_ply, '.npy': _write_npy,
                '.pcd': lambda p, x, y: _write_pcd(p, x, y, shape, viewpoint)}
     with atomic_output(path) as tmp:
         writers.get(suffix, _write_text)(tmp, pts, lab)
     return path
+
+
+def is_bag_output(path: str | Path) -> bool:
+    """Whether :func:`save_points` writes ``path`` as a bag: no extension (a rosbag2 directory) or one of
+    bags.BAG_SUFFIXES."""
+    from .bags import BAG_SUFFIXES
+    return Path(path).suffix.lower() in (*BAG_SUFFIXES, '')
 
 
 def _labels_of(labels, n: int) -> np.ndarray:
