@@ -542,6 +542,46 @@ def test_this_process_makes_the_first_calls_while_the_workers_make_the_last():
     assert pids.count(os.getpid()) < 10
 
 
+def _pid_and_sum(shared: np.ndarray, offset: int) -> tuple[int, float]:
+    return os.getpid(), float(shared.sum()) + offset
+
+
+@needs_two_cores
+def test_the_shared_arguments_reach_every_call_and_are_sent_to_a_worker_once():
+    from plane_validation.core import tuning
+    shared = np.arange(10.0)
+    sent = []
+    real = tuning._Carrier.submit
+
+    def spy(self, executor, func, args):
+        sent.append(self.first > 0)  # whether this call carries them
+        return real(self, executor, func, args)
+    tuning._Carrier.submit = spy
+    try:
+        with tuning._workers(2, (shared,)) as run:
+            first = dict(run(_pid_and_sum, [(0.0,)] + [(i,) for i in range(1, 8)]))
+            again = dict(run(_pid_and_sum, [(100,), (200,)]))  # a later run of the same sweep: not sent again
+    finally:
+        tuning._Carrier.submit = real
+    assert {i: s for i, (_, s) in first.items()} == {i: 45.0 + i for i in range(8)}
+    assert {i: s for i, (_, s) in again.items()} == {0: 145.0, 1: 245.0}
+    assert sent.count(True) == 1 and len(sent) >= 2  # one worker: only its first call carried them
+
+
+@needs_two_cores
+def test_a_worker_handed_a_call_without_the_shared_arguments_it_lacks_is_answered_here():
+    from joblib.externals.loky import get_reusable_executor
+
+    from plane_validation.core.tuning import _Carrier
+    executor = get_reusable_executor(max_workers=1)
+    carrier = _Carrier((np.arange(4.0),), workers=0)  # as if another call had taken the worker's first one
+    future = carrier.submit(executor, _pid_and_sum, (1,))
+    pid, total = carrier.result(future, _pid_and_sum, (1,))
+    assert (pid, total) == (os.getpid(), 7.0)  # the worker lacked them: made here
+    pid, total = carrier.result(carrier.submit(executor, _pid_and_sum, (2,)), _pid_and_sum, (2,))
+    assert pid != os.getpid() and total == 8.0  # and the next call carried them
+
+
 @needs_two_cores
 def test_another_thread_resizing_the_worker_pool_during_a_sweep_does_not_hang_it():
     """loky's thread reports a call's end while another thread, holding loky's lock, waits for it."""

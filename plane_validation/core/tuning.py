@@ -13,6 +13,7 @@ import queue
 import signal
 import threading
 import time
+import uuid
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import BrokenExecutor, Future, ThreadPoolExecutor
 from dataclasses import dataclass
@@ -436,7 +437,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     # build it from (the same planes).
     final_rng = np.random.default_rng(int(ransac_seed))
     pool = ThreadPoolExecutor(1)
-    with contextlib.ExitStack() as stack, _workers(jobs) as run:
+    with contextlib.ExitStack() as stack:
         # a sweep that fails or is abandoned does not wait for the graph (the thread ends on its own)
         stack.callback(pool.shutdown, wait=False, cancel_futures=True)
         final_graph = pool.submit(contextvars.copy_context().run, search_graph, pts, shape, ransac_points,
@@ -444,9 +445,10 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         if connectivity:  # the same neighbourhood graph for every candidate (None when it would be sampled)
             sweep_opts['graph'] = search_graph(sweep_pts, sweep_shape, ransac_points, viewpoint=view,
                                                grid_points=grid_points)
+        run = stack.enter_context(_workers(jobs, (sweep_pts, sweep_opts)))
         rows: list[TuningRow] = [None] * len(cand)
         sweep_labels: list[np.ndarray] = [None] * len(cand)
-        candidates = run(_candidate, [(sweep_pts, t, int(ransac_seed), sweep_opts, score) for t in cand])
+        candidates = run(_candidate, [(t, int(ransac_seed), score) for t in cand])
         for done, (i, (row, labels)) in enumerate(candidates, start=1):
             rows[i], sweep_labels[i] = row, labels
             if progress is not None:
@@ -454,8 +456,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         best = _sound_choice(rows, criterion, n_sweep) if connectivity else _choose(rows, criterion, n_sweep)
         ratio = cand[-1] / cand[-2] if top else 1.0
         while best == len(rows) - 1 and len(rows) < len(cand) + extend and rows[-1].tolerance * ratio <= top:
-            for _, (row, labels) in run(_candidate, [(sweep_pts, rows[-1].tolerance * ratio, int(ransac_seed),
-                                                      sweep_opts, score)]):
+            for _, (row, labels) in run(_candidate, [(rows[-1].tolerance * ratio, int(ransac_seed), score)]):
                 rows.append(row)
                 sweep_labels.append(labels)
             if progress is not None:
@@ -465,7 +466,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         # stability under reseeding, on the sweep's points and graph (a fraction of the full cloud's cost);
         # only when there are planes to find again. With workers they run beside the final detection.
         reseeds = rng.integers(0, 2**63, size=STABILITY_RESEEDS)
-        reruns = _in_order(run(_labels, [(sweep_pts, t_best, int(s), sweep_opts) for s in reseeds])) \
+        reruns = _in_order(run(_labels, [(t_best, int(s)) for s in reseeds])) \
             if rows[best].n_planes else iter(())
         final = detect_planes(pts, t_best, seed=final_rng, shape=shape,
                               graph=None if final_graph is None else final_graph.result(), **opts)
@@ -500,7 +501,7 @@ class TuningWorkerError(RuntimeError):
 
 
 @single_blas_thread  # also in a worker process, whose BLAS joblib would give cores / jobs threads
-def _candidate(points: np.ndarray, t: float, seed: int, opts: dict, score: dict) -> tuple[TuningRow, np.ndarray]:
+def _candidate(points: np.ndarray, opts: dict, t: float, seed: int, score: dict) -> tuple[TuningRow, np.ndarray]:
     """One sweep candidate: its row and labels (N,) for ``detect_planes(points, t, seed, **opts)``
     scored by ``validity_indices(points, labels, **score)``."""
     start = time.perf_counter()
@@ -518,7 +519,7 @@ def _candidate(points: np.ndarray, t: float, seed: int, opts: dict, score: dict)
 
 
 @single_blas_thread
-def _labels(points: np.ndarray, t: float, seed: int, opts: dict) -> np.ndarray:
+def _labels(points: np.ndarray, opts: dict, t: float, seed: int) -> np.ndarray:
     """(N,) labels of ``detect_planes(points, t, seed=seed, **opts)``."""
     return detect_planes(points, t, seed=seed, **opts).labels
 
@@ -532,25 +533,28 @@ _PARALLEL = threading.Lock()
 
 
 @contextlib.contextmanager
-def _workers(jobs: int) -> Iterator[Callable[[Callable, list[tuple]], Iterator[tuple[int, object]]]]:
-    """``run(func, argument_tuples)``: an iterator of ``(i, func(*argument_tuples[i]))`` in the order the
-    calls end. With ``jobs`` != 1 this process is one of ``jobs`` (0 = one per core, never more than the
-    cores): loky's reusable worker processes take the calls one at a time from the last, and this process
-    takes them from the first while the iterator is read. It works while the workers start, and the slow
-    calls (a sweep's smallest tolerances come first) are not the last ones. With 1 the calls are made
-    here, one by one, as the iterator is read."""
+def _workers(jobs: int, shared: tuple = ()
+             ) -> Iterator[Callable[[Callable, list[tuple]], Iterator[tuple[int, object]]]]:
+    """``run(func, argument_tuples)``: an iterator of ``(i, func(*shared, *argument_tuples[i]))`` in the order
+    the calls end. ``shared``: the arguments every call begins with (a sweep's points and graph), sent to each
+    worker process once (:class:`_Carrier`). With ``jobs`` != 1 this process is one of ``jobs`` (0 = one per
+    core, never more than the cores): loky's reusable worker processes take the calls one at a time from the
+    last, and this process takes them from the first while the iterator is read. It works while the workers
+    start, and the slow calls (a sweep's smallest tolerances come first) are not the last ones. With 1 the
+    calls are made here, one by one, as the iterator is read."""
     if jobs != 1:
         from joblib import cpu_count  # imported only for a parallel sweep: a heavy import
         jobs = cpu_count() if jobs == 0 else min(jobs, cpu_count())
     if jobs == 1:
-        yield lambda func, calls: ((i, func(*args)) for i, args in enumerate(calls))
+        yield lambda func, calls: ((i, func(*shared, *args)) for i, args in enumerate(calls))
         return
     from joblib.externals.loky import get_reusable_executor
     shares: list[_Shared] = []
+    carrier = _Carrier(shared, jobs - 1)
 
     def run(func: Callable, calls: list[tuple]) -> Iterator[tuple[int, object]]:
         with _sigint_ignored():  # loky starts (or resizes) its worker processes with the first calls
-            shares.append(_Shared(executor, func, calls, jobs - 1))
+            shares.append(_Shared(executor, func, calls, jobs - 1, carrier))
         return shares[-1].results()
     try:
         with _PARALLEL:
@@ -574,6 +578,52 @@ def _workers(jobs: int) -> Iterator[Callable[[Callable, list[tuple]], Iterator[t
         raise TuningWorkerError(f'a tuning worker process died ({type(exc).__name__})') from exc
 
 
+class _NotCarried(Exception):
+    """A worker process was handed a call without the shared arguments, which it does not hold."""
+
+
+#: In a worker process: (token, shared arguments) of the last sweep that sent them.
+_CARRIED: tuple[str, tuple] | None = None
+
+
+def _call_carried(token: str, shared: tuple | None, func: Callable, args: tuple):
+    """In a worker: ``func(*shared, *args)``, ``shared`` kept for the next calls of the same ``token``
+    (None: the ones kept, or _NotCarried)."""
+    global _CARRIED
+    if shared is not None:
+        _CARRIED = (token, shared)
+    elif _CARRIED is None or _CARRIED[0] != token:
+        raise _NotCarried(token)
+    return func(*_CARRIED[1], *args)
+
+
+class _Carrier:
+    """The shared arguments of one parallel sweep: sent with the first call to each of ``workers`` worker
+    processes only (the graph of a large cloud is megabytes, whose pickling through a pipe took a tenth of a
+    call). A worker handed a call without them (loky may give two of the first calls to one worker)
+    raises _NotCarried; that call is then made in this process, and the later ones carry them again."""
+
+    def __init__(self, shared: tuple, workers: int) -> None:
+        self.shared, self.token = shared, uuid.uuid4().hex
+        self.first = workers  # calls that still carry them
+        self.lock = threading.Lock()
+
+    def submit(self, executor, func: Callable, args: tuple) -> Future:
+        with self.lock:
+            carry = self.first > 0
+            self.first -= carry
+        return executor.submit(_call_carried, self.token, self.shared if carry else None, func, args)
+
+    def result(self, future: Future, func: Callable, args: tuple):
+        """The result of a call ``submit`` made; made here if its worker lacked the shared arguments."""
+        try:
+            return future.result()
+        except _NotCarried:
+            with self.lock:
+                self.first = 1 << 30  # from now on every call carries them
+            return func(*self.shared, *args)
+
+
 def _worker_ignores_sigint() -> None:
     """A worker process's first step: a Ctrl-C reaches the sweep's process, which stops the workers (a
     worker interrupted while it sends a result leaves loky's pipe unreadable: the process then hangs)."""
@@ -586,8 +636,8 @@ class _Shared:
     first ones are handed out by a thread of their own: loky's thread, which reports a call's end, must
     not wait for loky's lock (another thread that resizes the pool holds it while it waits for that one)."""
 
-    def __init__(self, executor, func: Callable, calls: list[tuple], workers: int) -> None:
-        self.executor, self.func, self.calls = executor, func, calls
+    def __init__(self, executor, func: Callable, calls: list[tuple], workers: int, carrier: _Carrier) -> None:
+        self.executor, self.func, self.calls, self.carrier = executor, func, calls, carrier
         self.left = collections.deque(range(len(calls)))
         self.lock = threading.Lock()
         self.ended: queue.SimpleQueue = queue.SimpleQueue()  # (i, future) of the workers' calls
@@ -606,7 +656,7 @@ class _Shared:
             i = self.left.pop()
             self.sent += 1
         try:
-            future = self.executor.submit(self.func, *self.calls[i])
+            future = self.carrier.submit(self.executor, self.func, self.calls[i])
         except Exception as exc:  # a broken or shut-down pool: the error reaches the reader
             future = Future()
             future.set_exception(exc)
@@ -633,16 +683,16 @@ class _Shared:
             while not self.ended.empty():
                 i, future = self.ended.get()
                 received += 1
-                yield i, future.result()
+                yield i, self.carrier.result(future, self.func, self.calls[i])
             with self.lock:
                 i = self.left.popleft() if self.left else None
             if i is None:
                 break
-            yield i, self.func(*self.calls[i])
+            yield i, self.func(*self.carrier.shared, *self.calls[i])
         while received < self.sent:
             i, future = self.ended.get()
             received += 1
-            yield i, future.result()
+            yield i, self.carrier.result(future, self.func, self.calls[i])
 
     def stop(self) -> list[Future]:
         """No more calls to the workers; the calls not ended there."""
