@@ -35,6 +35,18 @@ def test_tolerance_grows_as_range_squared_beyond_the_reference():
         pv.detect_planes(pts, 0.01, noise_model='depth_quadratic', noise_reference=0.0)
 
 
+def test_a_reference_range_may_be_any_real_number_and_a_huge_one_is_a_clear_error():
+    from decimal import Decimal
+    from fractions import Fraction
+    pts = np.array([[0, 0, 0.5], [0, 0, 1.0], [0, 3.0, 4.0]])
+    for reference in (Fraction(5, 2), Decimal('2.5'), np.float32(2.5), 5 // 2 + 0.5):
+        assert np.allclose(tolerance_scale(pts, 'depth_quadratic', reference), [1.0, 1.0, 4.0])
+    assert np.allclose(tolerance_scale(pts, 'depth_quadratic', 2**70), 1.0)
+    for reference in (10**400, '2.5', True, -1, float('inf')):
+        with pytest.raises(ValueError, match='noise_reference must be a finite range > 0 m'):
+            tolerance_scale(pts, 'depth_quadratic', reference)
+
+
 @pytest.mark.parametrize('connectivity', [True, False])
 def test_one_t0_fits_a_near_and_a_far_wall_where_one_t_cannot(connectivity):
     pts, truth = _near_and_far_walls()

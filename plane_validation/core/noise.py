@@ -25,13 +25,16 @@ NOISE_REFERENCE = 1.0
 MAX_SCALE = 100.0
 
 
-def check_noise_model(noise_model: str, reference: float) -> None:
-    """Raise ValueError on an unknown model or a reference range that is not a distance > 0."""
+def check_noise_model(noise_model: str, reference: float) -> float:
+    """The reference range as a float (meters); ValueError on an unknown model or a reference range that is
+    not a distance > 0."""
+    from .ransac import check_number  # ransac imports this module
     if noise_model not in NOISE_MODELS:
         raise ValueError(f'unknown noise_model {noise_model!r}; choose one of {", ".join(NOISE_MODELS)}')
-    if isinstance(reference, (bool, np.bool_)) or not isinstance(reference, (int, np.integer, float, np.floating)) \
-            or not (np.isfinite(reference) and reference > 0):
+    number = check_number('noise_reference', reference, 'a finite range > 0 m')
+    if number <= 0:
         raise ValueError(f'noise_reference must be a finite range > 0 m, got {reference!r}')
+    return number
 
 
 def tolerance_scale(points: np.ndarray, noise_model: str = 'constant',
@@ -40,7 +43,7 @@ def tolerance_scale(points: np.ndarray, noise_model: str = 'constant',
     """(N,) factor the tolerance is multiplied by at each point of ``points`` (N, 3) meters, or None
     for ``constant`` (a factor of 1 everywhere): max(1, (r / reference)^2), at most MAX_SCALE, r the
     range from ``viewpoint`` (3,) (default the origin). NaN rows give NaN."""
-    check_noise_model(noise_model, reference)
+    reference = check_noise_model(noise_model, reference)
     if noise_model == 'constant':
         return None
     if viewpoint is not None and np.any(viewpoint):
