@@ -280,6 +280,22 @@ def test_ply_ascii_by_plyfile_and_binary_by_us(tmp_path):
     np.testing.assert_allclose(load_points(binary_path), POINTS, atol=1e-6)
 
 
+@pytest.mark.parametrize('text', [True, False])
+def test_a_ply_with_records_beyond_its_declared_count_is_refused(tmp_path, text):
+    from plyfile import PlyData, PlyElement
+    vertex = np.zeros(3, [('x', 'f4'), ('y', 'f4'), ('z', 'f4')])
+    vertex['x'] = [0, 1, 2]
+    faces = np.array([([0, 1, 2],)], dtype=[('vertex_indices', 'i4', (3,))])
+    path = tmp_path / 'p.ply'
+    PlyData([PlyElement.describe(vertex, 'vertex'), PlyElement.describe(faces, 'face')], text=text).write(str(path))
+    whole = path.read_bytes()
+    path.write_bytes(whole + b'\n')  # a line end after the data: fine
+    assert load_points(path).shape == (3, 3)
+    path.write_bytes(whole + (b'5 5 5\n' if text else vertex[:1].tobytes()))
+    with pytest.raises(ValueError, match=r'p\.ply: PLY holds .* after its .*: an element count too small'):
+        load_points(path)
+
+
 def test_saved_labels_in_every_point_format(tmp_path):
     from pypcd4 import PointCloud
     labels = np.where(np.arange(len(POINTS)) % 5 == 0, -1, np.arange(len(POINTS)) % 3)

@@ -408,14 +408,38 @@ def _read_ply(path: Path) -> np.ndarray:
     except ImportError as exc:
         raise ValueError(f'{path}: reading .ply needs plyfile (pip install plyfile)') from exc
     try:
-        ply = PlyData.read(str(path))
+        with path.open('rb') as stream:
+            ply = PlyData.read(stream)
+            end = None if ply.text else stream.tell()  # (an ascii read closes the stream)
     except Exception as exc:  # PlyParseError, and plain ValueErrors/EOFErrors on damaged bodies
         raise ValueError(f'{path}: not a readable PLY file ({_first_line(exc)})') from exc
+    _check_ply_rest(path, ply, end)
     names = [e.name for e in ply.elements]
     if 'vertex' not in names:
         raise ValueError(f'{path}: PLY has no vertex element (elements: {" ".join(names) or "none"})')
     vertex = ply['vertex'].data
     return _xyz_columns(path, vertex)
+
+
+def _check_ply_rest(path: Path, ply, end: int | None) -> None:
+    """ValueError when a PLY file holds data beyond the elements its header declares (an element count too
+    small: those records would go unread): lines after the last record (ascii), or bytes other than line ends
+    and spaces after the byte ``end`` where the records end (binary)."""
+    declared = sum(len(element.data) for element in ply.elements)
+    with path.open('rb') as stream:
+        if end is None:
+            lines = stream.read().splitlines()
+            body = lines[[line.strip() for line in lines].index(b'end_header') + 1:]
+            records = sum(1 for line in body if line.strip())
+            if records > declared:
+                raise ValueError(f'{path}: PLY holds {records} records after its header, which declares {declared}: '
+                                 'an element count too small, or other data appended')
+            return
+        stream.seek(end)
+        rest = stream.read()
+    if rest.strip():
+        raise ValueError(f'{path}: PLY holds {len(rest)} bytes after its {declared} declared records: an element '
+                         'count too small, or other data appended')
 
 
 def _pcd_header(raw: bytes) -> tuple[dict[str, list[str]], int] | None:
