@@ -566,20 +566,47 @@ def test_the_shared_arguments_reach_every_call_and_are_sent_to_a_worker_once():
     assert {i: s for i, (_, s) in first.items()} == {i: 45.0 + i for i in range(8)}
     assert {i: s for i, (_, s) in again.items()} == {0: 145.0, 1: 245.0}
     assert sent.count(True) == 1 and len(sent) >= 2  # one worker: only its first call carried them
+    assert again[1][0] != os.getpid()  # the worker took the last call and answered it with what it kept
 
 
 @needs_two_cores
 def test_a_worker_handed_a_call_without_the_shared_arguments_it_lacks_is_answered_here():
     from joblib.externals.loky import get_reusable_executor
 
-    from plane_validation.core.tuning import _Carrier
-    executor = get_reusable_executor(max_workers=1)
-    carrier = _Carrier((np.arange(4.0),), workers=0)  # as if another call had taken the worker's first one
+    from plane_validation.core import tuning
+    with tuning._workers(2, (np.arange(10.0),)) as run:  # the worker keeps an earlier sweep's arguments
+        assert sorted(s for _, (_, s) in run(_pid_and_sum, [(0,), (0,)])) == [45.0, 45.0]
+    # the sweeps' pool, as _workers gets it (other settings would start a new one)
+    executor = get_reusable_executor(max_workers=1, timeout=tuning.WORKER_IDLE_S,
+                                     initializer=tuning._worker_ignores_sigint)
+    carrier = tuning._Carrier((np.arange(4.0),), workers=0)  # as if another call had taken the worker's first one
     future = carrier.submit(executor, _pid_and_sum, (1,))
     pid, total = carrier.result(future, _pid_and_sum, (1,))
-    assert (pid, total) == (os.getpid(), 7.0)  # the worker lacked them: made here
+    assert (pid, total) == (os.getpid(), 7.0)  # the worker held another sweep's: made here
     pid, total = carrier.result(carrier.submit(executor, _pid_and_sum, (2,)), _pid_and_sum, (2,))
     assert pid != os.getpid() and total == 8.0  # and the next call carried them
+
+
+def _pid_after_sum(shared: np.ndarray, seconds: float) -> tuple[int, float]:
+    time.sleep(seconds)
+    return os.getpid(), float(shared.sum())
+
+
+@needs_two_cores
+def test_after_a_worker_lacked_the_shared_arguments_the_next_calls_carry_them_at_once():
+    """A worker started during a sweep (loky replaces one past its memory limit) must not fail call after call while
+    this process is busy with one of its own."""
+    from joblib.externals.loky import get_reusable_executor
+
+    from plane_validation.core import tuning
+    executor = get_reusable_executor(max_workers=1, timeout=tuning.WORKER_IDLE_S,
+                                     initializer=tuning._worker_ignores_sigint)
+    executor.submit(os.getpid).result()  # started
+    share = tuning._Shared(executor, _pid_after_sum, [(1.0,)] + [(0.05,)] * 7, 1,
+                           tuning._Carrier((np.arange(4.0),), workers=0))
+    answers = list(share.results())
+    assert sorted(i for i, _ in answers) == list(range(8)) and {s for _, (_, s) in answers} == {6.0}
+    assert sum(pid == os.getpid() for _, (pid, _) in answers) <= 2  # its own first call, and the one that failed
 
 
 @needs_two_cores

@@ -601,7 +601,8 @@ class _Carrier:
     """The shared arguments of one parallel sweep: sent with the first call to each of ``workers`` worker
     processes only (the graph of a large cloud is megabytes, whose pickling through a pipe took a tenth of a
     call). A worker handed a call without them (loky may give two of the first calls to one worker)
-    raises _NotCarried; that call is then made in this process, and the later ones carry them again."""
+    raises _NotCarried; that call is then made in this process, and the later ones carry them again. An idle worker
+    holds the last sweep's shared arguments until the next sweep replaces them or it ends (WORKER_IDLE_S)."""
 
     def __init__(self, shared: tuple, workers: int) -> None:
         self.shared, self.token = shared, uuid.uuid4().hex
@@ -614,13 +615,16 @@ class _Carrier:
             self.first -= carry
         return executor.submit(_call_carried, self.token, self.shared if carry else None, func, args)
 
+    def carry_always(self) -> None:
+        with self.lock:
+            self.first = 1 << 62
+
     def result(self, future: Future, func: Callable, args: tuple):
         """The result of a call ``submit`` made; made here if its worker lacked the shared arguments."""
         try:
             return future.result()
         except _NotCarried:
-            with self.lock:
-                self.first = 1 << 30  # from now on every call carries them
+            self.carry_always()
             return func(*self.shared, *args)
 
 
@@ -674,6 +678,8 @@ class _Shared:
     def _ended(self, i: int, future: Future) -> None:
         with self.lock:
             self.busy.pop(i, None)
+        if not future.cancelled() and isinstance(future.exception(), _NotCarried):
+            self.carrier.carry_always()  # before the next call is handed out (a new worker, e.g. a restarted one)
         self.ended.put((i, future))
         self.free.put(None)
 
