@@ -1,4 +1,7 @@
 """Sequential RANSAC core: accuracy on scenes with ground truth, bad input, determinism."""
+from decimal import Decimal
+from fractions import Fraction
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -225,9 +228,12 @@ def test_invalid_tuning_and_index_arguments_raise_a_clear_error(call):
 def test_a_min_inliers_given_as_a_0d_array_means_its_number():
     """A second outside probe: np.array(0.5) was taken as the count int(0.5), not as the fraction 0.5."""
     points = scenes.corner(600, noise=0.01, seed=0).points  # three faces of about a third each
-    for value in (0.5, np.float32(0.5), np.array(0.5)):
+    for value in (0.5, np.float32(0.5), np.array(0.5), Decimal('0.5'), Fraction(1, 2)):  # a Decimal was a count 0
         assert pv.detect_planes(points, 0.05, seed=0, min_inliers=value).n_planes == 0, value
-    assert pv.detect_planes(points, 0.05, seed=0, min_inliers=np.array(100)).n_planes == 3
+    for value in (np.array(100), Decimal(100), 100.0):
+        assert pv.detect_planes(points, 0.05, seed=0, min_inliers=value).n_planes == 3, value
+    tuned = pv.tune_tolerance(points, seed=0, min_inliers=Decimal('0.5'))
+    assert tuned.segmentation.n_planes == 0 and all(row.n_planes == 0 for row in tuned.rows)
 
 
 def test_a_count_beyond_int64_is_a_count_and_beyond_float_a_clear_error():

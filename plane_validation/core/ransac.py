@@ -263,16 +263,23 @@ def check_magnitude(points: np.ndarray) -> None:
                          'overflow (wrong units or a corrupt cloud?)')
 
 
-def resolve_min_inliers(min_inliers: int | float, n_valid: int) -> int:
-    """An absolute count, or a fraction of ``n_valid`` when ``min_inliers`` is a float < 1."""
-    why = f'min_inliers must be a count >= 0 or a fraction in [0, 1), got {min_inliers!r}'
+def min_inliers_number(min_inliers) -> int | float:
+    """``min_inliers`` as an int (a count) when given as an integer type, else as a float (a fraction when < 1, a
+    count otherwise: a Decimal or Fraction too); ValueError unless a real number >= 0."""
     if isinstance(min_inliers, np.ndarray) and min_inliers.ndim == 0:
         min_inliers = min_inliers[()]  # a 0-d array means its number: a fraction stays a fraction
-    if check_number('min_inliers', min_inliers, 'a count >= 0 or a fraction in [0, 1)') < 0:
-        raise ValueError(why)
-    if isinstance(min_inliers, (float, np.floating)) and min_inliers < 1:
-        return max(3, int(np.ceil(min_inliers * n_valid)))
-    return max(3, int(min_inliers))
+    number = check_number('min_inliers', min_inliers, 'a count >= 0 or a fraction in [0, 1)')
+    if number < 0:
+        raise ValueError(f'min_inliers must be a count >= 0 or a fraction in [0, 1), got {min_inliers!r}')
+    return int(min_inliers) if isinstance(min_inliers, (int, np.integer)) else number
+
+
+def resolve_min_inliers(min_inliers: int | float, n_valid: int) -> int:
+    """An absolute count, or a fraction of ``n_valid`` when ``min_inliers`` is not of an integer type and < 1."""
+    number = min_inliers_number(min_inliers)
+    if isinstance(number, float) and number < 1:
+        return max(3, int(np.ceil(number * n_valid)))
+    return max(3, int(number))
 
 
 def fit_plane(points: np.ndarray) -> tuple[np.ndarray, float]:

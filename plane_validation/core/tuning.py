@@ -41,6 +41,7 @@ from .ransac import (
     generator,
     grid_image,
     grid_step,
+    min_inliers_number,
     search_graph,
 )
 from .verdict import (
@@ -754,6 +755,7 @@ def _sampled_separation(sampled_separation: bool | None, n_valid: int) -> bool:
 
 def _scaled_min_inliers(min_inliers: int | float, n_sample: int, n_valid: int) -> int | float:
     """A count ``min_inliers`` (>= 1) scaled from ``n_valid`` points to ``n_sample``; a fraction as is."""
+    min_inliers = min_inliers_number(min_inliers)
     if min_inliers < 1 or n_sample >= n_valid:
         return min_inliers
     return max(3, int(np.ceil(min_inliers * n_sample / n_valid)))
