@@ -124,6 +124,24 @@ def test_max_planes_stops_early():
     assert 'max_planes' in seg.reason
 
 
+def test_a_masked_arrays_masked_rows_are_no_points():
+    """An outside probe: np.asarray dropped the mask, so the junk under it was searched and scored."""
+    scene = scenes.corner(1000, 1.0, seed=0)
+    junk = scene.points.copy()
+    junk[:300] = np.random.default_rng(0).random((300, 3)) * 50
+    masked = np.ma.masked_array(junk, mask=np.zeros(junk.shape, bool))
+    masked.mask[:300, 1] = True  # one masked coordinate: the row is no point
+    for connectivity in (True, False):
+        seg = pv.detect_planes(masked, 2.5, seed=0, connectivity=connectivity)
+        alone = pv.detect_planes(scene.points[300:], 2.5, seed=0, connectivity=connectivity)
+        assert seg.n_valid == 700 and np.all(seg.labels[:300] == -1)
+        np.testing.assert_array_equal(seg.labels[300:], alone.labels)
+        assert pv.validity_indices(masked, seg.labels, seed=0) == pv.validity_indices(scene.points[300:],
+                                                                                     alone.labels, seed=0)
+    assert pv.tune_tolerance(masked, seed=0).segmentation.n_valid == 700
+    assert pv.detect_planes(np.ma.masked_array(junk), 2.5, seed=0).n_valid == 1000  # nothing masked
+
+
 def test_nan_rows_are_ignored_and_labelled_unassigned():
     scene = scenes.corner(3000, 1.0, seed=2)
     pts = scene.points.astype(np.float32)

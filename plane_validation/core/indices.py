@@ -30,7 +30,7 @@ from scipy.spatial.distance import cdist, pdist
 
 from .blas import single_blas_thread
 from .plane_silhouette import dense_codes, plane_silhouette
-from .ransac import check_flag, check_integer, finite_rows, generator
+from .ransac import as_points, check_flag, check_integer, finite_rows, generator
 
 __all__ = [
     'ValidityIndices', 'validity_indices', 'dunn_index', 'davies_bouldin_index', 'davies_bouldin_classic',
@@ -103,6 +103,8 @@ def _check(points: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarr
     pts = np.asarray(points)
     if pts.dtype.kind not in 'fiu' or pts.ndim != 2 or pts.shape[1] != 3:  # as detect_planes takes them
         raise ValueError(f'points must be a real array of shape (N, 3), got {pts.dtype} {pts.shape}')
+    if isinstance(points, np.ma.MaskedArray):
+        pts = as_points(points)  # its masked rows NaN
     lab = np.asarray(labels)
     if lab.ndim != 1 or len(lab) != len(pts):
         raise ValueError(f'labels must have shape ({len(pts)},), got {lab.shape}')

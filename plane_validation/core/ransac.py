@@ -192,12 +192,15 @@ def check_flag(name: str, value) -> bool:
 
 
 def as_points(points: np.ndarray) -> np.ndarray:
-    """Validate an (N, 3) real array and return it as float64 (no copy when already float64)."""
-    arr = np.asarray(points)
+    """Validate an (N, 3) real array and return it as float64 (no copy when already float64); a masked array's
+    masked coordinates become NaN (their rows are no points, as NaN rows)."""
+    arr = np.asarray(points)  # (a masked array's data, mask dropped)
     if arr.dtype.kind not in 'fiu':
         raise ValueError(f'points must be a real numeric array, got dtype {arr.dtype}')
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise ValueError(f'points must have shape (N, 3), got {arr.shape}')
+    if isinstance(points, np.ma.MaskedArray) and np.ma.is_masked(points):
+        return np.where(np.ma.getmaskarray(points), np.nan, arr.astype(np.float64))
     return arr.astype(np.float64, copy=False)
 
 
