@@ -60,6 +60,11 @@ def test_huge_coordinates_are_an_error_not_an_exception(auto, inline):
     result = pipe.process(corner() * 1e200, 0, tune_inline=inline)  # the node's first frame: a quick estimate
     assert result.level == ERROR
     assert 'numerical failure' in result.message and 'a coordinate reaches 1e+200 m: beyond' in result.message
+    # below MAX_COORDINATE but beyond what the float32 scoring holds: was WARN "no plane found" (an outside probe)
+    result = FramePipeline(PipelineConfig(auto_tune=auto, tolerance=0.01)).process(corner() * 1e45, 0,
+                                                                                   tune_inline=inline)
+    assert result.level == ERROR and 'numerical failure' in result.message
+    assert 'spread over' in result.message and 'beyond 1e+30 m' in result.message
 
 
 def test_planes_on_a_handful_of_voxels_are_not_reliable():

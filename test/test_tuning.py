@@ -678,6 +678,19 @@ def test_coordinates_whose_squares_overflow_are_a_clear_error():
             call()
 
 
+def test_a_cloud_spread_beyond_what_float32_scoring_holds_is_a_clear_error():
+    """An outside probe: a corner scaled by 1e50 found no plane (inf in the float32 scores), silently."""
+    from plane_validation.core.ransac import MAX_SPREAD
+    corner = scenes.corner(2000, 1.0, seed=0).points
+    assert pv.detect_planes(corner * 1e26, 2.5e26, seed=0).n_planes == 3  # far out, still scored
+    wide = corner * 1e50
+    for call in (lambda: pv.tune_tolerance(wide, seed=0), lambda: pv.detect_planes(wide, 2.5e50, seed=0),
+                 lambda: pv.detect_planes(wide, 2.5e50, seed=0, connectivity=False)):
+        with pytest.raises(ValueError, match=r'the points spread over .*e\+51 m around their middle: beyond '
+                                             + re.escape(f'{MAX_SPREAD:g} m')):
+            call()
+
+
 @pytest.mark.parametrize('far', [1e39, 1e149])
 def test_one_stray_far_row_is_a_point_on_no_plane(far):
     room = scenes.room(3000, 0.01, seed=1).points

@@ -253,17 +253,37 @@ def no_returns_note(count: int) -> str:
 MAX_COORDINATE = 1e150
 
 
+#: Largest spread of a cloud's points around their middle, meters (the SPREAD_PERCENTILE of their largest
+#: coordinate offset from the median, on about SPREAD_ROWS of them): the hypotheses are scored in float32,
+#: whose range (3.4e38) such offsets and their planes' offsets would leave; no sensor sees this far.
+MAX_SPREAD = 1e30
+SPREAD_PERCENTILE = 90
+SPREAD_ROWS = 1024
+
+
 def check_magnitude(points: np.ndarray) -> None:
     """ValueError when a finite coordinate of ``points`` (N, 3) exceeds MAX_COORDINATE in magnitude
-    (NaN and inf rows are ignored: they are no points)."""
+    (NaN and inf rows are ignored: they are no points), or when the points spread over more than MAX_SPREAD."""
     flat = points.reshape(-1)
-    if len(flat) == 0 or max(np.fmax.reduce(flat), -np.fmin.reduce(flat)) <= MAX_COORDINATE:
-        return  # (all NaN compares False and takes the exact path below)
-    big = np.abs(flat[np.abs(flat) > MAX_COORDINATE])
-    worst = float(big[np.isfinite(big)].max(initial=0.0))
-    if worst > MAX_COORDINATE:
-        raise ValueError(f'a coordinate reaches {worst:.3g} m: beyond {MAX_COORDINATE:g} m squared distances '
-                         'overflow (wrong units or a corrupt cloud?)')
+    if len(flat) == 0:
+        return
+    largest = max(np.fmax.reduce(flat), -np.fmin.reduce(flat))  # NaN when every coordinate is NaN
+    if largest > MAX_COORDINATE:
+        big = np.abs(flat[np.abs(flat) > MAX_COORDINATE])
+        worst = float(big[np.isfinite(big)].max(initial=0.0))
+        if worst > MAX_COORDINATE:
+            raise ValueError(f'a coordinate reaches {worst:.3g} m: beyond {MAX_COORDINATE:g} m squared distances '
+                             'overflow (wrong units or a corrupt cloud?)')
+    if not largest > MAX_SPREAD:  # (also NaN) no spread can exceed it
+        return
+    rows = points[::max(1, len(points) // SPREAD_ROWS)]
+    rows = rows[finite_rows(rows)]
+    if len(rows) == 0:
+        return
+    spread = float(np.percentile(np.abs(rows - np.median(rows, axis=0)).max(axis=1), SPREAD_PERCENTILE))
+    if spread > MAX_SPREAD:
+        raise ValueError(f'the points spread over {spread:.3g} m around their middle: beyond {MAX_SPREAD:g} m, which '
+                         'the search cannot score (wrong units or a corrupt cloud?)')
 
 
 def min_inliers_number(min_inliers) -> int | float:
