@@ -217,6 +217,20 @@ def test_trailing_bytes_after_the_declared_data_are_reported_as_warn():
     assert padded.n_planes == clean.n_planes == 3 and np.array_equal(padded.labels, clean.labels)
 
 
+@pytest.mark.parametrize('height', [1, 2, 480])
+def test_an_empty_cloud_of_any_height_is_too_few_points(height):
+    """An outside probe: 480 x 0 was ERROR 'bad input: shape must be (H, W)...' (the core's argument), 1 x 0 WARN."""
+    from rosbags.typesys import Stores, get_typestore
+
+    from plane_validation.formats.pointcloud2 import create_cloud, rosbags_types
+    types = rosbags_types(get_typestore(Stores.ROS2_JAZZY))
+    header = types.Header(stamp=types.Time(sec=1, nanosec=0), frame_id='f')
+    msg = create_cloud(header, {name: np.zeros(0, np.float32) for name in 'xyz'}, types=types)
+    msg.height = height
+    result = FramePipeline(PipelineConfig()).process_cloud(msg)
+    assert result.level == WARN and result.message == 'too few valid points: 0 of 0 (need 3)'
+
+
 def test_a_failed_tune_detects_with_the_last_tuned_tolerance():
     import dataclasses
     points = scenes.corner(3000, 0.2, scale=0.01, seed=5).points

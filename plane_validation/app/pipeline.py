@@ -294,7 +294,7 @@ class FramePipeline:
             extra = trailing_bytes(msg)
         except ValueError as exc:
             return self.reject(f'malformed PointCloud2: {exc}', ERROR, n_input=int(msg.height) * int(msg.width))
-        shape = (int(msg.height), int(msg.width)) if msg.height > 1 else None  # organized: an image
+        shape = (int(msg.height), int(msg.width)) if msg.height > 1 and msg.width > 0 else None  # organized: an image
         ring = None if shape or not self.config.organize_rings else ring_array(msg)  # a spinning lidar's beams
         result = self.process(points, stamp_ns, tune_inline=tune_inline, shape=shape, ring=ring)
         if extra:
