@@ -413,6 +413,23 @@ def test_error_and_warn_log_lines_both_appear_throttled_per_level(harness, capfd
     assert err.count('WARN: too few valid points') == 1, err
 
 
+def test_a_sweep_whose_planes_are_not_reliable_is_logged_as_a_warning(ros, capfd):
+    """An outside probe: the log said INFO 'retuned: ...' while every frame said WARN 'no reliable planes'."""
+    for points, level, other in ((corner_points(0.002), 'INFO', 'WARN'),
+                                 (np.random.default_rng(0).random((3000, 3)), 'WARN', 'INFO')):
+        node = PlaneValidationNode(parameter_overrides=[Parameter('seed', value=3)])
+        harness = Harness(node)
+        try:
+            harness.send(xyz_cloud(points, 11_000_000_000_000))  # the first frame starts a sweep
+            assert harness.node.wait_for_sweep(timeout=30)
+            time.sleep(0.2)
+        finally:
+            harness.close()
+        lines = [line for line in capfd.readouterr().err.splitlines() if 'retuned: t = ' in line]
+        assert len(lines) == 1 and level in lines[0] and other not in lines[0], lines
+        assert ('plane(s) but' in lines[0]) == (level == 'WARN')  # the verdict says why
+
+
 def test_a_tuning_range_the_cloud_cannot_honour_keeps_the_last_tuned_tolerance(ros):
     node = PlaneValidationNode(parameter_overrides=[Parameter('seed', value=3)])
     harness = Harness(node)

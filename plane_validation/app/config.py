@@ -87,7 +87,8 @@ class PipelineConfig:
     tolerance: float = _p(0.02, 'RANSAC inlier distance t (used when auto_tune is false)',
                           low=1e-6, high=MAX_DISTANCE, unit='m')
     auto_tune: bool = _p(True, 'choose t by sweeping candidates scored with the validity indices')
-    tune_min: float = _p(0.0, 'smallest tuning candidate; 0 = derive from the cloud (nearest-neighbour spacing / 20)',
+    tune_min: float = _p(0.0, 'smallest tuning candidate; 0 = derive from the cloud (nearest-neighbour spacing / 20, '
+                         'or the largest candidate / 100 when that is smaller)',
                          low=1e-6, high=MAX_DISTANCE, special=0.0, unit='m')
     tune_max: float = _p(0.0, 'largest tuning candidate; 0 = derive from the cloud, and sweep on above it while '
                          'the largest candidate is chosen (up to the bounding-box diagonal / 8)', low=1e-6,

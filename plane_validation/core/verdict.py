@@ -357,8 +357,9 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     if (along > seg.tolerance).any():
         coarse = int(np.argmax(along))
         problems.append(f'plane {coarse}\'s points come in steps of {along[coarse]:.3g} m along its normal (float32 '
-                        f'far from the origin), coarser than t = {seg.tolerance:.3g} m: the planes may be those '
-                        'steps (subtract an offset, e.g. a local origin, before storing coordinates as float32)')
+                        f'coordinates), coarser than t = {seg.tolerance:.3g} m: the planes may be those steps (a '
+                        'larger t; far from the origin, subtract an offset such as a local origin before storing '
+                        'coordinates as float32)')
     if agreement is not None and agreement < MIN_SEED_AGREEMENT:  # NaN: not measured
         problems.append(f'other RANSAC seeds find other planes (agreement {_down(agreement)} < {MIN_SEED_AGREEMENT})')
     if problems:

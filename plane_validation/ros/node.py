@@ -204,7 +204,8 @@ class PlaneValidationNode(Node):
                 result = self.pipeline.retune(points, frame.clock, stamp_ns, shape=shape,
                                               stop=lambda: self._stopping)
                 if result is not None and self.pipeline.last_tuning is result and not self._stopping:
-                    self.get_logger().info(f'retuned: t = {result.tolerance:.4g} m ({result.verdict})')
+                    log = self.get_logger().info if result.reliable else self.get_logger().warning  # as the frames
+                    log(f'retuned: t = {result.tolerance:.4g} m ({result.verdict})')
             except KeyboardInterrupt:  # Ctrl-C reached a worker process of a parallel sweep: the node stops
                 pass
             except Exception as exc:  # a failed sweep keeps the current tolerance; the node goes on
