@@ -165,7 +165,7 @@ def test_same_frame_same_stamp_same_result_and_stamp_changes_the_seed():
 
 @pytest.mark.parametrize('bad', [dict(tolerance=0.0), dict(criterion='x'), dict(tune_min=0.2, tune_max=0.1),
                                  dict(probability=1.0), dict(voxel_size=-1.0), dict(tune_count=1),
-                                 dict(ransac_points=500)])
+                                 dict(ransac_points=500), dict(index_sample_size=20_001)])  # O(n^2): minutes
 def test_invalid_config_is_rejected_with_a_reason(bad):
     with pytest.raises(ValueError) as info:
         PipelineConfig(**bad).validate()

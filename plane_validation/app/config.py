@@ -113,8 +113,8 @@ class PipelineConfig:
     probability: float = _p(0.99, 'RANSAC success probability that sets the iteration count',
                             low=1e-6, high=0.999999)
     max_iterations: int = _p(1000, 'RANSAC hypotheses per plane, at most', low=1, high=1_000_000)
-    index_sample_size: int = _p(2000, 'points the validity indices are computed on per frame (stratified sample)',
-                                low=10, high=1_000_000)
+    index_sample_size: int = _p(2000, 'points the validity indices are computed on per frame (stratified sample; '
+                                'the silhouettes cost grows as its square)', low=10, high=20_000)
     exact_indices: bool = _p(False, 'Dunn and Davies-Bouldin on all points (exact, slow on large clouds) instead '
                              'of on the index sample')
     ransac_points: int = _p(RANSAC_POINTS, 'RANSAC searches a random sample of this many points, then labels '
