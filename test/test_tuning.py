@@ -228,6 +228,16 @@ def test_bad_tuning_arguments_raise(kwargs):
         pv.tune_tolerance(scenes.corner(500, seed=0).points, **kwargs)
 
 
+@pytest.mark.parametrize('kwargs, message', [({'tune_points': '100'}, "tune_points must be None or an integer >= 3, "
+                                                                      "got '100'"),
+                                             ({'t_max': -1}, 't_max must be None or a distance > 0 (m), got -1'),
+                                             ({'t_min': 0.0}, 't_min must be None or a distance > 0 (m), got 0')])
+def test_bad_tuning_arguments_are_named_as_given(kwargs, message):
+    """An outside probe: a string tune_points was numpy's TypeError; t_max=-1 was reported as 'lo=-0.01'."""
+    with pytest.raises(ValueError, match=re.escape(message)):
+        pv.tune_tolerance(scenes.corner(500, seed=0).points, **kwargs)
+
+
 def test_numbers_that_mean_what_they_say_are_taken():
     points = scenes.corner(1500, 1.0, seed=2).points
     base = pv.tune_tolerance(points, seed=0, count=4, tune_points=1000)

@@ -369,15 +369,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         raise ValueError(f'sweep_planes must be an integer >= 0 (0 = max_planes), got {sweep_planes!r}')
     extend = check_integer('extend', extend, 0)
     max_planes = check_integer('max_planes', max_planes, 0)
-    t_min, t_max = (None if t is None else check_number(name, t, 'None or a distance > 0 (m)')
-                    for name, t in (('t_min', t_min), ('t_max', t_max)))
-    if tune_points is not None and tune_points != np.inf:  # inf: all points, as None
-        if isinstance(tune_points, bool) or not np.isfinite(tune_points) or int(tune_points) != tune_points \
-                or tune_points < 3:
-            raise ValueError(f'tune_points must be None or an integer >= 3, got {tune_points!r}')
-        tune_points = int(tune_points)
-    else:
-        tune_points = None
+    t_min, t_max, tune_points = _check_range(t_min, t_max, tune_points)
     if tolerances is not None:
         tolerances = _check_tolerances(tolerances)
     count = check_integer('count', count, 2)
@@ -485,6 +477,22 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                         noise_coefficient=noise_coefficient(pts, final.labels, final.coefficients, view)
                         if noise_model == 'depth_quadratic' else float('nan'), sweep_points=n_sweep,
                         seed_agreement=agreement)
+
+
+def _check_range(t_min, t_max, tune_points) -> tuple[float | None, float | None, int | None]:
+    """tune_tolerance's ``t_min`` and ``t_max`` as floats > 0 (or None) and ``tune_points`` as an int >= 3 (None or
+    inf: None); ValueError naming the value as given otherwise."""
+    bounds = [None if t is None else check_number(name, t, 'None or a distance > 0 (m)')
+              for name, t in (('t_min', t_min), ('t_max', t_max))]
+    for name, t in zip(('t_min', 't_max'), bounds):
+        if t is not None and t <= 0:
+            raise ValueError(f'{name} must be None or a distance > 0 (m), got {t!r}')
+    if tune_points is None or (isinstance(tune_points, (float, np.floating)) and tune_points == np.inf):
+        return bounds[0], bounds[1], None
+    try:
+        return bounds[0], bounds[1], check_integer('tune_points', tune_points, 3)
+    except ValueError:
+        raise ValueError(f'tune_points must be None or an integer >= 3, got {tune_points!r}') from None
 
 
 def _check_tolerances(tolerances) -> np.ndarray:
