@@ -405,7 +405,7 @@ def test_usage_errors_and_bad_sources_in_process(corner_npy, tmp_path, capsys):
     for argv in (['sweep', str(corner_npy), '--tolerances', '0.1:0.01:5'], ['sweep', str(corner_npy),
                  '--tolerances', '1:2'], ['detect', str(corner_npy), '--tolerance', '-1'],
                  ['detect', str(corner_npy), '--tolerance', '0.1', '--auto'], ['scene', 'teapot'],
-                 ['paper', '--steps', '1']):
+                 ['paper', '--steps', '1'], ['paper', '--points', '2']):  # 2 points: no plane to tune (a probe)
         with pytest.raises(SystemExit) as info:
             main(argv)
         assert info.value.code == 2, argv

@@ -465,21 +465,17 @@ def cmd_demo(args: argparse.Namespace) -> int:
 # -- parser --------------------------------------------------------------------------------------
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected an integer, got {text!r}') from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f'must be >= 1, got {value}')
-    return value
-
-
-def _at_least_two(text: str) -> int:
-    value = _positive_int(text)
-    if value < 2:
-        raise argparse.ArgumentTypeError(f'must be >= 2, got {value}')
-    return value
+def _at_least(low: int) -> Callable[[str], int]:
+    """An argparse type: an integer >= ``low``."""
+    def integer(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f'expected an integer, got {text!r}') from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f'must be >= {low}, got {value}')
+        return value
+    return integer
 
 
 def _number(text: str, *, allow_zero: bool) -> float:
@@ -684,7 +680,7 @@ def build_parser() -> argparse.ArgumentParser:
     scene.add_argument('name', choices=sorted(SCENES))
     scene.add_argument('--noise', type=_non_negative_float, metavar='E',
                        help='uniform noise half-width e along the normals')
-    scene.add_argument('--points', dest='n_points', type=_positive_int, metavar='N', help='number of points')
+    scene.add_argument('--points', dest='n_points', type=_at_least(1), metavar='N', help='number of points')
     scene.add_argument('--outliers', dest='outlier_fraction', type=_fraction, metavar='F',
                        help='fraction of uniform outliers')
     scene.add_argument('--scale', type=_positive_float, metavar='S',
@@ -700,9 +696,9 @@ def build_parser() -> argparse.ArgumentParser:
                            'sphere: indices vs t, planes vs t, indices vs k, and a Markdown summary table.')
     paper.add_argument('--out', default=PAPER_OUT, metavar='DIR', help=f'output directory (default {PAPER_OUT})')
     _add_table_options(paper, (('seed', 'S'),))
-    paper.add_argument('--points', type=_positive_int, metavar='N', help='points per corner/sphere, twice for the cube '
+    paper.add_argument('--points', type=_at_least(3), metavar='N', help='points per corner/sphere, twice for the cube '
                        '(default 3000, as in the paper; smaller for a quick look)')
-    paper.add_argument('--steps', type=_at_least_two, default=60, metavar='N',
+    paper.add_argument('--steps', type=_at_least(2), default=60, metavar='N',
                        help='tolerances per sweep, 0.5 to 30 units '
                        '(default 60)')
     paper.set_defaults(func=cmd_paper)
