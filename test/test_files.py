@@ -654,3 +654,82 @@ def test_a_set_of_outputs_refuses_one_file_twice_and_a_directory(tmp_path):
         with atomic_outputs(tmp_path / 'a.csv', tmp_path):
             pass
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize('suffix', ['.NPY', '.Npy', '.PLY', '.PCD', '.XYZ', '.TXT', '.CSV'])
+def test_an_upper_case_suffix_writes_a_complete_file(tmp_path, suffix):
+    """An outside probe: OUT.NPY was left empty and the data went to a hidden '.OUT.xxxx.NPY.npy' (np.save adds
+    '.npy' to a name not ending in it)."""
+    labels = np.arange(len(POINTS)) % 3 - 1
+    path = save_points(tmp_path / f'out{suffix}', POINTS, labels)
+    np.testing.assert_allclose(load_points(path), POINTS, atol=1e-6)
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]  # nothing beside it
+    if suffix.lower() == '.npy':
+        np.testing.assert_array_equal(np.load(path)[:, 3], labels)
+
+
+def test_detect_writes_an_upper_case_npy(tmp_path):
+    np.save(tmp_path / 'corner.npy', POINTS)
+    out = tmp_path / 'DET.NPY'
+    assert cli_main(['detect', str(tmp_path / 'corner.npy'), '--tolerance', '0.02', '--out', str(out)]) == 0
+    assert np.load(out).shape == (len(POINTS), 4)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['DET.NPY', 'corner.npy']
+
+
+@pytest.mark.parametrize('suffix', ['.MCAP', '.DB3', '.Mcap'])
+def test_a_bag_written_with_an_upper_case_suffix_is_read_back(tmp_path, suffix):
+    """rosbags picks a storage by its suffix, case-sensitively: B.MCAP was written but not read ("Unrecognized
+    storage format '.MCAP'")."""
+    path = save_points(tmp_path / f'b{suffix}', POINTS)
+    np.testing.assert_allclose(load_points(path), POINTS, atol=1e-6)
+    np.testing.assert_allclose(load_points(f'{path}:/points:0'), POINTS, atol=1e-6)
+
+
+@pytest.mark.parametrize('data, body', [('ascii', b'1 2 3 4\n'), ('binary', np.arange(4, dtype='<f4').tobytes()),
+                                        ('binary_compressed', bytes(24))])
+def test_a_pcd_field_named_twice_is_refused(tmp_path, data, body):
+    """An outside probe: an ascii PCD with two x fields was read with the first, while binary ones were refused
+    (with numpy's words, not naming the file)."""
+    path = tmp_path / 'twice.pcd'
+    path.write_bytes(b'VERSION 0.7\nFIELDS x y z x\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 1\nHEIGHT 1\n'
+                     b'POINTS 1\nDATA ' + data.encode() + b'\n' + body)
+    with pytest.raises(ValueError, match=r"twice\.pcd: PCD field 'x' appears more than once \(FIELDS x y z x\)"):
+        load_points(path)
+
+
+def test_ply_and_npy_fields_are_matched_as_a_text_header_is(tmp_path):
+    """An outside probe: a PLY with vertex properties X Y Z was refused, while a text header X Y Z is read."""
+    def ply(name, names, row):
+        properties = ''.join(f'property float {n}\n' for n in names)
+        (tmp_path / name).write_text(f'ply\nformat ascii 1.0\nelement vertex 1\n{properties}end_header\n{row}\n')
+        return tmp_path / name
+    np.testing.assert_array_equal(load_points(ply('upper.ply', 'XYZ', '1 2 3')), [[1, 2, 3]])
+    np.testing.assert_array_equal(load_points(ply('zyx.ply', 'ZYX', '3 2 1')), [[1, 2, 3]])
+    np.testing.assert_array_equal(load_points(ply('height.ply', ['x', 'y', 'z', 'height'], '1 2 3 9')), [[1, 2, 3]])
+    with pytest.raises(ValueError, match=r'both\.ply: more than one field for x, y or z \(fields: x X y z\)'):
+        load_points(ply('both.ply', 'xXyz', '1 2 3 4'))
+    records = np.zeros(2, [('X', 'f4'), ('Y', 'f4'), ('Z', 'f4')])
+    records['X'], records['Y'], records['Z'] = 1, 2, 3
+    np.save(tmp_path / 'upper.npy', records)
+    np.testing.assert_array_equal(load_points(tmp_path / 'upper.npy'), [[1, 2, 3], [1, 2, 3]])
+
+
+def test_cloudcompares_header_over_rows_split_by_commas(tmp_path):
+    """An outside probe: '//X,Y,Z' was understood in a .txt, but then its rows '1,2,3' were no table of numbers."""
+    for name, text in (('cc.txt', '//X,Y,Z\n1,2,3\n4,5,6\n'), ('cc.xyz', '//X,Y,Z,R,G,B\n1,2,3,0,0,0\n4,5,6,0,0,0\n'),
+                       ('spaced.txt', 'x, y, z\n1, 2, 3\n4, 5, 6\n'), ('comment.txt', '# z,y,x\n3,2,1\n6,5,4\n')):
+        (tmp_path / name).write_text(text)
+        np.testing.assert_array_equal(load_points(tmp_path / name), [[1, 2, 3], [4, 5, 6]], err_msg=name)
+
+
+def test_a_header_unit_is_converted_to_meters_or_refused(tmp_path):
+    """An outside probe: 'x (mm)' was read as meters. mm and cm are converted (ROS points are in meters); another
+    unit is refused rather than read as meters."""
+    for name, text in (('mm.txt', 'x (mm) y (mm) z (mm)\n1000 2000 3000\n'),
+                       ('mixed.csv', 'i,z [m],y [cm],x [mm]\n7,3,200,1000\n'),
+                       ('commas.xyz', '"X (MM)","Y (mm)","Z (mm)"\n1000,2000,3000\n')):
+        (tmp_path / name).write_text(text)
+        np.testing.assert_allclose(load_points(tmp_path / name), [[1, 2, 3]], err_msg=name)
+    (tmp_path / 'feet.csv').write_text('x (ft),y (ft),z (ft)\n1,2,3\n')
+    with pytest.raises(ValueError, match=r"feet\.csv: column 'x \(ft\)' is in 'ft'; x, y and z must be in m, cm or mm"):
+        load_points(tmp_path / 'feet.csv')

@@ -56,12 +56,21 @@ def open_bag(bag: Path):
         raise BagError(f'{bag}: a directory without metadata.yaml, so not a rosbag2 bag; to read one storage file '
                        f'of it, name the file ({", ".join(files[:3])}{", ..." if len(files) > 3 else ""})')
     try:
-        reader = AnyReader([bag], default_typestore=typestore())
+        reader = AnyReader([_StoragePath(bag) if bag.is_file() else bag], default_typestore=typestore())
         reader.open()
     except (AnyReaderError, OSError, ValueError, KeyError) as exc:
         hint = next((why for sign, why in DAMAGED.items() if sign in str(exc)), '')
         raise BagError(f'cannot open bag {bag}: {exc}{hint}') from exc
     return reader
+
+
+class _StoragePath(type(Path())):
+    """A path whose suffix reads in lower case: rosbags picks a bag file's reader by its suffix, case-sensitively
+    (B.MCAP, which write_bag_points writes, was an "Unrecognized storage format '.MCAP'")."""
+
+    @property
+    def suffix(self) -> str:
+        return super().suffix.lower()
 
 
 #: Words of a reader's error -> what it means for a bag cut short (a recorder killed before closing it).

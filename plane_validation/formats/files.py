@@ -1,9 +1,9 @@
 """Point files for the command line: read x, y, z from PCD, PLY, .npy, text or a bag; write labelled clouds.
 
-Readers return an (N, 3) float64 array in the file's unit (meters for real sensors). Rows of
-organized clouds keep their NaN holes, so row i of the result is point i of the file. Every
-problem with a file (missing, unknown extension, corrupt bytes, no x/y/z) raises ``ValueError``
-with a one-line message naming the file.
+Readers return an (N, 3) float64 array in the file's unit (meters for real sensors; a text header's
+``x (mm)`` or ``x [cm]`` is converted to meters). Rows of organized clouds keep their NaN holes, so row
+i of the result is point i of the file. Every problem with a file (missing, unknown extension, corrupt
+bytes, no x/y/z) raises ``ValueError`` with a one-line message naming the file.
 
 PCD: ascii and binary are read here (any VERSION; fast, no extra dependency); binary_compressed
 (LZF) through ``pypcd4``. PLY: through ``plyfile`` (GPL-3.0, imported only for .ply files).
@@ -281,12 +281,11 @@ def _first_line(exc: BaseException) -> str:
 def _xyz_columns(path: Path, table: np.ndarray) -> np.ndarray:
     """First three columns of an (N, >=3) numeric table, or a clear error."""
     if table.dtype.names:
-        if not {'x', 'y', 'z'} <= set(table.dtype.names):
-            raise ValueError(f'{path}: no x, y, z fields (fields: {" ".join(table.dtype.names)})')
-        for a in 'xyz':
+        xyz = [table.dtype.names[i] for i in _xyz_positions(path, table.dtype.names, fields=True)]
+        for a in xyz:
             if table.dtype[a].kind not in 'fiu':  # a PLY list property, say
                 raise ValueError(f'{path}: field {a} does not hold one number per point (dtype {table.dtype[a]})')
-        return np.column_stack([table[a].reshape(-1) for a in 'xyz'])
+        return np.column_stack([table[a].reshape(-1) for a in xyz])
     if table.dtype.kind not in 'fiu':
         raise ValueError(f'{path}: expected numbers, got dtype {table.dtype}')
     if table.ndim != 2 or table.shape[1] < 3:
@@ -320,11 +319,12 @@ def _loadtxt(source, delimiter: str | None = None, skiprows: int = 0, usecols: i
                           usecols=None if usecols is None else range(usecols))
 
 
-def _first_row(path: Path) -> str:
-    """The first line of a text table that is not blank or a comment, stripped ('' when there is none)."""
+def _first_row(path: Path, header: bool = False) -> str:
+    """The first line of a text table that is not blank or a comment, stripped ('' when there is none); after the
+    first line when that is a ``header`` row."""
     with open(path, encoding='utf-8-sig', errors='replace') as f:
-        for _, line in zip(range(1000), f):
-            if (text := line.strip()) and not text.startswith('#'):
+        for i, line in zip(range(1000), f):
+            if (text := line.strip()) and not text.startswith('#') and not (header and i == 0):
                 return text
     return ''
 
@@ -336,13 +336,19 @@ def _column_names(path: Path, delimiter: str | None) -> list[str] | None:
         first = f.readline(4096).decode('utf-8-sig', errors='replace').strip()
     comment = first.startswith('#')  # '# x y z i': names in a comment, which the table reader skips
     first = first.lstrip('#').strip()
+    if delimiter is None and ',' in first:  # 'x,y,z', CloudCompare's '//X,Y,Z': over rows split by commas or spaces
+        delimiter = ','
     fields = [t.strip() for t in first.split(delimiter)] if first else []
     while delimiter and len(fields) > 1 and not fields[-1]:
         fields.pop()  # 'x,y,z,': a trailing delimiter ends the row, it starts no column
-    if delimiter is None:  # 'x [m] y [m] z [m]': a unit split off its name is no column of its own
-        fields = [t for t in fields if not (t[:1] in '[(' and t[-1:] in '])')]
-        if len(fields) == 1 and ',' in fields[0]:  # 'x,y,z' over columns separated by spaces
-            fields = [t.strip() for t in fields[0].split(',')]
+    if delimiter is None:  # 'x [m] y [m] z [m]': a unit split off its name is no column of its own, but its name's
+        named: list[str] = []
+        for t in fields:
+            if named and t[:1] in '[(' and t[-1:] in '])':
+                named[-1] += f' {t}'
+            else:
+                named.append(t)
+        fields = named
 
     def name(text: str) -> bool:
         try:
@@ -357,9 +363,29 @@ def _column_names(path: Path, delimiter: str | None) -> list[str] | None:
     return fields
 
 
+#: A unit after a header name: 'x [m]', 'x (mm)'.
+_UNIT = re.compile(r'\s*[\[(]([^\])]*)[\])]$')
+#: Units a text header may give x, y and z in, as meters per unit: the points are read in meters (ROS's unit, REP 103).
+UNITS = {'m': 1.0, 'meter': 1.0, 'meters': 1.0, 'metre': 1.0, 'metres': 1.0, 'cm': 0.01, 'mm': 0.001}
+
+
 def _plain(name: str) -> str:
     """A header name in lower case without quotes, CloudCompare's '//' and a unit ('x [m]', 'x (m)')."""
-    return re.sub(r'\s*[\[(][^\])]*[\])]$', '', name.strip('"\'').strip()).lower().removeprefix('//').strip()
+    return _UNIT.sub('', name.strip('"\'').strip()).lower().removeprefix('//').strip()
+
+
+def _unit_scales(path: Path, names: list[str]) -> np.ndarray:
+    """Meters per unit of each of the header ``names`` ('x (mm)': 0.001; no unit: 1); ValueError for a unit not in
+    UNITS (a length in feet, or no length at all), which would otherwise be read as meters."""
+    scales = []
+    for name in names:
+        unit = _UNIT.search(name.strip('"\'').strip())
+        unit = None if unit is None else unit[1].strip().lower()
+        if unit is not None and unit not in UNITS:
+            raise ValueError(f'{path}: column {name!r} is in {unit!r}; x, y and z must be in m, cm or mm '
+                             '(they are read in meters)')
+        scales.append(UNITS.get(unit, 1.0))
+    return np.array(scales)
 
 
 #: Header names taken for x, y and z (lower case, units and quotes removed), besides the letters themselves.
@@ -367,16 +393,23 @@ AXIS_NAMES = {'x': ('x', 'easting', 'east'), 'y': ('y', 'northing', 'north'),
               'z': ('z', 'height', 'elevation', 'altitude', 'up')}
 
 
-def _xyz_positions(path: Path, names: list[str]) -> list[int]:
-    """The columns of x, y and z in a header row ``names`` (AXIS_NAMES): case-insensitive, quoted or not, the first
-    with CloudCompare's ``//`` prefix, a unit after the name allowed (``x [m]``, ``x (m)``); ValueError unless each
-    is named once."""
+def _xyz_positions(path: Path, names, *, fields: bool = False) -> list[int]:
+    """The positions of x, y and z among ``names``, a text table's header row or (``fields``) the fields of a PLY
+    vertex or .npy record (AXIS_NAMES): case-insensitive, quoted or not, the first with CloudCompare's ``//``
+    prefix, a unit after the name allowed (``x [m]``, ``x (m)``), the letter before its other names (``x y z
+    height``: z); ValueError unless each is named once."""
     plain = [_plain(n) for n in names]
-    found = [[i for i, n in enumerate(plain) if n in AXIS_NAMES[axis]] for axis in 'xyz']
-    if any(len(f) != 1 for f in found):
-        raise ValueError(f'{path}: the header row must name each of x, y and z once (or easting, northing, '
-                         f'height), got the columns {", ".join(names)}')
-    return [f[0] for f in found]
+    found = []
+    for axis in 'xyz':
+        letter = [i for i, n in enumerate(plain) if n == axis]
+        found.append(letter if len(letter) == 1 else [i for i, n in enumerate(plain) if n in AXIS_NAMES[axis]])
+    if all(len(f) == 1 for f in found):
+        return [f[0] for f in found]
+    if fields:
+        why = 'no x, y, z fields' if any(not f for f in found) else 'more than one field for x, y or z'
+        raise ValueError(f'{path}: {why} (fields: {" ".join(names)})')
+    raise ValueError(f'{path}: the header row must name each of x, y and z once (or easting, northing, '
+                     f'height), got the columns {", ".join(names)}')
 
 
 def _read_text(path: Path) -> np.ndarray:
@@ -384,8 +417,12 @@ def _read_text(path: Path) -> np.ndarray:
     delimiter = ',' if path.suffix.lower() == '.csv' else None
     names = _column_names(path, delimiter)
     columns = None if names is None else _xyz_positions(path, names)
+    scales = None if names is None else _unit_scales(path, [names[i] for i in columns])
+    first = _first_row(path, header=names is not None)
+    if delimiter is None and names is not None and ',' in first:  # CloudCompare's '//X,Y,Z' over rows '1,2,3'
+        delimiter = ','
     used = None  # rows ending in the delimiter ('1,2,3,', as some exporters write): the empty last field is no column
-    if delimiter and (first := _first_row(path)).endswith(delimiter):
+    if delimiter and first.endswith(delimiter):
         used = len(first.split(delimiter)) - 1
     try:
         table = _loadtxt(path, delimiter, int(names is not None), used)
@@ -397,7 +434,7 @@ def _read_text(path: Path) -> np.ndarray:
     if columns is not None:
         if table.shape[1] != len(names):
             raise ValueError(f'{path}: the header row names {len(names)} columns, the rows have {table.shape[1]}')
-        table = table[:, columns]
+        table = table[:, columns] * scales
     return _xyz_columns(path, table)
 
 
@@ -494,6 +531,9 @@ def _read_pcd_scan(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int
         raise ValueError(f'{path}: malformed PCD header ({exc})') from exc
     if not {'x', 'y', 'z'} <= set(fields):
         raise ValueError(f'{path}: PCD has no x, y, z fields (fields: {" ".join(fields)})')
+    repeated = [f for i, f in enumerate(fields) if f != '_' and f in fields[:i]]  # '_': padding, may repeat
+    if repeated:  # which x would be meant? (numpy refuses such a binary record; ascii took the first)
+        raise ValueError(f'{path}: PCD field {repeated[0]!r} appears more than once (FIELDS {" ".join(fields)})')
     if not len(fields) == len(sizes) == len(types) == len(counts):
         raise ValueError(f'{path}: PCD FIELDS, SIZE, TYPE and COUNT disagree in length')
     if n < 0:
@@ -667,7 +707,10 @@ def _write_ply(path: Path, points: np.ndarray, labels: np.ndarray | None) -> Non
 
 
 def _write_npy(path: Path, points: np.ndarray, labels: np.ndarray | None) -> None:
-    np.save(path, points if labels is None else np.column_stack([points, labels.astype(np.float64)]))
+    """(N, 3) float64, or (N, 4) with the label column. Through an open file: np.save given a name that does not
+    end in '.npy' (OUT.NPY, or a temporary name) would write to that name + '.npy' instead."""
+    with path.open('wb') as f:
+        np.save(f, points if labels is None else np.column_stack([points, labels.astype(np.float64)]))
 
 
 def _write_text(path: Path, points: np.ndarray, labels: np.ndarray | None) -> None:
