@@ -331,6 +331,20 @@ def test_paper_quick_run(tmp_path, capsys):
             assert cells[-1] == 'no'  # the plane-free sphere is not reliable
 
 
+def test_a_paper_run_that_fails_leaves_no_folder_and_a_file_is_no_folder(tmp_path, capsys):
+    """An outside probe: a failed run left an empty out/paper behind; --out naming a file was '[Errno 17]'."""
+    from plane_validation.app.paper import linear_grid, run_paper
+
+    def stop(*_) -> None:
+        raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt):
+        run_paper(tmp_path / 'new' / 'paper', points=300, grid=linear_grid(steps=4), progress=stop)
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / 'a.pcd').write_text('x')
+    assert main(['paper', '--out', str(tmp_path / 'a.pcd'), '--points', '3']) == 2
+    assert 'a.pcd: exists and is not a directory' in capsys.readouterr().err
+
+
 def test_an_interrupted_paper_run_leaves_the_earlier_set(tmp_path):
     """An outside probe: a paper run stopped by SIGTERM left 5 new figures beside 11 old ones and the old
     summary.md. The set is now written beside the folder and moved in at the end."""

@@ -16,7 +16,7 @@ import re
 import tempfile
 import warnings
 from collections.abc import Iterator
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack, contextmanager, suppress
 from pathlib import Path
 
 import numpy as np
@@ -260,14 +260,26 @@ def staged_files(folder: str | Path) -> Iterator[Path]:
     beside it: on the same file system also when ``folder`` is a mount point or a link to another one."""
     import shutil
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f'{folder}: exists and is not a directory (the output folder)')
+    made = [] if folder.exists() else [parent for parent in (folder, *folder.parents) if not parent.exists()]
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f'{folder}: cannot create the output folder ({exc.strerror or exc})') from exc
     stage = Path(tempfile.mkdtemp(dir=folder, prefix='.', suffix='.partial'))
+    done = False
     try:
         yield stage
         for path in sorted(stage.iterdir()):
             os.replace(path, folder / path.name)
+        done = True
     finally:
         shutil.rmtree(stage, ignore_errors=True)
+        if not done:  # a failed run leaves no folder it made (when still empty)
+            for parent in made:
+                with suppress(OSError):
+                    parent.rmdir()
 
 
 # -- readers -------------------------------------------------------------------------------------
