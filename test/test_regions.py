@@ -34,6 +34,18 @@ def test_organized_depth_jump_separates_a_box_front_from_the_wall_behind():
     assert np.all(regions.labels[np.isnan(pts[:, 0])] == -1)  # holes stay unassigned
 
 
+def test_an_image_with_points_at_the_sensor_gives_no_numpy_warning():
+    """An outside probe: a pixel at (0, 0, 0) (range 0) leaked 'invalid value encountered in divide'."""
+    import warnings
+    scene = scenes.depth_camera('room', width=80, height=60, seed=0)
+    points = scene.points.copy()
+    points[[0, 79]] = 0.0  # both ends of the first row: the seam test divides by their range
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        seg = pv.detect_planes(points, 0.03, seed=0, shape=(60, 80))
+    assert seg.n_planes >= 4
+
+
 def test_coplanar_separate_objects_are_separate_planes_in_an_unorganized_cloud():
     rng = np.random.default_rng(2)
     tops = [np.column_stack([rng.uniform(x0, x0 + 0.4, 3000), rng.uniform(0, 0.4, 3000), rng.normal(0, 0.002, 3000)])

@@ -502,7 +502,10 @@ def _wraps(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, typi
         return False
     first, last = np.argmax(head[rows], axis=1), w - 1 - np.argmax(tail[rows], axis=1)
     gap = np.linalg.norm(image_points[rows, first] - image_points[rows, last], axis=1) / (w - last + first)
-    return bool(np.median(gap / np.minimum(ranges[rows, first], ranges[rows, last])) <= JUMP * typical)
+    with np.errstate(divide='ignore', invalid='ignore'):  # a point at the sensor (range 0): inf, or NaN left out
+        ratio = gap / np.minimum(ranges[rows, first], ranges[rows, last])
+    ratio = ratio[~np.isnan(ratio)]
+    return bool(len(ratio)) and bool(np.median(ratio) <= JUMP * typical)
 
 
 def _reach(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray) -> tuple[int, int]:
