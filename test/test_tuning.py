@@ -236,6 +236,8 @@ def test_bad_tuning_arguments_are_named_as_given(kwargs, message):
     """An outside probe: a string tune_points was numpy's TypeError; t_max=-1 was reported as 'lo=-0.01'."""
     with pytest.raises(ValueError, match=re.escape(message)):
         pv.tune_tolerance(scenes.corner(500, seed=0).points, **kwargs)
+    # a 0-d array means its number (a review: refused for a while)
+    assert pv.tune_tolerance(scenes.corner(500, seed=0).points, seed=0, tune_points=np.array(300)).sweep_points == 300
 
 
 def test_numbers_that_mean_what_they_say_are_taken():

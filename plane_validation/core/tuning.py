@@ -487,6 +487,8 @@ def _check_range(t_min, t_max, tune_points) -> tuple[float | None, float | None,
     for name, t in zip(('t_min', 't_max'), bounds):
         if t is not None and t <= 0:
             raise ValueError(f'{name} must be None or a distance > 0 (m), got {t!r}')
+    if isinstance(tune_points, np.ndarray) and tune_points.ndim == 0:
+        tune_points = tune_points[()]  # a 0-d array means its number
     if tune_points is None or (isinstance(tune_points, (float, np.floating)) and tune_points == np.inf):
         return bounds[0], bounds[1], None
     try:

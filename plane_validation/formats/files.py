@@ -1,6 +1,6 @@
 """Point files for the command line: read x, y, z from PCD, PLY, .npy, text or a bag; write labelled clouds.
 
-Readers return an (N, 3) float64 array in the file's unit (meters for real sensors; a text header's
+Readers return an (N, 3) float64 array in the file's unit (meters for real sensors; a header name
 ``x (mm)`` or ``x [cm]`` is converted to meters). Rows of organized clouds keep their NaN holes, so row
 i of the result is point i of the file. Every problem with a file (missing, unknown extension, corrupt
 bytes, no x/y/z) raises ``ValueError`` with a one-line message naming the file.
@@ -297,7 +297,9 @@ def _xyz_columns(path: Path, table: np.ndarray) -> np.ndarray:
         for a in xyz:
             if table.dtype[a].kind not in 'fiu':  # a PLY list property, say
                 raise ValueError(f'{path}: field {a} does not hold one number per point (dtype {table.dtype[a]})')
-        return np.column_stack([table[a].reshape(-1) for a in xyz])
+        scales = _unit_scales(path, xyz)
+        columns = np.column_stack([table[a].reshape(-1) for a in xyz])
+        return columns if (scales == 1.0).all() else columns * scales
     if table.dtype.kind not in 'fiu':
         raise ValueError(f'{path}: expected numbers, got dtype {table.dtype}')
     if table.ndim != 2 or table.shape[1] < 3:
@@ -348,8 +350,9 @@ def _column_names(path: Path, delimiter: str | None) -> list[str] | None:
         first = f.readline(4096).decode('utf-8-sig', errors='replace').strip()
     comment = first.startswith('#')  # '# x y z i': names in a comment, which the table reader skips
     first = first.lstrip('#').strip()
-    if delimiter is None and ',' in first:  # 'x,y,z', CloudCompare's '//X,Y,Z': over rows split by commas or spaces
-        delimiter = ','
+    if delimiter is None and ',' in first and all(len(_UNIT.sub('', p.strip().strip('"\'')).split()) <= 1
+                                                  for p in first.split(',')):
+        delimiter = ','  # 'x,y,z', 'x (mm), y (mm), z (mm)', CloudCompare's '//X,Y,Z'; not 'X Y Z R,G,B'
     fields = [t.strip() for t in first.split(delimiter)] if first else []
     while delimiter and len(fields) > 1 and not fields[-1]:
         fields.pop()  # 'x,y,z,': a trailing delimiter ends the row, it starts no column
@@ -375,29 +378,37 @@ def _column_names(path: Path, delimiter: str | None) -> list[str] | None:
     return fields
 
 
-#: A unit after a header name: 'x [m]', 'x (mm)'.
+#: A bracket after a header name: 'x [m]', 'x (mm)' (a unit when it names one of UNITS).
 _UNIT = re.compile(r'\s*[\[(]([^\])]*)[\])]$')
-#: Units a text header may give x, y and z in, as meters per unit: the points are read in meters (ROS's unit, REP 103).
-UNITS = {'m': 1.0, 'meter': 1.0, 'meters': 1.0, 'metre': 1.0, 'metres': 1.0, 'cm': 0.01, 'mm': 0.001}
+#: Length units a header name or a record's field may give x, y and z in ('x (mm)'), as meters per unit: the points
+#: are read in meters (ROS's unit, REP 103). Other words in brackets ('x (east)', 'x(1)') are no unit.
+UNITS = {**dict.fromkeys(('m', 'meter', 'meters', 'metre', 'metres'), 1.0),
+         **dict.fromkeys(('cm', 'centimeter', 'centimeters', 'centimetre', 'centimetres'), 0.01),
+         **dict.fromkeys(('mm', 'millimeter', 'millimeters', 'millimetre', 'millimetres'), 0.001),
+         **dict.fromkeys(('um', 'µm', 'micrometer', 'micrometers', 'micrometre', 'micrometres', 'micron'), 1e-6),
+         **dict.fromkeys(('km', 'kilometer', 'kilometers', 'kilometre', 'kilometres'), 1000.0),
+         **dict.fromkeys(('in', 'inch', 'inches'), 0.0254), **dict.fromkeys(('ft', 'foot', 'feet'), 0.3048),
+         **dict.fromkeys(('yd', 'yard', 'yards'), 0.9144)}
 
 
-def _plain(name: str) -> str:
-    """A header name in lower case without quotes, CloudCompare's '//' and a unit ('x [m]', 'x (m)')."""
-    return _UNIT.sub('', name.strip('"\'').strip()).lower().removeprefix('//').strip()
+def _plain(name: str, lower: bool = True) -> str:
+    """A header name (in lower case) without quotes, CloudCompare's '//' and a bracket after it ('x [m]', 'x (m)')."""
+    bare = _UNIT.sub('', str(name).strip('"\'').strip())
+    return (bare.lower() if lower else bare).removeprefix('//').strip()
 
 
-def _unit_scales(path: Path, names: list[str]) -> np.ndarray:
-    """Meters per unit of each of the header ``names`` ('x (mm)': 0.001; no unit: 1); ValueError for a unit not in
-    UNITS (a length in feet, or no length at all), which would otherwise be read as meters."""
-    scales = []
+def _unit_scales(path: Path, names: list) -> np.ndarray:
+    """(3,) meters per unit of the x, y and z ``names`` (a header's, or a record's fields: 'x (mm)' 0.001; no unit: 1,
+    the file's unit); ValueError when some of them give a unit and others none ('x y z (mm)' would scale z alone)."""
+    units = []
     for name in names:
-        unit = _UNIT.search(name.strip('"\'').strip())
+        unit = _UNIT.search(str(name).strip('"\'').strip())
         unit = None if unit is None else unit[1].strip().lower()
-        if unit is not None and unit not in UNITS:
-            raise ValueError(f'{path}: column {name!r} is in {unit!r}; x, y and z must be in m, cm or mm '
-                             '(they are read in meters)')
-        scales.append(UNITS.get(unit, 1.0))
-    return np.array(scales)
+        units.append(unit if unit in UNITS else None)
+    if None in units and any(units):
+        raise ValueError(f'{path}: only some of x, y and z give a unit ({", ".join(map(str, names))}): give one for '
+                         'each, or none')
+    return np.array([UNITS.get(unit, 1.0) for unit in units])
 
 
 #: Header names taken for x, y and z (lower case, units and quotes removed), besides the letters themselves.
@@ -409,11 +420,13 @@ def _xyz_positions(path: Path, names, *, fields: bool = False) -> list[int]:
     """The positions of x, y and z among ``names``, a text table's header row or (``fields``) the fields of a PLY
     vertex or .npy record (AXIS_NAMES): case-insensitive, quoted or not, the first with CloudCompare's ``//``
     prefix, a unit after the name allowed (``x [m]``, ``x (m)``), the letter before its other names (``x y z
-    height``: z); ValueError unless each is named once."""
+    height``: z), the lower-case letter before the upper-case one; ValueError unless each is named once."""
     plain = [_plain(n) for n in names]
     found = []
     for axis in 'xyz':
         letter = [i for i, n in enumerate(plain) if n == axis]
+        if len(letter) > 1:  # 'x' and 'X': the lower-case one
+            letter = [i for i in letter if _plain(names[i], lower=False) == axis]
         found.append(letter if len(letter) == 1 else [i for i, n in enumerate(plain) if n in AXIS_NAMES[axis]])
     if all(len(f) == 1 for f in found):
         return [f[0] for f in found]
@@ -446,7 +459,7 @@ def _read_text(path: Path) -> np.ndarray:
     if columns is not None:
         if table.shape[1] != len(names):
             raise ValueError(f'{path}: the header row names {len(names)} columns, the rows have {table.shape[1]}')
-        table = table[:, columns] * scales
+        table = table[:, columns] if (scales == 1.0).all() else table[:, columns] * scales
     return _xyz_columns(path, table)
 
 
@@ -472,21 +485,23 @@ def _read_ply(path: Path) -> np.ndarray:
 
 def _check_ply_rest(path: Path, ply, end: int | None) -> None:
     """ValueError when a PLY file holds data beyond the elements its header declares (an element count too
-    small: those records would go unread): lines after the last record (ascii), or bytes other than line ends
-    and spaces after the byte ``end`` where the records end (binary)."""
+    small: those records would go unread): lines after the last record (ascii), or after the byte ``end`` where the
+    records end (binary) bytes other than line ends and spaces, or NUL padding as long as a record or longer."""
     declared = sum(len(element.data) for element in ply.elements)
     with path.open('rb') as stream:
         if end is None:
-            lines = stream.read().splitlines()
-            body = lines[[line.strip() for line in lines].index(b'end_header') + 1:]
-            records = sum(1 for line in body if line.strip())
+            for line in stream:  # line by line: a large ascii file is not held twice
+                if line.strip() == b'end_header':
+                    break
+            records = sum(1 for line in stream if line.strip())
             if records > declared:
                 raise ValueError(f'{path}: PLY holds {records} records after its header, which declares {declared}: '
                                  'an element count too small, or other data appended')
             return
         stream.seek(end)
         rest = stream.read()
-    if rest.strip():
+    record = ply.elements[-1].data.dtype.itemsize if ply.elements else 1
+    if rest.strip() and (rest.strip(b'\x00 \t\r\n') or len(rest) >= record):
         raise ValueError(f'{path}: PLY holds {len(rest)} bytes after its {declared} declared records: an element '
                          'count too small, or other data appended')
 
@@ -543,8 +558,8 @@ def _read_pcd_scan(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int
         raise ValueError(f'{path}: malformed PCD header ({exc})') from exc
     if not {'x', 'y', 'z'} <= set(fields):
         raise ValueError(f'{path}: PCD has no x, y, z fields (fields: {" ".join(fields)})')
-    repeated = [f for i, f in enumerate(fields) if f != '_' and f in fields[:i]]  # '_': padding, may repeat
-    if repeated:  # which x would be meant? (numpy refuses such a binary record; ascii took the first)
+    repeated = [a for a in 'xyz' if fields.count(a) > 1]  # which x would be meant? (other fields: the first)
+    if repeated:
         raise ValueError(f'{path}: PCD field {repeated[0]!r} appears more than once (FIELDS {" ".join(fields)})')
     if not len(fields) == len(sizes) == len(types) == len(counts):
         raise ValueError(f'{path}: PCD FIELDS, SIZE, TYPE and COUNT disagree in length')
@@ -584,8 +599,8 @@ def _read_pcd_scan(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int
         return xyz, beam_numbers(table[:, columns[k]]) if has_ring else None, shape
     if data == 'binary':
         try:
-            dtype = np.dtype([(f if f != '_' else f'_pad{i}', '<' + _PCD_TYPES[(t.upper(), s)], (c,))
-                              for i, (f, s, t, c) in enumerate(zip(fields, sizes, types, counts))])
+            dtype = np.dtype([(f if f != '_' and fields.index(f) == i else f'_{i}', '<' + _PCD_TYPES[(t.upper(), s)],
+                               (c,)) for i, (f, s, t, c) in enumerate(zip(fields, sizes, types, counts))])
         except KeyError as exc:
             raise ValueError(f'{path}: unsupported PCD TYPE/SIZE {exc}') from exc
         _check_binary_size(path, len(raw) - offset, n, dtype.itemsize)
