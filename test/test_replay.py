@@ -509,3 +509,35 @@ def test_rclpy_messages_with_boolean_and_byte_sequences_convert_for_rosbags():
         raw = bytes(TS2.serialize_cdr(as_rosbags(msg, TS2), name))
         assert deserialize_message(raw, type(msg)) == msg
 
+
+
+_SESSION_THEN_EXIT = '''
+import time
+from plane_validation.ros.player import LiveSession
+session = LiveSession('/points', 'plane_validation', lambda key, msg: None)
+end = time.monotonic() + 30
+while not session.connected() and time.monotonic() < end:
+    time.sleep(0.05)
+connected = session.connected()
+session.close()
+print('connected' if connected else 'not connected', flush=True)
+'''
+
+
+def test_a_process_that_talked_to_a_node_in_another_process_exits_cleanly_right_after_closing():
+    """A process that closed its live session and exited at once was aborted ('terminate called without an active
+    exception', status 134) when it had talked to a node in another process (replay --live --no-node from a
+    script): the executor's thread was still in rclpy's wait. close() now waits for it."""
+    import signal
+    import subprocess
+    import sys
+    node = subprocess.Popen([sys.executable, '-c', 'from plane_validation.ros.node import main; main()', '--ros-args',
+                             '-r', 'cloud:=/points'], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        runs = [subprocess.run([sys.executable, '-c', _SESSION_THEN_EXIT], capture_output=True, text=True, timeout=60)
+                for _ in range(2)]
+    finally:
+        node.send_signal(signal.SIGINT)
+        node.wait(timeout=30)
+    for run in runs:
+        assert (run.returncode, run.stdout.strip()) == (0, 'connected'), run.stderr[-500:]

@@ -67,7 +67,8 @@ class LiveSession:
                 self.nodes.append(node_factory(self.context))
             for node in self.nodes:
                 self.executor.add_node(node)
-            threading.Thread(target=self.executor.spin, daemon=True).start()
+            self.spinning = threading.Thread(target=self.executor.spin, daemon=True)
+            self.spinning.start()
         except BaseException:
             self.close()
             raise
@@ -80,6 +81,11 @@ class LiveSession:
     def close(self) -> None:
         import rclpy
         self.executor.shutdown(timeout_sec=5)
+        spinning = getattr(self, 'spinning', None)
+        if spinning is not None and spinning is not threading.current_thread():
+            # its spin returns after the shutdown; a process that exits while it is still in rclpy's wait (after
+            # talking to a node in another process) was aborted ('terminate called without an active exception')
+            spinning.join(timeout=5)
         for node in self.nodes:
             node.destroy_node()
         rclpy.try_shutdown(context=self.context)
