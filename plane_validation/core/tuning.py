@@ -119,7 +119,7 @@ class TuningRow:
     seconds: float
     max_thickness: float = 0.0   # largest plane_thickness among the planes (0 without planes)
     volume_share: float = 0.0    # share of the planes' points on planes cut out of a volume (verdict.surface_failures)
-    merged_share: float = 0.0    # ... on planes holding two surfaces as one
+    merged_share: float = 0.0    # ... on planes holding several surfaces as one (two layers, a slab across steps)
 
     @property
     def unsound(self) -> bool:
@@ -341,7 +341,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     (GSplanes ignores unassigned points); among the eligible ones whose score is within
     max(3 SE, 0.01) of the best (indistinguishable given the silhouette sampling), the smallest
     ``t`` wins; see :func:`_choose` for the single-plane case. With ``connectivity``, a choice whose planes fail
-    the verdict's surface tests (clutter cut into slabs, two surfaces as one) is made again among the smaller
+    the verdict's surface tests (clutter cut into slabs, several surfaces as one) is made again among the smaller
     candidates that pass them and cover half the sweep's best coverage, if any (UNSOUND_SHARE, :func:`_sound_choice`).
     progress: called as ``progress(done, total)`` after each candidate (e.g. to drive a progress bar).
     ransac_points, grid_points, sampled_separation: passed to :func:`detect_planes` and :func:`validity_indices`;

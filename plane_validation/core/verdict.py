@@ -203,12 +203,17 @@ def plane_beyond(points: np.ndarray, seg: Segmentation) -> np.ndarray:
 
 def surface_failures(points: np.ndarray, seg: Segmentation) -> tuple[np.ndarray, np.ndarray]:
     """Per plane of ``seg`` on ``points`` (N, 3) meters, the surface tests of :func:`judge` it fails beyond doubt:
-    (cut out of a volume: plane_beyond >= MAX_BEYOND; two surfaces with noise found as one: plane_layering in
-    [MAX_LAYERING, EXACT_LAYERS) with plane_fill >= MAX_FILL), two (k,) bool arrays."""
+    (cut out of a volume: plane_beyond >= MAX_BEYOND; several surfaces found as one: plane_layering in
+    [MAX_LAYERING, EXACT_LAYERS) with plane_fill >= MAX_FILL, or a slab across steps, plane_tilt >= MAX_TILT), two
+    (k,) bool arrays."""
     pts = as_points(points)
     samples = _samples(pts, seg)
-    beyond, layering, _ = _surface(pts, seg, samples, [_pca(inl) for inl in samples])
-    return beyond >= MAX_BEYOND, (layering >= MAX_LAYERING) & (layering < EXACT_LAYERS)
+    frames = [_pca(inl) for inl in samples]
+    beyond, layering, _ = _surface(pts, seg, samples, frames)
+    tilt = np.array([_tilt(inl, p.normal, _thickness(pca)) for inl, p, pca in zip(samples, seg.planes, frames)])
+    with np.errstate(invalid='ignore'):
+        tilted = tilt >= MAX_TILT
+    return beyond >= MAX_BEYOND, ((layering >= MAX_LAYERING) & (layering < EXACT_LAYERS)) | tilted
 
 
 def _surface(pts: np.ndarray, seg: Segmentation, samples: list, frames: list
