@@ -49,7 +49,6 @@ from .verdict import (
     SINGLE_PLANE_THICKNESS,
     STABILITY_RESEEDS,
     judge,
-    plane_thickness,
     seed_agreement,
     surface_failures,
 )
@@ -518,9 +517,8 @@ def _candidate(points: np.ndarray, opts: dict, t: float, seed: int, score: dict)
     start = time.perf_counter()
     seg = detect_planes(points, t, seed=seed, **opts)
     scores = validity_indices(points, seg.labels, **score)
-    thickness = plane_thickness(points, seg)
     sizes = np.array([len(p.inliers) for p in seg.planes], dtype=float)
-    volume, merged = surface_failures(points, seg) if seg.n_planes else (np.zeros(0, bool),) * 2
+    volume, merged, thickness = surface_failures(points, seg)
     total = max(sizes.sum(), 1.0)
     return TuningRow(tolerance=float(t), n_planes=seg.n_planes, inlier_counts=tuple(int(n) for n in sizes),
                      indices=scores, seconds=time.perf_counter() - start,

@@ -139,19 +139,19 @@ def plane_tilt(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     off the plane's: about 0 on a surface, near 1 on a slab cut across steps (treads and risers); NaN where not
     judged (thinner than TILT_THICKNESS, fewer than TILT_MIN_PATCHES determined patches). ``points`` (N, 3) meters."""
     samples = _samples(as_points(points), seg)
-    return np.array([_tilt(inl, plane.normal, _thickness(_pca(inl))) for inl, plane in zip(samples, seg.planes)])
+    return np.array([_tilt(_pca(inl), plane.normal) for inl, plane in zip(samples, seg.planes)])
 
 
-def _tilt(inl: np.ndarray, normal: np.ndarray, thickness: float) -> float:
-    """:func:`plane_tilt` of one plane from its sampled inliers ``inl`` (m, 3), its ``normal`` and thickness ratio. The
-    patches are the cells of a square grid along the inliers' in-plane principal axes, sized to hold TILT_NEIGHBOURS
-    of them on average (cells with half that or more count)."""
-    if not thickness >= TILT_THICKNESS or len(inl) < 2 * TILT_NEIGHBOURS:
+def _tilt(pca, normal: np.ndarray) -> float:
+    """:func:`plane_tilt` of one plane from its sampled inliers' :func:`_pca` and its ``normal``. The patches are the
+    cells of a square grid along the inliers' in-plane principal axes, sized to hold TILT_NEIGHBOURS of them on
+    average (cells with half that or more count)."""
+    if pca is None or not _thickness(pca) >= TILT_THICKNESS or len(pca[1]) < 2 * TILT_NEIGHBOURS:
         return float('nan')
-    _, centred, _, vectors = _pca(inl)
+    _, centred, _, vectors = pca
     uv = centred @ vectors[:, 1:]
     lo, extent = uv.min(axis=0), np.ptp(uv, axis=0)
-    side = float(np.sqrt(np.prod(extent) * TILT_NEIGHBOURS / len(inl)))
+    side = float(np.sqrt(np.prod(extent) * TILT_NEIGHBOURS / len(uv)))
     if not side > 0:
         return float('nan')
     width = int(extent[1] // side) + 1
@@ -201,29 +201,28 @@ def plane_beyond(points: np.ndarray, seg: Segmentation) -> np.ndarray:
                                                                        zip(samples, seg.planes)]))
 
 
-def surface_failures(points: np.ndarray, seg: Segmentation) -> tuple[np.ndarray, np.ndarray]:
+def surface_failures(points: np.ndarray, seg: Segmentation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per plane of ``seg`` on ``points`` (N, 3) meters, the surface tests of :func:`judge` it fails beyond doubt:
     (cut out of a volume: plane_beyond >= MAX_BEYOND; several surfaces found as one: plane_layering in
     [MAX_LAYERING, EXACT_LAYERS) with plane_fill >= MAX_FILL, or a slab across steps, plane_tilt >= MAX_TILT), two
-    (k,) bool arrays."""
+    (k,) bool arrays, and its plane_thickness (k,), from the same inlier samples."""
     pts = as_points(points)
     samples = _samples(pts, seg)
     frames = [_pca(inl) for inl in samples]
-    beyond, layering, _ = _surface(pts, seg, samples, frames)
-    tilt = np.array([_tilt(inl, p.normal, _thickness(pca)) for inl, p, pca in zip(samples, seg.planes, frames)])
-    with np.errstate(invalid='ignore'):
-        tilted = tilt >= MAX_TILT
-    return beyond >= MAX_BEYOND, ((layering >= MAX_LAYERING) & (layering < EXACT_LAYERS)) | tilted
+    beyond, layering, _, tilt = _surface(pts, seg, samples, frames)
+    merged = (layering >= MAX_LAYERING) & (layering < EXACT_LAYERS) | (tilt >= MAX_TILT)  # NaN tilt: not judged
+    return beyond >= MAX_BEYOND, merged, np.array([_thickness(pca) for pca in frames])
 
 
 def _surface(pts: np.ndarray, seg: Segmentation, samples: list, frames: list
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(plane_beyond, plane_layering (0 where the plane does not fill its band), plane_fill), each (k,), from the
-    planes' inlier ``samples`` and their ``frames`` (_pca)."""
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(plane_beyond, plane_layering (0 where the plane does not fill its band), plane_fill, plane_tilt), each (k,),
+    from the planes' inlier ``samples`` and their ``frames`` (_pca)."""
     fill = np.array([_fill(inl, plane, seg) for inl, plane in zip(samples, seg.planes)])
     layering = np.array([_layering(inl, plane) if f >= MAX_FILL else 0.0  # only filled planes can fail
                          for inl, plane, f in zip(samples, seg.planes, fill)])
-    return _beyond(pts, seg, frames, fill), layering, fill
+    tilt = np.array([_tilt(pca, plane.normal) for pca, plane in zip(frames, seg.planes)])
+    return _beyond(pts, seg, frames, fill), layering, fill, tilt
 
 
 def _beyond(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray) -> np.ndarray:
@@ -377,7 +376,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     sizes = np.array([len(p.inliers) for p in seg.planes], dtype=float)
     curvature = np.array([_curvature(pca) if t > MAX_THICKNESS else 0.0 for pca, t in zip(frames, thickness)])
     slab = (thickness > MAX_THICKNESS) & (curvature >= MIN_CURVATURE)
-    beyond, layering, fill = _surface(pts, seg, samples, frames)
+    beyond, layering, fill, tilt = _surface(pts, seg, samples, frames)
     problems = []  # every test that fails, so that fixing one cause does not reveal another
     distinct = np.array([_distinct(pts, p.inliers) for p in seg.planes])
     tiny = distinct < MIN_PLANE_POINTS
@@ -397,7 +396,6 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     if (worst := _worst(beyond >= MAX_BEYOND, sizes)) is not None:
         problems.append(f'plane {worst} is cut out of a volume (the cloud has {_up(beyond[worst])} points at t..2t '
                         f'from it per point within t, >= {MAX_BEYOND}): clutter or outliers, or t below the noise')
-    tilt = np.array([_tilt(inl, p.normal, t) for inl, p, t in zip(samples, seg.planes, thickness)])
     if (worst := _worst(tilt >= MAX_TILT, sizes)) is not None:  # NaN: not judged
         problems.append(f'plane {worst}\'s local surfaces are tilted from it ({tilt[worst]:.0%} of its patches with '
                         f'a normal, >= {MAX_TILT:.0%}, lie over {TILT_DEG:g} degrees off): a slab across steps or '
