@@ -17,6 +17,7 @@ ROS_WHEELS = [
 ]
 CORE = [
     'numpy>=1.24',
+    'numba>=0.59',  # the compiled per-frame kernels (core/kernels.py)
     'scipy>=1.10',
     'rosbags>=0.10',  # get_typestore(Stores.ROS2_JAZZY)
     'matplotlib>=3.6',

@@ -38,6 +38,7 @@ TEST_DEPENDS = ['python3-pytest']
 #: python import name -> rosdep key, for the imports that are not ROS package names
 ROSDEP_KEYS = {
     'numpy': 'python3-numpy',
+    'numba': 'python3-numba',
     'scipy': 'python3-scipy',
     'rosbags': 'python3-rosbags',
     'matplotlib': 'python3-matplotlib',

@@ -362,6 +362,13 @@ def cmd_paper(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_warmup(args: argparse.Namespace) -> int:
+    from ..core.kernels import warm
+    ready = warm()
+    print(f'kernels ready in {ready.seconds:.2f} s: ' + ('compiled and cached' if ready.compiled else 'loaded from the cache'))
+    return 0
+
+
 def _config(args: argparse.Namespace):
     """PipelineConfig from the pipeline options (only those given override the table's defaults)."""
     from ..app.config import PARAMETERS, PipelineConfig
@@ -702,6 +709,11 @@ def build_parser() -> argparse.ArgumentParser:
                        help='tolerances per sweep, 0.5 to 30 units '
                        '(default 60)')
     paper.set_defaults(func=cmd_paper)
+
+    warmup = sub.add_parser('warmup', help='compile the numba kernels into their cache (for an install step)',
+                            description='Compile (or load) every compiled kernel and keep it in numba\'s cache, so '
+                            'that the first start of the node loads them instead of compiling (docs/performance.md).')
+    warmup.set_defaults(func=cmd_warmup)
     return parser
 
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from . import kernels
 from .ransac import Segmentation
 
 __all__ = ['PlaneOutline', 'plane_basis', 'plane_outlines', 'hull_polygon', 'plane_colors', 'UNASSIGNED_RGB',
@@ -79,9 +80,10 @@ def plane_outlines(points: np.ndarray, labels: np.ndarray, seg: Segmentation) ->
     ``labels`` (n,). A plane without points gets its foot point from the origin as centroid
     and no corners."""
     cols = np.ascontiguousarray(np.asarray(points, dtype=np.float64).T)  # (3, n): each plane's mean is then fast
+    rows, bounds = kernels.group_by_label(kernels.c_array(labels, np.int32), seg.n_planes)
     out = []
     for k, plane in enumerate(seg.planes):
-        members = np.compress(labels == k, cols, axis=1)  # (3, m)
+        members = cols[:, rows[bounds[k]:bounds[k + 1]]]  # (3, m)
         rotation = plane_basis(plane.normal)
         axes = rotation[:, :2]  # (3, 2): in-plane x, y
         if members.shape[1] == 0:

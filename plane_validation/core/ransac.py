@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from . import kernels
 from .noise import NOISE_REFERENCE, tolerance_scale
 from .regions import NORMAL_MIN_COS, Neighbours, graph_neighbours, grid_neighbours
 
@@ -205,8 +206,11 @@ def as_points(points: np.ndarray) -> np.ndarray:
 
 
 def finite_rows(points: np.ndarray) -> np.ndarray:
-    """(N,) bool: rows of the (N, 3) array whose three coordinates are finite (column by column:
-    numpy's reduction along a length-3 axis is several times slower)."""
+    """(N,) bool: rows of the (N, 3) array whose three coordinates are finite (one compiled pass over a
+    C-ordered float64 array; otherwise column by column: numpy's reduction along a length-3 axis is several
+    times slower)."""
+    if points.dtype == np.float64 and points.flags.c_contiguous and points.flags.writeable:
+        return kernels.finite_mask(points)[0]
     ok = np.isfinite(points[:, 0])
     ok &= np.isfinite(points[:, 1])
     ok &= np.isfinite(points[:, 2])
@@ -1100,12 +1104,10 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
         found = [found[j] for j in keep]
         reason += (f'; dropped {len(small)} region(s) left with fewer than min_inliers={min_count} points '
                    'once every point was labelled')
-    # numpy sorts 8-bit keys by radix (several times faster than a 32-bit sort of an image's labels)
-    order = np.argsort(labels.astype(np.int8) if len(found) < 128 else labels, kind='stable')
-    bounds = np.searchsorted(labels[order], np.arange(len(found) + 1))
+    rows, bounds = kernels.group_by_label(labels, len(found))
     planes = []
     for j, (normal, offset) in enumerate(found):
-        members = order[bounds[j]:bounds[j + 1]].astype(np.int64)
+        members = rows[bounds[j]:bounds[j + 1]]
         resid = residual[members] if residual is not None else (pts[members] - center) @ normal + offset
         normal, offset = _canonical(normal, offset - float(normal @ center))
         planes.append(Plane(normal=normal, offset=offset, inliers=members,
@@ -1248,7 +1250,7 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
 
 
 #: The 8 image neighbours (row, column offsets).
-_EIGHT = np.array([(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc])
+_EIGHT = kernels.EIGHT
 
 
 def _around(neighbours: Neighbours) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
@@ -1302,21 +1304,41 @@ def _spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], ste
     the regions of the searched sub-grid: the region of the nearest sub-grid pixel when the pixel is
     within ``tolerance`` of its plane (``planes`` in the coordinates of ``pts``), else, of the 3 x 3
     sub-grid pixels around it, the region whose plane is nearest within ``tolerance``; -1 otherwise.
-    Also the distance (N,) to the chosen plane (inf when none)."""
+    Also the distance (N,) to the chosen plane (inf when none). One compiled pass
+    (:func:`.kernels.spread_grid`; :func:`_spread_grid_numpy` is its reference)."""
+    sub, near_r, near_c = _sub_regions(shape, step, region, neighbours, len(planes))
+    coeffs = np.array([np.append(normal, offset) for normal, offset in planes], dtype=np.float64).reshape(-1, 4)
+    tol = kernels.c_array(np.reshape(tolerance, -1), np.float64)  # (1,) or (N,)
+    return kernels.spread_grid(kernels.c_array(pts, np.float64), kernels.c_array(valid, bool), sub, near_r, near_c,
+                               coeffs, tol, kernels.EIGHT)
+
+
+def _sub_regions(shape: tuple[int, int], step: int, region: np.ndarray, neighbours: Neighbours, k: int
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sub-grid's regions as an image (gh, gw) int64 (k: no region), and the nearest sub-grid row of each
+    image row (H,) and column of each image column (W,)."""
+    h, w = shape
+    gh, gw = neighbours.shape
+    sub = np.full(gh * gw, k, dtype=np.int64)
+    sub[neighbours.pixel] = np.where(region >= 0, region, k)
+    near_r = np.clip(np.round((np.arange(h) - step // 2) / step).astype(np.int64), 0, gh - 1)
+    near_c = np.clip(np.round((np.arange(w) - step // 2) / step).astype(np.int64), 0, gw - 1)
+    return sub.reshape(gh, gw), near_r, near_c
+
+
+def _spread_grid_numpy(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
+                       neighbours: Neighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_spread_grid` in numpy: the reference its kernel is tested against."""
     h, w = shape
     gh, gw = neighbours.shape
     k, n = len(planes), len(pts)
-    sub = np.full(gh * gw, k, dtype=np.int64)  # k: no region
-    sub[neighbours.pixel] = np.where(region >= 0, region, k)
-    sub = sub.reshape(gh, gw)
+    sub, near_r, near_c = _sub_regions(shape, step, region, neighbours, k)
     dist = np.empty((k + 1, n))  # row k: no region; NaN rows compare False
     np.matmul(np.array([p[0] for p in planes]), pts.T, out=dist[:k])
     dist[:k] += np.array([p[1] for p in planes])[:, None]
     np.abs(dist[:k], out=dist[:k])
     dist[k] = np.inf
     flat = dist.reshape(-1)
-    near_r = np.clip(np.round((np.arange(h) - step // 2) / step).astype(np.int64), 0, gh - 1)
-    near_c = np.clip(np.round((np.arange(w) - step // 2) / step).astype(np.int64), 0, gw - 1)
     # the nearest sub-grid pixel first, as whole images: most pixels take its region
     lab = sub.take(near_r, axis=0).take(near_c, axis=1).reshape(-1)
     d = flat[lab * n + np.arange(n)]

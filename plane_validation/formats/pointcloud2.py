@@ -32,7 +32,7 @@ from ..core.geometry import beam_numbers
 
 __all__ = [
     'DATATYPES', 'CloudTypes', 'RosbagsTypes', 'structured_array', 'xyz_array', 'create_cloud',
-    'rosbags_types', 'pack_rgb', 'unpack_rgb', 'trailing_bytes',
+    'rosbags_types', 'pack_rgb', 'unpack_rgb', 'trailing_bytes', 'record_layout', 'cloud_buffer', 'cloud_message',
 ]
 
 #: PointField datatype code -> numpy scalar type (sensor_msgs/PointField constants).
@@ -299,35 +299,42 @@ def create_cloud(header: Any, columns: Mapping[str, npt.ArrayLike], *,
     if height * width != n or height < 1 or width < 0:
         raise ValueError(f'shape {tuple(shape)} does not match columns of length {n}')
 
-    offsets: list[int] = []
-    formats: list[np.dtype] = []
-    step = 0
-    for col in arrays.values():
-        fmt = col.dtype.newbyteorder('<')
-        offsets.append(step)
-        formats.append(fmt)
-        step += fmt.itemsize
-    layout = np.dtype({'names': list(arrays), 'formats': formats, 'offsets': offsets,
-                       'itemsize': step})
-
-    rosbags = _is_rosbags(types.PointCloud2)
-    if rosbags:
-        data: Any = np.empty(n * step, np.uint8)
-    else:
-        data = array.array('B', b'\0') * (n * step)  # the rclpy uint8[] setter's fast path
+    layout = record_layout({name: col.dtype for name, col in arrays.items()})
+    data = cloud_buffer(n * layout.itemsize, types)
     records = np.frombuffer(data, dtype=layout)
     for name, col in arrays.items():
         records[name] = col
     del records  # release the buffer export so the array.array stays resizable
-
     dense = all(not (arrays[a].dtype.kind == 'f' and np.isnan(arrays[a]).any())
                 for a in _XYZ if a in arrays)
-    fields = [types.PointField(name=name, offset=int(off),
-                               datatype=_CODES[fmt.newbyteorder('=')], count=1)
-              for name, off, fmt in zip(arrays, offsets, formats)]
+    return cloud_message(header, layout, data, (height, width), types=types, dense=dense)
+
+
+def record_layout(columns: Mapping[str, npt.DTypeLike]) -> np.dtype:
+    """The packed little-endian record of a PointCloud2 with these fields, in this order."""
+    formats = [np.dtype(dtype).newbyteorder('<') for dtype in columns.values()]
+    offsets = np.cumsum([0] + [fmt.itemsize for fmt in formats])
+    return np.dtype({'names': list(columns), 'formats': formats, 'offsets': [int(o) for o in offsets[:-1]],
+                     'itemsize': int(offsets[-1])})
+
+
+def cloud_buffer(size: int, types: CloudTypes) -> Any:
+    """``size`` zero bytes to fill in place and hand to :func:`cloud_message` (for rclpy an array.array, the
+    uint8[] setter's fast path)."""
+    return np.zeros(size, np.uint8) if _is_rosbags(types.PointCloud2) else array.array('B', b'\0') * size
+
+
+def cloud_message(header: Any, layout: np.dtype, data: Any, shape: tuple[int, int], *, types: CloudTypes,
+                  dense: bool) -> Any:
+    """A PointCloud2 of the records ``data`` (:func:`cloud_buffer`, filled) of ``layout`` (:func:`record_layout`),
+    an H x W image (``shape``; H = 1: unorganized); ``dense``: no NaN in x, y, z."""
+    height, width = shape
+    fields = [types.PointField(name=name, offset=int(layout.fields[name][1]),
+                               datatype=_CODES[layout.fields[name][0].newbyteorder('=')], count=1)
+              for name in layout.names]
     kwargs = dict(header=header, height=height, width=width, fields=fields, is_bigendian=False,
-                  point_step=int(step), row_step=int(width * step), is_dense=bool(dense))
-    if rosbags:
+                  point_step=int(layout.itemsize), row_step=int(width * layout.itemsize), is_dense=bool(dense))
+    if _is_rosbags(types.PointCloud2):
         return types.PointCloud2(data=data, **kwargs)
     msg = types.PointCloud2(**kwargs)
     msg.data = data  # not via the constructor, which would convert element by element

@@ -16,7 +16,8 @@ from ..app.diagnostics import Diagnostic, Level
 from ..app.pipeline import FrameResult
 from ..core.geometry import UNASSIGNED_RGB, PlaneOutline, plane_colors, plane_outlines
 from ..formats.files import coordinate_dtype
-from ..formats.pointcloud2 import create_cloud, pack_rgb
+from ..core.kernels import c_array, pack_segmented
+from ..formats.pointcloud2 import cloud_buffer, cloud_message, create_cloud, pack_rgb, record_layout
 
 __all__ = ['OUTPUTS', 'msgtype', 'status_name', 'node_values', 'segmented_cloud', 'plane_markers', 'plane_poses',
            'plane_coefficients',
@@ -48,10 +49,17 @@ def node_values(processed: int, dropped: int, sweep_running: bool, dropped_now: 
 def segmented_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
     """x, y, z (float32; float64 where float32 would lose precision: :func:`coordinate_dtype`), plane_id
     (int32, -1 unassigned) and packed rgb of the valid points."""
-    labels = result.labels.astype(np.int32)
+    labels = c_array(result.labels, np.int32)
     palette = np.vstack([plane_colors(result.n_planes), np.array([UNASSIGNED_RGB], np.uint8)])
     packed = pack_rgb(palette[:, 0], palette[:, 1], palette[:, 2])
-    pts = result.points.astype(coordinate_dtype(result.points))
+    dtype = coordinate_dtype(result.points)
+    if dtype == np.float32:  # the usual case: one compiled pass writes the records
+        layout = record_layout({'x': dtype, 'y': dtype, 'z': dtype, 'plane_id': np.int32, 'rgb': np.float32})
+        data = cloud_buffer(len(labels) * layout.itemsize, sensor_msgs.msg)
+        points = c_array(result.points, np.float64)
+        dense = pack_segmented(points, labels, packed.view(np.uint32), np.frombuffer(data, np.uint8))
+        return cloud_message(header, layout, data, (1, len(labels)), types=sensor_msgs.msg, dense=dense)
+    pts = result.points.astype(dtype)
     # label -1 indexes the last palette entry, the unassigned grey
     return create_cloud(header, {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2], 'plane_id': labels,
                                  'rgb': packed[labels]}, types=sensor_msgs.msg)

@@ -27,6 +27,7 @@ from sensor_msgs.msg import PointCloud2
 from ..app.config import PARAMETERS, Parameter, PipelineConfig
 from ..app.diagnostics import Level
 from ..app.pipeline import FramePipeline, header_stamp_ns, limit_blas_threads
+from ..core.kernels import warm
 from .messages import OUTPUTS, frame_messages, node_values, status_name
 
 ERROR, WARN = Level.ERROR, Level.WARN
@@ -89,6 +90,9 @@ class PlaneValidationNode(Node):
         if why is not None:
             raise ValueError(why)
         self.pipeline = FramePipeline(PipelineConfig(**config))
+        ready = warm()  # before the subscription: the first frame must not wait for a compiler
+        self.get_logger().info(f'compiled kernels ready in {ready.seconds:.2f} s ' + (
+            '(compiled now and cached: later starts load them)' if ready.compiled else '(loaded from the cache)'))
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         qos = QoSProfile(depth=1, history=qos_profile_sensor_data.history,

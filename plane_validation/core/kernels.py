@@ -1,0 +1,162 @@
+"""Every compiled (numba) kernel of the package, and nothing else.
+
+Each kernel is a loop over arrays that numpy would do in several full passes; each has a plain-numpy
+reference in the module that calls it, and ``test/test_kernels.py`` checks the two agree on random
+inputs. Kernels see only checked input: the checks stay in the public functions.
+
+Compiled code is cached on disk (``cache=True``): in ``__pycache__`` beside this file when that is
+writable, else in numba's user-wide cache (``~/.cache/numba``, or ``$NUMBA_CACHE_DIR`` when set), so
+an apt or colcon install on a read-only prefix still keeps its compiled kernels. :func:`warm` compiles
+or loads them all; the node calls it before it answers its first frame.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+__all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'pack_segmented', 'finite_mask', 'warm', 'Warmup']
+
+_JIT = dict(cache=True, nogil=True)
+
+#: The 8 image neighbours (row, column offsets), in the order a tie goes to the first.
+EIGHT = np.array([(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc], dtype=np.int64)
+
+
+def c_array(values, dtype) -> np.ndarray:
+    """``values`` as a C-ordered, writeable array of ``dtype``, copied only when it is not one already: the
+    layout and flags the kernels are compiled for (another would compile them again, at a frame's cost)."""
+    arr = np.ascontiguousarray(values, dtype=dtype)
+    return arr if arr.flags.writeable else arr.copy()
+
+
+@numba.njit(**_JIT)
+def finite_mask(points: np.ndarray) -> tuple[np.ndarray, int]:
+    """(N,) bool: rows of ``points`` (N, 3) with three finite coordinates; and how many."""
+    n = points.shape[0]
+    out = np.empty(n, np.bool_)
+    count = 0
+    for i in range(n):
+        ok = np.isfinite(points[i, 0]) and np.isfinite(points[i, 1]) and np.isfinite(points[i, 2])
+        out[i] = ok
+        count += ok
+    return out, count
+
+
+@numba.njit(**_JIT)
+def spread_grid(points: np.ndarray, valid: np.ndarray, sub: np.ndarray, near_r: np.ndarray, near_c: np.ndarray,
+                planes: np.ndarray, tolerance: np.ndarray, eight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Labels (N,) int32 of the pixels of an H x W image ``points`` (N, 3) from the regions ``sub``
+    (gh, gw) of its sub-grid (k: no region), ``planes`` (k, 4) rows (a, b, c, d) in the coordinates of
+    ``points``. A pixel takes the region of its nearest sub-grid pixel (``near_r`` (H,), ``near_c`` (W,))
+    when within tolerance of its plane, else of the 8 sub-grid pixels around that one (``eight``, in order)
+    the region whose plane is nearest within tolerance (a strictly nearer one wins a tie); -1 otherwise.
+    ``valid`` (N,) bool: finite rows. ``tolerance``: (1,) or (N,) meters. Also the distance (N,) to the
+    chosen plane, meters (inf when none)."""
+    h, w = near_r.shape[0], near_c.shape[0]
+    gh, gw = sub.shape
+    k = planes.shape[0]
+    per_point = tolerance.shape[0] > 1
+    labels = np.full(h * w, -1, np.int32)
+    best = np.full(h * w, np.inf)
+    for r in range(h):
+        gr = near_r[r]
+        for c in range(w):
+            i = r * w + c
+            if not valid[i]:
+                continue
+            x, y, z = points[i, 0], points[i, 1], points[i, 2]
+            tol = tolerance[i] if per_point else tolerance[0]
+            gc = near_c[c]
+            lab = sub[gr, gc]
+            if lab < k:
+                d = abs(planes[lab, 0] * x + planes[lab, 1] * y + planes[lab, 2] * z + planes[lab, 3])
+                if d <= tol:
+                    labels[i] = lab
+                    best[i] = d
+                    continue
+            for e in range(eight.shape[0]):
+                rr, cc = gr + eight[e, 0], gc + eight[e, 1]
+                if rr < 0 or rr >= gh or cc < 0 or cc >= gw:
+                    continue
+                lab = sub[rr, cc]
+                if lab >= k:
+                    continue
+                d = abs(planes[lab, 0] * x + planes[lab, 1] * y + planes[lab, 2] * z + planes[lab, 3])
+                if d <= tol and d < best[i]:
+                    labels[i] = lab
+                    best[i] = d
+    return labels, best
+
+
+@numba.njit(**_JIT)
+def group_by_label(labels: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of each label 0..k-1 of ``labels`` (N,), ascending, one after another (a stable counting
+    sort; rows labelled outside 0..k-1 are left out): (rows (m,) int64, bounds (k + 1,) int64), label j's
+    rows being rows[bounds[j]:bounds[j + 1]]."""
+    bounds = np.zeros(k + 1, np.int64)
+    for i in range(labels.shape[0]):
+        lab = labels[i]
+        if 0 <= lab < k:
+            bounds[lab + 1] += 1
+    for j in range(k):
+        bounds[j + 1] += bounds[j]
+    fill = bounds[:-1].copy()
+    rows = np.empty(bounds[k], np.int64)
+    for i in range(labels.shape[0]):
+        lab = labels[i]
+        if 0 <= lab < k:
+            rows[fill[lab]] = i
+            fill[lab] += 1
+    return rows, bounds
+
+
+@numba.njit(**_JIT)
+def pack_segmented(points: np.ndarray, labels: np.ndarray, palette: np.ndarray, out: np.ndarray) -> bool:
+    """Fill ``out`` (N * 20,) uint8 with little-endian records x, y, z (float32), plane_id (int32) and rgb
+    (``palette`` (k + 1,) uint32, its last entry for label -1) of ``points`` (N, 3) and ``labels`` (N,).
+    Returns whether no coordinate is NaN (PointCloud2's is_dense)."""
+    n = points.shape[0]
+    last = palette.shape[0] - 1
+    record = np.empty(5, np.float32)
+    ints = record.view(np.int32)
+    raw = record.view(np.uint8)
+    dense = True
+    for i in range(n):
+        record[0], record[1], record[2] = points[i, 0], points[i, 1], points[i, 2]
+        dense = dense and not (np.isnan(record[0]) or np.isnan(record[1]) or np.isnan(record[2]))
+        lab = labels[i]
+        ints[3] = lab
+        ints[4] = np.int32(palette[lab if 0 <= lab < last else last])
+        base = 20 * i
+        for b in range(20):
+            out[base + b] = raw[b]
+    return dense
+
+
+@dataclass(frozen=True)
+class Warmup:
+    """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
+
+    seconds: float
+    compiled: bool
+
+
+def warm() -> Warmup:
+    """Compile (or load from the cache) every kernel for the argument types the package calls it with."""
+    start = time.perf_counter()
+    before = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS)
+    pts = np.zeros((4, 3))
+    labels = np.array([0, -1, 0, 1], np.int32)
+    finite_mask(pts)
+    spread_grid(pts, np.ones(4, np.bool_), np.zeros((1, 1), np.int64), np.zeros(2, np.int64), np.zeros(2, np.int64),
+                np.zeros((1, 4)), np.ones(1), EIGHT)
+    group_by_label(labels, 2)
+    pack_segmented(pts, labels, np.zeros(3, np.uint32), np.empty(80, np.uint8))
+    compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
+    return Warmup(time.perf_counter() - start, compiled)
+
+
+_KERNELS = (finite_mask, spread_grid, group_by_label, pack_segmented)

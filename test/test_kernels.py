@@ -1,0 +1,138 @@
+"""The compiled kernels (core/kernels.py) against their plain-numpy references, on random inputs."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from plane_validation.core import kernels
+from plane_validation.core.ransac import _spread_grid, _spread_grid_numpy, finite_rows
+from plane_validation.core.regions import Neighbours
+
+SETTINGS = settings(max_examples=60, deadline=None)
+
+
+def _image_case(seed: int, per_point: bool):
+    """A random H x W image with NaN holes, a sub-grid of regions on it and k random planes."""
+    rng = np.random.default_rng(seed)
+    h, w = rng.integers(3, 40, 2)
+    step = int(rng.integers(1, 5))
+    gh, gw = len(range(step // 2, h, step)), len(range(step // 2, w, step))
+    pts = rng.normal(size=(h * w, 3))
+    pts[rng.random(h * w) < 0.2] = np.nan
+    valid = np.isfinite(pts).all(axis=1)
+    pixel = np.flatnonzero(rng.random(gh * gw) < 0.8)
+    node = np.full(gh * gw, -1)
+    node[pixel] = np.arange(len(pixel))
+    neighbours = Neighbours(n=len(pixel), shape=(gh, gw), pixel=pixel, node=node)
+    k = int(rng.integers(1, 6))
+    region = rng.integers(-1, k, len(pixel))
+    normals = rng.normal(size=(k, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    planes = [(n, float(d)) for n, d in zip(normals, rng.normal(size=k))]
+    tolerance = rng.uniform(0.05, 1.0, h * w) if per_point else float(rng.uniform(0.05, 1.0))
+    return pts, valid, (int(h), int(w)), step, region, neighbours, planes, tolerance
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.booleans())
+def test_spread_grid_matches_numpy(seed, per_point):
+    case = _image_case(seed, per_point)
+    labels, best = _spread_grid(*case)
+    ref_labels, ref_best = _spread_grid_numpy(*case)
+    np.testing.assert_array_equal(labels, ref_labels)
+    np.testing.assert_allclose(best, ref_best, rtol=1e-12, atol=1e-12)
+    assert labels.dtype == np.int32
+
+
+@SETTINGS
+@given(st.lists(st.integers(-3, 7), max_size=300), st.integers(0, 8))
+def test_group_by_label_is_a_stable_counting_sort(values, k):
+    labels = np.array(values, dtype=np.int32)
+    rows, bounds = kernels.group_by_label(labels, k)
+    assert len(bounds) == k + 1 and bounds[0] == 0
+    for j in range(k):
+        np.testing.assert_array_equal(rows[bounds[j]:bounds[j + 1]], np.flatnonzero(labels == j))
+    assert bounds[k] == np.count_nonzero((labels >= 0) & (labels < k))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 200))
+def test_finite_mask_matches_numpy(seed, n):
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(size=(n, 3))
+    bad = rng.random((n, 3)) < 0.1
+    pts[bad] = rng.choice([np.nan, np.inf, -np.inf], size=int(bad.sum()))
+    mask, count = kernels.finite_mask(pts)
+    ref = np.isfinite(pts).all(axis=1)
+    np.testing.assert_array_equal(mask, ref)
+    assert count == ref.sum()
+    np.testing.assert_array_equal(finite_rows(pts), ref)
+    np.testing.assert_array_equal(finite_rows(pts[:, ::-1]), ref)  # not C-ordered: the numpy path
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 300), st.integers(0, 6))
+def test_pack_segmented_matches_structured_records(seed, n, k):
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(scale=100, size=(n, 3))
+    pts[rng.random(n) < 0.1] = np.nan
+    labels = rng.integers(-1, k, n).astype(np.int32) if k else np.full(n, -1, np.int32)
+    palette = rng.integers(0, 2**24, k + 1).astype(np.uint32)
+    out = np.zeros(20 * n, np.uint8)
+    dense = kernels.pack_segmented(pts, labels, palette, out)
+    ref = np.zeros(n, dtype=np.dtype({'names': ['x', 'y', 'z', 'plane_id', 'rgb'],
+                                      'formats': ['<f4', '<f4', '<f4', '<i4', '<u4'],
+                                      'offsets': [0, 4, 8, 12, 16], 'itemsize': 20}))
+    ref['x'], ref['y'], ref['z'], ref['plane_id'] = pts[:, 0], pts[:, 1], pts[:, 2], labels
+    ref['rgb'] = palette[labels]  # -1: the last entry
+    assert out.tobytes() == ref.tobytes()
+    assert dense == (not np.isnan(pts).any())
+
+
+def test_read_only_input_is_copied_not_recompiled():
+    pts = np.zeros((5, 3))
+    pts.flags.writeable = False
+    arr = kernels.c_array(pts, np.float64)
+    assert arr.flags.writeable and arr.flags.c_contiguous and arr is not pts
+    same = np.zeros((5, 3))
+    assert kernels.c_array(same, np.float64) is same
+
+
+def test_warm_loads_every_kernel_and_says_whether_it_compiled():
+    first = kernels.warm()
+    again = kernels.warm()
+    assert first.seconds >= 0 and again.compiled is False  # in one process the second call compiles nothing
+    for kernel in kernels._KERNELS:
+        assert kernel.signatures, kernel  # each has a compiled signature
+
+
+def test_cache_dir_is_used_and_a_second_process_loads_from_it(tmp_path):
+    """With NUMBA_CACHE_DIR (what a read-only install sets; numba otherwise falls back from an unwritable
+    package folder to its user-wide cache by itself) the first process compiles into it and the next loads."""
+    package = tmp_path / 'site' / 'plane_validation'
+    shutil.copytree(Path(kernels.__file__).resolve().parents[1], package,
+                    ignore=shutil.ignore_patterns('__pycache__'))
+    cache = tmp_path / 'cache'
+    env = dict(os.environ, PYTHONPATH=str(package.parent), NUMBA_CACHE_DIR=str(cache))
+    script = 'from plane_validation.core import kernels; print(kernels.warm().compiled)'
+    runs = [subprocess.run([sys.executable, '-c', script], env=env, capture_output=True, text=True, timeout=300)
+            for _ in range(2)]
+    assert [r.returncode for r in runs] == [0, 0], [r.stderr for r in runs]
+    assert [r.stdout.strip() for r in runs] == ['True', 'False']
+    assert list(cache.rglob('*.nbi')), 'no cache index in NUMBA_CACHE_DIR'
+    assert not list(package.rglob('*.nbi')), 'the package folder was written to'
+
+
+def test_warmup_command():
+    run = subprocess.run([sys.executable, '-m', 'plane_validation', 'warmup'], capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.startswith('kernels ready in ')
