@@ -365,7 +365,8 @@ def cmd_paper(args: argparse.Namespace) -> int:
 def cmd_warmup(args: argparse.Namespace) -> int:
     from ..core.kernels import warm
     ready = warm()
-    print(f'kernels ready in {ready.seconds:.2f} s: ' + ('compiled and cached' if ready.compiled else 'loaded from the cache'))
+    how = 'compiled and cached' if ready.compiled else 'loaded from the cache'
+    print(f'kernels ready in {ready.seconds:.2f} s: {how}')
     return 0
 
 

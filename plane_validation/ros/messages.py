@@ -15,8 +15,8 @@ from visualization_msgs.msg import Marker, MarkerArray
 from ..app.diagnostics import Diagnostic, Level
 from ..app.pipeline import FrameResult
 from ..core.geometry import UNASSIGNED_RGB, PlaneOutline, plane_colors, plane_outlines
-from ..formats.files import coordinate_dtype
 from ..core.kernels import c_array, pack_segmented
+from ..formats.files import coordinate_dtype
 from ..formats.pointcloud2 import cloud_buffer, cloud_message, create_cloud, pack_rgb, record_layout
 
 __all__ = ['OUTPUTS', 'msgtype', 'status_name', 'node_values', 'segmented_cloud', 'plane_markers', 'plane_poses',
