@@ -135,3 +135,56 @@ def test_warmup_command():
                          timeout=300)
     assert run.returncode == 0, run.stderr
     assert run.stdout.startswith('kernels ready in ')
+
+
+def _grid_case(seed: int):
+    """A random sub-grid graph (holes, unusable pixels, bridges, unknown normals) and a random plane's bands."""
+    rng = np.random.default_rng(seed)
+    h, w = (int(v) for v in rng.integers(2, 25, 2))
+    valid = rng.random(h * w) < rng.uniform(0.5, 1.0)
+    pixel = np.flatnonzero(valid)
+    node = np.full(h * w, -1, np.int64)
+    node[pixel] = np.arange(len(pixel))
+    usable = valid & (rng.random(h * w) < 0.9)
+    normals = rng.normal(size=(len(pixel), 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    normals[rng.random(len(pixel)) < 0.1] = np.nan
+    b = int(rng.integers(0, 6))
+    bridges = np.column_stack([rng.integers(0, h * w, b), rng.integers(0, h * w, b), rng.integers(0, 2, b)])
+    neighbours = Neighbours(n=len(pixel), shape=(h, w), pixel=pixel, node=node, usable=usable, normals=normals,
+                            bridges=bridges.astype(np.int64) if b else None)
+    rest = np.flatnonzero(rng.random(len(pixel)) < 0.9)
+    support = rng.random(len(rest)) < rng.uniform(0.3, 1.0)
+    mask = support & (rng.random(len(rest)) < rng.uniform(0.05, 1.0))  # scattered pieces: often fragmented
+    above = rng.random(len(rest)) < 0.5
+    normal = rng.normal(size=3)
+    normal /= np.linalg.norm(normal)
+    if rng.random() < 0.5:  # a surface: normals that agree with the plane's, noise points scattered within t
+        normals[:] = normal + rng.normal(scale=0.1, size=normals.shape)
+        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+        mask = support & (rng.random(len(rest)) < rng.uniform(0.1, 0.5))
+    return neighbours, rest, mask, normal, support, above
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_grid_region_matches_numpy(seed):
+    from plane_validation.core.ransac import _grid_region, _grid_region_numpy
+    case = _grid_case(seed)
+    kept, taken = _grid_region(*case)
+    ref_kept, ref_taken = _grid_region_numpy(*case)
+    np.testing.assert_array_equal(kept, ref_kept)
+    np.testing.assert_array_equal(taken, ref_taken)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1))
+def test_grid_components_match_the_numpy_labelling(seed):
+    neighbours, _, _, _, _, _ = _grid_case(seed)
+    member = np.random.default_rng(seed).random(neighbours.n) < 0.6
+    bridges = np.empty((0, 3), np.int64) if neighbours.bridges is None else neighbours.bridges
+    component, count = kernels.grid_components(neighbours.pixel, neighbours.node, neighbours.usable,
+                                               neighbours.shape[1], bridges, member)
+    ref, ref_count = neighbours.components(member)
+    assert count == ref_count
+    np.testing.assert_array_equal(component, ref)

@@ -78,22 +78,46 @@ def _hull(local: np.ndarray) -> np.ndarray:
 def plane_outlines(points: np.ndarray, labels: np.ndarray, seg: Segmentation) -> tuple[PlaneOutline, ...]:
     """Outline of each plane of ``seg`` from its points: ``points`` (n, 3) meters with plane
     ``labels`` (n,). A plane without points gets its foot point from the origin as centroid
-    and no corners."""
-    cols = np.ascontiguousarray(np.asarray(points, dtype=np.float64).T)  # (3, n): each plane's mean is then fast
+    and no corners. One compiled pass over the points gives each plane's centroid and its extreme
+    points in 8 in-plane directions (:func:`.kernels.centroids_and_extremes`)."""
+    pts = kernels.c_array(points, np.float64)
     rows, bounds = kernels.group_by_label(kernels.c_array(labels, np.int32), seg.n_planes)
+    rotations = [plane_basis(plane.normal) for plane in seg.planes]
+    directions = np.array([_DIRECTIONS @ rotation[:, :2].T for rotation in rotations]).reshape(-1, 8, 3)
+    centroids, extremes = kernels.centroids_and_extremes(pts, rows, bounds, directions)
     out = []
     for k, plane in enumerate(seg.planes):
-        members = cols[:, rows[bounds[k]:bounds[k + 1]]]  # (3, m)
-        rotation = plane_basis(plane.normal)
+        rotation, members = rotations[k], rows[bounds[k]:bounds[k + 1]]
         axes = rotation[:, :2]  # (3, 2): in-plane x, y
+        if len(members) == 0:
+            out.append(PlaneOutline(-plane.offset * plane.normal, rotation, np.empty((0, 3)), 1.0))
+            continue
+        centroid = centroids[k]
+        if len(members) > HULL_POINTS:  # in-plane coordinates of the hull's candidates only
+            members = members[_hull_candidates(extremes[k], len(members), HULL_POINTS)]
+        local = axes.T @ (pts[members] - centroid).T  # (2, c)
+        polygon = local[:, _hull(local)]
+        extent = float(np.ptp(polygon, axis=1).max())
+        out.append(PlaneOutline(centroid, rotation, centroid + (axes @ polygon).T, extent))
+    return tuple(out)
+
+
+def _plane_outlines_numpy(points: np.ndarray, labels: np.ndarray, seg: Segmentation) -> tuple[PlaneOutline, ...]:
+    """:func:`plane_outlines` in numpy, one pass per plane: the reference its kernel is tested against."""
+    cols = np.ascontiguousarray(np.asarray(points, dtype=np.float64).T)
+    out = []
+    for k, plane in enumerate(seg.planes):
+        members = np.compress(labels == k, cols, axis=1)  # (3, m)
+        rotation = plane_basis(plane.normal)
+        axes = rotation[:, :2]
         if members.shape[1] == 0:
             out.append(PlaneOutline(-plane.offset * plane.normal, rotation, np.empty((0, 3)), 1.0))
             continue
         centroid = members.mean(axis=1)
-        if members.shape[1] > HULL_POINTS:  # in-plane coordinates of the hull's candidates only
+        if members.shape[1] > HULL_POINTS:
             extremes = np.argmax((_DIRECTIONS @ axes.T) @ members, axis=1)
             members = members[:, _hull_candidates(extremes, members.shape[1], HULL_POINTS)]
-        local = axes.T @ (members - centroid[:, None])  # (2, c)
+        local = axes.T @ (members - centroid[:, None])
         polygon = local[:, _hull(local)]
         extent = float(np.ptp(polygon, axis=1).max())
         out.append(PlaneOutline(centroid, rotation, centroid + (axes @ polygon).T, extent))

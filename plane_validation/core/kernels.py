@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-__all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'pack_segmented', 'finite_mask', 'warm', 'Warmup']
+__all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
+           'grid_region', 'pack_segmented', 'finite_mask', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -114,6 +115,167 @@ def group_by_label(labels: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 @numba.njit(**_JIT)
+def centroids_and_extremes(points: np.ndarray, rows: np.ndarray, bounds: np.ndarray, directions: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """Per label of :func:`group_by_label` (``rows``, ``bounds``) over ``points`` (N, 3) meters: the mean point
+    (k, 3) (NaN for a label without rows) and, for each of its ``directions`` (k, d, 3), the position among
+    the label's rows of the point farthest along it (k, d) (the first of equals; -1 without rows)."""
+    k, d = directions.shape[0], directions.shape[1]
+    centroid = np.full((k, 3), np.nan)
+    extreme = np.full((k, d), -1, np.int64)
+    best = np.empty(d)
+    for j in range(k):
+        start, stop = bounds[j], bounds[j + 1]
+        if stop == start:
+            continue
+        sx = sy = sz = 0.0
+        best[:] = -np.inf
+        for q in range(start, stop):
+            i = rows[q]
+            x, y, z = points[i, 0], points[i, 1], points[i, 2]
+            sx += x
+            sy += y
+            sz += z
+            for e in range(d):
+                v = directions[j, e, 0] * x + directions[j, e, 1] * y + directions[j, e, 2] * z
+                if v > best[e] or extreme[j, e] < 0:
+                    best[e] = v
+                    extreme[j, e] = q - start
+        m = stop - start
+        centroid[j, 0], centroid[j, 1], centroid[j, 2] = sx / m, sy / m, sz / m
+    return centroid, extreme
+
+
+@numba.njit(**_JIT)
+def _root(parent: np.ndarray, i: int) -> int:
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@numba.njit(**_JIT)
+def _join(parent: np.ndarray, i: int, j: int) -> None:
+    a, b = _root(parent, i), _root(parent, j)
+    if a != b:
+        parent[max(a, b)] = min(a, b)
+
+
+@numba.njit(**_JIT)
+def grid_components(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
+                    member: np.ndarray) -> tuple[np.ndarray, int]:
+    """Connected components of the points ``member`` (n,) bool of a sub-grid image (point i at flat pixel
+    ``pixel[i]``, ascending; ``node`` (h * w,): the point at each pixel, -1 none; ``usable`` (h * w,): pixels
+    that may join) through their 4 image neighbours and the ``bridges`` (b, 3) (pixel, pixel, across the
+    seam) that do not cross the seam. Returns (component (n,) int64, -1 outside; count), components
+    numbered in the order of their first point (as scipy.ndimage.label numbers an image's)."""
+    n = pixel.shape[0]
+    parent = np.arange(n)
+    inside = np.zeros(n, np.bool_)
+    for i in range(n):
+        inside[i] = member[i] and usable[pixel[i]]
+    for i in range(n):
+        if not inside[i]:
+            continue
+        p = pixel[i]
+        if p % width > 0:
+            j = node[p - 1]
+            if j >= 0 and inside[j]:
+                _join(parent, i, j)
+        if p >= width:
+            j = node[p - width]
+            if j >= 0 and inside[j]:
+                _join(parent, i, j)
+    for b in range(bridges.shape[0]):
+        if bridges[b, 2] != 0:
+            continue
+        i, j = node[bridges[b, 0]], node[bridges[b, 1]]
+        if i >= 0 and j >= 0 and inside[i] and inside[j]:
+            _join(parent, i, j)
+    component = np.full(n, -1, np.int64)
+    number = np.full(n, -1, np.int64)
+    count = 0
+    for i in range(n):
+        if inside[i]:
+            r = _root(parent, i)
+            if number[r] < 0:
+                number[r] = count
+                count += 1
+            component[i] = number[r]
+    return component, count
+
+
+@numba.njit(**_JIT)
+def _largest(component: np.ndarray, count: int, counted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(n,) bool: the component with the most ``counted`` points (the first of equals); and those counts."""
+    sizes = np.zeros(count, np.int64)
+    for i in range(component.shape[0]):
+        if component[i] >= 0 and counted[i]:
+            sizes[component[i]] += 1
+    out = np.zeros(component.shape[0], np.bool_)
+    if count == 0:
+        return out, sizes
+    best = np.argmax(sizes)
+    for i in range(component.shape[0]):
+        out[i] = component[i] == best
+    return out, sizes
+
+
+@numba.njit(**_JIT)
+def _fragmented(sizes: np.ndarray, largest_share: float, piece_share: float) -> bool:
+    total = sizes.sum()
+    if total == 0:
+        return False
+    desc = np.sort(sizes)[::-1]
+    if desc[0] >= largest_share * total:
+        return False
+    typical = desc[np.searchsorted(np.cumsum(desc), total / 2)]
+    return typical < piece_share * total
+
+
+@numba.njit(**_JIT)
+def grid_region(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
+                normals: np.ndarray, normal: np.ndarray, min_cos: float, rest: np.ndarray, mask: np.ndarray,
+                support: np.ndarray, above: np.ndarray, rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The region a plane of unit ``normal`` (3,) keeps among the points ``rest`` (r,) of a sub-grid (see
+    :func:`grid_components`), as :meth:`.regions.Neighbours.region` gives it: its inliers ``mask`` (r,) and
+    the points within the support band ``support`` (r,), both cut to the points whose ``normals`` (n, 3)
+    lie within ``min_cos`` of it (NaN: unknown, kept); ``above`` (r,): on the side its normal points to.
+    ``rules``: (FRAGMENTED, FRAGMENT_PIECE, SUPPORT_BALANCE). Returns (kept (r,), taken (r,)) bool."""
+    n = pixel.shape[0]
+    wide = np.zeros(n, np.bool_)
+    full = np.zeros(n, np.bool_)
+    up = np.zeros(n, np.bool_)
+    for q in range(rest.shape[0]):
+        i = rest[q]
+        if support[q]:
+            cos = abs(normals[i, 0] * normal[0] + normals[i, 1] * normal[1] + normals[i, 2] * normal[2])
+            wide[i] = not cos < min_cos
+            up[i] = above[q]
+        full[i] = mask[q]
+    for i in range(n):
+        full[i] = full[i] and wide[i]
+    component, count = grid_components(pixel, node, usable, width, bridges, full)
+    out, sizes = _largest(component, count, full)
+    kept, taken = out, out
+    if _fragmented(sizes, rules[0], rules[1]):
+        component, count = grid_components(pixel, node, usable, width, bridges, wide)
+        whole, _ = _largest(component, count, full)
+        beyond = above_count = joined = kept_count = 0
+        for i in range(n):
+            if whole[i] and not full[i]:
+                beyond += 1
+                above_count += up[i]
+            joined += whole[i] and full[i]
+            kept_count += out[i]
+        below = beyond - above_count
+        if min(above_count, below) >= rules[2] * max(above_count, below) and joined > kept_count:
+            kept = whole & full
+            taken = whole
+    return kept[rest], taken[rest]
+
+
+@numba.njit(**_JIT)
 def pack_segmented(points: np.ndarray, labels: np.ndarray, palette: np.ndarray, out: np.ndarray) -> bool:
     """Fill ``out`` (N * 20,) uint8 with little-endian records x, y, z (float32), plane_id (int32) and rgb
     (``palette`` (k + 1,) uint32, its last entry for label -1) of ``points`` (N, 3) and ``labels`` (N,).
@@ -153,10 +315,17 @@ def warm() -> Warmup:
     finite_mask(pts)
     spread_grid(pts, np.ones(4, np.bool_), np.zeros((1, 1), np.int64), np.zeros(2, np.int64), np.zeros(2, np.int64),
                 np.zeros((1, 4)), np.ones(1), EIGHT)
-    group_by_label(labels, 2)
+    rows, bounds = group_by_label(labels, 2)
+    centroids_and_extremes(pts, rows, bounds, np.zeros((2, 8, 3)))
     pack_segmented(pts, labels, np.zeros(3, np.uint32), np.empty(80, np.uint8))
+    flags = np.ones(4, np.bool_)
+    index = np.arange(4, dtype=np.int64)
+    grid_components(index, index, flags, 2, np.zeros((1, 3), np.int64), flags)
+    grid_region(index, index, flags, 2, np.zeros((1, 3), np.int64), pts, np.ones(3), 0.5, index, flags, flags, flags,
+                np.ones(3))
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
 
-_KERNELS = (finite_mask, spread_grid, group_by_label, pack_segmented)
+_KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components, grid_region,
+            pack_segmented)

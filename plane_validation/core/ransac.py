@@ -22,7 +22,15 @@ from scipy.spatial import cKDTree
 
 from . import kernels
 from .noise import NOISE_REFERENCE, tolerance_scale
-from .regions import NORMAL_MIN_COS, Neighbours, graph_neighbours, grid_neighbours
+from .regions import (
+    FRAGMENT_PIECE,
+    FRAGMENTED,
+    NORMAL_MIN_COS,
+    SUPPORT_BALANCE,
+    Neighbours,
+    graph_neighbours,
+    grid_neighbours,
+)
 
 __all__ = ['Plane', 'Segmentation', 'SearchGraph', 'detect_planes', 'search_graph', 'fit_plane', 'as_points',
            'finite_rows', 'no_returns_as_nan', 'resolve_min_inliers', 'within_planes', 'carried']
@@ -798,17 +806,8 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
                 coherent = local.coherent(normal)
                 return local.region(mask & coherent, support & coherent, above)
         elif neighbours is not None:
-            def region_of(mask: np.ndarray, normal: np.ndarray, support: np.ndarray, above: np.ndarray,
-                          rest_idx=rest_idx) -> tuple[np.ndarray, np.ndarray]:
-                wide = np.zeros(n, bool)
-                wide[rest_idx[support]] = True
-                wide &= neighbours.coherent(normal)  # an edge's normals cut the support as they cut the region
-                full = np.zeros(n, bool)
-                full[rest_idx[mask]] = True
-                up = np.zeros(n, bool)
-                up[rest_idx[support & above]] = True  # only the support's side is read: a far smaller scatter
-                kept, taken = neighbours.region(full & wide, wide, up)
-                return kept[rest_idx], taken[rest_idx]
+            region_of = functools.partial(_grid_region if neighbours.normals is not None else _grid_region_numpy,
+                                          neighbours, rest_idx)
         rest_normals = None if neighbours is None or neighbours.normals is None else \
             np.ascontiguousarray(neighbours.normals[rest_idx].T)
         sampler = None if neighbours is None else _nearby_sampler(neighbours, rest_idx)
@@ -831,6 +830,37 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
         rest = np.compress(left, rest, axis=1)
         tolerance = _at(tolerance, left)
     return found, reason, region, len(found) == max_planes > 0 and rest.shape[1] >= min_count
+
+
+#: What :func:`.kernels.grid_region` needs of :mod:`.regions`' rules, in its order.
+_REGION_RULES = np.array([FRAGMENTED, FRAGMENT_PIECE, SUPPORT_BALANCE])
+_NO_BRIDGES = np.empty((0, 3), np.int64)
+
+
+def _grid_region(neighbours: Neighbours, rest_idx: np.ndarray, mask: np.ndarray, normal: np.ndarray,
+                 support: np.ndarray, above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(kept, taken) (r,) of the points ``rest_idx`` (r,) of a sub-grid for a plane of ``normal`` with inliers
+    ``mask`` (r,), support band ``support`` (r,) and side ``above`` (r,): one compiled call
+    (:func:`.kernels.grid_region`; :func:`_grid_region_numpy` is its reference)."""
+    bridges = _NO_BRIDGES if neighbours.bridges is None else kernels.c_array(neighbours.bridges, np.int64)
+    return kernels.grid_region(neighbours.pixel, neighbours.node, neighbours.usable, neighbours.shape[1], bridges,
+                               neighbours.normals, kernels.c_array(normal, np.float64), NORMAL_MIN_COS, rest_idx,
+                               mask, support, above, _REGION_RULES)
+
+
+def _grid_region_numpy(neighbours: Neighbours, rest_idx: np.ndarray, mask: np.ndarray, normal: np.ndarray,
+                       support: np.ndarray, above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_grid_region` in numpy (:meth:`.regions.Neighbours.region`)."""
+    n = neighbours.n
+    wide = np.zeros(n, bool)
+    wide[rest_idx[support]] = True
+    wide &= neighbours.coherent(normal)  # an edge's normals cut the support as they cut the region
+    full = np.zeros(n, bool)
+    full[rest_idx[mask]] = True
+    up = np.zeros(n, bool)
+    up[rest_idx[support & above]] = True  # only the support's side is read: a far smaller scatter
+    kept, taken = neighbours.region(full & wide, wide, up)
+    return kept[rest_idx], taken[rest_idx]
 
 
 def _nearby_sampler(neighbours: Neighbours, rest_idx: np.ndarray) -> Sampler:
