@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
-           'grid_region', 'pack_segmented', 'finite_mask', 'warm', 'Warmup']
+           'grid_region', 'grid_compete', 'pack_segmented', 'finite_mask', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -276,6 +276,87 @@ def grid_region(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: 
 
 
 @numba.njit(**_JIT)
+def _offer(dist: np.ndarray, region: np.ndarray, best: np.ndarray, dst: int, src: int, offer_d: np.ndarray,
+           offer_src: np.ndarray, offer_region: np.ndarray, touched: np.ndarray, n_touched: int) -> int:
+    """Point ``src`` offers its region to ``dst`` when its plane is nearer than dst's own (the nearest offer wins,
+    equals: the smaller ``src``); returns the count of points with an offer."""
+    cand = region[src]
+    d = dist[cand, dst]
+    if not d < best[dst]:
+        return n_touched
+    if offer_src[dst] < 0:
+        touched[n_touched] = dst
+        n_touched += 1
+    elif not (d < offer_d[dst] or (d == offer_d[dst] and src < offer_src[dst])):
+        return n_touched
+    offer_d[dst], offer_src[dst], offer_region[dst] = d, src, cand
+    return n_touched
+
+
+@numba.njit(**_JIT)
+def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: np.ndarray, width: int,
+                 eight: np.ndarray, rounds: int) -> np.ndarray:
+    """Border settling on a sub-grid (see ``ransac._compete``): ``dist`` (k + 1, m) each point's distance to each
+    region's plane (row k: no region, inf; inf beyond t), ``region`` (m,) 0..k (k: none). Each round every point
+    takes the region of an 8-neighbour (``eight``) whose plane is nearer than its own (the nearest; equals: the
+    neighbour with the smaller index), all from the labels before the round; the first round looks at the points
+    with a neighbour in another region, the next ones at the neighbours of the points that changed. Returns the
+    regions (m,), k for none."""
+    m = region.shape[0]
+    height = node.shape[0] // width
+    region = region.copy()
+    best = np.empty(m)
+    for i in range(m):
+        best[i] = dist[region[i], i]
+    offer_d = np.empty(m)
+    offer_src = np.full(m, -1, np.int64)
+    offer_region = np.empty(m, np.int64)
+    touched = np.empty(m, np.int64)
+    changed = np.empty(m, np.int64)
+    n_changed = -1  # the first round: the bordering points receive offers
+    for _ in range(rounds):
+        n_touched = 0
+        if n_changed < 0:
+            for i in range(m):
+                r, c = pixel[i] // width, pixel[i] % width
+                for e in range(eight.shape[0]):
+                    rr, cc = r + eight[e, 0], c + eight[e, 1]
+                    if 0 <= rr < height and 0 <= cc < width:
+                        j = node[rr * width + cc]
+                        if j >= 0 and region[j] != region[i]:
+                            break
+                else:
+                    continue
+                for e in range(eight.shape[0]):  # a bordering point: every neighbour offers
+                    rr, cc = r + eight[e, 0], c + eight[e, 1]
+                    if 0 <= rr < height and 0 <= cc < width:
+                        j = node[rr * width + cc]
+                        if j >= 0:
+                            n_touched = _offer(dist, region, best, i, j, offer_d, offer_src, offer_region,
+                                               touched, n_touched)
+        else:
+            for q in range(n_changed):  # a changed point offers its new region to every neighbour
+                j = changed[q]
+                r, c = pixel[j] // width, pixel[j] % width
+                for e in range(eight.shape[0]):
+                    rr, cc = r + eight[e, 0], c + eight[e, 1]
+                    if 0 <= rr < height and 0 <= cc < width:
+                        i = node[rr * width + cc]
+                        if i >= 0:
+                            n_touched = _offer(dist, region, best, i, j, offer_d, offer_src, offer_region,
+                                               touched, n_touched)
+        if n_touched == 0:
+            break
+        for q in range(n_touched):
+            i = touched[q]
+            region[i], best[i] = offer_region[i], offer_d[i]
+            offer_src[i] = -1
+            changed[q] = i
+        n_changed = n_touched
+    return region
+
+
+@numba.njit(**_JIT)
 def pack_segmented(points: np.ndarray, labels: np.ndarray, palette: np.ndarray, out: np.ndarray) -> bool:
     """Fill ``out`` (N * 20,) uint8 with little-endian records x, y, z (float32), plane_id (int32) and rgb
     (``palette`` (k + 1,) uint32, its last entry for label -1) of ``points`` (N, 3) and ``labels`` (N,).
@@ -323,9 +404,10 @@ def warm() -> Warmup:
     grid_components(index, index, flags, 2, np.zeros((1, 3), np.int64), flags)
     grid_region(index, index, flags, 2, np.zeros((1, 3), np.int64), pts, np.ones(3), 0.5, index, flags, flags, flags,
                 np.ones(3))
+    grid_compete(np.zeros((2, 4)), np.zeros(4, np.int64), index, index, 2, EIGHT, 2)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components, grid_region,
-            pack_segmented)
+            grid_compete, pack_segmented)

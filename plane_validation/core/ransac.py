@@ -1255,8 +1255,19 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
     with np.errstate(invalid='ignore', divide='ignore'):  # a point at the viewpoint: NaN, never nearer
         rays /= np.linalg.norm(rays, axis=0)
         dist[:k] /= np.maximum(np.abs(normals @ rays), np.cos(np.radians(GRAZING_DEG)))
-    flat = dist.reshape(-1)
     region = np.where(region >= 0, region, k)
+    if neighbours.shape is not None:  # a sub-grid: one compiled call (kernels.grid_compete)
+        region = kernels.grid_compete(dist, region, neighbours.pixel, neighbours.node, neighbours.shape[1],
+                                      _EIGHT, COMPETE_ROUNDS)
+        return np.where(region < k, region, -1)
+    return _settle(dist, region, neighbours)
+
+
+def _settle(dist: np.ndarray, region: np.ndarray, neighbours: Neighbours) -> np.ndarray:
+    """The rounds of :func:`_compete` in numpy (graph form; on a sub-grid the reference of
+    :func:`.kernels.grid_compete`): ``dist`` (k + 1, m), ``region`` (m,) 0..k (k: none)."""
+    k, m = dist.shape[0] - 1, dist.shape[1]
+    flat = dist.reshape(-1)
     best = flat[region * m + np.arange(m)]  # row k (no region) is inf
     around = _around(neighbours)
     dst, src = around(_bordering(neighbours, region))
