@@ -542,3 +542,24 @@ def test_a_lidar_scan_with_a_ring_field_is_answered_on_its_ring_image_and_swept_
         assert second['tolerance_source'] == 'tuned at t=7000.000s' and second['planes'] == '6', second
     finally:
         h.close()
+
+
+def test_orientation_constraint_parameters_over_dds(harness):
+    """axis_mode needs an axis (refused on its own, with the reason), and then only planes within axis_angle of it
+    come out; an axis of zero length is refused while a mode is set."""
+    node = harness.node
+    assert node.set_parameters([Parameter('auto_tune', value=False), Parameter('tolerance', value=0.01)])[0].successful
+    refused = node.set_parameters([Parameter('axis_mode', value='parallel')])[0]
+    assert not refused.successful and 'normal_axis is (0, 0, 0)' in refused.reason
+    assert node.set_parameters([Parameter('normal_axis_z', value=1.0)])[0].successful
+    assert node.set_parameters([Parameter('axis_mode', value='parallel')])[0].successful
+    out = harness.send(xyz_cloud(corner_points(0.1), 5_000_000_000_000), outputs=('diagnostics', 'plane_poses'))
+    assert diag_values(out['diagnostics'])['planes'] == '1'
+    (pose,) = out['plane_poses'].poses
+    q = pose.orientation  # the pose's z axis is the plane's normal
+    assert abs(1 - 2 * (q.x ** 2 + q.y ** 2)) > np.cos(np.radians(10))
+    zero = node.set_parameters([Parameter('normal_axis_z', value=0.0)])[0]
+    assert not zero.successful and 'normal_axis' in zero.reason
+    assert node.set_parameters([Parameter('axis_mode', value='none')])[0].successful
+    out = harness.send(xyz_cloud(corner_points(0.1), 5_000_000_000_001))
+    assert diag_values(out['diagnostics'])['planes'] == '3'

@@ -311,7 +311,7 @@ def test_skipping_hypotheses_by_their_coherent_inliers_keeps_the_same_planes(mon
     fast = pv.detect_planes(points, t, seed=5, shape=shape, max_planes=8)
     n_fast, calls[:] = len(calls), []
     best_region = ransac._best_region
-    monkeypatch.setattr(ransac, '_best_region', lambda *args: best_region(*args[:7]))  # without point normals
+    monkeypatch.setattr(ransac, '_best_region', lambda *args, **kw: best_region(*args[:7], **kw))  # no point normals
     full = pv.detect_planes(points, t, seed=5, shape=shape, max_planes=8)
     assert fast.n_planes >= 3 and np.array_equal(fast.labels, full.labels)
     coefficients = [np.array([p.coefficients for p in seg.planes]) for seg in (fast, full)]

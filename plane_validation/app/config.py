@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..core.noise import NOISE_MODELS, NOISE_REFERENCE
+from ..core.orientation import AXIS_MODES, Orientation, orientation
 from ..core.ransac import GRID_POINTS, RANSAC_POINTS
 from ..core.tuning import CRITERIA, DEFAULT_CRITERION, SWEEP_MAX_PLANES, TUNE_CANDIDATES, TUNE_POINTS
 
@@ -21,7 +22,7 @@ __all__ = ['Parameter', 'PipelineConfig', 'PARAMETERS', 'parameters_markdown', '
 class Parameter:
     """One parameter: ``default`` also fixes the type (bool, int, float or str); values must lie in
     [low, high] or equal ``special`` (a value with its own meaning, e.g. 0 = derive), or be one
-    of ``choices``. unit: 'm', 's' or ''."""
+    of ``choices``. unit: 'm', 's', 'deg' or ''."""
 
     name: str
     default: Any
@@ -142,6 +143,18 @@ class PipelineConfig:
                             low=-MAX_DISTANCE, high=MAX_DISTANCE, unit='m')
     viewpoint_z: float = _p(0.0, 'where the sensor is in the cloud\'s frame, z (see viewpoint_x)',
                             low=-MAX_DISTANCE, high=MAX_DISTANCE, unit='m')
+    axis_mode: str = _p('none', 'orientation constraint on the planes, applied inside the search: parallel = the '
+                        'normal within axis_angle of normal_axis (horizontal planes for a vertical axis: floors, '
+                        'tables), perpendicular = within axis_angle of perpendicular to it (vertical planes: walls); '
+                        'none = any plane', choices=AXIS_MODES)
+    normal_axis_x: float = _p(0.0, 'the orientation constraint\'s axis in the cloud\'s frame, x (any length but 0 '
+                              'when axis_mode is set; e.g. 0, 0, 1 for z up)', low=-MAX_DISTANCE, high=MAX_DISTANCE)
+    normal_axis_y: float = _p(0.0, 'the orientation constraint\'s axis, y (see normal_axis_x)',
+                              low=-MAX_DISTANCE, high=MAX_DISTANCE)
+    normal_axis_z: float = _p(0.0, 'the orientation constraint\'s axis, z (see normal_axis_x)',
+                              low=-MAX_DISTANCE, high=MAX_DISTANCE)
+    axis_angle: float = _p(10.0, 'largest angle of a plane normal from the constraint (see axis_mode)', low=0.0,
+                           high=90.0, unit='deg')
     zero_is_no_return: bool = _p(True, 'a point at exactly (0, 0, 0) (at the viewpoint, when one is set) is a '
                                  'driver\'s "no return" mark (as NaN is) and is left out; false = a point like any '
                                  'other')
@@ -155,6 +168,13 @@ class PipelineConfig:
         """(x, y, z) meters: viewpoint_x, viewpoint_y, viewpoint_z."""
         return self.viewpoint_x, self.viewpoint_y, self.viewpoint_z
 
+    @property
+    def orientation(self) -> Orientation | None:
+        """The orientation constraint of axis_mode, normal_axis_x/y/z and axis_angle (None: none set); ValueError when
+        axis_mode is set and the axis is (0, 0, 0)."""
+        return orientation((self.normal_axis_x, self.normal_axis_y, self.normal_axis_z), self.axis_angle,
+                           self.axis_mode)
+
     def validate(self) -> PipelineConfig:
         """Return self, or raise ValueError naming the first invalid field and why."""
         for name, spec in PARAMETERS.items():
@@ -164,6 +184,7 @@ class PipelineConfig:
         if self.tune_min > 0 and self.tune_max > 0 and self.tune_max <= self.tune_min:
             raise ValueError(f'tune_max must be greater than tune_min, got tune_min={self.tune_min}, '
                              f'tune_max={self.tune_max}')
+        _ = self.orientation  # a set axis_mode needs an axis
         return self
 
 

@@ -16,6 +16,7 @@ import numpy as np
 from ..core.geometry import ring_image
 from ..core.indices import ValidityIndices, validity_indices
 from ..core.noise import NOISE_REFERENCE, noise_coefficient
+from ..core.orientation import Orientation
 from ..core.ransac import (
     GRID_POINTS,
     RANSAC_POINTS,
@@ -106,10 +107,10 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, seed: int = 0,
            noise_reference: float = NOISE_REFERENCE, jobs: int = 1, connectivity: bool = True,
            ransac_points: int | None = RANSAC_POINTS, viewpoint: Viewpoint = None,
            ring: np.ndarray | None = None, organize_rings: bool = True,
-           grid_points: int | None = GRID_POINTS) -> Detection:
+           grid_points: int | None = GRID_POINTS, orientation: Orientation | None = None) -> Detection:
     """Planes of (N, 3) ``points`` at ``tolerance`` meters, or at the auto-tuned t when None;
-    ``shape`` (H, W) for an organized cloud; ``noise_model``, ``connectivity``, ``ransac_points``, ``grid_points`` and
-    ``viewpoint`` as in :func:`detect_planes`; ``jobs`` as in :func:`tune_tolerance`. ``ring`` (N,):
+    ``shape`` (H, W) for an organized cloud; ``noise_model``, ``connectivity``, ``ransac_points``, ``grid_points``,
+    ``viewpoint`` and ``orientation`` as in :func:`detect_planes`; ``jobs`` as in :func:`tune_tolerance`. ``ring`` (N,):
     each point's beam of an unorganized lidar scan, which is then searched (and tuned) on its ring
     image as the node does (:func:`ring_layout`; with ``organize_rings`` and ``connectivity``), and
     its planes carried back to the points.
@@ -121,7 +122,8 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, seed: int = 0,
     pts = as_points(points)
     start = time.perf_counter()
     options = dict(max_planes=max_planes, min_inliers=min_inliers, noise_model=noise_model,
-                   noise_reference=noise_reference, ransac_points=ransac_points, grid_points=grid_points)
+                   noise_reference=noise_reference, ransac_points=ransac_points, grid_points=grid_points,
+                   orientation=orientation)
     if tolerance is None:
         tuned, note = tune_scan(pts, ring=ring, organize_rings=organize_rings, shape=shape, connectivity=connectivity,
                                 viewpoint=viewpoint, seed=seed, progress=progress, jobs=jobs, **options)

@@ -283,7 +283,8 @@ class FramePipeline:
                               ransac_points=cfg.ransac_points or None, grid_points=cfg.grid_points or None,
                               sampled_separation=not cfg.exact_indices,
                               shape=shape, connectivity=cfg.connectivity, noise_model=cfg.noise_model,
-                              noise_reference=cfg.noise_reference, viewpoint=cfg.viewpoint, jobs=cfg.tune_jobs)
+                              noise_reference=cfg.noise_reference, viewpoint=cfg.viewpoint, jobs=cfg.tune_jobs,
+                              orientation=cfg.orientation)
 
     def process_cloud(self, msg, *, tune_inline: bool = True) -> FrameResult:
         """One sensor_msgs/PointCloud2 (rclpy or rosbags) through :meth:`process`; a malformed
@@ -379,7 +380,8 @@ class FramePipeline:
                                     ransac_points=cfg.ransac_points or None, grid_points=cfg.grid_points or None,
                                     shape=cloud_shape,
                                     connectivity=cfg.connectivity, noise_model=cfg.noise_model,
-                                    noise_reference=cfg.noise_reference, viewpoint=cfg.viewpoint)
+                                    noise_reference=cfg.noise_reference, viewpoint=cfg.viewpoint,
+                                    orientation=cfg.orientation)
                 if inverse is not None:  # each point its voxel's (pixel's) plane, if it lies within t of it
                     labels = within_planes(valid, seg.labels[inverse], seg)
                 else:

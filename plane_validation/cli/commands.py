@@ -186,7 +186,8 @@ def cmd_detect(args: argparse.Namespace) -> int:
                      noise_model=args.noise_model, noise_reference=args.noise_reference, jobs=args.tune_jobs,
                      connectivity=args.connectivity, ransac_points=args.ransac_points or None,
                      grid_points=args.grid_points or None,
-                     viewpoint=_viewpoint(args), ring=ring, organize_rings=args.organize_rings)
+                     viewpoint=_viewpoint(args), ring=ring, organize_rings=args.organize_rings,
+                     orientation=_orientation(args))
     from ..formats.files import is_bag_output
     bag = args.out is not None and is_bag_output(args.out)
     files = [path for path in (None if bag else args.out, args.png) if path]
@@ -247,7 +248,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                                       progress=progress, noise_model=args.noise_model,
                                       noise_reference=args.noise_reference, jobs=args.tune_jobs,
                                       ransac_points=args.ransac_points or None,
-                                      grid_points=args.grid_points or None)
+                                      grid_points=args.grid_points or None, orientation=_orientation(args))
     written = [Path(path) for path in (args.csv, args.plot) if path]
     with atomic_outputs(*written) as staged:  # an interrupted run writes neither
         at = dict(zip(written, staged))
@@ -573,10 +574,17 @@ def _viewpoint(args: argparse.Namespace) -> tuple[float, float, float]:
 
 
 def _add_search_options(parser: argparse.ArgumentParser) -> None:
-    """--connectivity/--no-connectivity, --ransac-points, --grid-points and --organize-rings/--no-organize-rings
-    for detect and sweep."""
+    """--connectivity/--no-connectivity, --ransac-points, --grid-points, --organize-rings/--no-organize-rings and the
+    orientation constraint (--axis-mode, --normal-axis-x/y/z, --axis-angle) for detect and sweep."""
     _add_table_options(parser, (('connectivity', ''), ('ransac_points', 'N'), ('grid_points', 'N'),
-                                ('organize_rings', '')))
+                                ('organize_rings', ''), ('axis_mode', 'MODE'), ('normal_axis_x', 'X'),
+                                ('normal_axis_y', 'Y'), ('normal_axis_z', 'Z'), ('axis_angle', 'DEG')))
+
+
+def _orientation(args: argparse.Namespace):
+    """The orientation constraint of --axis-mode, --normal-axis-x/y/z and --axis-angle (None: off)."""
+    from ..core.orientation import orientation
+    return orientation((args.normal_axis_x, args.normal_axis_y, args.normal_axis_z), args.axis_angle, args.axis_mode)
 
 
 def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:

@@ -22,6 +22,7 @@ from scipy.spatial import cKDTree
 
 from . import kernels
 from .noise import NOISE_REFERENCE, tolerance_scale
+from .orientation import Orientation
 from .regions import (
     FRAGMENT_PIECE,
     FRAGMENTED,
@@ -464,6 +465,8 @@ def _distances(cols: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> np
     return np.abs(dist, out=dist)
 
 
+#: Which of the unit normals (h, 3) a plane may have ((h,) bool; an orientation constraint), or None: any.
+Allows = Callable[[np.ndarray], np.ndarray] | None
 #: An inlier tolerance in meters: one for every point, or (n,) one per point (a noise model).
 Tolerance = float | np.ndarray
 #: Where the sensor is in a cloud's frame: (x, y, z) meters, or None for the origin.
@@ -506,7 +509,7 @@ def _shuffled(m: int) -> np.ndarray:
 
 def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_iterations: int,
                 rng: np.random.Generator, region_of: Keep | None = None,
-                point_normals: np.ndarray | None = None, sampler: Sampler | None = None
+                point_normals: np.ndarray | None = None, sampler: Sampler | None = None, allows: Allows = None
                 ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
     """One RANSAC run on the points ``cols`` (3, m): (normal, offset, inlier mask, mask of the points it
     takes out of the search) after refinement, or None when every sampled triple was degenerate. ``region_of``
@@ -514,7 +517,8 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
     :data:`Keep`) and the points it takes; the confirmed
     hypotheses are then compared by that, and the plane is refitted on it. ``point_normals`` (3, m),
     local surface normals (NaN: unknown): hypotheses are scored only by the points whose normal
-    agrees with theirs. ``sampler``: draws triples of nearby points for part of the hypotheses."""
+    agrees with theirs. ``sampler``: draws triples of nearby points for part of the hypotheses. ``allows``: the
+    normals a plane may have; other hypotheses are dropped and a refit that leaves them is not taken."""
     m = cols.shape[1]
     # the scored subset in random order (when it is all the points, a fixed shuffle of them), so
     # that its first PRESCORE points are a random sample of it
@@ -555,6 +559,9 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
         batch = int(min(BATCH, max_iterations - iterations))
         normals, offsets = _hypotheses(cols, rng, batch, sampler)
         iterations += batch
+        if allows is not None:
+            ok = allows(normals)
+            normals, offsets = normals[ok], offsets[ok]
         if len(normals) == 0:
             continue
         normals32, offsets32 = normals.astype(np.float32), offsets.astype(np.float32)
@@ -584,7 +591,7 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
         if region_of is not None:
             signed = _signed(cols, best_normals, best_offsets)
             return _best_region(cols, tolerance, best_normals, best_offsets, np.abs(signed), signed > 0, region_of,
-                                point_normals)
+                                point_normals, allows=allows)
         dist = _distances(cols, best_normals, best_offsets)
     np.minimum(dist, tolerance, out=dist)
     winner = int(np.argmin(np.einsum('ij,ij->i', dist, dist)))
@@ -596,6 +603,8 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
         if count < 3:
             break
         new_normal, new_offset = _fit_columns(np.compress(inliers, cols, axis=1))
+        if not _allowed(allows, new_normal):
+            break  # the fit leaves the orientation constraint: keep the RANSAC plane
         new_inliers = _within(cols, new_normal, new_offset, tolerance)
         if np.count_nonzero(new_inliers) < count:
             break  # the fit drifted away from the consensus set: keep the RANSAC plane
@@ -606,8 +615,13 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
     return normal, offset, inliers, inliers
 
 
+def _allowed(allows: Allows, normal: np.ndarray) -> bool:
+    """Whether a plane may have the unit ``normal`` (3,) (``allows`` None: any)."""
+    return allows is None or bool(allows(normal[None, :])[0])
+
+
 def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, offsets: np.ndarray, dist: np.ndarray,
-                 above: np.ndarray, keep: Keep, point_normals: np.ndarray | None = None
+                 above: np.ndarray, keep: Keep, point_normals: np.ndarray | None = None, *, allows: Allows = None
                  ) -> tuple[np.ndarray, float, np.ndarray]:
     """Of the confirmed hypotheses (distances ``dist`` (h, m), ``above`` (h, m): the points on the side of each
     plane its normal points to), the one whose region (``keep``: its
@@ -637,6 +651,8 @@ def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, of
         if count < 3:
             break
         new_normal, new_offset = _fit_columns(np.compress(region, cols, axis=1))
+        if not _allowed(allows, new_normal):
+            break
         signed = _signed(cols, new_normal[None, :], np.array([new_offset]))[0]
         near = np.abs(signed)
         new_region, new_taken = keep(near <= tolerance, new_normal, near <= SUPPORT * tolerance, signed > 0)
@@ -656,7 +672,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
                   ransac_points: int | None = RANSAC_POINTS, shape: tuple[int, int] | None = None,
                   connectivity: bool = True, graph: SearchGraph | None = None, noise_model: str = 'constant',
                   noise_reference: float = NOISE_REFERENCE, viewpoint: Viewpoint = None,
-                  grid_points: int | None = GRID_POINTS) -> Segmentation:
+                  grid_points: int | None = GRID_POINTS, orientation: Orientation | None = None) -> Segmentation:
     """Find planes one by one with RANSAC, removing each plane's points before the next search.
 
     With ``connectivity`` (the default) a plane is a connected planar region: each candidate's
@@ -690,6 +706,8 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
     viewpoint: (3,) meters, where the sensor is in the cloud's frame (default the origin, as a driver
         publishes a scan): ranges for the noise model, and the rays along which the neighbourhood
         graph of an unorganized cloud tells a spinning lidar's rings (:func:`.regions.graph_neighbours`).
+    orientation: an :class:`.orientation.Orientation` (from :func:`.orientation.orientation`): only planes whose
+        normal satisfies it are searched for, refitted and merged (None: any plane).
 
     Without connectivity, each plane found is then refitted by least squares on the searched points
     nearest to it (within ``tolerance``), and every valid point is labelled with the nearest plane
@@ -717,13 +735,17 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
         shape = check_shape(shape, len(pts))
     check_magnitude(pts)
     view = check_viewpoint(viewpoint)
+    if orientation is not None and not isinstance(orientation, Orientation):
+        raise ValueError(f'orientation must be an Orientation (orientation(axis, angle, mode)) or None, '
+                         f'got {type(orientation).__name__}')
+    allows = None if orientation is None else orientation.allows
     scale = tolerance_scale(pts, noise_model, noise_reference, view)
     model = dict(noise_model=noise_model, noise_reference=float(noise_reference), viewpoint=tuple(view.tolist()))
     point_tolerance = tolerance if scale is None else tolerance * scale  # (N,) with a noise model
     rng = generator(seed)
     if connectivity:
         seg = _detect_regions(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
-                              ransac_points, shape, graph, view, grid_points)
+                              ransac_points, shape, graph, view, grid_points, allows)
         return _facing_away(dataclasses.replace(seg, tolerance=tolerance, **model), view)
 
     cols = np.ascontiguousarray(pts.T)
@@ -745,14 +767,14 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
         search, search_tolerance = valid[:, sample], _at(valid_tolerance, sample)
         search_min = max(3, int(np.ceil(min_count * ransac_points / n_valid)))
     found, reason, _, capped = _sequential(search, search_tolerance, max_planes, search_min, probability,
-                                           int(max_iterations), rng, n_total=n_valid)
+                                           int(max_iterations), rng, n_total=n_valid, allows=allows)
     labels = np.full(len(pts), -1, dtype=np.int32)
     tolerances = (valid_tolerance, search_tolerance)
-    planes = _label_all(valid, search, valid_idx, center, labels, found, tolerances)
+    planes = _label_all(valid, search, valid_idx, center, labels, found, tolerances, allows)
     small = [j for j, plane in enumerate(planes) if len(plane.inliers) < min_count]
     if small:  # a sample's count is only an estimate (or a neighbour took the points): check all
         found = [plane for j, plane in enumerate(found) if j not in small]
-        planes = _label_all(valid, search, valid_idx, center, labels, found, tolerances)
+        planes = _label_all(valid, search, valid_idx, center, labels, found, tolerances, allows)
         reason += (f'; dropped {len(small)} plane(s) left with fewer than min_inliers={min_count} points '
                    'once every point was labelled')
     return _facing_away(Segmentation(labels=labels, planes=planes, tolerance=tolerance, n_valid=n_valid,
@@ -779,7 +801,8 @@ def _facing_away(seg: Segmentation, viewpoint: np.ndarray) -> Segmentation:
 
 def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_count: int, probability: float,
                 max_iterations: int, rng: np.random.Generator, n_total: int,
-                neighbours: Neighbours | None = None) -> tuple[list, str, np.ndarray | None, bool]:
+                neighbours: Neighbours | None = None, allows: Allows = None
+                ) -> tuple[list, str, np.ndarray | None, bool]:
     """Sequential RANSAC on the points ``cols`` (3, n): the planes [(normal, offset)] in
     extraction order, why the search stopped, with ``neighbours`` the region of each point
     (n,) (-1: none), and whether it stopped at ``max_planes`` with ``min_count`` points left."""
@@ -811,9 +834,11 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
         rest_normals = None if neighbours is None or neighbours.normals is None else \
             np.ascontiguousarray(neighbours.normals[rest_idx].T)
         sampler = None if neighbours is None else _nearby_sampler(neighbours, rest_idx)
-        best = _best_plane(rest, tolerance, probability, max_iterations, rng, region_of, rest_normals, sampler)
+        best = _best_plane(rest, tolerance, probability, max_iterations, rng, region_of, rest_normals, sampler,
+                           allows)
         if best is None:
-            reason = 'every sampled triple was degenerate (nearly collinear or duplicate points)'
+            reason = 'every sampled triple was degenerate (nearly collinear or duplicate points)' if allows is None \
+                else 'no sampled plane satisfied the orientation constraint (or every triple was degenerate)'
             break
         normal, offset, inliers, taken = best
         count = int(np.count_nonzero(inliers))
@@ -892,7 +917,8 @@ def _nearest(cols: np.ndarray, found: list[tuple[np.ndarray, float]], tolerance:
 
 
 def _label_all(valid: np.ndarray, search: np.ndarray, valid_idx: np.ndarray, center: np.ndarray,
-               labels: np.ndarray, found: list[tuple[np.ndarray, float]], tolerances: tuple) -> tuple[Plane, ...]:
+               labels: np.ndarray, found: list[tuple[np.ndarray, float]], tolerances: tuple, allows: Allows = None
+               ) -> tuple[Plane, ...]:
     """Refit each plane on the searched points ``search`` (3, m) nearest to it, then label every
     valid point (``valid`` (3, n); both centred on ``center``) with its nearest plane within
     tolerance (``tolerances``: for ``valid`` and for ``search``); fills ``labels`` (N,) at ``valid_idx``
@@ -903,8 +929,8 @@ def _label_all(valid: np.ndarray, search: np.ndarray, valid_idx: np.ndarray, cen
     own, _ = _nearest(search, found, tolerances[1])
     # Each plane's first fit saw the edge bands of the planes found after it: refit on the points
     # nearest to it (on the search sample when there is one: as precise, and 4x fewer points).
-    found = [_fit_columns(np.compress(own == j, search, axis=1)) if np.count_nonzero(own == j) >= 3 else plane
-             for j, plane in enumerate(found)]
+    found = [_kept_fit(_fit_columns(np.compress(own == j, search, axis=1)), plane, allows)
+             if np.count_nonzero(own == j) >= 3 else plane for j, plane in enumerate(found)]
     own, dist = _nearest(valid, found, tolerances[0])
     labels[valid_idx] = own
     k = len(found)
@@ -1075,7 +1101,8 @@ def _search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | 
 def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
                     probability: float, max_iterations: int, rng: np.random.Generator,
                     ransac_points: int | None, shape: tuple[int, int] | None,
-                    graph: SearchGraph | None, viewpoint: np.ndarray, grid_points: int | None) -> Segmentation:
+                    graph: SearchGraph | None, viewpoint: np.ndarray, grid_points: int | None,
+                    allows: Allows = None) -> Segmentation:
     """detect_planes with connected regions (see its docstring)."""
     finite = finite_rows(pts)
     valid_idx = np.flatnonzero(finite)
@@ -1099,16 +1126,17 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
     search_min = max(3, int(np.ceil(min_count * len(search_idx) / max(n_valid, 1))))
     search_tolerance = _at(tolerance, search_idx)
     found, reason, region, capped = _sequential(search, search_tolerance, max_planes, search_min, probability,
-                                                max_iterations, rng, n_total=n_valid, neighbours=neighbours)
+                                                max_iterations, rng, n_total=n_valid, neighbours=neighbours,
+                                                allows=allows)
     labels = np.full(len(pts), -1, dtype=np.int32)
     if not found:
         return Segmentation(labels=labels, planes=(), tolerance=tolerance, n_valid=n_valid, reason=reason)
     # each region's plane refitted on its own points, then the borders settled by nearest plane
-    found = _refit(search, region, found)
+    found = _refit(search, region, found, allows)
     region = _compete(search, region, found, search_tolerance, neighbours, viewpoint - center)
-    found = _refit(search, region, found)
+    found = _refit(search, region, found, allows)
     searched = len(found)
-    region, found = _merge_coplanar(search, region, found, search_tolerance, neighbours)
+    region, found = _merge_coplanar(search, region, found, search_tolerance, neighbours, allows)
     if len(found) < searched:
         reason += f'; merged {searched - len(found)} region(s) into a touching region of the same surface'
     residual = None
@@ -1146,10 +1174,17 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
                         capped=capped)
 
 
-def _refit(search: np.ndarray, region: np.ndarray, found: list) -> list:
-    """Each region's plane fitted to its points (3, m) ``search`` (kept when it has fewer than 3)."""
-    return [_fit_columns(np.compress(region == j, search, axis=1)) if np.count_nonzero(region == j) >= 3 else plane
-            for j, plane in enumerate(found)]
+def _refit(search: np.ndarray, region: np.ndarray, found: list, allows: Allows = None) -> list:
+    """Each region's plane fitted to its points (3, m) ``search`` (kept when it has fewer than 3, or when the fit
+    leaves the normals ``allows`` takes)."""
+    return [_kept_fit(_fit_columns(np.compress(region == j, search, axis=1)), plane, allows)
+            if np.count_nonzero(region == j) >= 3 else plane for j, plane in enumerate(found)]
+
+
+def _kept_fit(fit: tuple[np.ndarray, float], plane: tuple[np.ndarray, float], allows: Allows
+              ) -> tuple[np.ndarray, float]:
+    """``fit`` when a plane may have its normal, else the ``plane`` it would replace."""
+    return fit if _allowed(allows, fit[0]) else plane
 
 
 #: Two touching regions whose joint plane keeps at least this share of their points within t, with
@@ -1179,7 +1214,7 @@ def _adjacent(neighbours: Neighbours) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance,
-                    neighbours: Neighbours) -> tuple[np.ndarray, list]:
+                    neighbours: Neighbours, allows: Allows = None) -> tuple[np.ndarray, list]:
     """Merge touching regions of one surface: a pair of regions joined by a neighbour pair whose
     joint least-squares plane has MERGE_KEEP of their points (3, m) within ``tolerance`` becomes one
     region (the earlier one's number), with that plane. Regions renumbered in order."""
@@ -1205,6 +1240,8 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
         members = np.sort(np.concatenate([points_of[i], points_of[j]]), kind='stable')  # two sorted runs: merged
         cols = search[:, members]
         normal, offset = _fit_columns(cols.copy())
+        if not _allowed(allows, normal):
+            continue  # their joint plane leaves the orientation constraint
         contact = (a == i) & (b == j) | (a == j) & (b == i)
         if not (neighbours.coherent(normal, src[contact]) & neighbours.coherent(normal, dst[contact])).any():
             continue  # they touch where normals disagree only

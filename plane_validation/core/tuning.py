@@ -24,6 +24,7 @@ from scipy.spatial import cKDTree
 from .blas import single_blas_thread
 from .indices import ValidityIndices, validity_indices
 from .noise import NOISE_REFERENCE, noise_coefficient, tolerance_scale
+from .orientation import Orientation
 from .ransac import (
     GRID_POINTS,
     RANSAC_POINTS,
@@ -323,7 +324,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                    shape: tuple[int, int] | None = None, connectivity: bool = True,
                    noise_model: str = 'constant', noise_reference: float = NOISE_REFERENCE,
                    viewpoint: Viewpoint = None, jobs: int = 1, sweep_planes: int = SWEEP_MAX_PLANES,
-                   extend: int = TUNE_EXTEND, grid_points: int | None = GRID_POINTS) -> TuningResult:
+                   extend: int = TUNE_EXTEND, grid_points: int | None = GRID_POINTS,
+                   orientation: Orientation | None = None) -> TuningResult:
     """Sweep the RANSAC tolerance and pick the best by ``criterion``.
 
     points: (N, 3) meters. tolerances: candidate ``t`` values in meters, or None for ``count``
@@ -350,6 +352,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     the criterion (they cannot change the choice);
     shape, connectivity: to :func:`detect_planes` (an organized cloud is swept on a regular
     sub-grid of about ``tune_points`` pixels, which keeps it organized).
+    orientation: to :func:`detect_planes` (the sweep's planes satisfy it too).
     noise_model, noise_reference, viewpoint: to :func:`detect_planes`; with ``depth_quadratic`` the
     candidates are t0, the tolerance up to the reference range (derived bounds are divided by the
     median tolerance factor of the cloud).
@@ -415,7 +418,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     ransac_seed, index_seed = rng.integers(0, 2**63, size=2)
     opts = dict(max_planes=max_planes, min_inliers=min_inliers, probability=probability,
                 max_iterations=max_iterations, ransac_points=ransac_points, grid_points=grid_points,
-                connectivity=connectivity, noise_model=noise_model, noise_reference=noise_reference, viewpoint=view)
+                connectivity=connectivity, noise_model=noise_model, noise_reference=noise_reference, viewpoint=view,
+                orientation=orientation)
     # a count means the same share of the cloud on the subsample (as ransac_points scales it)
     # t is a property of the sensor, not of how many planes the caller wants: the sweep looks for at least
     # sweep_planes (a cap that stops it early makes the planes take in strips of the surfaces left out)
