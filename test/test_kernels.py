@@ -207,3 +207,33 @@ def test_grid_compete_matches_numpy(seed):
                                kernels.EIGHT, COMPETE_ROUNDS)
     expected = _settle(dist, region.copy(), neighbours)
     np.testing.assert_array_equal(np.where(got < k, got, -1), expected)
+
+
+def _graph_case(seed: int):
+    """A random graph (as Neighbours' graph form: each pair once, smaller index first, sorted) with local normals
+    (some unknown, or none at all) and a plane's bands."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 300))
+    pairs = rng.integers(0, n, (int(rng.integers(0, 4 * n)), 2))
+    pairs = np.unique(np.sort(pairs[pairs[:, 0] != pairs[:, 1]], axis=1), axis=0).reshape(-1, 2)
+    normal = rng.normal(size=3)
+    normal /= np.linalg.norm(normal)
+    normals = normal + rng.normal(scale=rng.choice([0.1, 1.0]), size=(n, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    normals[rng.random(n) < 0.1] = np.nan
+    local = Neighbours(n=n, edges=pairs.astype(np.int64), normals=None if rng.random() < 0.2 else normals)
+    support = rng.random(n) < rng.uniform(0.3, 1.0)
+    mask = support & (rng.random(n) < rng.uniform(0.1, 0.7))
+    return local, mask, normal, support, rng.random(n) < 0.5
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_graph_region_matches_numpy(seed):
+    from plane_validation.core.ransac import _NO_NORMALS, _graph_region, _graph_region_numpy
+    local, mask, normal, support, above = _graph_case(seed)
+    normals = _NO_NORMALS if local.normals is None else local.normals
+    kept, taken = _graph_region(kernels.c_array(local.edges, np.int64), normals, mask, normal, support, above)
+    ref_kept, ref_taken = _graph_region_numpy(local, mask, normal, support, above)
+    np.testing.assert_array_equal(kept, ref_kept)
+    np.testing.assert_array_equal(taken, ref_taken)

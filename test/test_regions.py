@@ -292,7 +292,7 @@ def test_border_settling_compares_planes_along_the_viewing_ray():
 def test_skipping_hypotheses_by_their_coherent_inliers_keeps_the_same_planes(monkeypatch, organized):
     """_best_region labels a hypothesis only when its inliers with agreeing normals could beat the
     region found so far: the same planes as labelling every hypothesis."""
-    from plane_validation.core import ransac, regions
+    from plane_validation.core import ransac
     if organized:
         scene = scenes.depth_camera('table', width=160, height=120, seed=3)
         points, shape, t = scene.points, (120, 160), 0.02
@@ -300,14 +300,9 @@ def test_skipping_hypotheses_by_their_coherent_inliers_keeps_the_same_planes(mon
         scene = scenes.room(6000, 0.01, seed=3)
         points, shape, t = scene.points, None, 0.03
     calls = []
-    if organized:  # the sub-grid's regions come from one compiled call each
-        grid_region = ransac._grid_region
-        monkeypatch.setattr(ransac, '_grid_region', lambda *args: calls.append(1) or grid_region(*args))
-    else:
-        region = regions.Neighbours.region
-        monkeypatch.setattr(regions.Neighbours, 'region',
-                            lambda self, mask, support=None, above=None:
-                            calls.append(1) or region(self, mask, support, above))
+    name = '_grid_region' if organized else '_graph_region'  # each region comes from one compiled call
+    compiled = getattr(ransac, name)
+    monkeypatch.setattr(ransac, name, lambda *args: calls.append(1) or compiled(*args))
     fast = pv.detect_planes(points, t, seed=5, shape=shape, max_planes=8)
     n_fast, calls[:] = len(calls), []
     best_region = ransac._best_region

@@ -18,7 +18,8 @@ import numba
 import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
-           'grid_region', 'grid_compete', 'pack_segmented', 'finite_mask', 'warm', 'Warmup']
+           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask', 'warm',
+           'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -260,19 +261,73 @@ def grid_region(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: 
     kept, taken = out, out
     if _fragmented(sizes, rules[0], rules[1]):
         component, count = grid_components(pixel, node, usable, width, bridges, wide)
-        whole, _ = _largest(component, count, full)
-        beyond = above_count = joined = kept_count = 0
-        for i in range(n):
-            if whole[i] and not full[i]:
-                beyond += 1
-                above_count += up[i]
-            joined += whole[i] and full[i]
-            kept_count += out[i]
-        below = beyond - above_count
-        if min(above_count, below) >= rules[2] * max(above_count, below) and joined > kept_count:
-            kept = whole & full
-            taken = whole
+        kept, taken = _surface(_largest(component, count, full)[0], full, up, out, rules[2])
     return kept[rest], taken[rest]
+
+
+@numba.njit(**_JIT)
+def _surface(whole: np.ndarray, full: np.ndarray, up: np.ndarray, out: np.ndarray, balance: float
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """(kept, taken) of a fragmented region ``out``: the inliers ``full`` of the support band's component ``whole``
+    and that component when its points beyond t lie on both sides of the plane (``up``: above it; ``balance``) and
+    it keeps more inliers than ``out``; else ``out`` twice."""
+    beyond = above_count = joined = kept_count = 0
+    for i in range(whole.shape[0]):
+        if whole[i] and not full[i]:
+            beyond += 1
+            above_count += up[i]
+        joined += whole[i] and full[i]
+        kept_count += out[i]
+    below = beyond - above_count
+    if min(above_count, below) >= balance * max(above_count, below) and joined > kept_count:
+        return whole & full, whole
+    return out, out
+
+
+@numba.njit(**_JIT)
+def graph_components(n: int, edges: np.ndarray, member: np.ndarray) -> tuple[np.ndarray, int]:
+    """Connected components of the points ``member`` (n,) bool of a graph of n points joined by ``edges`` (e, 2):
+    (component (n,) int64, -1 outside; count), numbered in the order of their first point."""
+    parent = np.arange(n)
+    for q in range(edges.shape[0]):
+        i, j = edges[q, 0], edges[q, 1]
+        if member[i] and member[j]:
+            _join(parent, i, j)
+    component = np.full(n, -1, np.int64)
+    number = np.full(n, -1, np.int64)
+    count = 0
+    for i in range(n):
+        if member[i]:
+            r = _root(parent, i)
+            if number[r] < 0:
+                number[r] = count
+                count += 1
+            component[i] = number[r]
+    return component, count
+
+
+@numba.njit(**_JIT)
+def graph_region(edges: np.ndarray, normals: np.ndarray, normal: np.ndarray, min_cos: float, mask: np.ndarray,
+                 support: np.ndarray, above: np.ndarray, rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`grid_region` on a graph of n points joined by ``edges`` (e, 2) (all n points searched): ``mask``,
+    ``support`` and ``above`` (n,); ``normals`` (n, 3), or (0, 3) when none is known."""
+    n = mask.shape[0]
+    known = normals.shape[0] > 0
+    wide = np.zeros(n, np.bool_)
+    full = np.zeros(n, np.bool_)
+    for i in range(n):
+        coherent = True
+        if known:
+            cos = abs(normals[i, 0] * normal[0] + normals[i, 1] * normal[1] + normals[i, 2] * normal[2])
+            coherent = not cos < min_cos
+        wide[i] = support[i] and coherent
+        full[i] = mask[i] and coherent
+    component, count = graph_components(n, edges, full)
+    out, sizes = _largest(component, count, full)
+    if _fragmented(sizes, rules[0], rules[1]):
+        component, count = graph_components(n, edges, wide)
+        return _surface(_largest(component, count, full)[0], full, above, out, rules[2])
+    return out, out
 
 
 @numba.njit(**_JIT)
@@ -405,9 +460,10 @@ def warm() -> Warmup:
     grid_region(index, index, flags, 2, np.zeros((1, 3), np.int64), pts, np.ones(3), 0.5, index, flags, flags, flags,
                 np.ones(3))
     grid_compete(np.zeros((2, 4)), np.zeros(4, np.int64), index, index, 2, EIGHT, 2)
+    graph_region(np.zeros((1, 2), np.int64), pts, np.ones(3), 0.5, flags, flags, flags, np.ones(3))
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components, grid_region,
-            grid_compete, pack_segmented)
+            grid_compete, graph_components, graph_region, pack_segmented)

@@ -823,11 +823,9 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
         if why is not None:
             reason = why if rest.shape[1] < n or n_total < 3 else f'no plane: {why}'
             break
-        if local is not None:  # the graph of the points left
-            def region_of(mask: np.ndarray, normal: np.ndarray, support: np.ndarray, above: np.ndarray,
-                          local: Neighbours = local) -> tuple[np.ndarray, np.ndarray]:
-                coherent = local.coherent(normal)
-                return local.region(mask & coherent, support & coherent, above)
+        if local is not None:  # the graph of the points left: one compiled call per region (kernels.graph_region)
+            region_of = functools.partial(_graph_region, kernels.c_array(local.edges, np.int64),
+                                          _NO_NORMALS if local.normals is None else local.normals)
         elif neighbours is not None:
             region_of = functools.partial(_grid_region if neighbours.normals is not None else _grid_region_numpy,
                                           neighbours, rest_idx)
@@ -871,6 +869,25 @@ def _grid_region(neighbours: Neighbours, rest_idx: np.ndarray, mask: np.ndarray,
     return kernels.grid_region(neighbours.pixel, neighbours.node, neighbours.usable, neighbours.shape[1], bridges,
                                neighbours.normals, kernels.c_array(normal, np.float64), NORMAL_MIN_COS, rest_idx,
                                mask, support, above, _REGION_RULES)
+
+
+_NO_NORMALS = np.empty((0, 3))
+
+
+def _graph_region(edges: np.ndarray, normals: np.ndarray, mask: np.ndarray, normal: np.ndarray, support: np.ndarray,
+                  above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(kept, taken) (n,) of a graph of n points joined by ``edges`` (e, 2) with local ``normals`` (n, 3) ((0, 3):
+    none known) for a plane of ``normal`` with inliers ``mask`` (n,), support band ``support`` and side ``above``:
+    :func:`.kernels.graph_region` (:func:`_graph_region_numpy` is its reference)."""
+    return kernels.graph_region(edges, normals, kernels.c_array(normal, np.float64), NORMAL_MIN_COS, mask, support,
+                                above, _REGION_RULES)
+
+
+def _graph_region_numpy(local: Neighbours, mask: np.ndarray, normal: np.ndarray, support: np.ndarray,
+                        above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_graph_region` in numpy (:meth:`.regions.Neighbours.region` of the graph ``local``)."""
+    coherent = local.coherent(normal)
+    return local.region(mask & coherent, support & coherent, above)
 
 
 def _grid_region_numpy(neighbours: Neighbours, rest_idx: np.ndarray, mask: np.ndarray, normal: np.ndarray,
