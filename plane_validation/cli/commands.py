@@ -38,7 +38,7 @@ DEMO_BAG = 'bags/room'
 DEMO_OUT = 'out/demo'
 #: In a demo's --out folder: the names of the outputs demos wrote there, which the next one may replace.
 DEMO_MARK = '.plane-validation-demo'
-#: Where ``paper`` writes by default (the README's figures were made with ``--out docs/paper``).
+#: Where ``paper`` writes by default (docs/paper.md's figures are made with ``--out docs/paper``).
 PAPER_OUT = 'out/paper'
 #: Exit status for bad usage or input (argparse uses it too).
 EXIT_USAGE = 2
