@@ -643,8 +643,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f'auto-tune t by a sweep chosen by {DEFAULT_CRITERION} (the default without --tolerance)')
     _add_detection_options(detect)
     _add_search_options(detect)
-    detect.add_argument('--json', action='store_true', help='print one JSON document (schema in README) and nothing '
-                        'else on stdout')
+    detect.add_argument('--json', action='store_true', help='print one JSON document (schema in docs/cli.md) '
+                        'and nothing else on stdout')
     detect.add_argument('--out', metavar='FILE', help='write the labelled cloud: .ply (plane_id), .pcd (label), '
                         '.npy (4th column), .xyz/.txt/.csv; -1 = unassigned')
     detect.add_argument('--png', metavar='PNG', help=f'write a 3-D picture of the planes ({FIGURE_HELP})')
