@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from pvbench.node_e2e import domain_environment  # noqa: E402
 
 # Before rclpy starts (the node processes inherit it): an isolated DDS domain, and the Fast DDS
-# profile full-resolution clouds need (README, "The node").
+# profile full-resolution clouds need (README, "Large clouds over Fast DDS").
 domain_environment()
 os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(ROOT / 'config' / 'fastdds_large_clouds.xml'))
 

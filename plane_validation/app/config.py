@@ -128,7 +128,7 @@ class PipelineConfig:
     organize_rings: bool = _p(True, 'an unorganized scan whose PointCloud2 has a \'ring\' field (velodyne_pointcloud '
                               'and other spinning-lidar drivers) is laid out as its range image (rings x azimuth steps '
                               'about z, from the viewpoint) and searched as an organized cloud, 5-6 times faster than '
-                              'the neighbourhood graph (README: quality); false = the graph')
+                              'the neighbourhood graph (docs/performance.md); false = the graph')
     noise_model: str = _p('constant', 'how t grows with range r from the sensor: constant, or depth_quadratic '
                           '(t * max(1, (r / noise_reference)^2), a depth camera; t is then the tolerance up to '
                           'noise_reference)', choices=NOISE_MODELS)

@@ -1,4 +1,4 @@
-"""Results as JSON documents, CSV rows and text tables for the command line (schema in README.md).
+"""Results as JSON documents, CSV rows and text tables for the command line (schema in docs/cli.md).
 
 JSON documents hold plain numbers only: numpy scalars become Python numbers and every NaN or
 infinity becomes ``null`` (e.g. Davies-Bouldin is inf with fewer than two clusters), so that

@@ -38,7 +38,7 @@ DEMO_BAG = 'bags/room'
 DEMO_OUT = 'out/demo'
 #: In a demo's --out folder: the names of the outputs demos wrote there, which the next one may replace.
 DEMO_MARK = '.plane-validation-demo'
-#: Where ``paper`` writes by default (the README's figures were made with ``--out docs/paper``).
+#: Where ``paper`` writes by default (docs/paper.md's figures are made with ``--out docs/paper``).
 PAPER_OUT = 'out/paper'
 #: Exit status for bad usage or input (argparse uses it too).
 EXIT_USAGE = 2
@@ -651,8 +651,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f'auto-tune t by a sweep chosen by {DEFAULT_CRITERION} (the default without --tolerance)')
     _add_detection_options(detect)
     _add_search_options(detect)
-    detect.add_argument('--json', action='store_true', help='print one JSON document (schema in README) and nothing '
-                        'else on stdout')
+    detect.add_argument('--json', action='store_true', help='print one JSON document (schema in docs/cli.md) '
+                        'and nothing else on stdout')
     detect.add_argument('--out', metavar='FILE', help='write the labelled cloud: .ply (plane_id), .pcd (label), '
                         '.npy (4th column), .xyz/.txt/.csv; -1 = unassigned')
     detect.add_argument('--png', metavar='PNG', help=f'write a 3-D picture of the planes ({FIGURE_HELP})')

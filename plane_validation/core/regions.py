@@ -96,8 +96,8 @@ NORMAL_REACH = 3
 REACH_SAMPLE = 4
 #: A lidar image's normal (its pixels coarser across the rings than along them) is unknown where its pixel lies
 #: off the middle of its neighbours by more than this share of their distance: 3 cm range noise near walls
-#: swamps a normal over one ring, and such normals cut walls apart (an outside probe's VLP-16 office at 3 cm
-#: noise: F1 0.69, its corridor 0.43; now 0.96 and 0.93). A depth camera's normals stay exact: the
+#: swamps a normal over one ring, and such normals cut walls apart (synthetic VLP-16 scans at 3 cm noise: office
+#: F1 0.69 and corridor 0.43 without this test, 0.96 and 0.93 with it). A depth camera's normals stay exact: the
 #: coherence test needs them at stair nosings (with this test its stairs fell from 12/12 to 9/12).
 LIDAR_BEND = 0.05
 #: Components of a mask of up to this share of the points come from the graph of its points alone;
@@ -120,10 +120,10 @@ FRAGMENTED = 0.5
 FRAGMENT_PIECE = 0.05
 #: ... and only when its support beyond t lies on both sides of the plane, the smaller side holding at least this
 #: share of the larger: noise spreads a surface's points to both sides, while a recess or a panel behind separate
-#: coplanar objects lies on one side (an outside review: 25 drawer fronts 1.8 cm before their cabinet, 2 mm noise,
-#: t = 1 cm, were joined into one plane and the cabinet taken out of the search, F1 0.03), and so does most of the
-#: band of a plane offset from the surface it crosses (0.6 t off at noise t: 0.05 against 0.26 of the points; such
-#: a plane had kept more than the surface's own one, 3.8 mm off a wall with 1 cm noise).
+#: coplanar objects lies on one side (without this test 25 drawer fronts 1.8 cm before their cabinet, 2 mm noise,
+#: t = 1 cm, are joined into one plane and the cabinet is taken out of the search, F1 0.03), and so does most of the
+#: band of a plane offset from the surface it crosses (0.6 t off at noise t: 0.05 against 0.26 of the points;
+#: without the test such a plane keeps more than the surface's own one, 3.8 mm off a wall with 1 cm noise).
 SUPPORT_BALANCE = 0.5
 #: Scales of :meth:`Neighbours.nearby`: a window of this many sub-grid pixels around the point
 #: (organized) or a random walk of this many graph hops (unorganized), one drawn per sample.

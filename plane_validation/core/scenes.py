@@ -210,7 +210,7 @@ CLUTTER = ('bush', 'outliers', 'sheets')
 
 
 def clutter(kind: str = 'bush', *, share: float = 0.5, seed=None) -> Scene:
-    """Scenes that a large t cuts into false planes (an outside probe's; meters, labels -1 for clutter):
+    """Scenes that a large t cuts into false planes (meters, labels -1 for clutter):
     'bush', a 4 m floor (6,000 points, sigma 5 mm) under a 1 m cube of 1,500 random points; 'outliers', a
     2 m plane (3,000 points, sigma 5 mm) with a ``share`` of uniform outliers in a 2 m cube around it;
     'sheets', two 2 m sheets 5 cm apart (3,000 points each, sigma 3 mm)."""

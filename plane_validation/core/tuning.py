@@ -101,10 +101,10 @@ SILHOUETTE_TIE = 0.01
 #: found as one) on this share of their points or more is unsound. With connected regions, a sweep whose choice is
 #: unsound chooses again among the sound candidates below (see _sound_choice): PS rewards clutter cut into slabs and
 #: parallel surfaces merged (they cover more points, clear of the other planes), so a sweep otherwise runs on to them
-#: (benchmarks/README.md, seventeenth session: a floor under a bush chose 141 mm, F1 0.90, now 17 mm, F1 1.00; two
-#: sheets 5 cm apart were one plane, now two). The choices on the benchmark's labelled clouds are sound. A sound choice
-#: above a merge is kept: the layering test also fires on a quantized camera's depth steps, and cutting there split
-#: a wall into its two depth layers (an outside review).
+#: (benchmarks/README.md: a floor under a bush chooses 141 mm, F1 0.90, without this and 17 mm, F1 1.00, with it; two
+#: sheets 5 cm apart are one plane without it, two with it). The choices on the benchmark's labelled clouds are sound.
+#: A sound choice above a merge is kept: the layering test also fires on a quantized camera's depth steps, and
+#: cutting there splits a wall into its two depth layers.
 UNSOUND_SHARE = 0.02
 
 

@@ -73,7 +73,7 @@ MAX_LAYERING = 0.9
 #: Residuals that one split explains to this share or more lie on exact layers: a quantizing camera's depth steps (a
 #: fronto-parallel wall between two steps 2 cm apart, found as one plane at t between a half and a whole step:
 #: 0.9992-0.9993) or two surfaces with little noise (sheets 2.5 cm apart with under 0.7 mm noise), which the layering
-#: cannot tell apart; surfaces with 2-3 mm noise 2-5 cm apart: 0.92-0.99 (benchmarks/README.md, seventeenth session).
+#: cannot tell apart; surfaces with 2-3 mm noise 2-5 cm apart: 0.92-0.99 (benchmarks/README.md).
 #: The verdict fails both (a false alarm on the wall beats a silent merge); surface_failures, for the sweep's second
 #: choice, leaves them out.
 EXACT_LAYERS = 0.995
@@ -93,7 +93,7 @@ MIN_PLANE_POINTS = 10
 STABILITY_RESEEDS = 3
 #: ... and the planes are not reliable when the mean agreement (see seed_agreement) is below this:
 #: real planes come back as the same planes, a curved surface is cut into different patches. Calibrated
-#: on 2026-11-23 (benchmarks/verdict.py, tune_tolerance at seeds 0-7 for the bunny and the paper's corners):
+#: with benchmarks/verdict.py (tune_tolerance at seeds 0-7 for the bunny and the paper's corners):
 #: labelled and synthetic plane scenes 0.97-1.00, reliable Kinect frames 0.97-1.00, the paper's corner at
 #: e = 7.5 (points near its edges go to either face) 0.93-0.96; plane-free clouds 0.34-0.82, the 397-point
 #: bunny 0.55-0.83 (seed 0: 0.73, the only one of its seeds the other checks call reliable). Single reseeds
@@ -110,7 +110,7 @@ COORDINATE_STEP_SAMPLE = 4096
 #: (with 20-30 mm noise too few patches have a normal: missed). The planes of the labelled clouds, the Kinect
 #: frames and the clutter scenes at their tuned t that hold 2 % of the points or more: at most 0.59 (milk_cartoon);
 #: smaller ones up to 1.00 (0.9 % of icl_office_0's points). Such planes may hold less than MINOR_SHARE of the planes'
-#: points (benchmarks/README.md, eighteenth session).
+#: points (benchmarks/README.md).
 MAX_TILT = 0.8
 #: ... patches: cells of a grid in the plane holding about TILT_NEIGHBOURS of its sampled inliers (see _tilt); a patch
 #: thinner than TILT_FLAT (its thickness ratio, as plane_thickness) has a determined normal, tilted over TILT_DEG off it

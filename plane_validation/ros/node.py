@@ -246,8 +246,8 @@ class PlaneValidationNode(Node):
 
 def spin(node: Node, executor: SingleThreadedExecutor | None = None) -> None:
     """Serve ``node`` until its context shuts down, looking at the context every SPIN_CHECK_S: a SIGTERM's
-    shutdown can fail to wake an executor that waits without a timeout (an outside probe: about 1 in 6 SIGTERMs
-    during a parallel sweep left the node waiting forever with its context gone)."""
+    shutdown can fail to wake an executor that waits without a timeout (about 1 in 6 SIGTERMs during a parallel
+    sweep left such an executor waiting forever with its context gone)."""
     executor = executor or SingleThreadedExecutor(context=node.context)
     executor.add_node(node)
     try:
