@@ -254,25 +254,43 @@ def test_flood_drops_old_frames_keeps_memory_flat_and_stays_responsive(harness):
     processed = int(values['frames_processed'])
     assert dropped > 0
     with harness.lock:
-        flood_diags = [d.status[0] for k, d in harness.received['diagnostics'].items() if k < 5_100_000_000_000]
-    warned = [st for st in flood_diags if 'dropped' in st.message]
-    assert warned and all(st.level == b'\x01' for st in warned)
+        answered = sorted((k, diag_values(d), d.status[0]) for k, d in harness.received['diagnostics'].items()
+                          if 5_000_000_000_000 <= k < 5_100_000_000_000)
+    # a drop does not change a frame's level: the level says what its planes and its input are like
+    assert not any('dropped' in st.message or 'rate' in st.message for _, _, st in answered)
     # each drop is reported once, with a newer frame than the dropped one: by any answered frame, no more
     # drops were reported than clouds sent before it went unanswered (stamps count the clouds sent)
-    with harness.lock:
-        answered = sorted((k, d.status[0].message) for k, d in harness.received['diagnostics'].items()
-                          if 5_000_000_000_000 <= k < 5_100_000_000_000)
     so_far = 0
-    for position, (stamp, message) in enumerate(answered):
-        found = re.search(r'(\d+) older frame\(s\) dropped', message)
-        so_far += int(found[1]) if found else 0
-        assert so_far <= stamp - 5_000_000_000_000 - position, (stamp, message)
-    reported = sum(int(re.search(r'(\d+) older frame\(s\) dropped', st.message)[1]) for st in warned)
-    assert reported == dropped
-    assert values['planes'] == '3' and out['diagnostics'].status[0].level == b'\x00'  # nothing dropped since
+    for position, (stamp, vals, _) in enumerate(answered):
+        so_far += int(vals['frames_dropped_since_last'])
+        assert so_far <= stamp - 5_000_000_000_000 - position, (stamp, vals)
+    assert so_far == dropped and int(values['frames_dropped_since_last']) == 0
+    # the rates say what happened: during the flood clouds came in faster than the node answered them
+    rates = [(float(v['input_rate_hz']), float(v['output_rate_hz'])) for _, v, _ in answered]
+    assert any(i > 2 * o > 0 for i, o in rates), rates
+    assert values['planes'] == '3' and out['diagnostics'].status[0].level == b'\x00'
     # (DDS itself may also discard frames for the best-effort subscription, so no lower bound on the sum)
     assert processed + dropped <= 251
     assert after - before < 60, f'RSS grew from {before:.0f} MB to {after:.0f} MB'
+
+
+def test_a_frame_is_warn_only_while_the_output_rate_is_below_min_output_rate_hz(harness):
+    node = harness.node
+    assert not node.set_parameters([Parameter('min_output_rate_hz', value=-1.0)])[0].successful
+    stamp = 5_200_000_000_000
+    for k in range(4):  # about 10 Hz: well below 1000 Hz
+        out = harness.send(xyz_cloud(corner_points(), stamp + k))['diagnostics']
+        time.sleep(0.1)
+    assert float(diag_values(out)['output_rate_hz']) < 1000
+    assert node.set_parameters([Parameter('min_output_rate_hz', value=1000.0)])[0].successful
+    out = harness.send(xyz_cloud(corner_points(), stamp + 10))['diagnostics']
+    status = out.status[0]
+    assert status.level == b'\x01' and 'below min_output_rate_hz 1000' in status.message, status.message
+    assert diag_values(out)['planes'] == '3'  # the planes are the same: only the rate is wrong
+    assert node.set_parameters([Parameter('min_output_rate_hz', value=0.0)])[0].successful
+    assert harness.send(xyz_cloud(corner_points(), stamp + 11))['diagnostics'].status[0].level == b'\x00'
+    assert node.set_parameters([Parameter('min_output_rate_hz', value=0.5)])[0].successful  # met
+    assert harness.send(xyz_cloud(corner_points(), stamp + 12))['diagnostics'].status[0].level == b'\x00'
 
 
 def test_periodic_retune_runs_in_the_background_while_frames_flow(ros):
@@ -496,13 +514,14 @@ def test_live_sweeps_the_frames_offline_sweeps_after_a_first_frame_without_plane
     assert offline.tuned_at == pytest.approx(stamps[0] * 1e-9 + retry * FROZEN_FRAME_S)
     node = PlaneValidationNode(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
     kept = []  # whether a sweep ended with a frame kept for the next one
-    ended = node._sweep_ended
-    node._sweep_ended = lambda: kept.append(node._next_sweep is not None) or ended()
+    worker = node.worker
+    ended = worker._sweep_ended
+    worker._sweep_ended = lambda: kept.append(worker._next_sweep is not None) or ended()
     retune = node.pipeline.retune
 
     def first_sweep_outlasts_the_retry_frame(*args, **kwargs):  # however fast the sweep of the line is
         deadline = time.monotonic() + 60
-        while not kept and node.frames_processed <= retry + 1 and time.monotonic() < deadline:
+        while not kept and worker.frames_processed <= retry + 1 and time.monotonic() < deadline:
             time.sleep(0.01)
         return retune(*args, **kwargs)
     node.pipeline.retune = first_sweep_outlasts_the_retry_frame
