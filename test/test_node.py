@@ -3,20 +3,20 @@ from __future__ import annotations
 
 import array
 import gc
-import re
 import time
 
 import numpy as np
 import pytest
 
 rclpy = pytest.importorskip('rclpy')
+import sensor_msgs.msg  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from ros_harness import Harness, diag_values, make_header, xyz_cloud  # noqa: E402
 from sensor_msgs.msg import PointCloud2, PointField  # noqa: E402
 
 from plane_validation import scenes  # noqa: E402
 from plane_validation.app.pipeline import FramePipeline, PipelineConfig  # noqa: E402
-from plane_validation.formats.pointcloud2 import structured_array, xyz_array  # noqa: E402
+from plane_validation.formats.pointcloud2 import create_cloud, structured_array, xyz_array  # noqa: E402
 from plane_validation.ros.messages import OUTPUTS  # noqa: E402
 from plane_validation.ros.node import PlaneValidationNode  # noqa: E402
 
@@ -156,12 +156,37 @@ def test_layout_variants_decode_to_the_same_points_and_unorganized_ones_to_the_s
         # the same valid points in the same order; with the same stamp (seed) and layout, identical planes
         values = diag_values(out['diagnostics'])
         assert values['valid_points'] == str(len(points) - 300), variant
-        segmented = structured_array(out['segmented'])
+        segmented = structured_array(out['segmented']).ravel()
+        height = variant.get('height', 1)
+        if height > 1:  # an organized input comes back organized: its pixels, NaN and plane_id -1 at the holes
+            assert (out['segmented'].height, out['segmented'].width) == (height, len(points) // height)
+            hole = np.isnan(holes).any(axis=1)
+            assert np.isnan(segmented['x'][hole]).all() and (segmented['plane_id'][hole] == -1).all()
+            segmented = segmented[~hole]
         for axis in 'xyz':
             np.testing.assert_array_equal(segmented[axis], ref[axis], err_msg=str(variant))
-        if variant.get('height', 1) == 1:  # a taller cloud is searched as an image, and these rows are none
+        if height == 1:  # a taller cloud is searched as an image, and these rows are none
             assert values['planes'] == '3' and out['diagnostics'].status[0].level == b'\x00', variant
             np.testing.assert_array_equal(segmented['plane_id'], ref['plane_id'], err_msg=str(variant))
+
+
+def test_an_organized_cloud_gives_organized_segmented_and_obstacle_clouds(harness):
+    scene = scenes.depth_camera('room', width=80, height=60, seed=2)
+    msg = create_cloud(make_header(2_500_000_000_000), {a: scene.points[:, i].astype(np.float32)
+                                                        for i, a in enumerate('xyz')}, types=sensor_msgs.msg,
+                       shape=scene.shape)
+    out = harness.send(msg, outputs=('diagnostics', 'segmented', 'obstacles'))
+    seg, obs = out['segmented'], out['obstacles']
+    assert (seg.height, seg.width) == (obs.height, obs.width) == (60, 80)
+    seg, obs = structured_array(seg).ravel(), structured_array(obs).ravel()
+    hole = np.isnan(scene.points).any(axis=1)
+    assert np.isnan(seg['x'][hole]).all() and (seg['plane_id'][hole] == -1).all()
+    on_no_plane = ~hole & (seg['plane_id'] == -1)
+    assert on_no_plane.any() and (seg['plane_id'][~hole] >= 0).any()
+    # an obstacle pixel is a valid pixel on no plane, with its coordinates; every other pixel is NaN
+    np.testing.assert_array_equal(np.isfinite(obs['x']), on_no_plane)
+    np.testing.assert_array_equal(obs['z'][on_no_plane], seg['z'][on_no_plane])
+    assert diag_values(out['diagnostics'])['obstacle_points'] == str(int(on_no_plane.sum()))
 
 
 def _bad_clouds(stamp: int):

@@ -80,7 +80,9 @@ def usage() -> str:
     return '\n'.join(lines)
 
 
-def main(args: list[str] | None = None) -> int:
+def main(args: list[str] | None = None, node_class: type | None = None, prog: str = 'plane_validation_node') -> int:
+    """Start ``node_class`` (default :class:`PlaneValidationNode`) and serve it until a signal or shutdown."""
+    node_class = node_class or PlaneValidationNode
     own = list(sys.argv[1:] if args is None else args)
     if '--ros-args' in own:  # the node's own arguments: those before it and after a '--' that ends the ROS ones
         ros = own[own.index('--ros-args') + 1:]
@@ -95,15 +97,15 @@ def main(args: list[str] | None = None) -> int:
         rclpy.try_shutdown()
         return 0
     except Exception as exc:  # malformed --ros-args, a params file that is missing or not YAML
-        print(f'plane_validation_node: cannot start: {exc}', file=sys.stderr)
+        print(f'{prog}: cannot start: {exc}', file=sys.stderr)
         return 2
     try:
-        node = PlaneValidationNode()
+        node = node_class()
     except KeyboardInterrupt:  # Ctrl-C while starting: as quiet as while spinning
         rclpy.try_shutdown()
         return 0
     except Exception as exc:  # invalid parameters (range, type, consistency): say which and exit
-        print(f'plane_validation_node: cannot start: {exc}', file=sys.stderr)
+        print(f'{prog}: cannot start: {exc}', file=sys.stderr)
         rclpy.try_shutdown()
         return 2
     try:

@@ -97,7 +97,10 @@ def params_yaml() -> str:
 
 def apply_parameters(node, params):
     """The on-set-parameters callback of both nodes: validate the request as a whole against the current
-    values, then hand the new configuration to the pipeline and the worker."""
+    values, then hand the new configuration to the pipeline and the worker. A managed node that is not
+    configured takes any value: configuring validates them all."""
+    if node.pipeline is None:
+        return SetParametersResult(successful=True)
     checked = checked_changes(node.pipeline.config, node.options, params)
     if isinstance(checked, SetParametersResult):
         return checked
