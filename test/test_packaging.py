@@ -252,16 +252,16 @@ def test_installed_launch_file_starts_the_node_with_params_and_remapping(prefix)
     def named(call: ast.Call) -> str:
         return getattr(call.func, 'id', getattr(call.func, 'attr', ''))
 
-    nodes = [c for c in calls if named(c) == 'Node']
-    assert len(nodes) == 1
-    kwargs = {k.arg: k.value for k in nodes[0].keywords}
-    assert ast.literal_eval(kwargs['package']) == PACKAGE
-    executable = ast.literal_eval(kwargs['executable'])
-    assert (prefix / 'lib' / PACKAGE / executable).is_file(), executable
-    assert 'parameters' in kwargs and 'remappings' in kwargs
-    arguments = {ast.literal_eval(c.args[0]) for c in calls if named(c) == 'DeclareLaunchArgument'}
-    assert 'cloud' in arguments
+    assert [named(c) for c in calls if named(c) in ('Node', 'LifecycleNode')] == ['Node', 'LifecycleNode']
     strings = {n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, str)}
+    executables = {s for s in strings if s.startswith(PACKAGE) and s.endswith('_node')}
+    assert executables == {'plane_validation_node', 'plane_validation_lifecycle_node'}
+    for executable in executables:  # both installed where ros2 launch looks
+        assert (prefix / 'lib' / PACKAGE / executable).is_file(), executable
+    keywords = {k.arg for n in ast.walk(tree) if isinstance(n, ast.Call) for k in n.keywords}
+    assert {'package', 'parameters', 'remappings'} <= keywords
+    arguments = {ast.literal_eval(c.args[0]) for c in calls if named(c) == 'DeclareLaunchArgument'}
+    assert {'namespace', 'use_sim_time', 'params_file', 'cloud', 'managed', 'large_clouds'} <= arguments
     assert {'config', 'params.yaml'} <= strings  # default params file from the package's share dir
 
 

@@ -464,7 +464,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     if summary.last_segmented is not None:
         plot_cloud_message(summary.last_segmented, png, title=f'{Path(args.bag).name}: last frame')
     print(f'Outputs: node outputs recorded in the rosbag2 bag {out_bag} (input cloud, segmented, planes, '
-          f'plane_poses, plane_coefficients, /diagnostics); picture of the last frame: {png}. '
+          f'obstacles, plane_poses, plane_coefficients, /diagnostics); picture of the last frame: {png}. '
           f'Took {time.perf_counter() - start:.1f} s.')
     return 0
 

@@ -98,7 +98,7 @@ class OutputPairing:
     def answered(self, index: int) -> bool:
         """Whether frame ``index``'s diagnostics have come."""
         with self._lock:
-            return index in self._diag_frames
+            return any(frame.index == index for frame in self.frames)
 
     def published(self, index: int) -> None:
         """Frame ``index`` is about to be played (frames are played in order)."""
