@@ -14,6 +14,7 @@ ROS_WHEELS = [
     'ros-jazzy-geometry-msgs',
     'ros-jazzy-diagnostic-msgs',
     'ros-jazzy-visualization-msgs',
+    'ros-jazzy-lifecycle-msgs',
 ]
 CORE = [
     'numpy>=1.24',
@@ -37,7 +38,8 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
-        ('share/' + PACKAGE + '/config', glob('config/*.yaml') + glob('config/*.xml')),
+        ('share/' + PACKAGE + '/config', glob('config/*.yaml') + glob('config/*.xml') + glob('config/*.rviz')
+         + glob('config/*.json')),
         ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
         ('share/' + PACKAGE + '/bags/room', glob('bags/room/*')),  # the demo's bag (cli demo_bag)
     ],
@@ -58,6 +60,7 @@ setup(
     entry_points={
         'console_scripts': [
             'plane_validation_node = plane_validation.ros:main',
+            'plane_validation_lifecycle_node = plane_validation.ros:lifecycle_main',
             'plane-validation = plane_validation.cli:main',
         ],
     },

@@ -23,7 +23,7 @@ from visualization_msgs.msg import MarkerArray
 
 from plane_validation.formats.pointcloud2 import create_cloud
 
-OUTPUTS = {'segmented': PointCloud2, 'planes': MarkerArray, 'plane_poses': PoseArray,
+OUTPUTS = {'segmented': PointCloud2, 'obstacles': PointCloud2, 'planes': MarkerArray, 'plane_poses': PoseArray,
            'plane_coefficients': Float64MultiArray}
 
 

@@ -85,12 +85,13 @@ def test_pack_segmented_matches_structured_records(seed, n, k):
     pts[rng.random(n) < 0.1] = np.nan
     labels = rng.integers(-1, k, n).astype(np.int32) if k else np.full(n, -1, np.int32)
     palette = rng.integers(0, 2**24, k + 1).astype(np.uint32)
+    ids = np.append(rng.permutation(10)[:k], -1).astype(np.int32)
     out = np.zeros(20 * n, np.uint8)
-    dense = kernels.pack_segmented(pts, labels, palette, out)
+    dense = kernels.pack_segmented(pts, labels, ids, palette, out)
     ref = np.zeros(n, dtype=np.dtype({'names': ['x', 'y', 'z', 'plane_id', 'rgb'],
                                       'formats': ['<f4', '<f4', '<f4', '<i4', '<u4'],
                                       'offsets': [0, 4, 8, 12, 16], 'itemsize': 20}))
-    ref['x'], ref['y'], ref['z'], ref['plane_id'] = pts[:, 0], pts[:, 1], pts[:, 2], labels
+    ref['x'], ref['y'], ref['z'], ref['plane_id'] = pts[:, 0], pts[:, 1], pts[:, 2], ids[labels]
     ref['rgb'] = palette[labels]  # -1: the last entry
     assert out.tobytes() == ref.tobytes()
     assert dense == (not np.isnan(pts).any())

@@ -90,7 +90,7 @@ def test_public_api_is_kept():
 
 def test_params_yaml_lists_exactly_the_node_parameters_with_the_table_defaults():
     from plane_validation.ros.node import NODE_PARAMETERS
-    params = yaml.safe_load((ROOT / 'config' / 'params.yaml').read_text())['plane_validation']['ros__parameters']
+    params = yaml.safe_load((ROOT / 'config' / 'params.yaml').read_text())['/**']['ros__parameters']
     table = {**PARAMETERS, **NODE_PARAMETERS}
     assert list(params) == list(table)
     for name, spec in table.items():

@@ -3,20 +3,20 @@ from __future__ import annotations
 
 import array
 import gc
-import re
 import time
 
 import numpy as np
 import pytest
 
 rclpy = pytest.importorskip('rclpy')
+import sensor_msgs.msg  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from ros_harness import Harness, diag_values, make_header, xyz_cloud  # noqa: E402
 from sensor_msgs.msg import PointCloud2, PointField  # noqa: E402
 
 from plane_validation import scenes  # noqa: E402
 from plane_validation.app.pipeline import FramePipeline, PipelineConfig  # noqa: E402
-from plane_validation.formats.pointcloud2 import structured_array, xyz_array  # noqa: E402
+from plane_validation.formats.pointcloud2 import create_cloud, structured_array, xyz_array  # noqa: E402
 from plane_validation.ros.messages import OUTPUTS  # noqa: E402
 from plane_validation.ros.node import PlaneValidationNode  # noqa: E402
 
@@ -156,12 +156,37 @@ def test_layout_variants_decode_to_the_same_points_and_unorganized_ones_to_the_s
         # the same valid points in the same order; with the same stamp (seed) and layout, identical planes
         values = diag_values(out['diagnostics'])
         assert values['valid_points'] == str(len(points) - 300), variant
-        segmented = structured_array(out['segmented'])
+        segmented = structured_array(out['segmented']).ravel()
+        height = variant.get('height', 1)
+        if height > 1:  # an organized input comes back organized: its pixels, NaN and plane_id -1 at the holes
+            assert (out['segmented'].height, out['segmented'].width) == (height, len(points) // height)
+            hole = np.isnan(holes).any(axis=1)
+            assert np.isnan(segmented['x'][hole]).all() and (segmented['plane_id'][hole] == -1).all()
+            segmented = segmented[~hole]
         for axis in 'xyz':
             np.testing.assert_array_equal(segmented[axis], ref[axis], err_msg=str(variant))
-        if variant.get('height', 1) == 1:  # a taller cloud is searched as an image, and these rows are none
+        if height == 1:  # a taller cloud is searched as an image, and these rows are none
             assert values['planes'] == '3' and out['diagnostics'].status[0].level == b'\x00', variant
             np.testing.assert_array_equal(segmented['plane_id'], ref['plane_id'], err_msg=str(variant))
+
+
+def test_an_organized_cloud_gives_organized_segmented_and_obstacle_clouds(harness):
+    scene = scenes.depth_camera('room', width=80, height=60, seed=2)
+    msg = create_cloud(make_header(2_500_000_000_000), {a: scene.points[:, i].astype(np.float32)
+                                                        for i, a in enumerate('xyz')}, types=sensor_msgs.msg,
+                       shape=scene.shape)
+    out = harness.send(msg, outputs=('diagnostics', 'segmented', 'obstacles'))
+    seg, obs = out['segmented'], out['obstacles']
+    assert (seg.height, seg.width) == (obs.height, obs.width) == (60, 80)
+    seg, obs = structured_array(seg).ravel(), structured_array(obs).ravel()
+    hole = np.isnan(scene.points).any(axis=1)
+    assert np.isnan(seg['x'][hole]).all() and (seg['plane_id'][hole] == -1).all()
+    on_no_plane = ~hole & (seg['plane_id'] == -1)
+    assert on_no_plane.any() and (seg['plane_id'][~hole] >= 0).any()
+    # an obstacle pixel is a valid pixel on no plane, with its coordinates; every other pixel is NaN
+    np.testing.assert_array_equal(np.isfinite(obs['x']), on_no_plane)
+    np.testing.assert_array_equal(obs['z'][on_no_plane], seg['z'][on_no_plane])
+    assert diag_values(out['diagnostics'])['obstacle_points'] == str(int(on_no_plane.sum()))
 
 
 def _bad_clouds(stamp: int):
@@ -254,25 +279,43 @@ def test_flood_drops_old_frames_keeps_memory_flat_and_stays_responsive(harness):
     processed = int(values['frames_processed'])
     assert dropped > 0
     with harness.lock:
-        flood_diags = [d.status[0] for k, d in harness.received['diagnostics'].items() if k < 5_100_000_000_000]
-    warned = [st for st in flood_diags if 'dropped' in st.message]
-    assert warned and all(st.level == b'\x01' for st in warned)
+        answered = sorted((k, diag_values(d), d.status[0]) for k, d in harness.received['diagnostics'].items()
+                          if 5_000_000_000_000 <= k < 5_100_000_000_000)
+    # a drop does not change a frame's level: the level says what its planes and its input are like
+    assert not any('dropped' in st.message or 'rate' in st.message for _, _, st in answered)
     # each drop is reported once, with a newer frame than the dropped one: by any answered frame, no more
     # drops were reported than clouds sent before it went unanswered (stamps count the clouds sent)
-    with harness.lock:
-        answered = sorted((k, d.status[0].message) for k, d in harness.received['diagnostics'].items()
-                          if 5_000_000_000_000 <= k < 5_100_000_000_000)
     so_far = 0
-    for position, (stamp, message) in enumerate(answered):
-        found = re.search(r'(\d+) older frame\(s\) dropped', message)
-        so_far += int(found[1]) if found else 0
-        assert so_far <= stamp - 5_000_000_000_000 - position, (stamp, message)
-    reported = sum(int(re.search(r'(\d+) older frame\(s\) dropped', st.message)[1]) for st in warned)
-    assert reported == dropped
-    assert values['planes'] == '3' and out['diagnostics'].status[0].level == b'\x00'  # nothing dropped since
+    for position, (stamp, vals, _) in enumerate(answered):
+        so_far += int(vals['frames_dropped_since_last'])
+        assert so_far <= stamp - 5_000_000_000_000 - position, (stamp, vals)
+    assert so_far == dropped and int(values['frames_dropped_since_last']) == 0
+    # the rates say what happened: during the flood clouds came in faster than the node answered them
+    rates = [(float(v['input_rate_hz']), float(v['output_rate_hz'])) for _, v, _ in answered]
+    assert any(i > 2 * o > 0 for i, o in rates), rates
+    assert values['planes'] == '3' and out['diagnostics'].status[0].level == b'\x00'
     # (DDS itself may also discard frames for the best-effort subscription, so no lower bound on the sum)
     assert processed + dropped <= 251
     assert after - before < 60, f'RSS grew from {before:.0f} MB to {after:.0f} MB'
+
+
+def test_a_frame_is_warn_only_while_the_output_rate_is_below_min_output_rate_hz(harness):
+    node = harness.node
+    assert not node.set_parameters([Parameter('min_output_rate_hz', value=-1.0)])[0].successful
+    stamp = 5_200_000_000_000
+    for k in range(4):  # about 10 Hz: well below 1000 Hz
+        out = harness.send(xyz_cloud(corner_points(), stamp + k))['diagnostics']
+        time.sleep(0.1)
+    assert float(diag_values(out)['output_rate_hz']) < 1000
+    assert node.set_parameters([Parameter('min_output_rate_hz', value=1000.0)])[0].successful
+    out = harness.send(xyz_cloud(corner_points(), stamp + 10))['diagnostics']
+    status = out.status[0]
+    assert status.level == b'\x01' and 'below min_output_rate_hz 1000' in status.message, status.message
+    assert diag_values(out)['planes'] == '3'  # the planes are the same: only the rate is wrong
+    assert node.set_parameters([Parameter('min_output_rate_hz', value=0.0)])[0].successful
+    assert harness.send(xyz_cloud(corner_points(), stamp + 11))['diagnostics'].status[0].level == b'\x00'
+    assert node.set_parameters([Parameter('min_output_rate_hz', value=0.5)])[0].successful  # met
+    assert harness.send(xyz_cloud(corner_points(), stamp + 12))['diagnostics'].status[0].level == b'\x00'
 
 
 def test_periodic_retune_runs_in_the_background_while_frames_flow(ros):
@@ -496,13 +539,14 @@ def test_live_sweeps_the_frames_offline_sweeps_after_a_first_frame_without_plane
     assert offline.tuned_at == pytest.approx(stamps[0] * 1e-9 + retry * FROZEN_FRAME_S)
     node = PlaneValidationNode(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
     kept = []  # whether a sweep ended with a frame kept for the next one
-    ended = node._sweep_ended
-    node._sweep_ended = lambda: kept.append(node._next_sweep is not None) or ended()
+    worker = node.worker
+    ended = worker._sweep_ended
+    worker._sweep_ended = lambda: kept.append(worker._next_sweep is not None) or ended()
     retune = node.pipeline.retune
 
     def first_sweep_outlasts_the_retry_frame(*args, **kwargs):  # however fast the sweep of the line is
         deadline = time.monotonic() + 60
-        while not kept and node.frames_processed <= retry + 1 and time.monotonic() < deadline:
+        while not kept and worker.frames_processed <= retry + 1 and time.monotonic() < deadline:
             time.sleep(0.01)
         return retune(*args, **kwargs)
     node.pipeline.retune = first_sweep_outlasts_the_retry_frame

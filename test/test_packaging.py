@@ -253,16 +253,16 @@ def test_installed_launch_file_starts_the_node_with_params_and_remapping(prefix)
     def named(call: ast.Call) -> str:
         return getattr(call.func, 'id', getattr(call.func, 'attr', ''))
 
-    nodes = [c for c in calls if named(c) == 'Node']
-    assert len(nodes) == 1
-    kwargs = {k.arg: k.value for k in nodes[0].keywords}
-    assert ast.literal_eval(kwargs['package']) == PACKAGE
-    executable = ast.literal_eval(kwargs['executable'])
-    assert (prefix / 'lib' / PACKAGE / executable).is_file(), executable
-    assert 'parameters' in kwargs and 'remappings' in kwargs
-    arguments = {ast.literal_eval(c.args[0]) for c in calls if named(c) == 'DeclareLaunchArgument'}
-    assert 'cloud' in arguments
+    assert [named(c) for c in calls if named(c) in ('Node', 'LifecycleNode')] == ['Node', 'LifecycleNode']
     strings = {n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, str)}
+    executables = {s for s in strings if s.startswith(PACKAGE) and s.endswith('_node')}
+    assert executables == {'plane_validation_node', 'plane_validation_lifecycle_node'}
+    for executable in executables:  # both installed where ros2 launch looks
+        assert (prefix / 'lib' / PACKAGE / executable).is_file(), executable
+    keywords = {k.arg for n in ast.walk(tree) if isinstance(n, ast.Call) for k in n.keywords}
+    assert {'package', 'parameters', 'remappings'} <= keywords
+    arguments = {ast.literal_eval(c.args[0]) for c in calls if named(c) == 'DeclareLaunchArgument'}
+    assert {'namespace', 'use_sim_time', 'params_file', 'cloud', 'managed', 'large_clouds'} <= arguments
     assert {'config', 'params.yaml'} <= strings  # default params file from the package's share dir
 
 
@@ -312,14 +312,11 @@ def test_installed_node_starts_and_exits_cleanly_on_sigint(prefix, tmp_path):
                            env=env, cwd=tmp_path, capture_output=True, text=True, timeout=60)
     assert Path(where.stdout.strip()).is_relative_to(site), where.stdout + where.stderr
 
-    # a unique namespace tells this node apart from any other run on the same domain; the params
-    # file is the installed one with its node key widened to match the namespaced node
+    # a unique namespace tells this node apart from any other run on the same domain; the installed
+    # params file, keyed /**, applies to the namespaced node as it is
     ns = f'/pv_pkgtest_{os.getpid()}_{secrets.token_hex(3)}'
-    installed_params = (prefix / 'share' / PACKAGE / 'config' / 'params.yaml').read_text(encoding='utf-8')
-    params_text, n = re.subn(rf'^{PACKAGE}:', '/**:', installed_params, count=1, flags=re.M)
-    assert n == 1, 'config/params.yaml has no top-level plane_validation: key'
-    params = tmp_path / 'params.yaml'
-    params.write_text(params_text, encoding='utf-8')
+    params = prefix / 'share' / PACKAGE / 'config' / 'params.yaml'
+    assert params.read_text(encoding='utf-8').splitlines().count('/**:') == 1
 
     log = tmp_path / 'node.log'
     with open(log, 'wb') as out:

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import time
 from pathlib import Path
 
 import numpy as np
@@ -67,7 +68,7 @@ def test_every_bundled_bag_replays_offline_as_documented(name, tmp_path):
     last = recorded[output_topics()['segmented']][-1][1]
     assert last.header.frame_id == truth['frame_id']
     labels = structured_array(last)['plane_id']
-    assert labels.max() + 1 == counts[-1]
+    assert len(set(labels.tolist()) - {-1}) == counts[-1]  # track ids: not 0..k-1 once surfaces come and go
     diag = recorded['/diagnostics'][-1][1].status[0]
     assert {kv.key for kv in diag.values} >= {'gs_planes', 'dunn', 'davies_bouldin', 'tolerance', 'planes'}
 
@@ -75,23 +76,24 @@ def test_every_bundled_bag_replays_offline_as_documented(name, tmp_path):
 def test_live_replay_matches_offline_for_the_same_seed(tmp_path):
     bag = BAGS / 'corner_e025'
     offline = replay_offline(bag, out=tmp_path / 'offline', echo=None)
-    live = replay_live(bag, out=tmp_path / 'live', rate=0.2, echo=None)
+    start = time.monotonic()
+    live = replay_live(bag, out=tmp_path / 'live', rate=1.0, echo=None)
+    # the wait for the first sweep ends with the sweep (about 2 s here), not at its 60 s time-out
+    assert time.monotonic() - start < 40
     assert live.frames, 'the node answered no frame'
     by_stamp = {f.timestamp: f for f in offline.frames}
-    quick = offline.frames[0].tolerance  # both answer the first frame with the quick estimate
-    matched, tuned = set(), False
+    # live replay waits for the first frame's sweep (as offline replay runs it before the second frame):
+    # every frame answered is answered as offline answers it, all but the first with the tuned t
+    matched = set()
     for frame in live.frames:  # frames the node dropped under load have no answer
         ref = by_stamp[frame.timestamp]
-        assert frame.n_planes == ref.n_planes
-        if frame.tolerance != pytest.approx(ref.tolerance, rel=1e-5):
-            # offline adopts the sweep's t from the next frame; live, once the background sweep ends
-            # (later on a loaded machine): until then the quick estimate, never after a match
-            assert frame.tolerance == pytest.approx(quick, rel=1e-5) and not tuned, frame.line()
-            continue
+        assert (frame.n_planes, frame.plane_ids, frame.tolerance_source) == (
+            ref.n_planes, ref.plane_ids, ref.tolerance_source), frame.line()
+        assert frame.tolerance == pytest.approx(ref.tolerance, rel=1e-5)
         assert frame.gs_planes == pytest.approx(ref.gs_planes, rel=1e-5)
+        assert frame.tolerance_source.startswith('tuned') == (frame.index > 0), frame.tolerance_source
         matched.add(frame.timestamp)
-        tuned |= frame.tolerance != pytest.approx(quick, rel=1e-5)
-    assert len(matched) >= 2 and live.frames[0].tolerance == pytest.approx(quick, rel=1e-5)
+    assert len(matched) >= len(offline.frames) - 1
     off_seg = {ts: structured_array(m)['plane_id'] for ts, m in _read_output(tmp_path / 'offline')[
         output_topics()['segmented']]}
     live_seg = _read_output(tmp_path / 'live')[output_topics()['segmented']]
@@ -541,3 +543,4 @@ def test_a_process_that_talked_to_a_node_in_another_process_exits_cleanly_right_
         node.wait(timeout=30)
     for run in runs:
         assert (run.returncode, run.stdout.strip()) == (0, 'connected'), run.stderr[-500:]
+

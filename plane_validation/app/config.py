@@ -160,6 +160,10 @@ class PipelineConfig:
                                  'other')
     voxel_size: float = _p(0.0, 'voxel grid applied before detection (each point then takes its voxel\'s plane '
                            'if within t of it); 0 = off', low=1e-6, high=MAX_DISTANCE, special=0.0, unit='m')
+    ground_margin: float = _p(0.0, '~/obstacles also leaves out the points within this distance of the largest '
+                              'horizontal plane (normal within 20 degrees of the cloud frame\'s z axis: the '
+                              'ground in base_link or odom); 0 = off (every valid point on no plane is an obstacle)',
+                              low=1e-6, high=MAX_DISTANCE, special=0.0, unit='m')
     seed: int = _p(0, 'random seed; frames are seeded by (seed, header stamp); -1 = fresh entropy every frame',
                    low=-1, high=2**31 - 1)
 

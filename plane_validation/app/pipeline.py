@@ -35,6 +35,8 @@ from ..formats.pointcloud2 import ring_array, trailing_bytes, xyz_array
 from .config import PipelineConfig, min_inliers_value
 from .detection import ring_layout
 from .diagnostics import Diagnostic, Level, fmt
+from .obstacles import ground_plane, obstacle_mask
+from .tracking import PlaneTracker
 
 __all__ = ['PipelineConfig', 'FrameResult', 'FramePipeline', 'header_stamp_ns', 'frame_seed', 'Level',
            'limit_blas_threads',
@@ -81,6 +83,16 @@ class FrameResult:
     shape: tuple[int, int] | None = None  # its (H, W)
     ring_image: tuple[np.ndarray, tuple[int, int]] | None = None  # a scan laid out by rings: (H * W, 3), (H, W)
     clock: float = 0.0  # the frame's time for retune timing, s: its header stamp (see FROZEN_FRAME_S); 0 when failed
+    plane_ids: tuple[int, ...] = ()  # each plane's track id (PlaneTracker), ascending: the planes are in this order
+    obstacles: np.ndarray | None = None  # (n,) bool: which points are obstacles (app/obstacles.py)
+    image_shape: tuple[int, int] | None = None  # (H, W) of an organized input (``organized`` holds its rows)
+
+    def as_image(self, values: np.ndarray, fill) -> np.ndarray:
+        """Per-point ``values`` (n, ...) laid out on the input's H * W rows (``fill`` where a pixel
+        had no valid point); requires ``image_shape``."""
+        full = np.full((len(self.organized),) + values.shape[1:], fill, dtype=values.dtype)
+        full[finite_rows(self.organized)] = values
+        return full
 
     @property
     def sweep_cloud(self) -> tuple[np.ndarray, tuple[int, int] | None]:
@@ -152,6 +164,7 @@ class FramePipeline:
     _repeats: int = field(default=0, repr=False)  # frames that repeated a stamp (each credited FROZEN_FRAME_S)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
     _generation: int = field(default=0, repr=False)  # bumped when the tuning set-up changes
+    tracker: PlaneTracker = field(default_factory=PlaneTracker, repr=False)  # stable plane ids across frames
 
     def __post_init__(self) -> None:
         self.config.validate()
@@ -196,6 +209,7 @@ class FramePipeline:
             self._repeats += 1
         elif self._last_stamp is not None and stamp_ns < self._last_stamp:
             self._repeats = 0  # the time ran backwards (a looping bag): retune_due retunes anyway
+            self.tracker.reset()  # and a new pass numbers its planes afresh
         self._last_stamp = stamp_ns
         return stamp_ns * 1e-9 + self._repeats * FROZEN_FRAME_S, repeated
 
@@ -338,6 +352,7 @@ class FramePipeline:
         finite = finite_rows(pts)
         valid = np.compress(finite, pts, axis=0)  # much faster than a boolean index
         n_input = len(pts)
+        image = shape if shape is not None and shape[0] * shape[1] == n_input else None  # kept in the outputs
         if shape is not None and (cfg.voxel_size > 0 or not cfg.connectivity or shape[0] * shape[1] != n_input):
             shape = None  # only regions use the image; the voxel grid does not keep it; a wrong shape is ignored
         if len(valid) < 3:
@@ -391,6 +406,7 @@ class FramePipeline:
                 scores = validity_indices(*scored, sample_size=cfg.index_sample_size, seed=seed,
                                           sampled_separation=not cfg.exact_indices)
                 reliable, verdict = judge(work, seg, scores, agreement)
+                seg, labels, ids = _by_id(seg, labels, self.tracker.update(valid, labels, seg.coefficients))
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
             return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
                            (tolerance, source), n_input=n_input, n_valid=len(valid))
@@ -401,8 +417,13 @@ class FramePipeline:
             used = source.split(' (')[0]
             level, message = WARN, f'{tune_problem}; detected with {used} t={tolerance:.4g} m: {message}'
         counts = np.bincount(labels[labels >= 0], minlength=seg.n_planes)
+        obstacles = obstacle_mask(valid, labels, seg, counts, cfg.ground_margin)
         values = _values(cfg, tolerance, source, n_input, len(valid), no_returns, int(np.sum(labels < 0)), seg, counts,
-                         scores, noise_from_segmentation(seg, work), work)
+                         scores, noise_from_segmentation(seg, work), work, ids)
+        values += (('obstacle_points', str(int(obstacles.sum()))),)
+        if cfg.ground_margin > 0:
+            ground = ground_plane(seg, counts)
+            values += (('ground_plane', 'none' if ground is None else str(ids[ground])),)
         if agreement is not None:
             values += (('seed_agreement', fmt(agreement)),)
         if ring_note is not None:
@@ -414,13 +435,25 @@ class FramePipeline:
         values += (('processing_ms', f'{1000 * seconds:.1f}'),)
         return FrameResult(points=valid, labels=labels, segmentation=seg, indices=scores, tolerance=tolerance,
                            tolerance_source=source, diagnostic=Diagnostic(level, message, values), seconds=seconds,
-                           plane_counts=tuple(int(c) for c in counts), organized=pts if shape else None, shape=shape,
-                           ring_image=(laid[0], laid[1]) if laid else None, clock=stamp)
+                           plane_counts=tuple(int(c) for c in counts), organized=pts if image else None, shape=shape,
+                           ring_image=(laid[0], laid[1]) if laid else None, clock=stamp, plane_ids=ids,
+                           obstacles=obstacles, image_shape=image)
+
+
+def _by_id(seg: Segmentation, labels: np.ndarray, ids: tuple[int, ...]) -> tuple[Segmentation, np.ndarray, tuple]:
+    """The segmentation and the labels with the planes in ascending track id order, and those ids."""
+    order = np.argsort(ids, kind='stable')
+    if np.all(order == np.arange(len(ids))):
+        return seg, labels, tuple(ids)
+    rank = np.empty(len(ids) + 1, np.int32)
+    rank[order], rank[-1] = np.arange(len(ids)), -1  # label -1 stays -1
+    seg = replace(seg, planes=tuple(seg.planes[k] for k in order), labels=rank[seg.labels])
+    return seg, rank[labels], tuple(int(ids[k]) for k in order)
 
 
 def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_valid: int, no_returns: int,
             n_unassigned: int, seg: Segmentation, counts: np.ndarray, scores: ValidityIndices,
-            noise: float, work: np.ndarray) -> tuple[tuple[str, str], ...]:
+            noise: float, work: np.ndarray, ids: tuple[int, ...]) -> tuple[tuple[str, str], ...]:
     values = [('tolerance', fmt(tolerance)), ('tolerance_source', source), ('criterion', cfg.criterion),
               ('planes', str(seg.n_planes)), ('input_points', str(n_input)), ('valid_points', str(n_valid)),
               ('no_return_points', str(no_returns)),
@@ -432,14 +465,14 @@ def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_
               ('plane_silhouette', fmt(scores.plane_silhouette)),
               ('index_sample_size', str(scores.sample_size)), ('dunn_db_points', str(scores.separation_size)),
               ('noise_model', cfg.noise_model), ('noise_estimate', fmt(noise)),
-              ('stop_reason', seg.reason)]
+              ('stop_reason', seg.reason), ('plane_ids', ' '.join(map(str, ids)))]
     if any(cfg.viewpoint):
         values.append(('viewpoint', ' '.join(fmt(c) for c in cfg.viewpoint)))
     if cfg.noise_model == 'depth_quadratic':  # sigma(r) = c r^2
         values.append(('noise_coefficient', fmt(noise_coefficient(work, seg.labels, seg.coefficients,
                                                                   seg.viewpoint))))
-    for k, plane in enumerate(seg.planes):
-        values += [(f'plane_{k}_inliers', str(int(counts[k]))), (f'plane_{k}_rms', fmt(plane.rms))]
+    for k, plane in enumerate(seg.planes):  # keyed by track id
+        values += [(f'plane_{ids[k]}_inliers', str(int(counts[k]))), (f'plane_{ids[k]}_rms', fmt(plane.rms))]
     return tuple(values)
 
 

@@ -24,12 +24,16 @@ class FrameSummary:
     message: str
     ms: float
     searched: bool = True  # False: rejected before the search (malformed, too few valid points)
+    plane_ids: tuple[int, ...] = ()  # the planes' track ids (stable from frame to frame), ascending
+    tolerance_source: str = ''  # where the tolerance came from (the diagnostics' tolerance_source)
 
     @classmethod
     def from_diagnostic(cls, index: int, timestamp: int, diag: Diagnostic) -> FrameSummary:
         return cls(index=index, timestamp=timestamp, n_planes=int(diag.number('planes')),
                    tolerance=diag.number('tolerance'), gs_planes=diag.number('gs_planes'), level=diag.level,
-                   message=diag.message, ms=diag.number('processing_ms'), searched=diag.get('stop_reason') is not None)
+                   message=diag.message, ms=diag.number('processing_ms'), searched=diag.get('stop_reason') is not None,
+                   plane_ids=tuple(int(i) for i in (diag.get('plane_ids') or '').split()),
+                   tolerance_source=diag.get('tolerance_source') or '')
 
     def line(self) -> str:
         return (f'frame {self.index:4d}  t={self.timestamp / 1e9:.3f}s  planes {self.n_planes:2d}  '

@@ -461,12 +461,19 @@ def cmd_demo(args: argparse.Namespace) -> int:
             folder.rmdir()
         raise
     print(summary.line())
+    tuned = [f for f in summary.frames if f.tolerance_source.startswith('tuned')]
+    if tuned:
+        print(f'Tuned t = {tuned[-1].tolerance:.4g} m ({tuned[-1].tolerance_source}); {len(tuned)} of '
+              f'{len(summary.frames)} frames answered with it (the first with the quick estimate, while it was swept)')
+    else:
+        print(f'No sweep succeeded: t = {summary.frames[-1].tolerance:.4g} m ({summary.frames[-1].tolerance_source})'
+              if summary.frames else 'No frame was answered')
     ours |= {out_bag.name, png.name}
     mark.write_text(''.join(f'{name}\n' for name in sorted(ours)))
     if summary.last_segmented is not None:
         plot_cloud_message(summary.last_segmented, png, title=f'{Path(args.bag).name}: last frame')
     print(f'Outputs: node outputs recorded in the rosbag2 bag {out_bag} (input cloud, segmented, planes, '
-          f'plane_poses, plane_coefficients, /diagnostics); picture of the last frame: {png}. '
+          f'obstacles, plane_poses, plane_coefficients, /diagnostics); picture of the last frame: {png}. '
           f'Took {time.perf_counter() - start:.1f} s.')
     return 0
 

@@ -412,10 +412,12 @@ def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: 
 
 
 @numba.njit(**_JIT)
-def pack_segmented(points: np.ndarray, labels: np.ndarray, palette: np.ndarray, out: np.ndarray) -> bool:
+def pack_segmented(points: np.ndarray, labels: np.ndarray, plane_ids: np.ndarray, palette: np.ndarray,
+                   out: np.ndarray) -> bool:
     """Fill ``out`` (N * 20,) uint8 with little-endian records x, y, z (float32), plane_id (int32) and rgb
-    (``palette`` (k + 1,) uint32, its last entry for label -1) of ``points`` (N, 3) and ``labels`` (N,).
-    Returns whether no coordinate is NaN (PointCloud2's is_dense)."""
+    of ``points`` (N, 3) and ``labels`` (N,): a label j in 0..k-1 writes ``plane_ids[j]`` and ``palette[j]``
+    (uint32), any other label their last entries ((k + 1,) each). Returns whether no coordinate is NaN
+    (PointCloud2's is_dense)."""
     n = points.shape[0]
     last = palette.shape[0] - 1
     record = np.empty(5, np.float32)
@@ -426,8 +428,9 @@ def pack_segmented(points: np.ndarray, labels: np.ndarray, palette: np.ndarray, 
         record[0], record[1], record[2] = points[i, 0], points[i, 1], points[i, 2]
         dense = dense and not (np.isnan(record[0]) or np.isnan(record[1]) or np.isnan(record[2]))
         lab = labels[i]
-        ints[3] = lab
-        ints[4] = np.int32(palette[lab if 0 <= lab < last else last])
+        j = lab if 0 <= lab < last else last
+        ints[3] = plane_ids[j]
+        ints[4] = np.int32(palette[j])
         base = 20 * i
         for b in range(20):
             out[base + b] = raw[b]
@@ -453,7 +456,7 @@ def warm() -> Warmup:
                 np.zeros((1, 4)), np.ones(1), EIGHT)
     rows, bounds = group_by_label(labels, 2)
     centroids_and_extremes(pts, rows, bounds, np.zeros((2, 8, 3)))
-    pack_segmented(pts, labels, np.zeros(3, np.uint32), np.empty(80, np.uint8))
+    pack_segmented(pts, labels, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.empty(80, np.uint8))
     flags = np.ones(4, np.bool_)
     index = np.arange(4, dtype=np.int64)
     grid_components(index, index, flags, 2, np.zeros((1, 3), np.int64), flags)

@@ -329,17 +329,19 @@ def _look_at(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
 
 def depth_camera(view: str = 'room', *, width: int = 640, height: int = 480, hfov_deg: float = 58.0,
                  sigma_1m: float = 0.0015, quantum_1m: float = 0.002, min_cos: float = 0.2,
-                 max_range: float = 6.0, seed=None) -> Scene:
+                 max_range: float = 6.0, eye=None, target=None, seed=None) -> Scene:
     """An organized depth-camera frame (camera frame, meters, NaN holes) of a :data:`SENSOR_VIEWS`
     view: depth noise sigma(z) = sigma_1m * z^2 (1.5 mm at 1 m, 6 mm at 2 m), depth quantised in
     steps of quantum_1m * z^2, no return where the ray meets the surface at a grazing angle
-    (|cos| < min_cos) or beyond max_range. ``noise`` of the scene is sigma_1m."""
+    (|cos| < min_cos) or beyond max_range. ``noise`` of the scene is sigma_1m. eye, target: (3,) m in the
+    view's frame, where the camera stands and what it looks at (default: the view's; a moving camera)."""
     if view not in SENSOR_VIEWS:
         raise ValueError(f'view must be one of {", ".join(SENSOR_VIEWS)}, got {view!r}')
     if width < 1 or height < 1 or not 0 < hfov_deg < 180 or sigma_1m < 0 or quantum_1m <= 0 or max_range <= 0:
         raise ValueError('need width, height >= 1, 0 < hfov_deg < 180, sigma_1m >= 0, quantum_1m > 0 and '
                          'max_range > 0')
-    make, eye, target = SENSOR_VIEWS[view]
+    make, view_eye, view_target = SENSOR_VIEWS[view]
+    eye, target = view_eye if eye is None else eye, view_target if target is None else target
     rects = make()
     rng = np.random.default_rng(seed)
     eye, target = np.asarray(eye, float), np.asarray(target, float)

@@ -19,13 +19,14 @@ from ..core.kernels import c_array, pack_segmented
 from ..formats.files import coordinate_dtype
 from ..formats.pointcloud2 import cloud_buffer, cloud_message, create_cloud, pack_rgb, record_layout
 
-__all__ = ['OUTPUTS', 'msgtype', 'status_name', 'node_values', 'segmented_cloud', 'plane_markers', 'plane_poses',
-           'plane_coefficients',
-           'diagnostics', 'diagnostic_from_status', 'frame_messages', 'to_rclpy_cloud']
+__all__ = ['OUTPUTS', 'msgtype', 'status_name', 'node_values', 'segmented_cloud', 'obstacle_cloud', 'plane_markers',
+           'plane_poses', 'plane_coefficients', 'diagnostics', 'diagnostic_from_status', 'frame_messages',
+           'to_rclpy_cloud']
 
-#: The node's outputs: key -> message class. The first four are published under ~/<key>, the
+#: The node's outputs: key -> message class. All but the last are published under ~/<key>, the
 #: diagnostics on /diagnostics.
-OUTPUTS = {'segmented': sensor_msgs.msg.PointCloud2, 'planes': MarkerArray, 'plane_poses': PoseArray,
+OUTPUTS = {'segmented': sensor_msgs.msg.PointCloud2, 'obstacles': sensor_msgs.msg.PointCloud2,
+           'planes': MarkerArray, 'plane_poses': PoseArray,
            'plane_coefficients': Float64MultiArray, 'diagnostics': DiagnosticArray}
 
 
@@ -48,21 +49,60 @@ def node_values(processed: int, dropped: int, sweep_running: bool, dropped_now: 
 
 def segmented_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
     """x, y, z (float32; float64 where float32 would lose precision: :func:`coordinate_dtype`), plane_id
-    (int32, -1 unassigned) and packed rgb of the valid points."""
+    (int32: the plane's track id, -1 unassigned) and packed rgb of the valid points; of an organized input,
+    its H x W pixels with NaN x, y, z and plane_id -1 where a pixel had no valid point."""
     labels = c_array(result.labels, np.int32)
-    palette = np.vstack([plane_colors(result.n_planes), np.array([UNASSIGNED_RGB], np.uint8)])
+    ids = np.array([*result.plane_ids, -1], np.int32)  # label -1 indexes the last entry: -1
+    palette = np.vstack([_colors(result), np.array([UNASSIGNED_RGB], np.uint8)])
     packed = pack_rgb(palette[:, 0], palette[:, 1], palette[:, 2])
-    dtype = coordinate_dtype(result.points)
+    pts, shape = result.points, (1, len(labels))
+    if result.image_shape is not None:
+        pts, labels, shape = result.as_image(pts, np.nan), result.as_image(labels, -1), result.image_shape
+    dtype = coordinate_dtype(pts)
     if dtype == np.float32:  # the usual case: one compiled pass writes the records
         layout = record_layout({'x': dtype, 'y': dtype, 'z': dtype, 'plane_id': np.int32, 'rgb': np.float32})
         data = cloud_buffer(len(labels) * layout.itemsize, sensor_msgs.msg)
-        points = c_array(result.points, np.float64)
-        dense = pack_segmented(points, labels, packed.view(np.uint32), np.frombuffer(data, np.uint8))
-        return cloud_message(header, layout, data, (1, len(labels)), types=sensor_msgs.msg, dense=dense)
-    pts = result.points.astype(dtype)
+        dense = pack_segmented(c_array(pts, np.float64), labels, ids, packed.view(np.uint32),
+                               np.frombuffer(data, np.uint8))
+        return cloud_message(header, layout, data, shape, types=sensor_msgs.msg, dense=dense)
     # label -1 indexes the last palette entry, the unassigned grey
-    return create_cloud(header, {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2], 'plane_id': labels,
-                                 'rgb': packed[labels]}, types=sensor_msgs.msg)
+    return _cloud(header, result, {'plane_id': ids[c_array(result.labels, np.int32)],
+                                   'rgb': packed[c_array(result.labels, np.int32)]},
+                  {'plane_id': -1, 'rgb': packed[-1]})
+
+
+def obstacle_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
+    """x, y, z of the valid points on no plane (without those near the ground with ``ground_margin``); of an
+    organized input, its H x W pixels with NaN where a pixel is not an obstacle."""
+    mask = np.zeros(len(result.points), bool) if result.obstacles is None else result.obstacles
+    if result.image_shape is None:
+        return _cloud(header, result, {}, {}, rows=mask)
+    return _cloud(header, result, {}, {}, hide=~mask)
+
+
+def _cloud(header, result: FrameResult, columns: dict, fill: dict, *, rows: np.ndarray | None = None,
+           hide: np.ndarray | None = None) -> sensor_msgs.msg.PointCloud2:
+    """x, y, z of the valid points (those in ``rows``) and per-point ``columns``; of an organized input
+    the H x W image, ``fill`` where a pixel has no valid point and NaN coordinates also where ``hide``."""
+    pts = result.points if rows is None else result.points[rows]
+    if result.image_shape is None:
+        columns = {k: v if rows is None else v[rows] for k, v in columns.items()}
+        shape = None
+    else:
+        if hide is not None:
+            pts = np.where(hide[:, None], np.nan, pts)
+        pts = result.as_image(pts, np.nan)
+        columns = {k: result.as_image(v, fill[k]) for k, v in columns.items()}
+        shape = result.image_shape
+    pts = pts.astype(coordinate_dtype(pts))
+    return create_cloud(header, {'x': pts[:, 0], 'y': pts[:, 1], 'z': pts[:, 2], **columns},
+                        types=sensor_msgs.msg, shape=shape)
+
+
+def _colors(result: FrameResult) -> np.ndarray:
+    """(k, 3) uint8: each plane the colour of its track id, so a surface keeps its colour."""
+    ids = np.asarray(result.plane_ids, np.int64)
+    return plane_colors(int(ids.max()) + 1 if len(ids) else 0)[ids]
 
 
 def _quaternion(rot: np.ndarray) -> Quaternion:
@@ -81,7 +121,8 @@ def _outlines(result: FrameResult) -> tuple[PlaneOutline, ...]:
 
 
 def plane_poses(header, result: FrameResult, outlines: tuple[PlaneOutline, ...] | None = None) -> PoseArray:
-    """Per plane the inlier centroid, oriented so that its z axis is the plane normal."""
+    """Per plane (in ascending track id order) the inlier centroid, oriented so that its z axis is the
+    plane normal."""
     outlines = _outlines(result) if outlines is None else outlines
     poses = [Pose(position=Point(x=float(o.centroid[0]), y=float(o.centroid[1]), z=float(o.centroid[2])),
                   orientation=_quaternion(o.rotation)) for o in outlines]
@@ -94,36 +135,39 @@ def _point(p: np.ndarray) -> Point:
 
 def plane_markers(header, result: FrameResult, ns: str = 'planes',
                   outlines: tuple[PlaneOutline, ...] | None = None) -> MarkerArray:
-    """DELETEALL, then per plane a filled hull patch, a normal arrow and a text label."""
+    """DELETEALL, then per plane a filled hull patch (namespace ``<ns>/hull``), a normal arrow
+    (``<ns>/normal``) and a text label (``<ns>/label``), each with the plane's track id as its id."""
     outlines = _outlines(result) if outlines is None else outlines
     markers = [Marker(header=header, ns=ns, action=Marker.DELETEALL)]
-    colors = plane_colors(result.n_planes) / 255.0
+    colors = _colors(result) / 255.0
     for k, outline in enumerate(outlines):
-        plane = result.segmentation.planes[k]
+        plane, pid = result.segmentation.planes[k], int(result.plane_ids[k])
         centroid, corners, extent = outline.centroid, outline.corners, outline.extent
         color = ColorRGBA(r=float(colors[k, 0]), g=float(colors[k, 1]), b=float(colors[k, 2]), a=0.6)
         # Triangle fan around the centroid (the centroid is inside the convex hull).
         tri = [_point(p) for i in range(len(corners) if len(corners) >= 3 else 0)
                for p in (centroid, corners[i], corners[(i + 1) % len(corners)])]
-        markers.append(Marker(header=header, ns=ns, id=3 * k, type=Marker.TRIANGLE_LIST, action=Marker.ADD,
+        markers.append(Marker(header=header, ns=f'{ns}/hull', id=pid, type=Marker.TRIANGLE_LIST, action=Marker.ADD,
                               pose=Pose(orientation=Quaternion(w=1.0)), scale=Vector3(x=1.0, y=1.0, z=1.0),
                               color=color, points=tri))
         tip = centroid + plane.normal * max(0.25 * extent, 1e-3)
-        markers.append(Marker(header=header, ns=ns, id=3 * k + 1, type=Marker.ARROW, action=Marker.ADD,
+        markers.append(Marker(header=header, ns=f'{ns}/normal', id=pid, type=Marker.ARROW, action=Marker.ADD,
                               pose=Pose(orientation=Quaternion(w=1.0)),
                               scale=Vector3(x=0.02 * extent, y=0.04 * extent, z=0.06 * extent),
                               color=ColorRGBA(r=color.r, g=color.g, b=color.b, a=1.0),
                               points=[_point(centroid), _point(tip)]))
         text_at = tip + plane.normal * 0.05 * extent
-        markers.append(Marker(header=header, ns=ns, id=3 * k + 2, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD,
+        markers.append(Marker(header=header, ns=f'{ns}/label', id=pid,
+                              type=Marker.TEXT_VIEW_FACING, action=Marker.ADD,
                               pose=Pose(position=_point(text_at), orientation=Quaternion(w=1.0)),
                               scale=Vector3(z=max(0.05 * extent, 1e-3)), color=ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0),
-                              text=f'plane {k}: {result.plane_counts[k]} pts, rms {plane.rms:.3g} m'))
+                              text=f'plane {pid}: {result.plane_counts[k]} pts, rms {plane.rms:.3g} m'))
     return MarkerArray(markers=markers)
 
 
 def plane_coefficients(result: FrameResult) -> Float64MultiArray:
-    """k x 4 rows (a, b, c, d) of a x + b y + c z + d = 0; dims labelled 'planes' and 'coefficients'."""
+    """k x 4 rows (a, b, c, d) of a x + b y + c z + d = 0 in ascending track id order (the ids are the
+    diagnostics' ``plane_ids``); dims labelled 'planes' and 'coefficients'."""
     coeffs = np.zeros((0, 4)) if result.segmentation is None else result.segmentation.coefficients
     msg = Float64MultiArray()
     msg.layout.dim = [MultiArrayDimension(label='planes', size=len(coeffs), stride=4 * len(coeffs)),
@@ -151,7 +195,8 @@ def frame_messages(header, result: FrameResult, name: str,
     """Every output of one frame keyed by its topic suffix; ``extra`` key-values are added to
     its diagnostics."""
     outlines = _outlines(result)  # shared by the markers and the poses
-    return {'segmented': segmented_cloud(header, result), 'planes': plane_markers(header, result, outlines=outlines),
+    return {'segmented': segmented_cloud(header, result), 'obstacles': obstacle_cloud(header, result),
+            'planes': plane_markers(header, result, outlines=outlines),
             'plane_poses': plane_poses(header, result, outlines), 'plane_coefficients': plane_coefficients(result),
             'diagnostics': diagnostics(header, result.diagnostic.with_values(*extra), name)}
 

@@ -95,6 +95,11 @@ class OutputPairing:
             self._seen[key, stamp] += 1
             self._place()
 
+    def answered(self, index: int) -> bool:
+        """Whether frame ``index``'s diagnostics have come."""
+        with self._lock:
+            return any(frame.index == index for frame in self.frames)
+
     def published(self, index: int) -> None:
         """Frame ``index`` is about to be played (frames are played in order)."""
         with self._lock:

@@ -23,11 +23,14 @@ def wait_for(condition: Callable[[], bool], timeout: float, what: str, error: ty
 
 def play(frames: list[tuple[int, object]], publish: Callable[[int, object], None], rate: float,
          before_each: Callable[[], None] = lambda: None) -> None:
-    """Call ``publish(bag_timestamp_ns, msg)`` for each frame at its recorded time divided by ``rate``."""
+    """Call ``publish(bag_timestamp_ns, msg)`` for each frame at its recorded time divided by ``rate``;
+    the time ``before_each()`` takes (which may wait for the node) shifts the frames after it."""
     start = time.monotonic()
     first = frames[0][0]
     for ts, msg in frames:
+        paused = time.monotonic()
         before_each()
+        start += time.monotonic() - paused
         delay = start + (ts - first) / 1e9 / rate - time.monotonic()
         if delay > 0:
             time.sleep(delay)

@@ -103,6 +103,15 @@ def replay_offline(bag: str | Path, *, topic: str | None = None, out: str | Path
     return summary
 
 
+def first_sweep(node, pairing: OutputPairing, timeout: float) -> None:
+    """Wait until ``node`` answered the first frame and ended the sweep it started (up to ``timeout`` s each;
+    a frame lost on the way is not waited for longer)."""
+    end = time.monotonic() + timeout
+    while not pairing.answered(0) and time.monotonic() < end:
+        time.sleep(0.02)
+    node.wait_for_sweep(max(end - time.monotonic(), 0.0))
+
+
 def replay_live(bag: str | Path, *, topic: str | None = None, out: str | Path | None = None, rate: float = 1.0,
                 start_node: bool = True, config: PipelineConfig | None = None, node_name: str = 'plane_validation',
                 echo: Callable[[str], None] | None = print, discovery_timeout: float = 15.0,
@@ -112,7 +121,9 @@ def replay_live(bag: str | Path, *, topic: str | None = None, out: str | Path | 
 
     start_node: run :class:`~plane_validation.ros.node.PlaneValidationNode` (named ``node_name``,
     configured from ``config``) in this process, subscribed to the bag's topic; otherwise a node
-    must already be running. Uses its own rclpy context. Returns one FrameSummary per frame the
+    must already be running; the node started here tunes t on the first frame before the second is played
+    (a short bag would otherwise end before the first sweep does), so every later frame is answered with the
+    tuned t, as offline replay answers it. Uses its own rclpy context. Returns one FrameSummary per frame the
     node answered (frames it dropped under load have none; ``dropped`` counts them).
     """
     if not rate > 0:
@@ -141,11 +152,18 @@ def replay_live(bag: str | Path, *, topic: str | None = None, out: str | Path | 
             recorder.write(key, ts, msg)
 
     played = iter(range(len(frames)))
+    sent = []
 
     def publish(ts: int, msg) -> None:
         recorder.write('input', ts, msg)
-        pairing.published(next(played))
+        sent.append(next(played))
+        pairing.published(sent[-1])
         session.publisher.publish(msg)
+
+    def before_each() -> None:
+        write_received()
+        if sent == [0] and start_node and (config or PipelineConfig()).auto_tune:
+            first_sweep(session.nodes[-1], pairing, drain_timeout)
 
     with BagRecorder(out_path, cloud_topic, node_name, output_storage(bag, storage)) as recorder:
         session = LiveSession(cloud_topic, node_name, pairing.receive, node_factory if start_node else None)
@@ -153,7 +171,7 @@ def replay_live(bag: str | Path, *, topic: str | None = None, out: str | Path | 
             wait_for(session.connected, discovery_timeout,
                      f'a node subscribed to {cloud_topic} and publishing {", ".join(session.topics.values())}',
                      ReplayError)
-            play([(ts, msg) for _, ts, msg in frames], publish, rate, before_each=write_received)
+            play([(ts, msg) for _, ts, msg in frames], publish, rate, before_each=before_each)
             wait_for(lambda: pairing.answered_last(quiet=DRAIN_QUIET_S), drain_timeout,
                      'the node to answer the last frame', ReplayError)
             time.sleep(0.2)  # let the other outputs of the last frame arrive

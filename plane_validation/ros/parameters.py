@@ -1,0 +1,111 @@
+"""The node's ROS parameters: descriptors from the parameter tables, declaration with validation,
+changes at run time, and config/params.yaml. Shared by the plain and the managed node."""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+
+from ..app.config import PARAMETERS, Parameter, PipelineConfig
+
+__all__ = ['NODE_PARAMETERS', 'NodeOptions', 'descriptor', 'declare', 'checked_changes', 'apply_parameters',
+           'params_yaml']
+
+#: Node-only parameters (the pipeline's are in app/config.py's table).
+NODE_PARAMETERS = {
+    'reliability': Parameter('reliability', 'best_effort', 'subscription reliability: best_effort (sensor data) or '
+                             'reliable', choices=('best_effort', 'reliable'), read_only=True),
+    'min_output_rate_hz': Parameter('min_output_rate_hz', 0.0, 'a frame is WARN when the node answers fewer frames '
+                                    'per second than this (over the last 5 s); 0 = off', low=0.0, high=10_000.0,
+                                    unit='Hz'),
+}
+
+
+@dataclass(frozen=True)
+class NodeOptions:
+    """The node-only parameters' values."""
+
+    reliability: str = NODE_PARAMETERS['reliability'].default
+    min_output_rate_hz: float = NODE_PARAMETERS['min_output_rate_hz'].default
+
+    def validate(self) -> NodeOptions:
+        for spec in NODE_PARAMETERS.values():
+            why = spec.problem(getattr(self, spec.name))
+            if why is not None:
+                raise ValueError(why)
+        return self
+
+
+def descriptor(spec: Parameter) -> ParameterDescriptor:
+    """The ROS parameter descriptor of one table entry (its range includes the special value)."""
+    desc = ParameterDescriptor(description=spec.description + (f' [{spec.unit}]' if spec.unit else ''),
+                               read_only=spec.read_only,
+                               # a whole number for a float (`tolerance: 1`, `-p min_inliers:=500`) is fine
+                               # (Parameter.converted); the table's check refuses every other type instead
+                               dynamic_typing=spec.type is float)
+    if spec.low is not None:
+        lo, hi = spec.low, spec.high
+        if spec.special is not None:
+            lo, hi = min(lo, spec.special), max(hi, spec.special)
+        if spec.type is float:
+            desc.floating_point_range = [FloatingPointRange(from_value=float(lo), to_value=float(hi))]
+        elif spec.type is int:
+            desc.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi), step=1)]
+    return desc
+
+
+def declare(node) -> tuple[PipelineConfig, NodeOptions]:
+    """Declare every parameter not yet declared on ``node`` (overrides from the command line or a
+    params file apply) and return the validated values. Raises ValueError naming the first invalid one
+    (rclpy raises its own for a value outside a descriptor's range)."""
+    values = {}
+    for name, spec in {**PARAMETERS, **NODE_PARAMETERS}.items():
+        param = node.get_parameter(name) if node.has_parameter(name) else \
+            node.declare_parameter(name, spec.default, descriptor(spec))
+        values[name] = spec.converted(param.value)
+    config = PipelineConfig(**{k: v for k, v in values.items() if k in PARAMETERS}).validate()
+    options = NodeOptions(**{k: v for k, v in values.items() if k in NODE_PARAMETERS}).validate()
+    return config, options
+
+
+def checked_changes(config: PipelineConfig, options: NodeOptions,
+                    params) -> tuple[PipelineConfig, NodeOptions] | SetParametersResult:
+    """The configuration after a SetParameters request, validated as a whole, or the refusal to send back."""
+    pipeline = {p.name: PARAMETERS[p.name].converted(p.value) for p in params if p.name in PARAMETERS}
+    node = {p.name: NODE_PARAMETERS[p.name].converted(p.value) for p in params if p.name in NODE_PARAMETERS}
+    try:
+        return dataclasses.replace(config, **pipeline).validate(), dataclasses.replace(options, **node).validate()
+    except (ValueError, TypeError) as exc:
+        return SetParametersResult(successful=False, reason=str(exc))
+
+
+def params_yaml() -> str:
+    """config/params.yaml: every node parameter at its default, with its description, for any node name."""
+    lines = ['# Parameters of plane_validation_node and plane_validation_lifecycle_node (generated from',
+             '# plane_validation/app/config.py and ros/parameters.py by params_yaml(); a test checks it).',
+             '# Distances are in meters. Keyed /** so that it applies whatever the node is named:',
+             '#   ros2 run plane_validation plane_validation_node --ros-args --params-file config/params.yaml \\',
+             '#     -r cloud:=/camera/depth/points',
+             '/**:', '  ros__parameters:']
+    for spec in {**PARAMETERS, **NODE_PARAMETERS}.values():
+        value = str(spec.default).lower() if spec.type is bool else spec.default
+        lines.append(f'    # {spec.description}' + (f' [{spec.unit}]' if spec.unit else ''))
+        lines.append(f'    {spec.name}: {value}')
+    return '\n'.join(lines) + '\n'
+
+
+def apply_parameters(node, params):
+    """The on-set-parameters callback of both nodes: validate the request as a whole against the current
+    values, then hand the new configuration to the pipeline and the worker. A managed node that is not
+    configured takes any value: configuring validates them all."""
+    if node.pipeline is None:
+        return SetParametersResult(successful=True)
+    checked = checked_changes(node.pipeline.config, node.options, params)
+    if isinstance(checked, SetParametersResult):
+        return checked
+    config, node.options = checked
+    node.pipeline.reconfigure(config)
+    if node.worker is not None:
+        node.worker.min_output_rate_hz = node.options.min_output_rate_hz
+    return SetParametersResult(successful=True)

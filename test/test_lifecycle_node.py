@@ -1,0 +1,156 @@
+"""The managed node over real DDS, driven through lifecycle_msgs' ChangeState and GetState services."""
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from lifecycle_msgs.msg import State, Transition  # noqa: E402
+from lifecycle_msgs.srv import ChangeState, GetState  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from ros_harness import diag_values, stamp_key, xyz_cloud  # noqa: E402
+from sensor_msgs.msg import PointCloud2  # noqa: E402
+from test_node_logging import ROS, call_sites  # noqa: E402
+
+from plane_validation import scenes  # noqa: E402
+from plane_validation.ros.lifecycle_node import PlaneValidationLifecycleNode  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+
+@pytest.fixture(scope='module')
+def ros():
+    rclpy.init()
+    yield
+    rclpy.try_shutdown()
+
+
+class Manager:
+    """A lifecycle manager and a probe in one: calls the node's lifecycle services, sends clouds and
+    records /diagnostics, all over DDS."""
+
+    def __init__(self, node) -> None:
+        self.node = node
+        self.probe = rclpy.create_node('lifecycle_probe')
+        name = node.get_fully_qualified_name()
+        self.change = self.probe.create_client(ChangeState, f'{name}/change_state')
+        self.get = self.probe.create_client(GetState, f'{name}/get_state')
+        self.pub = self.probe.create_publisher(PointCloud2, '/cloud',
+                                               QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+        self.diagnostics: dict[int, DiagnosticArray] = {}
+        self.probe.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag,
+                                       QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE))
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(node)
+        self.executor.add_node(self.probe)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+        assert self.change.wait_for_service(timeout_sec=10) and self.get.wait_for_service(timeout_sec=10)
+
+    def _on_diag(self, msg) -> None:
+        self.diagnostics[stamp_key(msg.header)] = msg
+
+    def _call(self, client, request):
+        future = client.call_async(request)
+        end = time.monotonic() + 30
+        while not future.done() and time.monotonic() < end:
+            time.sleep(0.01)
+        assert future.done(), 'no answer from the lifecycle service'
+        return future.result()
+
+    def state(self) -> str:
+        return self._call(self.get, GetState.Request()).current_state.label
+
+    def transition(self, transition_id: int) -> bool:
+        return self._call(self.change, ChangeState.Request(transition=Transition(id=transition_id))).success
+
+    def send(self, msg, timeout: float = 30.0):
+        key = stamp_key(msg.header)
+        self.pub.publish(msg)
+        end = time.monotonic() + timeout
+        while key not in self.diagnostics and time.monotonic() < end:
+            time.sleep(0.02)
+        return self.diagnostics.get(key)
+
+    def close(self) -> None:
+        self.executor.shutdown(timeout_sec=5)
+        self.thread.join(timeout=5)
+        self.node.destroy_node()
+        self.probe.destroy_node()
+
+
+def test_transitions_bring_the_node_up_and_down_and_deactivation_keeps_the_tuned_tolerance(ros, capfd):
+    node = PlaneValidationLifecycleNode(parameter_overrides=[Parameter('seed', value=3),
+                                                             Parameter('tune_min', value=0.5),
+                                                             Parameter('tune_max', value=0.1)])
+    m = Manager(node)
+    cloud = scenes.corner(3000, 0.2, scale=0.01, seed=1).points
+    try:
+        assert m.state() == 'unconfigured'
+        assert not m.transition(Transition.TRANSITION_ACTIVATE)  # out of order: refused, the node lives on
+        assert m.state() == 'unconfigured'
+        assert not m.transition(Transition.TRANSITION_CONFIGURE)  # tune_max below tune_min: refused
+        assert m.state() == 'unconfigured'
+        assert node.set_parameters([Parameter('tune_min', value=0.0), Parameter('tune_max', value=0.0)])[0].successful
+        assert m.transition(Transition.TRANSITION_CONFIGURE) and m.state() == 'inactive'
+        assert m.probe.count_subscribers('/cloud') == 0  # configured, not active: not listening
+        assert m.probe.count_publishers('/plane_validation/segmented') == 1
+
+        assert m.transition(Transition.TRANSITION_ACTIVATE) and m.state() == 'active'
+        end = time.monotonic() + 10
+        while m.pub.get_subscription_count() == 0 and time.monotonic() < end:
+            time.sleep(0.02)
+        first = m.send(xyz_cloud(cloud, 20_000_000_000_000))
+        assert first is not None and diag_values(first)['planes'] == '3'
+        assert node.wait_for_sweep(timeout=60)
+        tuned = node.pipeline.tolerance
+        assert tuned is not None
+
+        assert m.transition(Transition.TRANSITION_DEACTIVATE) and m.state() == 'inactive'
+        assert m.probe.count_subscribers('/cloud') == 0
+        assert m.send(xyz_cloud(cloud, 20_000_000_000_001), timeout=1.0) is None  # inactive: no answer
+        assert m.transition(Transition.TRANSITION_ACTIVATE) and m.state() == 'active'
+        end = time.monotonic() + 10
+        while m.pub.get_subscription_count() == 0 and time.monotonic() < end:
+            time.sleep(0.02)
+        again = m.send(xyz_cloud(cloud, 20_000_000_000_002))
+        values = diag_values(again)
+        assert values['tolerance_source'].startswith('tuned at') and float(values['tolerance']) == pytest.approx(
+            tuned, rel=1e-5)  # kept across deactivation
+        assert values['plane_ids'] == diag_values(first)['plane_ids']  # and so are the plane tracks
+
+        assert not m.transition(Transition.TRANSITION_CLEANUP)  # only from inactive
+        assert m.transition(Transition.TRANSITION_DEACTIVATE)
+        assert m.transition(Transition.TRANSITION_CLEANUP) and m.state() == 'unconfigured'
+        assert node.pipeline is None and node.worker is None
+        end = time.monotonic() + 10
+        while m.probe.count_publishers('/plane_validation/segmented') and time.monotonic() < end:
+            time.sleep(0.02)
+        assert m.probe.count_publishers('/plane_validation/segmented') == 0  # released
+        assert m.transition(Transition.TRANSITION_CONFIGURE) and m.state() == 'inactive'  # and again
+        assert m.transition(Transition.TRANSITION_INACTIVE_SHUTDOWN) and m.state() == 'finalized'
+        assert m.get.service_is_ready()  # alive after all of it
+    finally:
+        m.close()
+    # each logging call site of the managed node, at its one severity
+    err = capfd.readouterr().err
+    assert 'Logger severity cannot be changed' not in err
+    assert any('[ERROR]' in line and 'configure refused: tune_max must be greater than tune_min' in line
+               for line in err.splitlines()), err
+    assert any('[WARN]' in line and 'refused in state unconfigured' in line for line in err.splitlines()), err
+    sites = {site[1:3] for site in call_sites(ROS / 'lifecycle_node.py')}
+    assert sites == {('on_configure', 'ERROR'), ('refuse_out_of_order', 'WARN')}, sites
+
+
+def test_the_lifecycle_executable_prints_its_usage():
+    import subprocess
+    import sys
+    proc = subprocess.run([sys.executable, '-m', 'plane_validation.ros.lifecycle_node', '--help'],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and 'min_output_rate_hz' in proc.stdout
+    assert State.PRIMARY_STATE_ACTIVE == 3  # lifecycle_msgs is importable from the ros extra

@@ -1,0 +1,45 @@
+"""Obstacles: the valid points on no plane, optionally without those near the ground."""
+import numpy as np
+
+from plane_validation.app.obstacles import ground_plane, obstacle_mask
+from plane_validation.app.pipeline import FramePipeline, PipelineConfig
+from plane_validation.core.ransac import Plane, Segmentation
+from plane_validation.core.scenes import _look_at, depth_camera
+
+
+def _segmentation(labels, *coefficients):
+    planes = tuple(Plane(np.array(c[:3], float), float(c[3]), np.flatnonzero(labels == k), 0.0)
+                   for k, c in enumerate(coefficients))
+    return Segmentation(labels=labels, planes=planes, tolerance=0.01, n_valid=len(labels), reason='test')
+
+
+def test_points_on_no_plane_and_without_those_near_the_largest_horizontal_plane():
+    points = np.array([[0, 0, 0.0], [1, 0, 0.0], [0, 1, 0.03], [0, 0, 0.5], [2, 0, 1.0], [3, 0, 0.02]])
+    labels = np.array([0, 0, -1, -1, 1, -1], np.int32)
+    # plane 0: the floor z = 0; plane 1: a table top z = 1 with more points (both horizontal); a wall
+    seg = _segmentation(labels, (0, 0, 1, 0), (0, 0, 1, -1))
+    assert list(obstacle_mask(points, labels, seg)) == [False, False, True, True, False, True]
+    assert ground_plane(seg, (5, 9)) == 1  # the largest horizontal plane: here the table top
+    assert ground_plane(seg, (9, 5)) == 0
+    assert list(obstacle_mask(points, labels, seg, (9, 5), ground_margin=0.05)) == [False] * 3 + [True] + [False] * 2
+    wall = _segmentation(labels, (1, 0, 0, 0), (0, 1, 0, 0))
+    assert ground_plane(wall, (9, 5)) is None  # no horizontal plane: nothing more is left out
+    assert obstacle_mask(points, labels, wall, (9, 5), ground_margin=0.05).sum() == 3
+
+
+def test_the_pipeline_finds_the_obstacles_of_a_room_in_a_z_up_frame_and_removes_the_ground():
+    eye, target = np.array([4.6, 0.4, 1.5]), np.array([1.5, 3.6, 0.7])
+    scene = depth_camera('room', width=160, height=120, seed=1)
+    world = scene.points @ _look_at(eye, target).T + eye  # z up: the floor is z = 0
+    cfg = PipelineConfig(auto_tune=False, tolerance=0.004, noise_model='depth_quadratic', viewpoint_x=4.6,
+                         viewpoint_y=0.4, viewpoint_z=1.5, seed=1)
+    plain = FramePipeline(cfg).process(world, 10**9, shape=scene.shape)
+    assert plain.image_shape == (120, 160)
+    np.testing.assert_array_equal(plain.obstacles, plain.labels < 0)
+    assert plain.diagnostic.get('obstacle_points') == str(int((plain.labels < 0).sum()))
+    ground = FramePipeline(PipelineConfig(**{**cfg.__dict__, 'ground_margin': 0.1})).process(
+        world, 10**9, shape=scene.shape)
+    floor = ground.segmentation.planes[ground.plane_ids.index(int(ground.diagnostic.get('ground_plane')))]
+    assert abs(floor.normal[2]) > 0.99 and abs(floor.offset) < 0.02  # the floor, z = 0
+    assert 0 < ground.obstacles.sum() < plain.obstacles.sum()
+    assert (np.abs(ground.points[ground.obstacles, 2]) > 0.09).all()
