@@ -22,7 +22,7 @@ from ..app.pipeline import FramePipeline
 from .messages import status_name
 from .node import main as run_node
 from .parameters import apply_parameters, declare
-from .worker import FrameWorker, input_qos, output_publishers
+from .worker import FrameWorker, input_qos, output_publishers, warm_kernels
 
 __all__ = ['PlaneValidationLifecycleNode', 'main']
 
@@ -62,6 +62,7 @@ class PlaneValidationLifecycleNode(LifecycleNode):
             self.get_logger().error(f'configure refused: {exc}')
             return FAILURE
         self.options = options
+        warm_kernels(self)
         self.pipeline = FramePipeline(config)
         self._pubs = output_publishers(self.create_lifecycle_publisher)
         self.worker = FrameWorker(self, self.pipeline, self._publish, status_name(self.get_name()),

@@ -20,7 +20,7 @@ from ..app.config import PARAMETERS
 from ..app.pipeline import FramePipeline, limit_blas_threads
 from .messages import OUTPUTS, status_name
 from .parameters import NODE_PARAMETERS, apply_parameters, declare, descriptor, params_yaml
-from .worker import LOG_THROTTLE_S, SWEEP_STOP_S, FrameWorker, input_qos, output_publishers
+from .worker import LOG_THROTTLE_S, SWEEP_STOP_S, FrameWorker, input_qos, output_publishers, warm_kernels
 
 __all__ = ['PlaneValidationNode', 'NODE_PARAMETERS', 'descriptor', 'params_yaml', 'spin', 'main',
            'LOG_THROTTLE_S', 'SWEEP_STOP_S', 'SPIN_CHECK_S']
@@ -36,6 +36,7 @@ class PlaneValidationNode(Node):
     def __init__(self, name: str = 'plane_validation', **kwargs) -> None:
         super().__init__(name, **kwargs)
         config, self.options = declare(self)
+        warm_kernels(self)
         self.pipeline = FramePipeline(config)
         self.worker = None
         self.add_on_set_parameters_callback(lambda params: apply_parameters(self, params))

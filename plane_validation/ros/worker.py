@@ -49,6 +49,14 @@ def output_publishers(create) -> dict[str, object]:
             for key, cls in OUTPUTS.items()}
 
 
+def warm_kernels(node) -> None:
+    """Compile or load the compiled kernels, and log how long it took: before a node advertises its topics, so that
+    its first frame does not wait for a compiler."""
+    ready = warm()
+    node.get_logger().info(f'compiled kernels ready in {ready.seconds:.2f} s ' + (
+        '(compiled now and cached: later starts load them)' if ready.compiled else '(loaded from the cache)'))
+
+
 class FrameWorker:
     """Processes the clouds ``node`` receives and hands each frame's messages to ``publish(key, msg)``.
 
@@ -58,9 +66,6 @@ class FrameWorker:
     def __init__(self, node, pipeline: FramePipeline, publish: Callable[[str, object], None], status_name: str,
                  *, min_output_rate_hz: float = 0.0) -> None:
         self.node = node
-        ready = warm()  # before the subscription: the first frame must not wait for a compiler
-        self.logger.info(f'compiled kernels ready in {ready.seconds:.2f} s ' + (
-            '(compiled now and cached: later starts load them)' if ready.compiled else '(loaded from the cache)'))
         self.pipeline = pipeline
         self.publish = publish
         self.status_name = status_name
