@@ -1,0 +1,118 @@
+"""Where the bags of a batch run: a local process pool (loky, as the tuning sweep uses) or an existing Ray
+cluster through Ray's own API. Both yield ``(i, func(tasks[i]))`` as the tasks end, or ``(i, Lost(why))``
+for a task whose worker process died more often than it is retried; stopping the iteration (Ctrl-C, SIGTERM)
+stops the workers. No ROS import: ``func`` is any module-level function.
+"""
+from __future__ import annotations
+
+import signal
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+__all__ = ['Lost', 'RAY_RETRIES', 'LOCAL_ATTEMPTS', 'RAY_INSTALL', 'run_local', 'run_ray', 'import_ray']
+
+#: Times Ray runs a task again after its worker died (a node lost, out of memory): Ray's max_retries.
+RAY_RETRIES = 3
+#: Times the local pool runs a task whose worker process died (each death also stops the tasks beside it).
+LOCAL_ATTEMPTS = 2
+#: What to do without Ray.
+RAY_INSTALL = ("--ray needs Ray, in the package's fleet extra: pip install '.[fleet]' in the checkout "
+               "(or pip install 'ray>=2.9')")
+
+
+@dataclass(frozen=True)
+class Lost:
+    """A task that did not end: its worker process died (``why``)."""
+
+    why: str
+
+
+def _worker_start() -> None:
+    """A local worker's first step: one BLAS thread (the pool is the parallelism), and Ctrl-C for the parent
+    only, which stops the workers (a terminal sends it to the whole process group)."""
+    from ..core.blas import limit_blas_threads
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    limit_blas_threads()
+
+
+def run_local(func: Callable, tasks: list, workers: int) -> Iterator[tuple[int, object]]:
+    """``func`` over ``tasks`` in ``workers`` processes, at most one task per worker at a time (so a worker
+    that dies takes only its own task with it: that one is run again, up to LOCAL_ATTEMPTS times)."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    from joblib.externals.loky import BrokenProcessPool, ProcessPoolExecutor
+
+    waiting = list(range(len(tasks)))[::-1]
+    attempts = [0] * len(tasks)
+    running: dict = {}
+    executor = None
+    finished = False
+    try:
+        while waiting or running:
+            if executor is None:
+                executor = ProcessPoolExecutor(max_workers=workers, initializer=_worker_start)
+            while waiting and len(running) < workers:
+                i = waiting.pop()
+                attempts[i] += 1
+                running[executor.submit(func, tasks[i])] = i, executor
+            done, _ = wait(list(running), return_when=FIRST_COMPLETED)
+            for future in done:
+                i, pool = running.pop(future)
+                try:
+                    result = future.result()
+                except BrokenProcessPool as exc:
+                    if pool is executor:  # a new pool for the next ones
+                        executor.shutdown(wait=False, kill_workers=True)
+                        executor = None
+                    if attempts[i] < LOCAL_ATTEMPTS:
+                        waiting.append(i)
+                        continue
+                    result = Lost(f'its worker process died {attempts[i]} times ({type(exc).__name__}: {exc})')
+                yield i, result
+        finished = True
+    finally:
+        if executor is not None:
+            executor.shutdown(wait=finished, kill_workers=not finished)
+
+
+def import_ray():
+    """The ray module, or ValueError saying how to install it."""
+    try:
+        import ray
+    except ImportError as exc:
+        raise ValueError(RAY_INSTALL) from exc
+    return ray
+
+
+def run_ray(func: Callable, tasks: list, address: str) -> Iterator[tuple[int, object]]:
+    """``func`` over ``tasks``, one Ray task each (one CPU, retried RAY_RETRIES times when its worker dies) on the
+    cluster at ``address`` ('auto', 'host:port' or 'ray://host:port'); a process already connected to Ray uses its
+    connection."""
+    ray = import_ray()
+    connected = not ray.is_initialized()
+    if connected:
+        try:
+            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            raise ValueError(f'cannot connect to the Ray cluster at {address!r}: {" ".join(str(exc).split())} '
+                             '(start one with `ray start --head`, give its address, or "auto" on one of its '
+                             'nodes)') from exc
+    remote = ray.remote(num_cpus=1, max_retries=RAY_RETRIES, retry_exceptions=False)(func)
+    pending = {}
+    try:
+        pending = {remote.remote(task): i for i, task in enumerate(tasks)}
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            for ref in done:
+                i = pending.pop(ref)
+                try:
+                    result = ray.get(ref)
+                except ray.exceptions.RayError as exc:
+                    first = next(iter(str(exc).strip().splitlines()), type(exc).__name__)
+                    result = Lost(f'Ray task failed after {RAY_RETRIES} retries ({type(exc).__name__}: {first})')
+                yield i, result
+    finally:
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        if connected:
+            ray.shutdown()
