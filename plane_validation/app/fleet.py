@@ -129,13 +129,14 @@ def _name(bag: Path) -> str:
 def plan_jobs(bags: list[Path], out: Path, config: PipelineConfig, topic: str | None = None,
               storage: str | None = None) -> list[BagJob]:
     """One job per bag, named after it; bags of the same name (``a/room``, ``b/room``) each get a suffix
-    from their full path, the same in every run."""
+    from their full path, the same in every run. Paths are made absolute."""
     names = [_name(bag) for bag in bags]
     jobs = []
     for bag, name in zip(bags, names):
         if names.count(name) > 1:
             name = f'{name}-{hashlib.sha1(str(bag.resolve()).encode()).hexdigest()[:6]}'
-        jobs.append(BagJob(bag, name, out, config, topic, storage))
+        # absolute: a worker (a Ray worker on another node) need not share this process's directory
+        jobs.append(BagJob(bag.absolute(), name, out.absolute(), config, topic, storage))
     return jobs
 
 
