@@ -18,6 +18,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
 from plane_validation.app.config import PipelineConfig
+from plane_validation.app.executors import LOCAL_ATTEMPTS, RAY_RETRIES, Lost, run_local, run_ray
 from plane_validation.app.fleet import (
     FLEET_PNG,
     INDEX_CSV,
@@ -233,19 +234,61 @@ def test_ray_without_ray_installed_says_how_to_install_it(tmp_path):
     assert len(proc.stderr.strip().splitlines()) == 1 and not (tmp_path / 'o').exists()
 
 
-@pytest.mark.ray
-def test_ray_cluster_gives_the_local_pools_outputs(local_batch, tmp_path):
+def _dies_until(marker: str, deaths: int) -> int:
+    """A task whose process dies (as one killed or out of memory) its first ``deaths`` runs, counted in ``marker``."""
+    path = Path(marker)
+    runs = len(path.read_text()) if path.exists() else 0
+    path.write_text('x' * (runs + 1))
+    if runs < deaths:
+        os._exit(3)
+    return runs + 1
+
+
+def test_a_local_worker_that_dies_is_replaced_and_its_bag_run_again(tmp_path):
+    tasks = [(str(tmp_path / 'once'), 1), (str(tmp_path / 'always'), 99)]
+    results = dict(run_local(_star, tasks, 1))
+    assert results[0] == 2  # died once, then ran in a new worker
+    assert isinstance(results[1], Lost) and f'died {LOCAL_ATTEMPTS} times' in results[1].why
+    assert len((tmp_path / 'always').read_text()) == LOCAL_ATTEMPTS
+
+
+def _star(args):
+    return _dies_until(*args)
+
+
+@pytest.fixture(scope='module')
+def ray_cluster():
+    """A real Ray cluster of this machine (2 CPUs, on 127.0.0.1), this process connected to it: its address."""
     ray = pytest.importorskip('ray', reason="needs Ray: pip install '.[fleet]'")
-    ray.init(num_cpus=2, include_dashboard=False, _node_ip_address='127.0.0.1', log_to_driver=False)
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)  # this machine only
+    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])  # its workers cannot import this file
     try:
-        address = ray.get_runtime_context().gcs_address
-        out = tmp_path / 'out'
-        _, sources, local_status = local_batch
-        proc = subprocess.run([sys.executable, '-m', 'plane_validation.cli', 'batch', *sources, '--out', str(out),
-                               '--ray', address, *FAST], capture_output=True, text=True, timeout=300)
+        yield ray.get_runtime_context().gcs_address
     finally:
         ray.shutdown()
-    assert proc.returncode == local_status == 1, proc.stderr
+
+
+@pytest.mark.ray
+def test_a_ray_worker_lost_mid_task_is_retried_up_to_a_limit(ray_cluster, tmp_path):
+    tasks = [(str(tmp_path / 'once'), 1), (str(tmp_path / 'always'), 99)]
+    results = dict(run_ray(_star, tasks, ray_cluster))  # this process's connection
+    assert results[0] == 2
+    assert isinstance(results[1], Lost) and f'lost {RAY_RETRIES + 1} times' in results[1].why, results[1]
+    assert len((tmp_path / 'always').read_text()) == RAY_RETRIES + 1
+
+
+@pytest.mark.ray
+def test_ray_cluster_gives_the_local_pools_outputs(local_batch, ray_cluster, tmp_path):
+    out = tmp_path / 'out'
+    _, sources, local_status = local_batch
+    proc = subprocess.Popen([sys.executable, '-m', 'plane_validation.cli', 'batch', *sources, '--out', str(out),
+                             '--ray', ray_cluster, *FAST], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _, err = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == local_status == 1, err
     local = local_batch[0]
     ray_rows, local_rows = _index(out), _index(local)
     assert {k: v['status'] for k, v in ray_rows.items()} == {k: v['status'] for k, v in local_rows.items()}

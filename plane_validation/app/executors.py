@@ -5,6 +5,7 @@ stops the workers. No ROS import: ``func`` is any module-level function.
 """
 from __future__ import annotations
 
+import re
 import signal
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -75,6 +76,12 @@ def run_local(func: Callable, tasks: list, workers: int) -> Iterator[tuple[int, 
             executor.shutdown(wait=finished, kill_workers=not finished)
 
 
+def _last_line(exc: BaseException) -> str:
+    """The last line of an exception's text (a traceback's is the error), without terminal colours."""
+    lines = re.sub(r'\x1b\[[0-9;]*m', '', str(exc)).strip().splitlines()
+    return lines[-1].strip() if lines else type(exc).__name__
+
+
 def import_ray():
     """The ray module, or ValueError saying how to install it."""
     try:
@@ -107,9 +114,11 @@ def run_ray(func: Callable, tasks: list, address: str) -> Iterator[tuple[int, ob
                 i = pending.pop(ref)
                 try:
                     result = ray.get(ref)
+                except ray.exceptions.RayTaskError as exc:  # not retried: it would fail again (no such module?)
+                    result = Lost(f'the Ray task failed: {_last_line(exc.cause or exc)}')
                 except ray.exceptions.RayError as exc:
-                    first = next(iter(str(exc).strip().splitlines()), type(exc).__name__)
-                    result = Lost(f'Ray task failed after {RAY_RETRIES} retries ({type(exc).__name__}: {first})')
+                    result = Lost(f'its Ray worker was lost {RAY_RETRIES + 1} times (Ray retries a task '
+                                  f'{RAY_RETRIES} times): {type(exc).__name__}: {_last_line(exc)}')
                 yield i, result
     finally:
         for ref in pending:

@@ -27,7 +27,7 @@ from ..formats.bags import BAG_SUFFIXES
 from ..formats.files import atomic_output
 from .config import PipelineConfig
 from .diagnostics import Level
-from .report import dumps, jsonable
+from .report import jsonable
 
 __all__ = ['BagJob', 'Status', 'Row', 'SUMMARY', 'REPORT', 'INDEX_CSV', 'INDEX_MD', 'FLEET_PNG', 'STAGING',
            'find_bags', 'plan_jobs', 'frame_record', 'summary_document', 'comparable', 'settings_of',
