@@ -52,7 +52,7 @@ def main() -> None:
         if not args.no_ray:
             import ray
             start = time.perf_counter()
-            ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+            ray.init(address='local', num_cpus=2, include_dashboard=False, log_to_driver=False)
             started = time.perf_counter() - start
             runs['Ray, 2 CPUs'] = dict(ray='auto')
         times: dict[str, list] = {name: [] for name in runs}

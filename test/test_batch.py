@@ -260,7 +260,7 @@ def _star(args):
 def ray_cluster():
     """A real Ray cluster of this machine (2 CPUs, on 127.0.0.1), this process connected to it: its address."""
     ray = pytest.importorskip('ray', reason="needs Ray: pip install '.[fleet]'")
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)  # this machine only
+    ray.init(address='local', num_cpus=2, include_dashboard=False, log_to_driver=False)  # a new one
     ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])  # its workers cannot import this file
     try:
         yield ray.get_runtime_context().gcs_address

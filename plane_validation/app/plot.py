@@ -272,7 +272,7 @@ def plot_bag_report(summary: dict, path: str | Path) -> Path:
     ax_sep.set_title('Dunn and Davies–Bouldin')
     ax_t.plot(x, series['tolerance'], color='crimson', drawstyle='steps-post', marker='.', label='t in use')
     ax_t.set_ylabel('RANSAC tolerance t [m]')
-    ax_t.set_title('Tolerance t (tuned) over time')
+    ax_t.set_title('Tolerance t in use (a quick estimate until the first sweep ends)')
     ax_k.plot(x, series['planes'], color='black', drawstyle='steps-post', marker='.', label='planes found')
     ax_k.set_ylabel('number of planes')
     ax_k.set_title('Planes per frame')
