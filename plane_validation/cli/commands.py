@@ -12,7 +12,7 @@
 CLOUD is a .pcd, .ply, .npy, .xyz/.txt/.csv file or ``BAG[:TOPIC[:INDEX]]``. Exit status: 0 on
 success, 2 for bad usage or input (one line on stderr), 130 when interrupted (Ctrl-C), 143 on
 SIGTERM, 129 on SIGHUP and 141, quietly, when stdout closes early (piped into ``head``); an output
-is complete or absent either way.
+is complete or absent either way. ``batch`` exits with 1 when a bag failed.
 """
 from __future__ import annotations
 
@@ -627,7 +627,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='plane-validation', description='Self-validating plane detection: sequential RANSAC planes scored by '
         'cluster validity indices (Dunn, Davies-Bouldin, GS, GSplanes). Coordinates are taken as meters.',
-        epilog='Exit status: 0 success, 1 a worker process of a parallel sweep died, 2 bad usage or input, '
+        epilog='Exit status: 0 success, 1 a worker process of a parallel sweep died or a bag of a batch failed, '
+        '2 bad usage or input, '
         f'130 interrupted, 143 SIGTERM, 129 SIGHUP, {EXIT_BROKEN_PIPE} stdout closed early (piped into head).')
     sub = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
 
