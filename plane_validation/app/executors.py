@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import re
 import signal
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -16,6 +17,8 @@ __all__ = ['Lost', 'RAY_RETRIES', 'LOCAL_ATTEMPTS', 'RAY_INSTALL', 'run_local', 
 RAY_RETRIES = 3
 #: Times the local pool runs a task whose worker process died (each death also stops the tasks beside it).
 LOCAL_ATTEMPTS = 2
+#: How long an interrupted batch waits for Ray to stop its running tasks (s).
+CANCEL_WAIT_S = 10.0
 #: What to do without Ray.
 RAY_INSTALL = ("--ray needs Ray, in the package's fleet extra: pip install '.[fleet]' in the checkout "
                "(or pip install 'ray>=2.9')")
@@ -73,7 +76,12 @@ def run_local(func: Callable, tasks: list, workers: int) -> Iterator[tuple[int, 
         finished = True
     finally:
         if executor is not None:
-            executor.shutdown(wait=finished, kill_workers=not finished)
+            if not finished:  # loky fails when it kills its workers before it has handed them their calls
+                deadline = time.monotonic() + 1.0
+                while not all(f.running() or f.done() for f in running) and time.monotonic() < deadline:
+                    time.sleep(0.01)
+            # waited for: no worker may go on writing once the caller cleans up
+            executor.shutdown(wait=True, kill_workers=not finished)
 
 
 def _last_line(exc: BaseException) -> str:
@@ -123,5 +131,7 @@ def run_ray(func: Callable, tasks: list, address: str) -> Iterator[tuple[int, ob
     finally:
         for ref in pending:
             ray.cancel(ref, force=True)
+        if pending:  # their workers are killed: wait for that (a while), as the caller cleans up next
+            ray.wait(list(pending), num_returns=len(pending), timeout=CANCEL_WAIT_S)
         if connected:
             ray.shutdown()

@@ -112,7 +112,10 @@ def _row(job: BagJob, outcome: Outcome | Lost) -> Row:
     if outcome.summary is None:
         return failed_row(job, outcome.error or 'no summary')
     if outcome.files is not None:
-        _write_returned(job, outcome.files)
+        try:
+            _write_returned(job, outcome.files)
+        except OSError as exc:
+            return failed_row(job, f'cannot write its folder {job.folder}: {exc}')
     return row_of(outcome.summary)
 
 
