@@ -192,6 +192,8 @@ def test_a_signal_mid_batch_keeps_the_bags_done_and_a_rerun_continues(tmp_path, 
         _assert_complete(out / name)
     _no_staging(out)
     assert not (out / INDEX_CSV).exists()
+    if sig != 'SIGTERM':
+        return  # the rerun is the same after either
     nxt = NAMES[len(done)]
     assert cli_main(['batch', str(BAGS / NAMES[0]), str(BAGS / nxt), '--out', str(out), *FAST]) == 0
     rows = _index(out)
@@ -271,7 +273,7 @@ def ray_cluster():
 @pytest.mark.ray
 def test_a_ray_worker_lost_mid_task_is_retried_up_to_a_limit(ray_cluster, tmp_path):
     tasks = [(str(tmp_path / 'once'), 1), (str(tmp_path / 'always'), 99)]
-    results = dict(run_ray(_star, tasks, ray_cluster))  # this process's connection
+    results = dict(run_ray(_star, tasks))  # this process's connection
     assert results[0] == 2
     assert isinstance(results[1], Lost) and f'lost {RAY_RETRIES + 1} times' in results[1].why, results[1]
     assert len((tmp_path / 'always').read_text()) == RAY_RETRIES + 1

@@ -9,9 +9,11 @@ import re
 import signal
 import time
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
-__all__ = ['Lost', 'RAY_RETRIES', 'LOCAL_ATTEMPTS', 'RAY_INSTALL', 'run_local', 'run_ray', 'import_ray']
+__all__ = ['Lost', 'RAY_RETRIES', 'LOCAL_ATTEMPTS', 'RAY_INSTALL', 'run_local', 'run_ray', 'ray_connection',
+           'import_ray']
 
 #: Times Ray runs a task again after its worker died (a node lost, out of memory): Ray's max_retries.
 RAY_RETRIES = 3
@@ -26,7 +28,7 @@ RAY_INSTALL = ("--ray needs Ray, in the package's fleet extra: pip install '.[fl
 
 @dataclass(frozen=True)
 class Lost:
-    """A task that did not end: its worker process died (``why``)."""
+    """A task that did not return: its worker process died, or it raised (``why``)."""
 
     why: str
 
@@ -72,6 +74,8 @@ def run_local(func: Callable, tasks: list, workers: int) -> Iterator[tuple[int, 
                         waiting.append(i)
                         continue
                     result = Lost(f'its worker process died {attempts[i]} times ({type(exc).__name__}: {exc})')
+                except Exception as exc:  # it raised (its result could not be sent back, say)
+                    result = Lost(f'{type(exc).__name__}: {exc}')
                 yield i, result
         finished = True
     finally:
@@ -99,19 +103,33 @@ def import_ray():
     return ray
 
 
-def run_ray(func: Callable, tasks: list, address: str) -> Iterator[tuple[int, object]]:
-    """``func`` over ``tasks``, one Ray task each (one CPU, retried RAY_RETRIES times when its worker dies) on the
-    cluster at ``address`` ('auto', 'host:port' or 'ray://host:port'); a process already connected to Ray uses its
-    connection."""
+@contextmanager
+def ray_connection(address: str | None) -> Iterator[None]:
+    """Connected to the Ray cluster at ``address`` ('auto', 'host:port' or 'ray://host:port') for the block;
+    nothing to do for None, or in a process already connected to Ray. ValueError when there is no such cluster."""
+    if address is None:
+        yield
+        return
     ray = import_ray()
-    connected = not ray.is_initialized()
-    if connected:
-        try:
-            ray.init(address=address, include_dashboard=False, log_to_driver=False)
-        except (ConnectionError, RuntimeError, ValueError) as exc:
-            raise ValueError(f'cannot connect to the Ray cluster at {address!r}: {" ".join(str(exc).split())} '
-                             '(start one with `ray start --head`, give its address, or "auto" on one of its '
-                             'nodes)') from exc
+    if ray.is_initialized():
+        yield
+        return
+    try:  # the workers' output is not ours to print (a Ray Client connection takes no such option)
+        ray.init(address=address, **({} if address.startswith('ray://') else {'log_to_driver': False}))
+    except (ConnectionError, RuntimeError, ValueError) as exc:
+        raise ValueError(f'cannot connect to the Ray cluster at {address!r}: {" ".join(str(exc).split())} '
+                         '(start one with `ray start --head`, give its address, or "auto" on one of its '
+                         'nodes)') from exc
+    try:
+        yield
+    finally:
+        ray.shutdown()
+
+
+def run_ray(func: Callable, tasks: list) -> Iterator[tuple[int, object]]:
+    """``func`` over ``tasks`` on the Ray cluster this process is connected to (:func:`ray_connection`), one Ray
+    task each (one CPU, retried RAY_RETRIES times when its worker is lost)."""
+    ray = import_ray()
     remote = ray.remote(num_cpus=1, max_retries=RAY_RETRIES, retry_exceptions=False)(func)
     pending = {}
     try:
@@ -133,5 +151,3 @@ def run_ray(func: Callable, tasks: list, address: str) -> Iterator[tuple[int, ob
             ray.cancel(ref, force=True)
         if pending:  # their workers are killed: wait for that (a while), as the caller cleans up next
             ray.wait(list(pending), num_returns=len(pending), timeout=CANCEL_WAIT_S)
-        if connected:
-            ray.shutdown()

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..app.config import PipelineConfig
-from ..app.executors import Lost, run_local, run_ray
+from ..app.executors import Lost, ray_connection, run_local, run_ray
 from ..app.fleet import (
     REPORT,
     SUMMARY,
@@ -155,8 +155,14 @@ def run_batch(sources: Iterable[str | Path], out: str | Path, *, config: Pipelin
     bags = find_bags(sources, out)
     if out.exists() and not out.is_dir():
         raise ValueError(f'--out {out} is a file: give a folder')
-    out.mkdir(parents=True, exist_ok=True)
-    jobs = plan_jobs(bags, out, config, topic, storage)
+    with ray_connection(ray):  # before the output folder: no cluster, no folder
+        out.mkdir(parents=True, exist_ok=True)
+        return _run(plan_jobs(bags, out, config, topic, storage), out, workers, ray, force, progress, echo)
+
+
+def _run(jobs: list[BagJob], out: Path, workers: int | None, ray: str | None, force: bool, progress: bool | None,
+         echo: Callable[[str], None] | None) -> list[Row]:
+    """run_batch's work once the output folder exists (and Ray is connected when ``ray``)."""
     rows: dict[str, Row] = {}
     with _only_batch(out):
         remove_staging(out)  # what a killed batch left
@@ -171,7 +177,7 @@ def run_batch(sources: Iterable[str | Path], out: str | Path, *, config: Pipelin
         marker.touch()
         try:
             tasks = [(job, marker.name) for job in todo]
-            run = run_ray(process_bag, tasks, ray) if ray else \
+            run = run_ray(process_bag, tasks) if ray else \
                 run_local(process_bag, tasks, min(workers or default_workers(), max(len(tasks), 1)))
             with closing(run), _progress(len(todo), progress) as bar:
                 for i, outcome in run:
