@@ -43,6 +43,7 @@ from ..app.fleet import (
     write_index,
 )
 from ..app.report import dumps
+from .replay import replay_offline
 
 __all__ = ['Outcome', 'process_bag', 'run_batch', 'default_workers']
 
@@ -66,7 +67,6 @@ def process_bag(task: tuple[BagJob, str]) -> Outcome:
     failure is the Outcome's error."""
     from ..app.pipeline import limit_blas_threads
     from ..app.plot import plot_bag_report
-    from .replay import replay_offline
 
     job, marker = task
     limit_blas_threads()  # on any executor: the parallelism is one bag per worker
