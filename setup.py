@@ -30,6 +30,8 @@ CORE = [
     'plyfile>=1.0',  # .ply reading/writing in the CLI (GPL-3.0; imported only for .ply files)
     'pillow>=8',  # palette PNGs of the index plots (matplotlib depends on it anyway)
 ]
+# `plane-validation batch --ray`: bags on a Ray cluster (docs/batch.md); pip only, no rosdep key.
+FLEET = ['ray>=2.9']
 
 setup(
     name=PACKAGE,
@@ -49,6 +51,7 @@ setup(
     extras_require={
         'core': CORE,
         'ros': CORE + ROS_WHEELS,
+        'fleet': CORE + ROS_WHEELS + FLEET,
         'test': ['pytest>=7', 'hypothesis>=6', 'scikit-learn>=1.2'],
     },
     zip_safe=True,

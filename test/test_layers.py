@@ -56,7 +56,8 @@ def test_replay_and_demo_without_ros_say_so_in_one_line():
         from plane_validation.cli.commands import main
         sys.exit(main(sys.argv[1:]))
     ''')
-    for argv in (['replay', str(ROOT / 'bags' / 'cube')], ['demo', '--out', 'unused']):
+    for argv in (['replay', str(ROOT / 'bags' / 'cube')], ['demo', '--out', 'unused'],
+                 ['batch', str(ROOT / 'bags' / 'cube'), '--out', 'unused']):
         proc = subprocess.run([sys.executable, '-c', script, *argv], capture_output=True, text=True, timeout=120,
                               cwd=Path(__file__).parent)
         assert proc.returncode == 2 and 'Traceback' not in proc.stderr, proc.stderr

@@ -54,7 +54,8 @@ ROSDEP_KEYS = {
     'pytest': 'python3-pytest',
 }
 #: pip-only optional imports, made inside functions with a clear error when missing (no rosdep key)
-OPTIONAL_PIP = {'pypcd4', 'lzf', 'mcap', 'mcap_ros2'}  # lzf: pypcd4's; mcap*: test-only, skipped when missing
+OPTIONAL_PIP = {'pypcd4', 'lzf', 'mcap', 'mcap_ros2',  # lzf: pypcd4's; mcap*: test-only, skipped when missing
+                'ray'}  # batch --ray: the fleet extra
 #: ROS packages whose python module has the package's name
 ROS_PACKAGES = {'rclpy', 'launch', 'launch_ros', 'ament_index_python', 'rosidl_runtime_py',
                 'message_filters', 'tf2_ros', 'tf2_py', 'rosbag2_py'}

@@ -240,3 +240,89 @@ def plot_plane_count(result, path: str | Path, *, title: str = '', true_planes: 
     fig.suptitle(f'{title + ": " if title else ""}indices vs number of planes at t = '
                  f'{result.segmentation.tolerance:.3g}; selected k = {result.n_planes}', fontsize=11)
     return _save_figure(fig, path, palette=True)
+
+
+# -- batch reports ---------------------------------------------------------------------------------
+
+#: Marker colour of a frame's status in the batch reports.
+_LEVEL_COLOR = {'OK': 'tab:green', 'WARN': 'tab:orange', 'ERROR': 'tab:red'}
+
+
+def plot_bag_report(summary: dict, path: str | Path) -> Path:
+    """One bag of a batch over bag time (s from its first frame): the silhouette indices with PS, Dunn and
+    Davies-Bouldin, the tolerance t and the number of planes; each frame's status marked (green OK, orange WARN:
+    not reliable, red ERROR). ``summary``: an :func:`~.fleet.summary_document`."""
+    frames = summary['frames']
+    start = frames[0]['timestamp'] if frames else 0
+    x = np.array([(f['timestamp'] - start) * 1e-9 for f in frames])
+    series = {key: _finite([np.nan if f[key] is None else f[key] for f in frames])
+              for key in ('plane_silhouette', 'gs_planes', 'gs', 'silhouette', 'dunn', 'davies_bouldin',
+                          'tolerance', 'planes')}
+    fig, axes = _figure(2, 2, (10.0, 6.4))
+    (ax_sil, ax_sep), (ax_t, ax_k) = axes
+    for name in ('plane_silhouette', 'gs_planes', 'gs', 'silhouette'):
+        _plot_index(ax_sil, x, series[name], name)
+    ax_sil.set_ylabel('silhouette index (higher is better)')
+    ax_sil.set_title('PS and the silhouettes')
+    _plot_index(ax_sep, x, series['dunn'], 'dunn')
+    ax_sep.set_ylabel('Dunn index (higher is better)')
+    ax_db = ax_sep.twinx()
+    _plot_index(ax_db, x, series['davies_bouldin'], 'davies_bouldin')
+    ax_db.set_ylabel('Davies–Bouldin index (lower is better)')
+    ax_sep.set_title('Dunn and Davies–Bouldin')
+    ax_t.plot(x, series['tolerance'], color='crimson', drawstyle='steps-post', marker='.', label='t in use')
+    ax_t.set_ylabel('RANSAC tolerance t [m]')
+    ax_t.set_title('Tolerance t in use (a quick estimate until the first sweep ends)')
+    ax_k.plot(x, series['planes'], color='black', drawstyle='steps-post', marker='.', label='planes found')
+    ax_k.set_ylabel('number of planes')
+    ax_k.set_title('Planes per frame')
+    ax_k.yaxis.get_major_locator().set_params(integer=True)
+    ax_k.set_ylim(bottom=0, top=max(np.nanmax(series['planes'], initial=0), 1) + 0.5)
+    levels = [f['level'] for f in frames]
+    for ax in axes.flat:
+        low = ax.get_ylim()[0] if len(x) else 0
+        for level, color in _LEVEL_COLOR.items():
+            at = [i for i, name in enumerate(levels) if name == level]
+            if at:
+                ax.scatter(x[at], np.full(len(at), low), marker='|', s=120, color=color, clip_on=False,
+                           label=f'{level} ({len(at)} frames)', zorder=3)
+        ax.set_xlabel('bag time [s] from the first frame')
+        ax.grid(True, alpha=0.3)
+    for ax in (ax_sil, ax_t, ax_k):
+        ax.legend(fontsize=7.5, loc='best')
+    handles = [sum(pair, []) for pair in zip(ax_sep.get_legend_handles_labels(), ax_db.get_legend_handles_labels())]
+    ax_sep.legend(*handles, fontsize=7.5, loc='best')
+    fig.suptitle(f'{summary["bag"]} [{summary["topic"]}]: {summary["frame_count"]} frames, '
+                 f'{summary["reliable_share"]:.0%} reliable', fontsize=11)
+    return _save_figure(fig, path, palette=True)
+
+
+def plot_fleet(rows, path: str | Path) -> Path:
+    """The batch at a glance: per bag, the share of reliable frames and the tuned t (median, min-max bar);
+    failed bags are named in red with no bar. ``rows``: :class:`~.fleet.Row` objects."""
+    names = [r.name for r in rows]
+    y = np.arange(len(rows))
+    fig, axes = _figure(1, 2, (10.0, 1.2 + 0.32 * max(len(rows), 3)))
+    ax_share, ax_t = axes[0]
+    share = _finite([r.reliable_share for r in rows])
+    ax_share.barh(y, share, color=[_LEVEL_COLOR['OK' if s >= 0.5 else 'WARN'] for s in np.nan_to_num(share)])
+    for at, value in zip(y, share):
+        ax_share.text(0.01, at, 'failed' if np.isnan(value) else f'{value:.0%}', va='center', fontsize=8)
+    ax_share.set_xlim(0, 1)
+    ax_share.set_xlabel('share of frames with reliable planes (status OK)')
+    med = _finite([r.tolerance_median for r in rows])
+    spread = np.array([[m - r.tolerance_min, r.tolerance_max - m] for m, r in zip(med, rows)]).T.reshape(2, -1)
+    ax_t.errorbar(med, y, xerr=np.nan_to_num(spread), fmt='o', color='crimson', capsize=3)
+    ax_t.set_xlabel('tolerance t in use [m]: median, min-max over frames')
+    if np.isfinite(med).any() and np.nanmin(med) > 0 and np.nanmax(med) > 10 * np.nanmin(med):
+        ax_t.set_xscale('log')
+    for ax in (ax_share, ax_t):
+        ax.set_yticks(y, names, fontsize=8)
+        ax.set_ylim(len(rows) - 0.5, -0.5)
+        ax.grid(True, axis='x', alpha=0.3)
+        for tick, r in zip(ax.get_yticklabels(), rows):
+            if r.status.value == 'failed':
+                tick.set_color('tab:red')
+    failed = sum(r.status.value == 'failed' for r in rows)
+    fig.suptitle(f'{len(rows)} bags' + (f', {failed} failed (red)' if failed else ''), fontsize=11)
+    return _save_figure(fig, path, palette=True)

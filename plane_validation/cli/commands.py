@@ -2,6 +2,7 @@
 
     plane-validation demo                      # the main job: a bundled bag through the node over DDS
     plane-validation replay BAG [--live] ...   # replay a bag offline (default) or live
+    plane-validation batch SOURCE... --out DIR # replay many bags: per-bag reports and an index
     plane-validation detect CLOUD [--tolerance T | --auto] [--json] [--out LABELED.ply]
     plane-validation sweep CLOUD [--tolerances A:B:N] [--plot PNG] [--csv CSV] [--json]   # alias: tune
     plane-validation planes CLOUD [--tolerance T] [--max-planes K] [--plot PNG] [--json]
@@ -11,7 +12,7 @@
 CLOUD is a .pcd, .ply, .npy, .xyz/.txt/.csv file or ``BAG[:TOPIC[:INDEX]]``. Exit status: 0 on
 success, 2 for bad usage or input (one line on stderr), 130 when interrupted (Ctrl-C), 143 on
 SIGTERM, 129 on SIGHUP and 141, quietly, when stdout closes early (piped into ``head``); an output
-is complete or absent either way.
+is complete or absent either way. ``batch`` exits with 1 when a bag failed.
 """
 from __future__ import annotations
 
@@ -380,10 +381,12 @@ def _config(args: argparse.Namespace):
     return dataclasses.replace(PipelineConfig(), **changes).validate()
 
 
-def _ros_replay():
-    """The ROS layer's replay module; ValueError (a one-line error) when the ROS 2 packages are not installed."""
+def _ros_replay(module: str = 'replay'):
+    """The ROS layer's replay module (or ``module``); ValueError (a one-line error) when the ROS 2 packages are
+    not installed."""
+    import importlib
     try:
-        from ..ros import replay
+        replay = importlib.import_module(f'..ros.{module}', __package__)
     except ImportError as exc:  # ModuleNotFoundError in a core-only install
         raise ValueError(f'this command needs the ROS 2 Python packages ({exc.name or exc} is missing): install it '
                          "with its ros extra (pip install '.[ros]', as ./run does), or source a ROS 2 Jazzy "
@@ -407,6 +410,25 @@ def cmd_replay(args: argparse.Namespace) -> int:
         summary = replay_offline(args.bag, topic=args.topic, out=args.out, config=cfg, storage=args.storage)
     print(summary.line())
     return 0
+
+
+def cmd_batch(args: argparse.Namespace) -> int:
+    from ..app.fleet import Status, format_table
+    cfg = _config(args)
+    if not args.out.strip():
+        raise ValueError('--out needs a folder name, got an empty one')
+    if args.ray is not None:
+        from ..app.executors import import_ray
+        import_ray()  # before the work: without Ray, say how to install it
+    batch = _ros_replay('batch')
+    start = time.perf_counter()
+    rows = batch.run_batch(args.sources, args.out, config=cfg, topic=args.topic, storage=args.storage,
+                           workers=args.workers, ray=args.ray, force=args.force)
+    print(format_table(rows))
+    failed = sum(row.status is Status.FAILED for row in rows)
+    print(f'{len(rows)} bags, {failed} failed, in {time.perf_counter() - start:.1f} s; index: '
+          f'{Path(args.out) / "index.md"}')
+    return 1 if failed else 0
 
 
 def demo_bag() -> Path:
@@ -594,6 +616,14 @@ def _orientation(args: argparse.Namespace):
     return orientation((args.normal_axis_x, args.normal_axis_y, args.normal_axis_z), args.axis_angle, args.axis_mode)
 
 
+def _add_replay_options(parser: argparse.ArgumentParser) -> None:
+    """What replay and batch both take: --topic, --storage and the pipeline options."""
+    parser.add_argument('--topic', help='PointCloud2 topic (auto-detected when there is one)')
+    parser.add_argument('--storage', choices=('mcap', 'sqlite3'),
+                        help='output bag storage (default: the input bag\'s; MCAP for a ROS 1 bag)')
+    _add_pipeline_options(parser)
+
+
 def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:
     """One option per pipeline parameter (replay), e.g. --tune-min for tune_min; unset ones keep the
     table's default. Values are checked by PipelineConfig.validate."""
@@ -620,7 +650,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='plane-validation', description='Self-validating plane detection: sequential RANSAC planes scored by '
         'cluster validity indices (Dunn, Davies-Bouldin, GS, GSplanes). Coordinates are taken as meters.',
-        epilog='Exit status: 0 success, 1 a worker process of a parallel sweep died, 2 bad usage or input, '
+        epilog='Exit status: 0 success, 1 a worker process of a parallel sweep died or a bag of a batch failed, '
+        '2 bad usage or input, '
         f'130 interrupted, 143 SIGTERM, 129 SIGHUP, {EXIT_BROKEN_PIPE} stdout closed early (piped into head).')
     sub = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
 
@@ -637,15 +668,30 @@ def build_parser() -> argparse.ArgumentParser:
 
     replay = sub.add_parser('replay', help='replay a bag through the per-frame pipeline')
     replay.add_argument('bag', help='a rosbag2 directory, .mcap or .db3 file, or ROS 1 .bag with PointCloud2 messages')
-    replay.add_argument('--topic', help='PointCloud2 topic (auto-detected when there is one)')
     replay.add_argument('--out', help='output rosbag2 directory (default: <bag>.planes beside the bag)')
     replay.add_argument('--live', action='store_true', help='publish on ROS topics at the recorded timing')
     replay.add_argument('--rate', type=_positive_float, help='playback speed factor for --live (default 1)')
     replay.add_argument('--no-node', action='store_true', help='with --live: do not start the node in-process')
-    replay.add_argument('--storage', choices=('mcap', 'sqlite3'),
-                        help='output bag storage (default: the input bag\'s; MCAP for a ROS 1 bag)')
-    _add_pipeline_options(replay)
+    _add_replay_options(replay)
     replay.set_defaults(func=cmd_replay)
+
+    batch = sub.add_parser('batch', help='replay many bags offline: per bag an output bag, summary.json and '
+                           'report.png; an index across them', description='Replay every bag the sources name '
+                           'offline, as replay does, into OUT/<bag name>/ (the output bag, summary.json, report.png, '
+                           'each folder complete or absent), and write OUT/index.csv, index.md and fleet.png. Bags '
+                           'run in a local process pool, or with --ray on a Ray cluster. A rerun skips the bags '
+                           'already done with the same options. Exit status 1 when a bag failed (its row says why).')
+    batch.add_argument('sources', nargs='+', metavar='SOURCE', help='a bag (rosbag2 directory, .mcap, .db3 or ROS 1 '
+                       '.bag), or a folder searched for bags')
+    batch.add_argument('--out', required=True, metavar='DIR', help='output folder')
+    where = batch.add_mutually_exclusive_group()
+    where.add_argument('--workers', type=_at_least(1), metavar='N', help='local worker processes (default: one per '
+                       'CPU core), each with one BLAS thread')
+    where.add_argument('--ray', metavar='ADDRESS', help="run on an existing Ray cluster: 'auto', host:port or "
+                       "ray://host:port (needs the fleet extra: pip install '.[fleet]'; docs/batch.md)")
+    batch.add_argument('--force', action='store_true', help='replay the bags already done too')
+    _add_replay_options(batch)
+    batch.set_defaults(func=cmd_batch)
 
     detect = sub.add_parser('detect', help='detect planes in a cloud: planes, tolerance, every index, verdict',
                             description='Detect planes in one cloud and score them. Without --tolerance the '

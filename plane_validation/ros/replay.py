@@ -16,7 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from ..app.config import PipelineConfig
-from ..app.pipeline import TUNE_FAILURES, FramePipeline, header_stamp_ns
+from ..app.pipeline import TUNE_FAILURES, FramePipeline, FrameResult, header_stamp_ns
 from ..app.summary import FrameSummary, ReplaySummary
 from ..formats.bags import POINTCLOUD2, BagError, bag_storage, open_bag, pick_topic, read_clouds
 from .messages import frame_messages, node_values, status_name, to_rclpy_cloud
@@ -59,11 +59,13 @@ def _progress(total: int, enabled: bool | None):
 def replay_offline(bag: str | Path, *, topic: str | None = None, out: str | Path | None = None,
                    config: PipelineConfig | None = None, node_name: str = 'plane_validation',
                    echo: Callable[[str], None] | None = print, progress: bool | None = None,
-                   storage: str | None = None) -> ReplaySummary:
+                   storage: str | None = None,
+                   on_frame: Callable[[FrameSummary, FrameResult], None] | None = None) -> ReplaySummary:
     """Run every cloud of ``bag`` through the node's per-frame pipeline and write ``out``.
 
     out: output rosbag2 directory (default ``<bag>.planes`` beside the bag); storage: 'mcap' or
-    'sqlite3' (default: the input's). echo: receives the per-frame lines (None = silent).
+    'sqlite3' (default: the input's). echo: receives the per-frame lines (None = silent); on_frame:
+    each frame's summary and the pipeline's whole result (batch reports read its indices).
     Raises ReplayError.
     """
     bag = Path(bag)
@@ -95,6 +97,8 @@ def replay_offline(bag: str | Path, *, topic: str | None = None, out: str | Path
                     pipeline.retune(points, result.clock, stamp_ns, shape=shape)
             frame = FrameSummary.from_diagnostic(index, timestamp, result.diagnostic)
             summary.frames.append(frame)
+            if on_frame is not None:
+                on_frame(frame, result)
             bar.update(1)
             if echo is not None:
                 bar.write(frame.line(), file=sys.stdout) if not bar.disable else echo(frame.line())
