@@ -97,3 +97,28 @@ def test_cli_options(tmp_path):
     bad = subprocess.run([sys.executable, '-m', 'plane_validation', 'detect', str(cloud), '--tolerance', '0.02',
                           '--axis-mode', 'parallel'], capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and 'normal_axis is (0, 0, 0)' in bad.stderr
+
+
+def test_every_command_searches_with_the_table_s_search_params(tmp_path, monkeypatch):
+    """detect, sweep and planes pass the same SearchParams (PipelineConfig.search) on: an option such as
+    --ransac-points reaches the search from each command (planes used to drop it)."""
+    from plane_validation.cli.commands import main
+    from plane_validation.core import ransac
+    cloud = tmp_path / 'room.npy'
+    np.save(cloud, scenes.room(3000, 0.005, seed=2).points)
+    seen = []
+    search = ransac.detect_planes
+
+    def spy(*args, **kwargs):
+        seen.append((kwargs['ransac_points'], kwargs['orientation']))
+        return search(*args, **kwargs)
+    monkeypatch.setattr(ransac, 'detect_planes', spy)
+    for module in ('plane_validation.core.tuning', 'plane_validation.app.detection'):
+        monkeypatch.setattr(f'{module}.detect_planes', spy)
+    options = ['--ransac-points', '2500', '--axis-mode', 'perpendicular', '--normal-axis-z', '1', '--json']
+    for command in (['detect', str(cloud), '--tolerance', '0.02'], ['sweep', str(cloud), '--tolerances', '0.01:0.02:2'],
+                    ['planes', str(cloud), '--tolerance', '0.02']):
+        seen.clear()
+        assert main(command + options) == 0, command
+        assert seen and all(points == 2500 and o is not None and o.mode is AxisMode.PERPENDICULAR
+                            for points, o in seen), (command, seen)

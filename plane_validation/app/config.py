@@ -12,6 +12,7 @@ from typing import Any
 
 from ..core.noise import NOISE_MODELS, NOISE_REFERENCE
 from ..core.orientation import AXIS_MODES, Orientation, orientation
+from ..core.params import SearchParams
 from ..core.ransac import GRID_POINTS, RANSAC_POINTS
 from ..core.tuning import CRITERIA, DEFAULT_CRITERION, SWEEP_MAX_PLANES, TUNE_CANDIDATES, TUNE_POINTS
 
@@ -178,6 +179,16 @@ class PipelineConfig:
         axis_mode is set and the axis is (0, 0, 0)."""
         return orientation((self.normal_axis_x, self.normal_axis_y, self.normal_axis_z), self.axis_angle,
                            self.axis_mode)
+
+    @property
+    def search(self) -> SearchParams:
+        """How detect_planes searches with these parameters (the keywords every caller passes)."""
+        return SearchParams(max_planes=self.max_planes, min_inliers=min_inliers_value(self.min_inliers),
+                            probability=self.probability, max_iterations=self.max_iterations,
+                            ransac_points=self.ransac_points or None, grid_points=self.grid_points or None,
+                            connectivity=self.connectivity, noise_model=self.noise_model,
+                            noise_reference=self.noise_reference, viewpoint=self.viewpoint,
+                            orientation=self.orientation)
 
     def validate(self) -> PipelineConfig:
         """Return self, or raise ValueError naming the first invalid field and why."""

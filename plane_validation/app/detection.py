@@ -15,11 +15,9 @@ import numpy as np
 
 from ..core.geometry import ring_image
 from ..core.indices import ValidityIndices, validity_indices
-from ..core.noise import NOISE_REFERENCE, noise_coefficient
-from ..core.orientation import Orientation
+from ..core.noise import noise_coefficient
+from ..core.params import SearchParams
 from ..core.ransac import (
-    GRID_POINTS,
-    RANSAC_POINTS,
     Segmentation,
     Viewpoint,
     as_points,
@@ -29,6 +27,7 @@ from ..core.ransac import (
 )
 from ..core.tuning import TuningResult, noise_from_segmentation, tune_tolerance
 from ..core.verdict import judge
+from .config import PipelineConfig
 
 __all__ = ['Detection', 'detect', 'ring_layout', 'tune_scan']
 
@@ -78,19 +77,20 @@ def _laid(points: np.ndarray, ring: np.ndarray | None, shape: tuple[int, int] | 
     return ring_layout(points, ring if shape is None and organize_rings and connectivity else None, viewpoint)
 
 
-def tune_scan(points: np.ndarray, *, ring: np.ndarray | None = None, organize_rings: bool = True,
-              shape: tuple[int, int] | None = None, connectivity: bool = True, viewpoint: Viewpoint = None,
-              seed: int | None = 0, **options) -> tuple[TuningResult, str | None]:
-    """:func:`tune_tolerance` of (N, 3) ``points`` (``options`` passed on), and what :func:`ring_layout`
-    says: an unorganized lidar scan with ``ring`` numbers (with ``organize_rings`` and ``connectivity``)
-    is swept and detected on its ring image, as the node does, and the chosen planes are carried back
-    to the points and scored and judged there (the sweep's rows stay the image's)."""
+def tune_scan(points: np.ndarray, *, search: SearchParams | None = None, ring: np.ndarray | None = None,
+              organize_rings: bool = True, shape: tuple[int, int] | None = None, seed: int | None = 0,
+              **options) -> tuple[TuningResult, str | None]:
+    """:func:`tune_tolerance` of (N, 3) ``points`` with ``search`` (None: the parameter table's defaults) and the
+    sweep's ``options``, and what :func:`ring_layout` says: an unorganized lidar scan with ``ring`` numbers (with
+    ``organize_rings`` and connectivity) is swept and detected on its ring image, as the node does, and the chosen
+    planes are carried back to the points and scored and judged there (the sweep's rows stay the image's)."""
+    search = PipelineConfig().search if search is None else search
+    options = dict(search.kwargs(), **options)
+    connectivity, viewpoint = search.connectivity, search.viewpoint
     laid, note = _laid(points, ring, shape, organize_rings, connectivity, viewpoint)
     if laid is None:
-        return tune_tolerance(points, seed=seed, shape=shape, connectivity=connectivity, viewpoint=viewpoint,
-                              **options), note
-    tuned = tune_tolerance(laid[0], seed=seed, shape=laid[1], connectivity=connectivity, viewpoint=viewpoint,
-                           **options)
+        return tune_tolerance(points, seed=seed, shape=shape, **options), note
+    tuned = tune_tolerance(laid[0], seed=seed, shape=laid[1], **options)
     seg = carried(tuned.segmentation, points, laid[2])
     scores = validity_indices(points, seg.labels, seed=seed)
     reliable, verdict = judge(points, seg, scores, None if np.isnan(tuned.seed_agreement) else tuned.seed_agreement)
@@ -101,40 +101,32 @@ def tune_scan(points: np.ndarray, *, ring: np.ndarray | None = None, organize_ri
         if seg.noise_model == 'depth_quadratic' else float('nan')), note
 
 
-def detect(points: np.ndarray, tolerance: float | None = None, *, seed: int = 0, max_planes: int = 10,
-           min_inliers: int | float = 0.02, progress: Callable[[int, int], None] | None = None,
-           shape: tuple[int, int] | None = None, noise_model: str = 'constant',
-           noise_reference: float = NOISE_REFERENCE, jobs: int = 1, connectivity: bool = True,
-           ransac_points: int | None = RANSAC_POINTS, viewpoint: Viewpoint = None,
-           ring: np.ndarray | None = None, organize_rings: bool = True,
-           grid_points: int | None = GRID_POINTS, orientation: Orientation | None = None) -> Detection:
-    """Planes of (N, 3) ``points`` at ``tolerance`` meters, or at the auto-tuned t when None;
-    ``shape`` (H, W) for an organized cloud; ``noise_model``, ``connectivity``, ``ransac_points``, ``grid_points``,
-    ``viewpoint`` and ``orientation`` as in :func:`detect_planes`; ``jobs`` as in :func:`tune_tolerance`. ``ring`` (N,):
-    each point's beam of an unorganized lidar scan, which is then searched (and tuned) on its ring
-    image as the node does (:func:`ring_layout`; with ``organize_rings`` and ``connectivity``), and
-    its planes carried back to the points.
+def detect(points: np.ndarray, tolerance: float | None = None, *, search: SearchParams | None = None, seed: int = 0,
+           progress: Callable[[int, int], None] | None = None, shape: tuple[int, int] | None = None, jobs: int = 1,
+           ring: np.ndarray | None = None, organize_rings: bool = True) -> Detection:
+    """Planes of (N, 3) ``points`` at ``tolerance`` meters, or at the auto-tuned t when None, searched with
+    ``search`` (None: the parameter table's defaults); ``shape`` (H, W) for an organized cloud; ``jobs`` as in
+    :func:`tune_tolerance`. ``ring`` (N,): each point's beam of an unorganized lidar scan, which is then searched
+    (and tuned) on its ring image as the node does (:func:`ring_layout`; with ``organize_rings`` and
+    connectivity), and its planes carried back to the points.
 
     Equivalent Python API calls (same results without ``ring``): fixed t -> ``detect_planes(points, t,
-    seed=seed, max_planes=..., min_inliers=...)`` and ``validity_indices(points, labels, seed=seed)``;
-    auto -> ``tune_tolerance(points, seed=seed, max_planes=..., min_inliers=...)``.
+    seed=seed, **search.kwargs())`` and ``validity_indices(points, labels, seed=seed)``; auto ->
+    ``tune_tolerance(points, seed=seed, **search.kwargs())``.
     """
     pts = as_points(points)
     start = time.perf_counter()
-    options = dict(max_planes=max_planes, min_inliers=min_inliers, noise_model=noise_model,
-                   noise_reference=noise_reference, ransac_points=ransac_points, grid_points=grid_points,
-                   orientation=orientation)
+    search = PipelineConfig().search if search is None else search
     if tolerance is None:
-        tuned, note = tune_scan(pts, ring=ring, organize_rings=organize_rings, shape=shape, connectivity=connectivity,
-                                viewpoint=viewpoint, seed=seed, progress=progress, jobs=jobs, **options)
+        tuned, note = tune_scan(pts, search=search, ring=ring, organize_rings=organize_rings, shape=shape, seed=seed,
+                                progress=progress, jobs=jobs)
         return Detection(points=pts, segmentation=tuned.segmentation, indices=tuned.indices,
                          tolerance=tuned.tolerance, tolerance_source='auto', reliable=tuned.reliable,
                          verdict=tuned.verdict, noise_estimate=tuned.noise_estimate, seed=seed,
                          seconds=time.perf_counter() - start, tuning=tuned, ring_image=note)
-    laid, note = _laid(pts, ring, shape, organize_rings, connectivity, viewpoint)
-    search, search_shape = (laid[0], laid[1]) if laid else (pts, shape)
-    seg = detect_planes(search, tolerance, seed=seed, shape=search_shape, connectivity=connectivity,
-                        viewpoint=viewpoint, **options)
+    laid, note = _laid(pts, ring, shape, organize_rings, search.connectivity, search.viewpoint)
+    cloud, cloud_shape = (laid[0], laid[1]) if laid else (pts, shape)
+    seg = detect_planes(cloud, tolerance, seed=seed, shape=cloud_shape, **search.kwargs())
     if laid is not None:
         seg = carried(seg, pts, laid[2])
     scores = validity_indices(pts, seg.labels, seed=seed)

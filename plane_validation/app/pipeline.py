@@ -32,7 +32,7 @@ from ..core.ransac import (
 from ..core.tuning import TuningResult, TuningWorkerError, noise_from_segmentation, quick_tolerance, tune_tolerance
 from ..core.verdict import judge
 from ..formats.pointcloud2 import ring_array, trailing_bytes, xyz_array
-from .config import PipelineConfig, min_inliers_value
+from .config import PipelineConfig
 from .detection import ring_layout
 from .diagnostics import Diagnostic, Level, fmt
 from .obstacles import ground_plane, obstacle_mask
@@ -289,16 +289,11 @@ class FramePipeline:
         def progress(*_) -> None:
             if stop is not None and stop():
                 raise _Abandoned
-        return tune_tolerance(points, None, cfg.criterion, max_planes=cfg.max_planes, progress=progress,
-                              min_inliers=min_inliers_value(cfg.min_inliers), probability=cfg.probability,
-                              max_iterations=cfg.max_iterations, sample_size=cfg.index_sample_size,
+        return tune_tolerance(points, None, cfg.criterion, progress=progress, sample_size=cfg.index_sample_size,
                               tune_points=cfg.tune_points, t_min=cfg.tune_min or None, t_max=cfg.tune_max or None,
                               count=cfg.tune_count, seed=frame_seed(cfg.seed, stamp_ns),
-                              ransac_points=cfg.ransac_points or None, grid_points=cfg.grid_points or None,
-                              sampled_separation=not cfg.exact_indices,
-                              shape=shape, connectivity=cfg.connectivity, noise_model=cfg.noise_model,
-                              noise_reference=cfg.noise_reference, viewpoint=cfg.viewpoint, jobs=cfg.tune_jobs,
-                              orientation=cfg.orientation)
+                              sampled_separation=not cfg.exact_indices, shape=shape, jobs=cfg.tune_jobs,
+                              **cfg.search.kwargs())
 
     def process_cloud(self, msg, *, tune_inline: bool = True) -> FrameResult:
         """One sensor_msgs/PointCloud2 (rclpy or rosbags) through :meth:`process`; a malformed
@@ -389,14 +384,7 @@ class FramePipeline:
                 else:
                     work, inverse = (voxel_downsample(valid, cfg.voxel_size) if cfg.voxel_size > 0 else (valid, None))
                 seed = frame_seed(cfg.seed, stamp_ns)
-                seg = detect_planes(work, tolerance, max_planes=cfg.max_planes,
-                                    min_inliers=min_inliers_value(cfg.min_inliers), probability=cfg.probability,
-                                    max_iterations=cfg.max_iterations, seed=seed,
-                                    ransac_points=cfg.ransac_points or None, grid_points=cfg.grid_points or None,
-                                    shape=cloud_shape,
-                                    connectivity=cfg.connectivity, noise_model=cfg.noise_model,
-                                    noise_reference=cfg.noise_reference, viewpoint=cfg.viewpoint,
-                                    orientation=cfg.orientation)
+                seg = detect_planes(work, tolerance, seed=seed, shape=cloud_shape, **cfg.search.kwargs())
                 if inverse is not None:  # each point its voxel's (pixel's) plane, if it lies within t of it
                     labels = within_planes(valid, seg.labels[inverse], seg)
                 else:

@@ -182,13 +182,8 @@ def cmd_detect(args: argparse.Namespace) -> int:
     tolerance = None if args.auto else args.tolerance
     with _about(args.cloud), progress_bar('tuning t', quiet=args.json) as progress:
         points, shape, ring, read = _load(args)
-        det = detect(points, tolerance, seed=args.seed, max_planes=args.max_planes,
-                     min_inliers=min_inliers_value(args.min_inliers), progress=progress, shape=shape,
-                     noise_model=args.noise_model, noise_reference=args.noise_reference, jobs=args.tune_jobs,
-                     connectivity=args.connectivity, ransac_points=args.ransac_points or None,
-                     grid_points=args.grid_points or None,
-                     viewpoint=_viewpoint(args), ring=ring, organize_rings=args.organize_rings,
-                     orientation=_orientation(args))
+        det = detect(points, tolerance, search=_config(args).search, seed=args.seed, progress=progress,
+                     shape=shape, jobs=args.tune_jobs, ring=ring, organize_rings=args.organize_rings)
     from ..formats.files import is_bag_output
     bag = args.out is not None and is_bag_output(args.out)
     files = [path for path in (None if bag else args.out, args.png) if path]
@@ -242,14 +237,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     _check_outputs(args, 'plot', 'csv')
     with _about(args.cloud), progress_bar('sweeping t', quiet=args.json) as progress:
         points, shape, ring, _ = _load(args)
-        result, ring_note = tune_scan(points, ring=ring, organize_rings=args.organize_rings, shape=shape,
-                                      connectivity=args.connectivity, viewpoint=_viewpoint(args), seed=args.seed,
-                                      tolerances=args.tolerances, criterion=args.criterion,
-                                      max_planes=args.max_planes, min_inliers=min_inliers_value(args.min_inliers),
-                                      progress=progress, noise_model=args.noise_model,
-                                      noise_reference=args.noise_reference, jobs=args.tune_jobs,
-                                      ransac_points=args.ransac_points or None,
-                                      grid_points=args.grid_points or None, orientation=_orientation(args))
+        result, ring_note = tune_scan(points, search=_config(args).search, ring=ring,
+                                      organize_rings=args.organize_rings, shape=shape, seed=args.seed,
+                                      tolerances=args.tolerances, criterion=args.criterion, progress=progress,
+                                      jobs=args.tune_jobs)
     written = [Path(path) for path in (args.csv, args.plot) if path]
     with atomic_outputs(*written) as staged:  # an interrupted run writes neither
         at = dict(zip(written, staged))
@@ -286,21 +277,16 @@ def cmd_planes(args: argparse.Namespace) -> int:
     from ..core.tuning import DEFAULT_CRITERION, MIN_PLANE_SILHOUETTE, select_plane_count
 
     _check_outputs(args, 'plot')
-    min_inliers = min_inliers_value(args.min_inliers)
     tolerance, source = args.tolerance, 'fixed'
     with _about(args.cloud):
         points, shape, ring, _ = _load(args)
+        search = _config(args).search
         if tolerance is None:  # as detect tunes it (a lidar scan on its ring image)
             with progress_bar('tuning t', quiet=args.json) as progress:
-                tolerance = tune_scan(points, ring=ring, organize_rings=args.organize_rings, shape=shape,
-                                      viewpoint=_viewpoint(args), seed=args.seed,
-                                      max_planes=args.max_planes, min_inliers=min_inliers, progress=progress,
-                                      noise_model=args.noise_model, noise_reference=args.noise_reference,
-                                      jobs=args.tune_jobs)[0].tolerance
+                tolerance = tune_scan(points, search=search, ring=ring, organize_rings=args.organize_rings,
+                                      shape=shape, seed=args.seed, progress=progress, jobs=args.tune_jobs)[0].tolerance
             source = 'auto'
-        result = select_plane_count(points, tolerance, args.max_planes, min_inliers=min_inliers,
-                                    seed=args.seed, shape=shape, noise_model=args.noise_model,
-                                    noise_reference=args.noise_reference, viewpoint=_viewpoint(args))
+        result = select_plane_count(points, tolerance, seed=args.seed, shape=shape, **search.kwargs())
     written = []
     if args.plot:
         from ..app.plot import plot_plane_count
@@ -604,16 +590,10 @@ def _viewpoint(args: argparse.Namespace) -> tuple[float, float, float]:
 
 def _add_search_options(parser: argparse.ArgumentParser) -> None:
     """--connectivity/--no-connectivity, --ransac-points, --grid-points, --organize-rings/--no-organize-rings and the
-    orientation constraint (--axis-mode, --normal-axis-x/y/z, --axis-angle) for detect and sweep."""
+    orientation constraint (--axis-mode, --normal-axis-x/y/z, --axis-angle) for detect, sweep and planes."""
     _add_table_options(parser, (('connectivity', ''), ('ransac_points', 'N'), ('grid_points', 'N'),
                                 ('organize_rings', ''), ('axis_mode', 'MODE'), ('normal_axis_x', 'X'),
                                 ('normal_axis_y', 'Y'), ('normal_axis_z', 'Z'), ('axis_angle', 'DEG')))
-
-
-def _orientation(args: argparse.Namespace):
-    """The orientation constraint of --axis-mode, --normal-axis-x/y/z and --axis-angle (None: off)."""
-    from ..core.orientation import orientation
-    return orientation((args.normal_axis_x, args.normal_axis_y, args.normal_axis_z), args.axis_angle, args.axis_mode)
 
 
 def _add_replay_options(parser: argparse.ArgumentParser) -> None:
@@ -738,7 +718,7 @@ def build_parser() -> argparse.ArgumentParser:
     planes.add_argument('--tolerance', type=_table_type('tolerance'), metavar='T',
                         help=f'RANSAC tolerance t in meters (default: auto-tuned; {PARAMETERS["tolerance"].allowed})')
     _add_detection_options(planes)
-    _add_table_options(planes, (('organize_rings', ''),))
+    _add_search_options(planes)
     planes.add_argument('--plot', metavar='PNG', help=f'write indices vs k, selected k marked ({FIGURE_HELP})')
     planes.add_argument('--json', action='store_true', help='print one JSON document and nothing else on stdout')
     planes.set_defaults(func=cmd_planes)

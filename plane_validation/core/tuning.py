@@ -823,7 +823,9 @@ def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 1
                        seed: int | None = None, shape: tuple[int, int] | None = None,
                        connectivity: bool = True, noise_model: str = 'constant',
                        noise_reference: float = NOISE_REFERENCE, viewpoint: Viewpoint = None,
-                       sampled_separation: bool | None = None) -> PlaneCountResult:
+                       sampled_separation: bool | None = None, ransac_points: int | None = RANSAC_POINTS,
+                       grid_points: int | None = GRID_POINTS, orientation: Orientation | None = None
+                       ) -> PlaneCountResult:
     """Score the first k planes (the rest unassigned) for k = 1..K and pick k (paper Fig. 2).
 
     One sequential RANSAC run with ``max_planes`` finds up to K planes at ``tolerance`` meters;
@@ -831,8 +833,9 @@ def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 1
     silhouette and davies_bouldin k is the index's optimum (``best_by``); for gs_planes it is the
     largest k whose planes all keep a mean silhouette S_j >= MIN_PLANE_SILHOUETTE (see
     :func:`_well_assigned_count` for why not the plain argmax). shape, connectivity, noise_model,
-    noise_reference, viewpoint: to :func:`detect_planes`; sampled_separation: to :func:`validity_indices`, None
-    meaning exact up to EXACT_SEPARATION_POINTS valid points (as in :func:`tune_tolerance`).
+    noise_reference, viewpoint, ransac_points, grid_points, orientation: to :func:`detect_planes`;
+    sampled_separation: to :func:`validity_indices`, None meaning exact up to EXACT_SEPARATION_POINTS valid points
+    (as in :func:`tune_tolerance`).
     """
     _check_criterion(criterion)
     rng = generator(seed)
@@ -840,7 +843,8 @@ def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 1
     seg = detect_planes(points, tolerance, max_planes=max_planes, min_inliers=min_inliers,
                         probability=probability, max_iterations=max_iterations, seed=int(ransac_seed),
                         shape=shape, connectivity=connectivity, noise_model=noise_model,
-                        noise_reference=noise_reference, viewpoint=viewpoint)
+                        noise_reference=noise_reference, viewpoint=viewpoint, ransac_points=ransac_points,
+                        grid_points=grid_points, orientation=orientation)
     pts = as_points(points)
     sampled = _sampled_separation(sampled_separation, seg.n_valid)
     counts, scores = [], []
