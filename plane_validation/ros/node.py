@@ -9,6 +9,7 @@ thread runs the shared pipeline and publishes every output; tolerance sweeps run
 """
 from __future__ import annotations
 
+import signal
 import sys
 
 import rclpy
@@ -18,6 +19,7 @@ from sensor_msgs.msg import PointCloud2
 
 from ..app.config import PARAMETERS
 from ..app.pipeline import FramePipeline, limit_blas_threads
+from ..core.tuning import stop_workers
 from .messages import OUTPUTS, status_name
 from .parameters import NODE_PARAMETERS, apply_parameters, declare, descriptor, params_yaml
 from .worker import LOG_THROTTLE_S, SWEEP_STOP_S, FrameWorker, input_qos, output_publishers
@@ -93,6 +95,9 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
     try:
         limit_blas_threads()
         rclpy.init(args=args)
+        # rclpy shuts down on SIGINT and SIGTERM; SIGHUP (a closed terminal or session) would end the process
+        # on the spot, leaving the sweep's worker processes behind: it shuts down the same way
+        signal.signal(signal.SIGHUP, lambda signum, frame: rclpy.try_shutdown())
     except KeyboardInterrupt:  # Ctrl-C while starting: as quiet as while spinning
         rclpy.try_shutdown()
         return 0
@@ -118,6 +123,7 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+        stop_workers()  # whichever signal ended the node: its sweep's worker processes end with it
     return 0
 
 
