@@ -544,3 +544,31 @@ def test_a_process_that_talked_to_a_node_in_another_process_exits_cleanly_right_
     for run in runs:
         assert (run.returncode, run.stdout.strip()) == (0, 'connected'), run.stderr[-500:]
 
+
+
+def _file_size_limit(limit: int):
+    """A preexec_fn: files this process writes stop at ``limit`` bytes, as on a full disk (the writes fail with
+    EFBIG instead of SIGXFSZ ending the process)."""
+    def apply() -> None:
+        import resource
+        import signal
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    return apply
+
+
+@pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
+def test_replay_onto_a_full_disk_fails_in_one_line_and_leaves_no_output(tmp_path, storage):
+    import os
+    import subprocess
+    import sys
+    out = tmp_path / 'out'
+    proc = subprocess.run([sys.executable, '-m', 'plane_validation.cli', 'replay', str(BAGS / 'room'), '--out',
+                           str(out), '--storage', storage], capture_output=True, text=True, timeout=300,
+                          env=dict(os.environ), preexec_fn=_file_size_limit(64_000))
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('plane-validation: error:') and 'Traceback' not in proc.stderr, \
+        proc.stderr
+    assert str(out) in lines[0], lines[0]  # the output it could not write, with the system's reason
+    assert list(tmp_path.iterdir()) == [], 'an unfinished output was left behind'

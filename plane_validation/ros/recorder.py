@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import array
 import shutil
+import sqlite3
 import tempfile
 from pathlib import Path
 
@@ -94,13 +95,22 @@ class BagRecorder:
 
     def write(self, key: str, timestamp: int, msg) -> None:
         connection = self.connections[key]
-        self.writer.write(connection, timestamp, self._store.serialize_cdr(as_rosbags(msg, self._store),
-                                                                             connection.msgtype))
+        data = self._store.serialize_cdr(as_rosbags(msg, self._store), connection.msgtype)
+        try:
+            self.writer.write(connection, timestamp, data)
+        except (OSError, sqlite3.Error) as exc:  # a full disk: an OSError from MCAP, sqlite3's own error
+            raise self._failed(exc) from exc
+
+    def _failed(self, exc: OSError | sqlite3.Error) -> BagError:
+        return BagError(f'cannot write output bag {self.path}: {getattr(exc, "strerror", None) or exc}')
 
     def close(self) -> Path:
         """Finish the bag and move it to ``path``."""
         try:
-            self.writer.close()
+            try:
+                self.writer.close()
+            except (OSError, sqlite3.Error) as exc:
+                raise self._failed(exc) from exc
             suffix = STORAGES[self.storage]
             data = self._bag / f'{self._bag.name}{suffix}'
             rosbag2_name = f'{self._bag.name}_0{suffix}'
