@@ -769,3 +769,25 @@ def test_a_comma_in_another_columns_name_does_not_split_a_header_on_commas(tmp_p
         np.testing.assert_array_equal(load_points(tmp_path / name), [[1, 2, 3]], err_msg=name)
 
 
+
+
+def test_staged_files_clear_the_stages_of_killed_runs_only(tmp_path, capfd):
+    import os
+    import subprocess
+    import sys
+
+    from plane_validation.formats.files import staged_files
+    ended = subprocess.run([sys.executable, '-c', 'import os; print(os.getpid())'], capture_output=True, text=True)
+    dead = int(ended.stdout)  # a process that has ended (and been reaped): its stage is stale
+    out = tmp_path / 'out'
+    out.mkdir()
+    stale = out / f'.stage.{dead}.k1ll3d00.partial'
+    held = out / f'.stage.{os.getpid()}.l1v3ab00.partial'
+    for stage in (stale, held):
+        stage.mkdir()
+        (stage / 'figure.png').write_bytes(b'half')
+    with staged_files(out) as stage:
+        (stage / 'summary.md').write_text('done\n')
+    assert sorted(p.name for p in out.iterdir()) == sorted([held.name, 'summary.md'])
+    err = capfd.readouterr().err.splitlines()
+    assert len(err) == 1 and str(stale) in err[0] and f'process {dead}' in err[0], err

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.geometry import beam_numbers
+from .partials import clear_stale_partials, make_partial
 
 __all__ = ['atomic_output', 'atomic_outputs', 'staged_files', 'check_output', 'check_writable', 'load_cloud',
            'load_points', 'load_scan', 'save_points', 'is_bag_output', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
@@ -267,7 +268,8 @@ def staged_files(folder: str | Path) -> Iterator[Path]:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ValueError(f'{folder}: cannot create the output folder ({exc.strerror or exc})') from exc
-    stage = Path(tempfile.mkdtemp(dir=folder, prefix='.', suffix='.partial'))
+    clear_stale_partials(folder, 'stage')
+    stage = make_partial(folder, 'stage')
     done = False
     try:
         yield stage

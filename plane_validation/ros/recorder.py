@@ -13,12 +13,12 @@ from __future__ import annotations
 import array
 import shutil
 import sqlite3
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from ..formats.bags import POINTCLOUD2, STORAGES, BagError, typestore
+from ..formats.partials import clear_stale_partials, make_partial
 from .messages import OUTPUTS, msgtype
 
 __all__ = ['BagRecorder', 'output_topics', 'as_rosbags']
@@ -78,7 +78,8 @@ class BagRecorder:
         self.path, self.storage = path, storage
         self._tmp = None
         try:
-            self._tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f'.{path.name}.', suffix='.partial'))
+            clear_stale_partials(path.parent, path.name)
+            self._tmp = make_partial(path.parent, path.name)
             self._bag = self._tmp / path.name
             self.writer = Writer(self._bag, version=9, storage_plugin=StoragePlugin[storage.upper()])
             self.writer.open()
