@@ -170,6 +170,35 @@ def test_layout_variants_decode_to_the_same_points_and_unorganized_ones_to_the_s
             np.testing.assert_array_equal(segmented['plane_id'], ref['plane_id'], err_msg=str(variant))
 
 
+def test_rows_with_an_infinite_coordinate_are_left_out_and_counted(harness):
+    """+inf and -inf (REP 117's marks of a return out of range or too close) are no points, as NaN: the frame
+    is answered from the others and says how many rows had one; a finite coordinate out of numeric range is
+    ERROR (test_bad_input...)."""
+    points = corner_points(0.002, seed=3, n=2400)
+    marked = points.copy()
+    marked[:2088, 0] = np.inf  # 87 % of the rows
+    marked[:50, 2] = -np.inf
+    out = harness.send(xyz_cloud(marked, 2_100_000_000_000))
+    status = out['diagnostics'].status[0]
+    values = diag_values(out['diagnostics'])
+    assert status.level == b'\x00' and values['planes'] != '0', status.message
+    assert (values['infinite_points'], values['valid_points'], values['input_points']) == ('2088', '312', '2400')
+    few = harness.send(xyz_cloud(np.full((40, 3), -np.inf), 2_200_000_000_000))['diagnostics'].status[0]
+    assert few.level == b'\x01' and 'too few valid points: 0 of 40' in few.message \
+        and '40 had an infinite' in few.message, few.message
+
+
+def test_a_byte_order_that_does_not_match_the_data_is_error_without_a_raw_numpy_warning(harness):
+    import warnings
+    msg = xyz_cloud(corner_points(0.002, seed=3, n=2400), 2_300_000_000_000)
+    msg.is_bigendian = True  # the bytes are little-endian: read the other way, many are signalling NaNs
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter('always')
+        status = harness.send(msg)['diagnostics'].status[0]
+    assert status.level == b'\x02', status.message
+    assert not [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)]
+
+
 def test_an_organized_cloud_gives_organized_segmented_and_obstacle_clouds(harness):
     scene = scenes.depth_camera('room', width=80, height=60, seed=2)
     msg = create_cloud(make_header(2_500_000_000_000), {a: scene.points[:, i].astype(np.float32)
