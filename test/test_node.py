@@ -371,6 +371,45 @@ def test_periodic_retune_runs_in_the_background_while_frames_flow(ros):
         h.close()
 
 
+def _set_parameters(harness, service: str, params: dict) -> list:
+    """Call the node's ``service`` (set_parameters or set_parameters_atomically) over DDS; its results."""
+    from rcl_interfaces.srv import SetParameters, SetParametersAtomically
+    kind = SetParameters if service == 'set_parameters' else SetParametersAtomically
+    client = harness.probe.create_client(kind, f'/plane_validation/{service}')
+    try:
+        assert client.wait_for_service(timeout_sec=10)
+        request = kind.Request(parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in params.items()])
+        future = client.call_async(request)
+        deadline = time.monotonic() + 10
+        while not future.done() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        response = future.result()
+        return list(response.results) if kind is SetParameters else [response.result]
+    finally:
+        harness.probe.destroy_client(client)
+
+
+@pytest.mark.parametrize('service', ['set_parameters', 'set_parameters_atomically'])
+def test_parameters_set_together_that_conflict_are_all_refused_over_dds(harness, service):
+    """tune_min above tune_max in one request: neither is applied (plain SetParameters included, which rclpy
+    would apply one by one: tune_min, then a refused tune_max, leaving every later sweep to fail)."""
+    config = harness.node.pipeline.config
+    results = _set_parameters(harness, service, {'tune_min': 0.5, 'tune_max': 0.1})
+    assert results and not any(r.successful for r in results), results
+    assert all('tune_max must be greater than tune_min' in r.reason for r in results), results
+    assert harness.node.pipeline.config == config
+    assert (harness.node.get_parameter('tune_min').value, harness.node.get_parameter('tune_max').value) == \
+        (config.tune_min, config.tune_max)
+    # a request valid as a whole is applied whole, whatever the order (tune_min alone would conflict with 0.2)
+    assert all(r.successful for r in _set_parameters(harness, service, {'tune_max': 0.2}))
+    results = _set_parameters(harness, service, {'tune_min': 0.3, 'tune_max': 0.6})
+    assert all(r.successful for r in results), results
+    assert (harness.node.pipeline.config.tune_min, harness.node.pipeline.config.tune_max) == (0.3, 0.6)
+    # one that conflicts with the current value of another is refused on its own
+    alone = _set_parameters(harness, service, {'tune_max': 0.25})
+    assert not alone[0].successful and harness.node.pipeline.config.tune_max == 0.6
+
+
 @pytest.mark.parametrize('sig', ['SIGINT', 'SIGTERM'])
 def test_node_process_stops_cleanly_on_signal(ros, sig):
     import os

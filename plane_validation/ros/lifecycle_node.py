@@ -21,7 +21,7 @@ from sensor_msgs.msg import PointCloud2
 from ..app.pipeline import FramePipeline
 from .messages import status_name
 from .node import main as run_node
-from .parameters import apply_parameters, declare
+from .parameters import apply_parameters, declare, set_requests_whole
 from .worker import FrameWorker, input_qos, output_publishers
 
 __all__ = ['PlaneValidationLifecycleNode', 'main']
@@ -40,6 +40,7 @@ class PlaneValidationLifecycleNode(LifecycleNode):
         self._pubs: dict[str, object] = {}
         self._subscription = None
         self.add_on_set_parameters_callback(lambda params: apply_parameters(self, params))
+        set_requests_whole(self)
         # a transition that does not start from the current state makes rclpy's ChangeState callback raise,
         # which ends the executor's spin: it is refused instead (success false) and the node serves on
         change_state = self._service_change_state.callback

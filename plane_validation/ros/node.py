@@ -21,7 +21,7 @@ from ..app.config import PARAMETERS
 from ..app.pipeline import FramePipeline, limit_blas_threads
 from ..core.tuning import stop_workers
 from .messages import OUTPUTS, status_name
-from .parameters import NODE_PARAMETERS, apply_parameters, declare, descriptor, params_yaml
+from .parameters import NODE_PARAMETERS, apply_parameters, declare, descriptor, params_yaml, set_requests_whole
 from .worker import LOG_THROTTLE_S, SWEEP_STOP_S, FrameWorker, input_qos, output_publishers
 
 __all__ = ['PlaneValidationNode', 'NODE_PARAMETERS', 'descriptor', 'params_yaml', 'spin', 'main',
@@ -41,6 +41,7 @@ class PlaneValidationNode(Node):
         self.pipeline = FramePipeline(config)
         self.worker = None
         self.add_on_set_parameters_callback(lambda params: apply_parameters(self, params))
+        set_requests_whole(self)
         pubs = output_publishers(self.create_publisher)
         self.worker = FrameWorker(self, self.pipeline, lambda key, msg: pubs[key].publish(msg),
                                   status_name(self.get_name()), min_output_rate_hz=self.options.min_output_rate_hz)
