@@ -410,7 +410,7 @@ def test_parameters_set_together_that_conflict_are_all_refused_over_dds(harness,
     assert not alone[0].successful and harness.node.pipeline.config.tune_max == 0.6
 
 
-@pytest.mark.parametrize('sig', ['SIGINT', 'SIGTERM'])
+@pytest.mark.parametrize('sig', ['SIGINT', 'SIGTERM', 'SIGHUP'])
 def test_node_process_stops_cleanly_on_signal(ros, sig):
     import os
     import signal
