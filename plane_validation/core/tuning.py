@@ -9,6 +9,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import contextvars
+import os
 import queue
 import signal
 import threading
@@ -604,8 +605,19 @@ def stop_workers() -> None:
     no process holds their pipe. The next parallel sweep starts new workers."""
     global _EXECUTOR
     executor, _EXECUTOR = _EXECUTOR, None
-    if executor is not None:
+    if executor is None:
+        return
+    try:
         executor.shutdown(wait=True, kill_workers=True)
+    except RuntimeError:  # a signal's exception came between loky making its manager thread and starting it
+        import multiprocessing
+
+        from joblib.externals.loky.backend.process import LokyProcess
+        for process in multiprocessing.active_children():  # no thread ends them: they are ended here
+            if isinstance(process, LokyProcess):
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(process.pid, signal.SIGKILL)  # loky's Popen has no kill()
+                process.join()
 
 
 class _NotCarried(Exception):
