@@ -397,7 +397,7 @@ def test_written_bag_reads_back_and_is_not_overwritten(tmp_path, name):
     ('garbage.ply', bytes(range(256)) * 8, 'not a readable PLY file'),
     ('garbage.npy', bytes(range(256)) * 8, 'not a .npy file'),
     ('empty.npy', b'', 'not a .npy file'),
-    ('garbage.xyz', bytes(range(256)) * 8, 'not a table of numbers'),
+    ('garbage.xyz', bytes(range(256)) * 8, 'not a text file'),
     ('two.csv', b'1,2\n3,4\n', 'at least x y z'),
     ('columns.csv', b'0,1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16\n' * 3, 'a point per column'),  # coordinates in rows
     ('cloud.las', b'LASF', "unsupported file type '.las'"),
@@ -769,3 +769,52 @@ def test_a_comma_in_another_columns_name_does_not_split_a_header_on_commas(tmp_p
         np.testing.assert_array_equal(load_points(tmp_path / name), [[1, 2, 3]], err_msg=name)
 
 
+
+
+def test_staged_files_clear_the_stages_of_killed_runs_only(tmp_path, capfd):
+    import os
+    import subprocess
+    import sys
+
+    from plane_validation.formats.files import staged_files
+    ended = subprocess.run([sys.executable, '-c', 'import os; print(os.getpid())'], capture_output=True, text=True)
+    dead = int(ended.stdout)  # a process that has ended (and been reaped): its stage is stale
+    out = tmp_path / 'out'
+    out.mkdir()
+    stale = out / f'.stage.{dead}.k1ll3d00.partial'
+    held = out / f'.stage.{os.getpid()}.l1v3ab00.partial'
+    for stage in (stale, held):
+        stage.mkdir()
+        (stage / 'figure.png').write_bytes(b'half')
+    with staged_files(out) as stage:
+        (stage / 'summary.md').write_text('done\n')
+    assert sorted(p.name for p in out.iterdir()) == sorted([held.name, 'summary.md'])
+    err = capfd.readouterr().err.splitlines()
+    assert len(err) == 1 and str(stale) in err[0] and f'process {dead}' in err[0], err
+
+
+def test_a_binary_pcd_with_bytes_after_its_points_is_refused_as_a_ply_is(tmp_path):
+    path = tmp_path / 'p.pcd'
+    save_points(path, scenes.corner(30, 0.0, seed=1).points)
+    whole = path.read_bytes()
+    for padding in (b'\n', b'\x00' * 5):  # a line end, NULs shorter than a point: padding, read as before
+        path.write_bytes(whole + padding)
+        assert load_points(path).shape == (30, 3)
+    for junk in (b'JUNK', b'\x07\xff\x00'):  # shorter than a point, and not padding
+        path.write_bytes(whole + junk)
+        with pytest.raises(ValueError, match=r'p\.pcd: PCD data holds .* more than its 30 points need .*other data '
+                                             r'appended'):
+            load_points(path)
+
+
+def test_detect_on_a_binary_file_named_as_text_shows_its_bytes_escaped(tmp_path, capsys):
+    path = tmp_path / 'g.xyz'
+    garbage = bytes(np.random.default_rng(0).integers(0, 128, 300, dtype=np.uint8))  # valid UTF-8, not text
+    path.write_bytes(garbage)
+    assert cli_main(['detect', str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.isprintable() and 'not a text file' in err and len(err) < 300, err
+    path.write_bytes(b'\xa9\xb4' + garbage)  # not UTF-8 at all
+    assert cli_main(['detect', str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.isprintable() and 'not a text file' in err and '\\xa9\\xb4' in err, err

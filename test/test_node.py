@@ -170,6 +170,35 @@ def test_layout_variants_decode_to_the_same_points_and_unorganized_ones_to_the_s
             np.testing.assert_array_equal(segmented['plane_id'], ref['plane_id'], err_msg=str(variant))
 
 
+def test_rows_with_an_infinite_coordinate_are_left_out_and_counted(harness):
+    """+inf and -inf (REP 117's marks of a return out of range or too close) are no points, as NaN: the frame
+    is answered from the others and says how many rows had one; a finite coordinate out of numeric range is
+    ERROR (test_bad_input...)."""
+    points = corner_points(0.002, seed=3, n=2400)
+    marked = points.copy()
+    marked[:2088, 0] = np.inf  # 87 % of the rows
+    marked[:50, 2] = -np.inf
+    out = harness.send(xyz_cloud(marked, 2_100_000_000_000))
+    status = out['diagnostics'].status[0]
+    values = diag_values(out['diagnostics'])
+    assert status.level == b'\x00' and values['planes'] != '0', status.message
+    assert (values['infinite_points'], values['valid_points'], values['input_points']) == ('2088', '312', '2400')
+    few = harness.send(xyz_cloud(np.full((40, 3), -np.inf), 2_200_000_000_000))['diagnostics'].status[0]
+    assert few.level == b'\x01' and 'too few valid points: 0 of 40' in few.message \
+        and '40 had an infinite' in few.message, few.message
+
+
+def test_a_byte_order_that_does_not_match_the_data_is_error_without_a_raw_numpy_warning(harness):
+    import warnings
+    msg = xyz_cloud(corner_points(0.002, seed=3, n=2400), 2_300_000_000_000)
+    msg.is_bigendian = True  # the bytes are little-endian: read the other way, many are signalling NaNs
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter('always')
+        status = harness.send(msg)['diagnostics'].status[0]
+    assert status.level == b'\x02', status.message
+    assert not [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)]
+
+
 def test_an_organized_cloud_gives_organized_segmented_and_obstacle_clouds(harness):
     scene = scenes.depth_camera('room', width=80, height=60, seed=2)
     msg = create_cloud(make_header(2_500_000_000_000), {a: scene.points[:, i].astype(np.float32)
@@ -342,7 +371,46 @@ def test_periodic_retune_runs_in_the_background_while_frames_flow(ros):
         h.close()
 
 
-@pytest.mark.parametrize('sig', ['SIGINT', 'SIGTERM'])
+def _set_parameters(harness, service: str, params: dict) -> list:
+    """Call the node's ``service`` (set_parameters or set_parameters_atomically) over DDS; its results."""
+    from rcl_interfaces.srv import SetParameters, SetParametersAtomically
+    kind = SetParameters if service == 'set_parameters' else SetParametersAtomically
+    client = harness.probe.create_client(kind, f'/plane_validation/{service}')
+    try:
+        assert client.wait_for_service(timeout_sec=10)
+        request = kind.Request(parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in params.items()])
+        future = client.call_async(request)
+        deadline = time.monotonic() + 10
+        while not future.done() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        response = future.result()
+        return list(response.results) if kind is SetParameters else [response.result]
+    finally:
+        harness.probe.destroy_client(client)
+
+
+@pytest.mark.parametrize('service', ['set_parameters', 'set_parameters_atomically'])
+def test_parameters_set_together_that_conflict_are_all_refused_over_dds(harness, service):
+    """tune_min above tune_max in one request: neither is applied (plain SetParameters included, which rclpy
+    would apply one by one: tune_min, then a refused tune_max, leaving every later sweep to fail)."""
+    config = harness.node.pipeline.config
+    results = _set_parameters(harness, service, {'tune_min': 0.5, 'tune_max': 0.1})
+    assert results and not any(r.successful for r in results), results
+    assert all('tune_max must be greater than tune_min' in r.reason for r in results), results
+    assert harness.node.pipeline.config == config
+    assert (harness.node.get_parameter('tune_min').value, harness.node.get_parameter('tune_max').value) == \
+        (config.tune_min, config.tune_max)
+    # a request valid as a whole is applied whole, whatever the order (tune_min alone would conflict with 0.2)
+    assert all(r.successful for r in _set_parameters(harness, service, {'tune_max': 0.2}))
+    results = _set_parameters(harness, service, {'tune_min': 0.3, 'tune_max': 0.6})
+    assert all(r.successful for r in results), results
+    assert (harness.node.pipeline.config.tune_min, harness.node.pipeline.config.tune_max) == (0.3, 0.6)
+    # one that conflicts with the current value of another is refused on its own
+    alone = _set_parameters(harness, service, {'tune_max': 0.25})
+    assert not alone[0].successful and harness.node.pipeline.config.tune_max == 0.6
+
+
+@pytest.mark.parametrize('sig', ['SIGINT', 'SIGTERM', 'SIGHUP'])
 def test_node_process_stops_cleanly_on_signal(ros, sig):
     import os
     import signal
@@ -607,3 +675,27 @@ def test_orientation_constraint_parameters_over_dds(harness):
     assert node.set_parameters([Parameter('axis_mode', value='none')])[0].successful
     out = harness.send(xyz_cloud(corner_points(0.1), 5_000_000_000_001))
     assert diag_values(out['diagnostics'])['planes'] == '3'
+
+
+def test_a_signal_during_the_first_compile_stops_the_node_cleanly(tmp_path):
+    """The kernels compile before the node starts (a cold cache: a new NUMBA_CACHE_DIR); numba's compiler swallows
+    the KeyboardInterrupt of a Ctrl-C, so the signal is held until the compile ends and the node does not start."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / 'cache'), PYTHONUNBUFFERED='1')
+    proc = subprocess.Popen([sys.executable, '-m', 'plane_validation.ros.node'], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=env, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not list((tmp_path / 'cache').rglob('*.nbi')) and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.02)  # the first kernel is compiled and cached: the others are compiling
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 0, out
+    assert 'compiled kernels ready in' in out and 'Traceback' not in out, out

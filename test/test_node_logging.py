@@ -26,7 +26,6 @@ LEVELS = {'debug': 'DEBUG', 'info': 'INFO', 'warning': 'WARN', 'warn': 'WARN', '
 #: (module, function, severity) of each call site -> what its line says. The lifecycle node's sites are
 #: driven by test_lifecycle_node.py; they are listed there.
 EXPECTED = {
-    ('worker.py', 'warm_kernels', 'INFO'): 'compiled kernels ready in ',
     ('worker.py', '_work', 'ERROR'): 'frame failed unexpectedly: RuntimeError(',
     ('worker.py', 'process', 'ERROR'): 'ERROR: malformed PointCloud2',
     ('worker.py', 'process', 'WARN'): 'WARN: no reliable planes',  # the first WARN frame (throttled after)

@@ -544,3 +544,59 @@ def test_a_process_that_talked_to_a_node_in_another_process_exits_cleanly_right_
     for run in runs:
         assert (run.returncode, run.stdout.strip()) == (0, 'connected'), run.stderr[-500:]
 
+
+
+def _file_size_limit(limit: int):
+    """A preexec_fn: files this process writes stop at ``limit`` bytes, as on a full disk (the writes fail with
+    EFBIG instead of SIGXFSZ ending the process)."""
+    def apply() -> None:
+        import resource
+        import signal
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    return apply
+
+
+@pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
+def test_replay_onto_a_full_disk_fails_in_one_line_and_leaves_no_output(tmp_path, storage):
+    import os
+    import subprocess
+    import sys
+    out = tmp_path / 'out'
+    proc = subprocess.run([sys.executable, '-m', 'plane_validation.cli', 'replay', str(BAGS / 'room'), '--out',
+                           str(out), '--storage', storage], capture_output=True, text=True, timeout=300,
+                          env=dict(os.environ), preexec_fn=_file_size_limit(64_000))
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('plane-validation: error:') and 'Traceback' not in proc.stderr, \
+        proc.stderr
+    assert str(out) in lines[0], lines[0]  # the output it could not write, with the system's reason
+    assert list(tmp_path.iterdir()) == [], 'an unfinished output was left behind'
+
+
+def test_a_killed_replay_leaves_a_partial_that_the_next_run_removes(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+    out = tmp_path / 'out'
+    command = [sys.executable, '-u', '-m', 'plane_validation.cli', 'replay', str(BAGS / 'room'), '--out', str(out)]
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ))
+    try:
+        first = proc.stdout.readline()  # the first frame is written: the bag is half done
+        assert first.startswith('frame    0'), first
+        proc.send_signal(signal.SIGKILL)  # no handler runs: nothing cleans up
+        proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    stale = list(tmp_path.glob('.out.*.partial'))
+    assert len(stale) == 1 and stale[0].is_dir(), list(tmp_path.iterdir())
+    held = tmp_path / f'.out.{os.getpid()}.abcdefgh.partial'  # a live process's (this one's) is left alone
+    held.mkdir()
+    rerun = subprocess.run(command, capture_output=True, text=True, timeout=300, env=dict(os.environ))
+    assert rerun.returncode == 0, rerun.stderr
+    said = [line for line in rerun.stderr.splitlines() if 'removed' in line]
+    assert len(said) == 1 and str(stale[0]) in said[0] and f'process {proc.pid}' in said[0], rerun.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(['out', held.name])

@@ -903,3 +903,44 @@ def test_noisy_stairs_are_not_one_slanted_plane():
     clean = pv.tune_tolerance(scenes.stairs(8000, 0.005, seed=0).points, seed=0)  # its 8 planes: not tilted
     assert clean.reliable and clean.segmentation.n_planes == 8
     assert not (plane_tilt(scenes.stairs(8000, 0.005, seed=0).points, clean.segmentation) >= MAX_TILT).any()
+
+
+@needs_two_cores
+@pytest.mark.parametrize('sig', ['SIGHUP', 'SIGTERM'])
+def test_a_command_ended_by_a_signal_during_a_parallel_sweep_reaps_its_workers(tmp_path, sig):
+    """The worker processes end and are reaped before the command exits (a container's PID 1 may never reap
+    them); the resource trackers end once no process holds their pipe."""
+    import signal
+    import subprocess
+    import sys
+
+    import psutil
+    cloud = tmp_path / 'cube.npy'
+    np.save(cloud, scenes.cube(30000, 0.005, side=1.0, seed=1).points)
+    with open(tmp_path / 'err', 'w') as err:  # a file: a worker left behind would hold a pipe open
+        proc = subprocess.Popen([sys.executable, '-m', 'plane_validation.cli', 'sweep', str(cloud), '--tune-jobs', '2'],
+                                stdout=subprocess.DEVNULL, stderr=err, start_new_session=True)
+    children = []
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and proc.poll() is None:
+            children = psutil.Process(proc.pid).children(recursive=True)
+            if any('LokyProcess' in ' '.join(c.cmdline()) for c in children if c.status() != psutil.STATUS_ZOMBIE):
+                break
+            time.sleep(0.1)
+        workers = [c for c in children if 'LokyProcess' in ' '.join(c.cmdline())]
+        assert workers, 'the sweep started no worker process'
+        proc.send_signal(getattr(signal, sig))
+        proc.wait(timeout=30)
+        left = [c.pid for c in workers if c.is_running()]  # zombies included: not reaped
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+        for child in children:
+            try:
+                child.kill()
+            except psutil.Error:
+                pass
+    assert proc.returncode == 128 + getattr(signal, sig), (tmp_path / 'err').read_text()
+    assert not left, f'worker processes left behind: {left}'

@@ -347,11 +347,13 @@ class FramePipeline:
         finite = finite_rows(pts)
         valid = np.compress(finite, pts, axis=0)  # much faster than a boolean index
         n_input = len(pts)
+        infinite = _infinite_rows(pts, finite, len(valid))
         image = shape if shape is not None and shape[0] * shape[1] == n_input else None  # kept in the outputs
         if shape is not None and (cfg.voxel_size > 0 or not cfg.connectivity or shape[0] * shape[1] != n_input):
             shape = None  # only regions use the image; the voxel grid does not keep it; a wrong shape is ignored
         if len(valid) < 3:
-            why = f'too few valid points: {len(valid)} of {n_input} (need 3)' + no_returns_note(no_returns)
+            why = f'too few valid points: {len(valid)} of {n_input} (need 3)' + no_returns_note(no_returns) + \
+                (f'; {infinite} had an infinite coordinate' if infinite else '')
             return _failed(WARN, why, start, self.current_tolerance(), n_input=n_input, n_valid=len(valid))
         # (image, (H, W), the pixel of each valid point) of a scan laid out by its rings, and what to say of it
         searched_as_is = shape is not None or not cfg.organize_rings or not cfg.connectivity or cfg.voxel_size > 0
@@ -406,8 +408,8 @@ class FramePipeline:
             level, message = WARN, f'{tune_problem}; detected with {used} t={tolerance:.4g} m: {message}'
         counts = np.bincount(labels[labels >= 0], minlength=seg.n_planes)
         obstacles = obstacle_mask(valid, labels, seg, counts, cfg.ground_margin)
-        values = _values(cfg, tolerance, source, n_input, len(valid), no_returns, int(np.sum(labels < 0)), seg, counts,
-                         scores, noise_from_segmentation(seg, work), work, ids)
+        values = _values(cfg, tolerance, source, n_input, len(valid), (no_returns, infinite), int(np.sum(labels < 0)),
+                         seg, counts, scores, noise_from_segmentation(seg, work), work, ids)
         values += (('obstacle_points', str(int(obstacles.sum()))),)
         if cfg.ground_margin > 0:
             ground = ground_plane(seg, counts)
@@ -428,6 +430,14 @@ class FramePipeline:
                            obstacles=obstacles, image_shape=image)
 
 
+def _infinite_rows(points: np.ndarray, finite: np.ndarray, n_finite: int) -> int:
+    """How many rows of ``points`` (N, 3) have an infinite coordinate: left out as no points, as NaN rows are
+    (REP 117 marks a return out of range with +inf and one too close with -inf), and counted."""
+    if n_finite == len(points):  # the usual frame: no second pass
+        return 0
+    return int(np.count_nonzero(np.isinf(points[~finite]).any(axis=1)))
+
+
 def _by_id(seg: Segmentation, labels: np.ndarray, ids: tuple[int, ...]) -> tuple[Segmentation, np.ndarray, tuple]:
     """The segmentation and the labels with the planes in ascending track id order, and those ids."""
     order = np.argsort(ids, kind='stable')
@@ -439,12 +449,12 @@ def _by_id(seg: Segmentation, labels: np.ndarray, ids: tuple[int, ...]) -> tuple
     return seg, rank[labels], tuple(int(ids[k]) for k in order)
 
 
-def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_valid: int, no_returns: int,
+def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_valid: int, left_out: tuple[int, int],
             n_unassigned: int, seg: Segmentation, counts: np.ndarray, scores: ValidityIndices,
             noise: float, work: np.ndarray, ids: tuple[int, ...]) -> tuple[tuple[str, str], ...]:
     values = [('tolerance', fmt(tolerance)), ('tolerance_source', source), ('criterion', cfg.criterion),
               ('planes', str(seg.n_planes)), ('input_points', str(n_input)), ('valid_points', str(n_valid)),
-              ('no_return_points', str(no_returns)),
+              ('no_return_points', str(left_out[0])), ('infinite_points', str(left_out[1])),
               ('unassigned_points', str(n_unassigned)),
               ('dunn', fmt(scores.dunn)), ('davies_bouldin', fmt(scores.davies_bouldin)),
               ('gs', fmt(scores.gs)), ('gs_se', fmt(scores.gs_se)),

@@ -22,7 +22,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 import numpy as np
@@ -795,7 +795,7 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         _resolve_seed(args)
         from ..app.pipeline import limit_blas_threads
-        from ..core.tuning import TuningWorkerError, workers_ignore_sigint
+        from ..core.tuning import TuningWorkerError, stop_workers, workers_ignore_sigint
         limit_blas_threads()  # small matrix products; spinning BLAS threads only slow a busy machine down
     except KeyboardInterrupt:  # while they load (threadpoolctl opens the BLAS libraries)
         return 130
@@ -806,6 +806,12 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     except Terminated as exc:
         return 128 + exc.signum
+    except SystemError as exc:  # a signal's exception raised while a compiled kernel ran comes wrapped in one
+        if isinstance(exc.__cause__, Terminated):
+            return 128 + exc.__cause__.signum
+        if isinstance(exc.__cause__, KeyboardInterrupt):
+            return 130
+        raise
     except BrokenPipeError:  # stdout closed early (piped into head): quiet, as a tool killed by SIGPIPE
         import os
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing left to flush at exit
@@ -814,6 +820,10 @@ def main(argv: list[str] | None = None) -> int:
         message = ' '.join(str(exc).split()) or type(exc).__name__
         print(f'plane-validation: error: {message}', file=sys.stderr)
         return 1 if isinstance(exc, TuningWorkerError) else EXIT_USAGE
+    finally:  # a parallel sweep's workers end with the command, whatever ended it; left to the interpreter's exit,
+        # a signal while they started could leave it waiting for loky's threads for ever
+        with suppress(KeyboardInterrupt):
+            stop_workers()
 
 
 if __name__ == '__main__':

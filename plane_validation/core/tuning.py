@@ -9,6 +9,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import contextvars
+import os
 import queue
 import signal
 import threading
@@ -57,7 +58,7 @@ from .verdict import (
 __all__ = ['CRITERIA', 'DEFAULT_CRITERION', 'TUNE_CANDIDATES', 'TUNE_POINTS',
            'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
            'select_plane_count', 'noise_from_segmentation', 'local_noise', 'quick_tolerance', 'MIN_PLANE_SILHOUETTE',
-           'TuningWorkerError']
+           'TuningWorkerError', 'stop_workers']
 
 #: Default number of tuning candidates and the subsample a sweep runs on (points).
 TUNE_CANDIDATES = 12
@@ -574,6 +575,8 @@ def _workers(jobs: int, shared: tuple = ()
             with _sigint_ignored():
                 executor = get_reusable_executor(max_workers=jobs - 1, timeout=WORKER_IDLE_S,
                                                   initializer=_worker_ignores_sigint)
+            global _EXECUTOR
+            _EXECUTOR = executor
             try:
                 yield run
             except BaseException:  # an error, Ctrl-C: the calls running in a worker are not waited for
@@ -589,6 +592,32 @@ def _workers(jobs: int, shared: tuple = ()
                     share.stop()
     except BrokenExecutor as exc:  # a worker was killed (out of memory, a signal): not a bug of the cloud
         raise TuningWorkerError(f'a tuning worker process died ({type(exc).__name__})') from exc
+
+
+#: The reusable executor of the last parallel sweep (None before the first): stop_workers ends it.
+_EXECUTOR = None
+
+
+def stop_workers() -> None:
+    """End and reap the worker processes parallel sweeps started (loky's reusable executor; a running call is
+    killed). A process that ends (a node that shuts down) calls it: left alone the workers outlive it for
+    WORKER_IDLE_S, or forever when it dies abruptly. The resource trackers they shared end on their own once
+    no process holds their pipe. The next parallel sweep starts new workers."""
+    global _EXECUTOR
+    executor, _EXECUTOR = _EXECUTOR, None
+    if executor is None:
+        return
+    try:
+        executor.shutdown(wait=True, kill_workers=True)
+    except RuntimeError:  # a signal's exception came between loky making its manager thread and starting it
+        import multiprocessing
+
+        from joblib.externals.loky.backend.process import LokyProcess
+        for process in multiprocessing.active_children():  # no thread ends them: they are ended here
+            if isinstance(process, LokyProcess):
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(process.pid, signal.SIGKILL)  # loky's Popen has no kill()
+                process.join()
 
 
 class _NotCarried(Exception):

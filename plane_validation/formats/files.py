@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.geometry import beam_numbers
+from .partials import clear_stale_partials, make_partial
 
 __all__ = ['atomic_output', 'atomic_outputs', 'staged_files', 'check_output', 'check_writable', 'load_cloud',
            'load_points', 'load_scan', 'save_points', 'is_bag_output', 'POINT_SUFFIXES', 'TEXT_SUFFIXES']
@@ -267,7 +268,8 @@ def staged_files(folder: str | Path) -> Iterator[Path]:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ValueError(f'{folder}: cannot create the output folder ({exc.strerror or exc})') from exc
-    stage = Path(tempfile.mkdtemp(dir=folder, prefix='.', suffix='.partial'))
+    clear_stale_partials(folder, 'stage')
+    stage = make_partial(folder, 'stage')
     done = False
     try:
         yield stage
@@ -437,8 +439,29 @@ def _xyz_positions(path: Path, names, *, fields: bool = False) -> list[int]:
                      f'height), got the columns {", ".join(names)}')
 
 
+#: Bytes a text table does not hold: control characters other than tab, line ends and form feed.
+_NOT_TEXT = re.compile('[\x00-\x08\x0e-\x1f\x7f]')
+
+
+def _check_text(path: Path) -> None:
+    """ValueError when ``path`` does not start as UTF-8 text, with its first bytes shown escaped (not echoed raw
+    into a terminal or a log)."""
+    import codecs
+    with open(path, 'rb') as f:
+        head = f.read(4096)
+    try:
+        text = codecs.getincrementaldecoder('utf-8-sig')().decode(head)  # a character cut at the end is no error
+    except UnicodeDecodeError:
+        text = None
+    if text is None or _NOT_TEXT.search(text):
+        shown = repr(head[:24])[2:-1] + ('...' if len(head) > 24 else '')
+        raise ValueError(f'{path}: not a text file (it starts with the bytes "{shown}"); a {path.suffix} file is '
+                         'a text table of numbers')
+
+
 def _read_text(path: Path) -> np.ndarray:
     """x, y, z of a text table: the columns a header row names so, else the first three."""
+    _check_text(path)
     delimiter = ',' if path.suffix.lower() == '.csv' else None
     names = _column_names(path, delimiter)
     columns = None if names is None else _xyz_positions(path, names)
@@ -500,8 +523,7 @@ def _check_ply_rest(path: Path, ply, end: int | None) -> None:
             return
         stream.seek(end)
         rest = stream.read()
-    record = ply.elements[-1].data.dtype.itemsize if ply.elements else 1
-    if rest.strip() and (rest.strip(b'\x00 \t\r\n') or len(rest) >= record):
+    if _appended(rest, ply.elements[-1].data.dtype.itemsize if ply.elements else 1):
         raise ValueError(f'{path}: PLY holds {len(rest)} bytes after its {declared} declared records: an element '
                          'count too small, or other data appended')
 
@@ -529,12 +551,20 @@ def _read_pcd(path: Path) -> np.ndarray:
 
 
 
-def _check_binary_size(path: Path, held: int, n: int, point_bytes: int) -> None:
-    """A binary PCD's data (``held`` bytes) must hold its ``n`` points: not fewer (cut short) and not a point
-    or more beyond them (POINTS too small: points would go unread); less than a point more is padding."""
+def _appended(rest: bytes, record: int) -> bool:
+    """Whether ``rest``, the bytes after a binary file's last declared record (``record`` bytes long), is data
+    (records that would go unread, or something appended) rather than padding: line ends, spaces, or NULs
+    shorter than a record."""
+    return bool(rest.strip()) and bool(rest.strip(b'\x00 \t\r\n') or len(rest) >= record)
+
+
+def _check_binary_size(path: Path, data: memoryview, n: int, point_bytes: int) -> None:
+    """A binary PCD's ``data`` must hold its ``n`` points: not fewer (cut short) and nothing but padding after
+    them (POINTS too small, and points would go unread, or other data appended), as for a PLY file."""
+    held = len(data)
     if held < n * point_bytes:
         raise ValueError(f'{path}: PCD data holds {held} bytes, {n} points need {n * point_bytes}')
-    if held >= (n + 1) * point_bytes:
+    if _appended(bytes(data[n * point_bytes:]), point_bytes):
         raise ValueError(f'{path}: PCD data holds {held} bytes, more than its {n} points need '
                          f'({n * point_bytes}): POINTS too small, or other data appended')
 
@@ -603,7 +633,7 @@ def _read_pcd_scan(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int
                                (c,)) for i, (f, s, t, c) in enumerate(zip(fields, sizes, types, counts))])
         except KeyError as exc:
             raise ValueError(f'{path}: unsupported PCD TYPE/SIZE {exc}') from exc
-        _check_binary_size(path, len(raw) - offset, n, dtype.itemsize)
+        _check_binary_size(path, memoryview(raw)[offset:], n, dtype.itemsize)
         records = np.frombuffer(raw, dtype=dtype, count=n, offset=offset)
         xyz = np.column_stack([records[a][:, 0] for a in 'xyz']).astype(np.float64)
         return xyz, beam_numbers(records['ring'][:, 0]) if has_ring else None, shape

@@ -239,8 +239,11 @@ def xyz_array(msg: Any, *, dtype: npt.DTypeLike = np.float64) -> np.ndarray:
     _check_xyz(msg)
     grid = _grid(msg)
     out = np.empty(grid.shape + (3,), out_dtype)
-    for i, name in enumerate(_XYZ):  # one strided pass each (faster than one (3,)-subarray pass)
-        out[..., i] = grid[name]
+    # a signalling NaN (bytes of another byte order or layout than declared, say) stays a NaN, a row that is no
+    # point: numpy's warning about its cast is not for the caller, who sees the values
+    with np.errstate(invalid='ignore'):
+        for i, name in enumerate(_XYZ):  # one strided pass each (faster than one (3,)-subarray pass)
+            out[..., i] = grid[name]
     return out.reshape(-1, 3)
 
 

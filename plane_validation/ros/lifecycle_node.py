@@ -19,10 +19,11 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from sensor_msgs.msg import PointCloud2
 
 from ..app.pipeline import FramePipeline
+from ..core.kernels import warm
 from .messages import status_name
 from .node import main as run_node
-from .parameters import apply_parameters, declare
-from .worker import FrameWorker, input_qos, output_publishers, warm_kernels
+from .parameters import apply_parameters, declare, set_requests_whole
+from .worker import FrameWorker, input_qos, output_publishers
 
 __all__ = ['PlaneValidationLifecycleNode', 'main']
 
@@ -40,6 +41,7 @@ class PlaneValidationLifecycleNode(LifecycleNode):
         self._pubs: dict[str, object] = {}
         self._subscription = None
         self.add_on_set_parameters_callback(lambda params: apply_parameters(self, params))
+        set_requests_whole(self)
         # a transition that does not start from the current state makes rclpy's ChangeState callback raise,
         # which ends the executor's spin: it is refused instead (success false) and the node serves on
         change_state = self._service_change_state.callback
@@ -62,7 +64,7 @@ class PlaneValidationLifecycleNode(LifecycleNode):
             self.get_logger().error(f'configure refused: {exc}')
             return FAILURE
         self.options = options
-        warm_kernels(self)
+        warm()  # main() did it before the node existed; an in-process node compiles or loads them here
         self.pipeline = FramePipeline(config)
         self._pubs = output_publishers(self.create_lifecycle_publisher)
         self.worker = FrameWorker(self, self.pipeline, self._publish, status_name(self.get_name()),

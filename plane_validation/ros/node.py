@@ -9,6 +9,7 @@ thread runs the shared pipeline and publishes every output; tolerance sweeps run
 """
 from __future__ import annotations
 
+import signal
 import sys
 
 import rclpy
@@ -18,8 +19,10 @@ from sensor_msgs.msg import PointCloud2
 
 from ..app.config import PARAMETERS
 from ..app.pipeline import FramePipeline, limit_blas_threads
+from ..core.kernels import warm
+from ..core.tuning import stop_workers
 from .messages import OUTPUTS, status_name
-from .parameters import NODE_PARAMETERS, apply_parameters, declare, descriptor, params_yaml
+from .parameters import NODE_PARAMETERS, apply_parameters, declare, descriptor, params_yaml, set_requests_whole
 from .worker import LOG_THROTTLE_S, SWEEP_STOP_S, FrameWorker, input_qos, output_publishers, warm_kernels
 
 __all__ = ['PlaneValidationNode', 'NODE_PARAMETERS', 'descriptor', 'params_yaml', 'spin', 'main',
@@ -36,10 +39,11 @@ class PlaneValidationNode(Node):
     def __init__(self, name: str = 'plane_validation', **kwargs) -> None:
         super().__init__(name, **kwargs)
         config, self.options = declare(self)
-        warm_kernels(self)
+        warm()  # main() did it before the node existed; an in-process node compiles or loads them here
         self.pipeline = FramePipeline(config)
         self.worker = None
         self.add_on_set_parameters_callback(lambda params: apply_parameters(self, params))
+        set_requests_whole(self)
         pubs = output_publishers(self.create_publisher)
         self.worker = FrameWorker(self, self.pipeline, lambda key, msg: pubs[key].publish(msg),
                                   status_name(self.get_name()), min_output_rate_hz=self.options.min_output_rate_hz)
@@ -81,6 +85,21 @@ def usage() -> str:
     return '\n'.join(lines)
 
 
+def _warm_first() -> bool:
+    """Compile or load the kernels before rclpy starts, holding SIGINT, SIGTERM and SIGHUP meanwhile (numba's
+    compiler swallows the KeyboardInterrupt a Ctrl-C raises inside it, so a node stopped during a first, cold compile
+    went on starting). Returns whether such a signal came: the node then does not start."""
+    caught: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+    previous = {sig: signal.signal(sig, lambda signum, _frame: caught.append(signum)) for sig in held}
+    try:
+        warm_kernels(rclpy.logging.get_logger('plane_validation'))
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    return bool(caught)
+
+
 def main(args: list[str] | None = None, node_class: type | None = None, prog: str = 'plane_validation_node') -> int:
     """Start ``node_class`` (default :class:`PlaneValidationNode`) and serve it until a signal or shutdown."""
     node_class = node_class or PlaneValidationNode
@@ -91,9 +110,14 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
     if '-h' in own or '--help' in own:  # rclpy would ignore them and start the node
         print(usage())
         return 0
+    if _warm_first():
+        return 0
     try:
         limit_blas_threads()
         rclpy.init(args=args)
+        # rclpy shuts down on SIGINT and SIGTERM; SIGHUP (a closed terminal or session) would end the process
+        # on the spot, leaving the sweep's worker processes behind: it shuts down the same way
+        signal.signal(signal.SIGHUP, lambda signum, frame: rclpy.try_shutdown())
     except KeyboardInterrupt:  # Ctrl-C while starting: as quiet as while spinning
         rclpy.try_shutdown()
         return 0
@@ -119,6 +143,7 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+        stop_workers()  # whichever signal ended the node: its sweep's worker processes end with it
     return 0
 
 

@@ -6,11 +6,14 @@ import dataclasses
 from dataclasses import dataclass
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.srv import SetParameters
+from rclpy.exceptions import ParameterNotDeclaredException
+from rclpy.parameter import Parameter as RosParameter
 
 from ..app.config import PARAMETERS, Parameter, PipelineConfig
 
 __all__ = ['NODE_PARAMETERS', 'NodeOptions', 'descriptor', 'declare', 'checked_changes', 'apply_parameters',
-           'params_yaml']
+           'params_yaml', 'set_requests_whole']
 
 #: Node-only parameters (the pipeline's are in app/config.py's table).
 NODE_PARAMETERS = {
@@ -109,3 +112,21 @@ def apply_parameters(node, params):
     if node.worker is not None:
         node.worker.min_output_rate_hz = node.options.min_output_rate_hz
     return SetParametersResult(successful=True)
+
+
+def set_requests_whole(node) -> None:
+    """Make ``node``'s plain SetParameters service apply each request as one change, all or none, as
+    SetParametersAtomically does. rclpy's sets the parameters one by one, each checked against the values before
+    it: tune_min above tune_max, sent together, applied tune_min and refused tune_max, a configuration nobody
+    asked for (every later sweep failed), and two values valid together could be refused in one order."""
+    def whole(request, response):
+        params = [RosParameter.from_parameter_msg(p) for p in request.parameters]
+        try:
+            result = node.set_parameters_atomically(params)
+        except ParameterNotDeclaredException as exc:
+            result = SetParametersResult(successful=False, reason=str(exc))
+        response.results = [result] * len(params)  # one answer per parameter, as the service defines
+        return response
+    for service in node.services:
+        if service.srv_type is SetParameters:
+            service.callback = whole

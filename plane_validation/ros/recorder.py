@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import array
 import shutil
-import tempfile
+import sqlite3
 from pathlib import Path
 
 import numpy as np
 
 from ..formats.bags import POINTCLOUD2, STORAGES, BagError, typestore
+from ..formats.partials import clear_stale_partials, make_partial
 from .messages import OUTPUTS, msgtype
 
 __all__ = ['BagRecorder', 'output_topics', 'as_rosbags']
@@ -77,7 +78,8 @@ class BagRecorder:
         self.path, self.storage = path, storage
         self._tmp = None
         try:
-            self._tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f'.{path.name}.', suffix='.partial'))
+            clear_stale_partials(path.parent, path.name)
+            self._tmp = make_partial(path.parent, path.name)
             self._bag = self._tmp / path.name
             self.writer = Writer(self._bag, version=9, storage_plugin=StoragePlugin[storage.upper()])
             self.writer.open()
@@ -94,13 +96,22 @@ class BagRecorder:
 
     def write(self, key: str, timestamp: int, msg) -> None:
         connection = self.connections[key]
-        self.writer.write(connection, timestamp, self._store.serialize_cdr(as_rosbags(msg, self._store),
-                                                                             connection.msgtype))
+        data = self._store.serialize_cdr(as_rosbags(msg, self._store), connection.msgtype)
+        try:
+            self.writer.write(connection, timestamp, data)
+        except (OSError, sqlite3.Error) as exc:  # a full disk: an OSError from MCAP, sqlite3's own error
+            raise self._failed(exc) from exc
+
+    def _failed(self, exc: OSError | sqlite3.Error) -> BagError:
+        return BagError(f'cannot write output bag {self.path}: {getattr(exc, "strerror", None) or exc}')
 
     def close(self) -> Path:
         """Finish the bag and move it to ``path``."""
         try:
-            self.writer.close()
+            try:
+                self.writer.close()
+            except (OSError, sqlite3.Error) as exc:
+                raise self._failed(exc) from exc
             suffix = STORAGES[self.storage]
             data = self._bag / f'{self._bag.name}{suffix}'
             rosbag2_name = f'{self._bag.name}_0{suffix}'

@@ -49,11 +49,11 @@ def output_publishers(create) -> dict[str, object]:
             for key, cls in OUTPUTS.items()}
 
 
-def warm_kernels(node) -> None:
-    """Compile or load the compiled kernels, and log how long it took: before a node advertises its topics, so that
-    its first frame does not wait for a compiler."""
+def warm_kernels(logger) -> None:
+    """Compile or load the compiled kernels and say how long it took on ``logger`` (an rclpy logger): before a node
+    exists, so that it appears on the graph ready to answer its first frame without waiting for a compiler."""
     ready = warm()
-    node.get_logger().info(f'compiled kernels ready in {ready.seconds:.2f} s ' + (
+    logger.info(f'compiled kernels ready in {ready.seconds:.2f} s ' + (
         '(compiled now and cached: later starts load them)' if ready.compiled else '(loaded from the cache)'))
 
 
