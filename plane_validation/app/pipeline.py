@@ -7,6 +7,7 @@ when it was tuned; everything else comes from :class:`~.config.PipelineConfig`.
 """
 from __future__ import annotations
 
+import functools
 import threading
 import time
 from collections.abc import Callable
@@ -91,8 +92,14 @@ class FrameResult:
         """Per-point ``values`` (n, ...) laid out on the input's H * W rows (``fill`` where a pixel
         had no valid point); requires ``image_shape``."""
         full = np.full((len(self.organized),) + values.shape[1:], fill, dtype=values.dtype)
-        full[finite_rows(self.organized)] = values
+        full[self._valid_rows] = values
         return full
+
+    @functools.cached_property
+    def _valid_rows(self) -> np.ndarray:
+        """The rows of ``organized`` that hold the valid points, ascending (found once: every organized output
+        lays its values out on them)."""
+        return np.flatnonzero(finite_rows(self.organized))
 
     @property
     def sweep_cloud(self) -> tuple[np.ndarray, tuple[int, int] | None]:
