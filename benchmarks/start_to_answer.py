@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import os
 import re
-import signal
 import statistics
 import subprocess
 import sys
@@ -21,7 +20,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from pvbench.node_e2e import cloud_message, domain_environment  # noqa: E402
+from pvbench.node_e2e import NodeBench, cloud_message, domain_environment  # noqa: E402
 
 from plane_validation.formats.files import load_cloud  # noqa: E402
 
@@ -59,12 +58,7 @@ def one_start(node, pub, msg, cache: str, log: Path) -> tuple[float, float, floa
                 rclpy_spin_once(node)
         first = answered[0] - start if answered else float('nan')
     finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        NodeBench._stop(proc)  # SIGINT, then SIGKILL after 15 s
         node.destroy_subscription(sub)
     match = READY.search(log.read_text())
     return ready, discovered, first, float(match.group(1)) if match else float('nan')

@@ -163,6 +163,24 @@ def _join(parent: np.ndarray, i: int, j: int) -> None:
 
 
 @numba.njit(**_JIT)
+def _numbered(parent: np.ndarray, inside: np.ndarray) -> tuple[np.ndarray, int]:
+    """The components of the union-find ``parent`` (n,) among the points ``inside`` (n,), numbered in the order of
+    their first point: (component (n,) int64, -1 outside; count)."""
+    n = parent.shape[0]
+    component = np.full(n, -1, np.int64)
+    number = np.full(n, -1, np.int64)
+    count = 0
+    for i in range(n):
+        if inside[i]:
+            r = _root(parent, i)
+            if number[r] < 0:
+                number[r] = count
+                count += 1
+            component[i] = number[r]
+    return component, count
+
+
+@numba.njit(**_JIT)
 def grid_components(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
                     member: np.ndarray) -> tuple[np.ndarray, int]:
     """Connected components of the points ``member`` (n,) bool of a sub-grid image (point i at flat pixel
@@ -193,17 +211,7 @@ def grid_components(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, wid
         i, j = node[bridges[b, 0]], node[bridges[b, 1]]
         if i >= 0 and j >= 0 and inside[i] and inside[j]:
             _join(parent, i, j)
-    component = np.full(n, -1, np.int64)
-    number = np.full(n, -1, np.int64)
-    count = 0
-    for i in range(n):
-        if inside[i]:
-            r = _root(parent, i)
-            if number[r] < 0:
-                number[r] = count
-                count += 1
-            component[i] = number[r]
-    return component, count
+    return _numbered(parent, inside)
 
 
 @numba.njit(**_JIT)
@@ -293,17 +301,7 @@ def graph_components(n: int, edges: np.ndarray, member: np.ndarray) -> tuple[np.
         i, j = edges[q, 0], edges[q, 1]
         if member[i] and member[j]:
             _join(parent, i, j)
-    component = np.full(n, -1, np.int64)
-    number = np.full(n, -1, np.int64)
-    count = 0
-    for i in range(n):
-        if member[i]:
-            r = _root(parent, i)
-            if number[r] < 0:
-                number[r] = count
-                count += 1
-            component[i] = number[r]
-    return component, count
+    return _numbered(parent, member)
 
 
 @numba.njit(**_JIT)
