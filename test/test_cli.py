@@ -722,3 +722,28 @@ def test_the_file_commands_take_the_viewpoint(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(['detect', str(path), '--viewpoint-z', 'nan'])
     assert 'viewpoint_z must be in' in capsys.readouterr().err
+
+
+@pytest.mark.filterwarnings('ignore::pytest.PytestUnraisableExceptionWarning')
+def test_a_signal_exception_dropped_by_a_finalizer_is_delivered_again():
+    """Python prints and drops an exception raised in ``__del__`` (llvmlite's finalizers run at any time): the
+    command must still end as the signal asked, not run on and exit 0."""
+    import signal
+    import time
+
+    from plane_validation.cli.commands import Terminated, _terminate_cleanly
+
+    class Finalized:
+        def __del__(self):
+            raise Terminated(signal.SIGTERM)
+
+    before, hook = signal.getsignal(signal.SIGTERM), sys.unraisablehook
+    with pytest.raises(Terminated) as raised:
+        with _terminate_cleanly():
+            obj = Finalized()
+            del obj
+            deadline = time.monotonic() + 5
+            while time.monotonic() < deadline:
+                time.sleep(0.01)
+    assert raised.value.signum == signal.SIGTERM
+    assert signal.getsignal(signal.SIGTERM) is before and sys.unraisablehook is hook

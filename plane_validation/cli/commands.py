@@ -783,11 +783,41 @@ def _terminate_cleanly() -> Iterator[None]:
         yield
         return
     previous = {sig: signal.signal(sig, _raise_terminated) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    previous_hook = sys.unraisablehook
+
+    def redeliver(unraisable) -> None:
+        """A signal's exception raised inside a finalizer (``__del__``) is printed and dropped by Python: the
+        command would go on and exit 0. The signal is raised again, to land in the main thread's code."""
+        previous_hook(unraisable)
+        if isinstance(unraisable.exc_value, Terminated):  # from another thread: the handler runs in the main one
+            signal.signal(unraisable.exc_value.signum, _raise_terminated)
+            threading.Thread(target=signal.raise_signal, args=(unraisable.exc_value.signum,), daemon=True).start()
+
+    sys.unraisablehook = redeliver
     try:
         yield
     finally:
+        sys.unraisablehook = previous_hook
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+def _load_kernels() -> None:
+    """Load (or compile) the compiled kernels with SIGINT, SIGTERM and SIGHUP held, then deliver the first one
+    held: an exception raised inside numba's loader or compiler is dropped, or crashes it in a callback."""
+    import signal
+
+    from ..core.kernels import warm
+    caught: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+    previous = {sig: signal.signal(sig, lambda signum, _frame: caught.append(signum)) for sig in held}
+    try:
+        warm()
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    for signum in caught[:1]:
+        signal.raise_signal(signum)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -801,15 +831,20 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     try:
         with _terminate_cleanly(), workers_ignore_sigint():
+            if args.func not in (cmd_scene, cmd_warmup):
+                _load_kernels()
             return args.func(args)
     except KeyboardInterrupt:
         return 130
     except Terminated as exc:
         return 128 + exc.signum
-    except SystemError as exc:  # a signal's exception raised while a compiled kernel ran comes wrapped in one
-        if isinstance(exc.__cause__, Terminated):
-            return 128 + exc.__cause__.signum
-        if isinstance(exc.__cause__, KeyboardInterrupt):
+    except SystemError as exc:  # a signal's exception raised while a compiled kernel ran comes wrapped in one or more
+        cause = exc
+        while isinstance(cause, SystemError) and cause.__cause__ is not None:
+            cause = cause.__cause__
+        if isinstance(cause, Terminated):
+            return 128 + cause.signum
+        if isinstance(cause, KeyboardInterrupt):
             return 130
         raise
     except BrokenPipeError:  # stdout closed early (piped into head): quiet, as a tool killed by SIGPIPE

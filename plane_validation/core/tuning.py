@@ -605,19 +605,22 @@ def stop_workers() -> None:
     no process holds their pipe. The next parallel sweep starts new workers."""
     global _EXECUTOR
     executor, _EXECUTOR = _EXECUTOR, None
-    if executor is None:
+    if executor is not None:
+        # a signal's exception between loky making its manager thread and starting it raises RuntimeError
+        with contextlib.suppress(RuntimeError):
+            executor.shutdown(wait=True, kill_workers=True)
+    # an earlier shutdown(wait=False) (an error or a signal during a sweep) leaves the killing to loky's thread
+    # and nothing joins the workers: they are killed and reaped here, or a container's PID 1 inherits zombies
+    import multiprocessing
+    import sys
+    if 'joblib.externals.loky.backend.process' not in sys.modules:  # no sweep ever ran in parallel here
         return
-    try:
-        executor.shutdown(wait=True, kill_workers=True)
-    except RuntimeError:  # a signal's exception came between loky making its manager thread and starting it
-        import multiprocessing
-
-        from joblib.externals.loky.backend.process import LokyProcess
-        for process in multiprocessing.active_children():  # no thread ends them: they are ended here
-            if isinstance(process, LokyProcess):
-                with contextlib.suppress(ProcessLookupError):
-                    os.kill(process.pid, signal.SIGKILL)  # loky's Popen has no kill()
-                process.join()
+    from joblib.externals.loky.backend.process import LokyProcess
+    for process in multiprocessing.active_children():
+        if isinstance(process, LokyProcess):
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(process.pid, signal.SIGKILL)  # loky's Popen has no kill()
+            process.join()
 
 
 class _NotCarried(Exception):
@@ -776,17 +779,31 @@ def workers_ignore_sigint() -> Iterator[None]:
 
 @contextlib.contextmanager
 def _sigint_ignored() -> Iterator[None]:
-    """SIGINT ignored while joblib starts worker processes (they inherit it), when the caller asked for
-    it (:func:`workers_ignore_sigint`). A Ctrl-C in that moment (milliseconds) is lost."""
-    previous = signal.getsignal(signal.SIGINT)
-    if not _QUIET_WORKERS.get() or threading.current_thread() is not threading.main_thread() or previous is None:
-        yield  # not asked for; only the main thread may set handlers; None: a handler set outside Python
+    """While joblib starts worker processes: SIGINT ignored (they inherit it) when the caller asked for it
+    (:func:`workers_ignore_sigint`), a Ctrl-C in that moment (milliseconds) being lost; SIGTERM and SIGHUP,
+    when Python handles them, held until the workers are started and known to loky (a handler's exception
+    in between left a started worker that nothing ends)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield  # only the main thread may set handlers
         return
+    held: list[int] = []
+    deferred = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    deferred = {sig: handler for sig, handler in deferred.items() if callable(handler)}
+    previous = signal.getsignal(signal.SIGINT)
+    quiet = _QUIET_WORKERS.get() and previous is not None  # None: a handler set outside Python
     try:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        for sig in deferred:
+            signal.signal(sig, lambda signum, _frame: held.append(signum))
+        if quiet:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        if quiet:
+            signal.signal(signal.SIGINT, previous)
+        for sig, handler in deferred.items():
+            signal.signal(sig, handler)
+        for signum in held[:1]:
+            signal.raise_signal(signum)
 
 
 def _sampled_separation(sampled_separation: bool | None, n_valid: int) -> bool:
