@@ -789,9 +789,12 @@ def _terminate_cleanly() -> Iterator[None]:
         """A signal's exception raised inside a finalizer (``__del__``) is printed and dropped by Python: the
         command would go on and exit 0. The signal is raised again, to land in the main thread's code."""
         previous_hook(unraisable)
-        if isinstance(unraisable.exc_value, Terminated):  # from another thread: the handler runs in the main one
+        if isinstance(unraisable.exc_value, Terminated):  # once this hook has returned (raised here, it is dropped
+            # again); the handler runs in the main thread, and a timer is another thread
             signal.signal(unraisable.exc_value.signum, _raise_terminated)
-            threading.Thread(target=signal.raise_signal, args=(unraisable.exc_value.signum,), daemon=True).start()
+            later = threading.Timer(0.01, signal.raise_signal, args=(unraisable.exc_value.signum,))
+            later.daemon = True
+            later.start()
 
     sys.unraisablehook = redeliver
     try:
