@@ -29,7 +29,7 @@ INDEX_FIELDS = ('dunn', 'davies_bouldin', 'davies_bouldin_classic', 'silhouette'
                 'plane_silhouette', 'silhouette_se', 'gs_se', 'gs_planes_se')
 #: Columns of the sweep CSV, one row per candidate tolerance.
 SWEEP_COLUMNS = ('tolerance', 'n_planes', 'assigned_points') + INDEX_FIELDS + \
-    ('max_thickness', 'volume_share', 'merged_share', 'seconds', 'chosen')
+    ('max_thickness', 'volume_share', 'merged_share', 'misfit_share', 'seconds', 'chosen')
 
 
 def jsonable(value: Any) -> Any:
@@ -117,6 +117,7 @@ def _sweep_row(row, chosen: bool) -> dict:
     out = {'tolerance': row.tolerance, 'n_planes': row.n_planes, 'assigned_points': sum(row.inlier_counts)}
     out.update({name: getattr(row.indices, name) for name in INDEX_FIELDS})
     out.update(max_thickness=row.max_thickness, volume_share=row.volume_share, merged_share=row.merged_share,
+               misfit_share=row.misfit_share,
                seconds=row.seconds, chosen=chosen)
     return out
 

@@ -107,6 +107,11 @@ SILHOUETTE_TIE = 0.01
 #: A sound choice above a merge is kept: the layering test also fires on a quantized camera's depth steps, and
 #: cutting there splits a wall into its two depth layers.
 UNSOUND_SHARE = 0.02
+#: A candidate whose planes that fit their points worse than their patches do (verdict.MAX_LACK_OF_FIT: two sides of a
+#: shallow ridge, a table top with the floor beside it) hold this share of the planes' points or more is unsound too: as
+#: for the verdict (MINOR_SHARE). Smaller merges, such as a box's top with strips of its sides, come back at every t
+#: and would push the choice down to a t too small for the large planes.
+MISFIT_SHARE = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -121,11 +126,13 @@ class TuningRow:
     max_thickness: float = 0.0   # largest plane_thickness among the planes (0 without planes)
     volume_share: float = 0.0    # share of the planes' points on planes cut out of a volume (verdict.surface_failures)
     merged_share: float = 0.0    # ... on planes holding several surfaces as one (two layers, a slab across steps)
+    misfit_share: float = 0.0    # ... on planes that fit their points worse than their patches do (a shallow ridge)
 
     @property
     def unsound(self) -> bool:
-        """Whether the planes fail the verdict's surface tests on UNSOUND_SHARE of their points or more."""
-        return self.volume_share + self.merged_share >= UNSOUND_SHARE
+        """Whether the planes fail the verdict's surface tests on UNSOUND_SHARE of their points or more, or its
+        lack-of-fit test on MISFIT_SHARE or more."""
+        return self.volume_share + self.merged_share >= UNSOUND_SHARE or self.misfit_share >= MISFIT_SHARE
 
     def score(self, criterion: str) -> float:
         return float(getattr(self.indices, criterion))
@@ -523,13 +530,14 @@ def _candidate(points: np.ndarray, opts: dict, t: float, seed: int, score: dict)
     seg = detect_planes(points, t, seed=seed, **opts)
     scores = validity_indices(points, seg.labels, **score)
     sizes = np.array([len(p.inliers) for p in seg.planes], dtype=float)
-    volume, merged, thickness = surface_failures(points, seg)
+    volume, merged, misfit, thickness = surface_failures(points, seg)
     total = max(sizes.sum(), 1.0)
     return TuningRow(tolerance=float(t), n_planes=seg.n_planes, inlier_counts=tuple(int(n) for n in sizes),
                      indices=scores, seconds=time.perf_counter() - start,
                      max_thickness=float(thickness.max()) if len(thickness) else 0.0,
                      volume_share=float(sizes[volume & ~merged].sum() / total),
-                     merged_share=float(sizes[merged].sum() / total)), seg.labels
+                     merged_share=float(sizes[merged].sum() / total),
+                     misfit_share=float(sizes[misfit & ~merged].sum() / total)), seg.labels
 
 
 @single_blas_thread
