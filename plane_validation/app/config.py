@@ -12,7 +12,7 @@ from typing import Any
 
 from ..core.noise import NOISE_MODELS, NOISE_REFERENCE
 from ..core.orientation import AXIS_MODES, Orientation, orientation
-from ..core.params import SearchParams
+from ..core.params import SearchParams, TuneParams
 from ..core.ransac import GRID_POINTS, RANSAC_POINTS
 from ..core.tuning import CRITERIA, DEFAULT_CRITERION, SWEEP_MAX_PLANES, TUNE_CANDIDATES, TUNE_POINTS
 
@@ -189,6 +189,13 @@ class PipelineConfig:
                             connectivity=self.connectivity, noise_model=self.noise_model,
                             noise_reference=self.noise_reference, viewpoint=self.viewpoint,
                             orientation=self.orientation)
+
+    @property
+    def tune(self) -> TuneParams:
+        """How tune_tolerance sweeps t with these parameters (0 for tune_min, tune_max: derived from the cloud)."""
+        return TuneParams(criterion=self.criterion, sample_size=self.index_sample_size, tune_points=self.tune_points,
+                          t_min=self.tune_min or None, t_max=self.tune_max or None, count=self.tune_count,
+                          sampled_separation=not self.exact_indices, jobs=self.tune_jobs)
 
     def validate(self) -> PipelineConfig:
         """Return self, or raise ValueError naming the first invalid field and why."""

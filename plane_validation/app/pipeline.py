@@ -296,11 +296,8 @@ class FramePipeline:
         def progress(*_) -> None:
             if stop is not None and stop():
                 raise _Abandoned
-        return tune_tolerance(points, None, cfg.criterion, progress=progress, sample_size=cfg.index_sample_size,
-                              tune_points=cfg.tune_points, t_min=cfg.tune_min or None, t_max=cfg.tune_max or None,
-                              count=cfg.tune_count, seed=frame_seed(cfg.seed, stamp_ns),
-                              sampled_separation=not cfg.exact_indices, shape=shape, jobs=cfg.tune_jobs,
-                              **cfg.search.kwargs())
+        return tune_tolerance(points, progress=progress, seed=frame_seed(cfg.seed, stamp_ns), shape=shape,
+                              **cfg.tune.kwargs(), **cfg.search.kwargs())
 
     def process_cloud(self, msg, *, tune_inline: bool = True) -> FrameResult:
         """One sensor_msgs/PointCloud2 (rclpy or rosbags) through :meth:`process`; a malformed

@@ -1,9 +1,11 @@
-"""How a search runs, as one frozen value: every setting of :func:`.ransac.detect_planes` but the cloud's own.
+"""How a search and a tolerance sweep run, as frozen values: every setting of :func:`.ransac.detect_planes`
+(:class:`SearchParams`) and of :func:`.tuning.tune_tolerance`'s sweep (:class:`TuneParams`) but the cloud's own.
 
-Built once from the parameter table (``PipelineConfig.search``) and passed on as keywords
-(``detect_planes(points, t, seed=..., shape=..., **search.kwargs())``; :func:`.tuning.tune_tolerance` and
-:func:`.tuning.select_plane_count` take the same keywords), so that the node, replay and every command search
-alike. The public functions keep their keyword arguments and defaults for API users.
+Built once from the parameter table (``PipelineConfig.search``, ``PipelineConfig.tune``) and passed on as keywords
+(``detect_planes(points, t, seed=..., shape=..., **search.kwargs())``; ``tune_tolerance(points, seed=...,
+**search.kwargs(), **tune.kwargs())``; :func:`.tuning.select_plane_count` takes the search's keywords), so that the
+node, replay and every command search and tune alike. The public functions keep their keyword arguments and
+defaults for API users.
 """
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ from dataclasses import dataclass
 
 from .orientation import Orientation
 
-__all__ = ['SearchParams']
+__all__ = ['SearchParams', 'TuneParams']
 
 
 @dataclass(frozen=True)
@@ -36,4 +38,25 @@ class SearchParams:
 
     def kwargs(self) -> dict[str, object]:
         """The fields as keyword arguments of :func:`.ransac.detect_planes`."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+
+@dataclass(frozen=True)
+class TuneParams:
+    """criterion: the index that picks t; sample_size: the index sample (points; None: all); tune_points: the
+    sweep's subsample (points; None: all); t_min, t_max: the candidates' range (meters; None: derived from the
+    cloud); count: candidates; sampled_separation: Dunn and Davies-Bouldin on the index sample (None: exact up to
+    tuning.EXACT_SEPARATION_POINTS); jobs: processes the candidates run in."""
+
+    criterion: str
+    sample_size: int | None
+    tune_points: int | None
+    t_min: float | None
+    t_max: float | None
+    count: int
+    sampled_separation: bool | None
+    jobs: int
+
+    def kwargs(self) -> dict[str, object]:
+        """The fields as keyword arguments of :func:`.tuning.tune_tolerance`."""
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}

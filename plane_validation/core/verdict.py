@@ -127,9 +127,10 @@ TILT_MIN_PATCHES = 16
 #: 95th percentile 1.22; those holding two true planes (20 % or more of the second): median 3.3, 90 % above 1.5.
 #: Such planes may hold less than MINOR_SHARE of the planes' points.
 MAX_LACK_OF_FIT = 2.0
-#: ... judged on at least TILT_MIN_PATCHES patches whose RMS thickness is over this share of their spread: flatter
-#: ones lie on one depth step of a quantizing sensor without noise.
-EXACT_PATCH = 1e-7
+#: ... judged on at least TILT_MIN_PATCHES patches, and on most of them, whose RMS thickness is over this share of their
+#: spread: flatter ones are noise-free up to float32 rounding, or lie on one depth step of a quantizing sensor
+#: without noise (a sensor's noise is 1e-2 of a patch's spread or more).
+EXACT_PATCH = 1e-4
 
 
 def seed_agreement(reference: np.ndarray, others) -> float:
@@ -208,7 +209,7 @@ def _lack_of_fit(pca) -> float:
     values, _, counts = patches
     # a patch exactly flat up to rounding lies on one step of a quantizing sensor: it tells nothing of the noise
     noisy = values[:, 0] > (EXACT_PATCH * values[:, 2]) ** 2
-    if np.count_nonzero(noisy) < TILT_MIN_PATCHES:
+    if np.count_nonzero(noisy) < max(TILT_MIN_PATCHES, len(noisy) / 2):  # noise-free: only edge patches are thick
         return float('nan')
     values, counts = values[noisy], counts[noisy]
     local = float(np.average(values[:, 0], weights=counts))
