@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import kernels
 from .indices import ValidityIndices
 from .noise import tolerance_scale
 from .plane_silhouette import EXTENT_PERCENTILES
@@ -166,11 +167,29 @@ def _tilt(pca, normal: np.ndarray) -> float:
     return float(np.mean(np.abs(axes[flat, :, 0] @ normal) < np.cos(np.radians(TILT_DEG))))
 
 
-def _patches(pca) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+def _patches(pca, axes: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.ndarray] | None:
     """The patches of one plane's sampled inliers (its :func:`_pca`): the cells of a square grid along their in-plane
     principal axes, sized to hold TILT_NEIGHBOURS of them on average (cells with half that or more count). Per patch
-    the eigenvalues (p, 3) ascending and eigenvectors (p, 3, 3) of its scatter (per point, m^2) and its points (p,);
-    None for too few inliers."""
+    the eigenvalues (p, 3) ascending and, with ``axes``, eigenvectors (p, 3, 3) of its scatter (per point, m^2), and
+    its points (p,); None for too few inliers. One compiled pass (:func:`.kernels.cell_scatter`;
+    :func:`_patches_numpy` is its reference)."""
+    cells = _patch_cells(pca)
+    if cells is None:
+        return None
+    cells, n_cells = cells
+    counts, scatter, values = kernels.cell_scatter(cells, kernels.c_array(pca[1], np.float64), n_cells,
+                                                   TILT_NEIGHBOURS // 2)
+    if len(counts) == 0:
+        return None
+    if axes:
+        values, vectors = np.linalg.eigh(scatter)
+        return values, vectors, counts
+    return values, None, counts
+
+
+def _patch_cells(pca) -> tuple[np.ndarray, int] | None:
+    """Each sampled inlier's patch (m,) int64 and the number of patches, numbered along the grid; None for too few
+    inliers."""
     if pca is None or len(pca[1]) < 2 * TILT_NEIGHBOURS:
         return None
     _, centred, _, vectors = pca
@@ -179,9 +198,21 @@ def _patches(pca) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     side = float(np.sqrt(np.prod(extent) * TILT_NEIGHBOURS / len(uv)))
     if not side > 0:
         return None
-    width = int(extent[1] // side) + 1
-    cells = np.unique((((uv[:, 0] - lo[0]) // side) * width + (uv[:, 1] - lo[1]) // side).astype(np.int64),
-                      return_inverse=True)[1].reshape(-1)
+    width, height = int(extent[1] // side) + 1, int(extent[0] // side) + 1
+    cells = (((uv[:, 0] - lo[0]) // side) * width + (uv[:, 1] - lo[1]) // side).astype(np.int64)
+    if width * height > 64 * len(uv):  # a strip thin for its length: number the cells that hold points only
+        _, cells = np.unique(cells, return_inverse=True)
+        return cells.reshape(-1).astype(np.int64), int(cells.max()) + 1
+    return cells, width * height
+
+
+def _patches_numpy(pca) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """:func:`_patches` in numpy: the reference its kernel is tested against."""
+    cells = _patch_cells(pca)
+    if cells is None:
+        return None
+    cells = np.unique(cells[0], return_inverse=True)[1].reshape(-1)
+    centred = pca[1]
     counts = np.bincount(cells)
     columns = [centred[:, i] for i in range(3)] + [centred[:, i] * centred[:, j] for i in range(3) for j in range(3)]
     moments = np.stack([np.bincount(cells, weights=c) for c in columns], axis=1) / counts[:, None]
@@ -203,7 +234,7 @@ def plane_lack_of_fit(points: np.ndarray, seg: Segmentation) -> np.ndarray:
 
 def _lack_of_fit(pca) -> float:
     """:func:`plane_lack_of_fit` of one plane from its sampled inliers' :func:`_pca`."""
-    patches = _patches(pca)
+    patches = _patches(pca, axes=False)
     if patches is None:
         return float('nan')
     values, _, counts = patches
