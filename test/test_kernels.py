@@ -97,6 +97,21 @@ def test_pack_segmented_matches_structured_records(seed, n, k):
     assert dense == (not np.isnan(pts).any())
 
 
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 300))
+def test_pack_xyz_matches_structured_records(seed, n):
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(scale=100, size=(n, 3))
+    pts[rng.random(n) < 0.1] = np.nan
+    keep = rng.random(n) < 0.7
+    out = np.zeros(12 * n, np.uint8)
+    dense = kernels.pack_xyz(pts, keep, out)
+    ref = np.zeros((n, 3), '<f4')
+    ref[:] = np.where(keep[:, None], pts, np.nan)
+    assert out.tobytes() == ref.tobytes()
+    assert dense == (not np.isnan(ref).any())
+
+
 def test_read_only_input_is_copied_not_recompiled():
     pts = np.zeros((5, 3))
     pts.flags.writeable = False
@@ -240,7 +255,7 @@ def test_graph_region_matches_numpy(seed):
     np.testing.assert_array_equal(taken, ref_taken)
 
 
-@settings(deadline=None, max_examples=60)
+@SETTINGS
 @given(st.integers(0, 2**32 - 1), st.integers(0, 400), st.floats(0.0, 0.2))
 def test_patches_match_numpy(seed, n, thickness):
     """The verdict's patches (cell scatter and its closed-form eigenvalues) against bincount moments and eigh."""

@@ -43,3 +43,30 @@ def test_the_pipeline_finds_the_obstacles_of_a_room_in_a_z_up_frame_and_removes_
     assert abs(floor.normal[2]) > 0.99 and abs(floor.offset) < 0.02  # the floor, z = 0
     assert 0 < ground.obstacles.sum() < plain.obstacles.sum()
     assert (np.abs(ground.points[ground.obstacles, 2]) > 0.09).all()
+
+
+def test_the_obstacle_cloud_packed_in_one_pass_matches_the_generic_writer():
+    """ros/messages.obstacle_cloud writes the records with kernels.pack_xyz; the generic writer (create_cloud, used
+    for float64 coordinates) is its reference, for an organized frame (NaN off the obstacles, an inf row included)
+    and for the same points unorganized."""
+    import pytest
+    sensor_msgs = pytest.importorskip('sensor_msgs.msg')
+    import std_msgs.msg
+
+    from plane_validation.ros import messages
+    scene = depth_camera('table', width=64, height=48, seed=0)
+    points = scene.points.copy()
+    points[5] = np.inf
+    pipeline = FramePipeline(PipelineConfig(auto_tune=False, tolerance=0.02, max_planes=4))
+    for shape in (scene.shape, None):
+        result = pipeline.process(points if shape else points[np.isfinite(points).all(axis=1)], shape=shape)
+        assert result.obstacles is not None and 0 < result.obstacles.sum() < len(result.points)
+        header = std_msgs.msg.Header(frame_id='camera')
+        packed = messages.obstacle_cloud(header, result)
+        mask = result.obstacles
+        reference = messages._cloud(header, result, {}, {}, rows=mask) if shape is None else \
+            messages._cloud(header, result, {}, {}, hide=~mask)
+        assert isinstance(packed, sensor_msgs.PointCloud2)
+        assert (packed.height, packed.width, packed.point_step, packed.is_dense) == \
+            (reference.height, reference.width, reference.point_step, reference.is_dense)
+        assert bytes(packed.data) == bytes(reference.data)

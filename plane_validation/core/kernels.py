@@ -19,7 +19,7 @@ import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
-           'cell_scatter', 'warm', 'Warmup']
+           'cell_scatter', 'pack_xyz', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -490,6 +490,26 @@ def pack_segmented(points: np.ndarray, labels: np.ndarray, plane_ids: np.ndarray
     return dense
 
 
+@numba.njit(**_JIT)
+def pack_xyz(points: np.ndarray, keep: np.ndarray, out: np.ndarray) -> bool:
+    """Fill ``out`` (N * 12,) uint8 with little-endian records x, y, z (float32) of ``points`` (N, 3), NaN where
+    ``keep`` (N,) is False. Returns whether no coordinate is NaN (PointCloud2's is_dense)."""
+    record = np.empty(3, np.float32)
+    raw = record.view(np.uint8)
+    dense = True
+    for i in range(points.shape[0]):
+        if keep[i]:
+            record[0], record[1], record[2] = points[i, 0], points[i, 1], points[i, 2]
+            dense = dense and not (np.isnan(record[0]) or np.isnan(record[1]) or np.isnan(record[2]))
+        else:
+            record[0] = record[1] = record[2] = np.nan
+            dense = False
+        base = 12 * i
+        for b in range(12):
+            out[base + b] = raw[b]
+    return dense
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -511,6 +531,7 @@ def warm() -> Warmup:
     rows, bounds = group_by_label(labels, 2)
     centroids_and_extremes(pts, rows, bounds, np.zeros((2, 8, 3)))
     pack_segmented(pts, labels, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.empty(80, np.uint8))
+    pack_xyz(pts, np.ones(4, np.bool_), np.empty(48, np.uint8))
     flags = np.ones(4, np.bool_)
     index = np.arange(4, dtype=np.int64)
     grid_components(index, index, flags, 2, np.zeros((1, 3), np.int64), flags)
@@ -524,4 +545,4 @@ def warm() -> Warmup:
 
 
 _KERNELS = (finite_mask, cell_scatter, spread_grid, group_by_label, centroids_and_extremes, grid_components,
-            grid_region, grid_compete, graph_components, graph_region, pack_segmented)
+            grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz)

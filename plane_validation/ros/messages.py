@@ -15,7 +15,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from ..app.diagnostics import Diagnostic, Level
 from ..app.pipeline import FrameResult
 from ..core.geometry import UNASSIGNED_RGB, PlaneOutline, plane_colors, plane_outlines
-from ..core.kernels import c_array, pack_segmented
+from ..core.kernels import c_array, pack_segmented, pack_xyz
 from ..formats.files import coordinate_dtype
 from ..formats.pointcloud2 import cloud_buffer, cloud_message, create_cloud, pack_rgb, record_layout
 
@@ -75,6 +75,16 @@ def obstacle_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
     """x, y, z of the valid points on no plane (without those near the ground with ``ground_margin``); of an
     organized input, its H x W pixels with NaN where a pixel is not an obstacle."""
     mask = np.zeros(len(result.points), bool) if result.obstacles is None else result.obstacles
+    if result.image_shape is None:
+        pts, keep, shape = result.points[mask], np.ones(np.count_nonzero(mask), bool), (1, int(np.count_nonzero(mask)))
+    else:
+        # the input's rows themselves: those not kept (invalid ones included) are written as NaN
+        pts, keep, shape = result.organized, result.as_image(mask, False), result.image_shape
+    if coordinate_dtype(pts) == np.float32:  # the usual case: one compiled pass writes the records
+        layout = record_layout({'x': np.float32, 'y': np.float32, 'z': np.float32})
+        data = cloud_buffer(len(keep) * layout.itemsize, sensor_msgs.msg)
+        dense = pack_xyz(c_array(pts, np.float64), c_array(keep, bool), np.frombuffer(data, np.uint8))
+        return cloud_message(header, layout, data, shape, types=sensor_msgs.msg, dense=dense)
     if result.image_shape is None:
         return _cloud(header, result, {}, {}, rows=mask)
     return _cloud(header, result, {}, {}, hide=~mask)
