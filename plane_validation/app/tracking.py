@@ -13,6 +13,8 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial import cKDTree
 
+from ..core.kernels import c_array, group_by_label
+
 __all__ = ['PlaneTracker', 'TrackerConfig', 'plane_samples']
 
 #: Cost of a pair the gates refuse (the assignment never takes it).
@@ -51,8 +53,7 @@ class _Track:
 def plane_samples(points: np.ndarray, labels: np.ndarray, n_planes: int, count: int) -> list[np.ndarray]:
     """Per plane k up to ``count`` of its points (labels == k), evenly spaced in their order
     (deterministic): (m_k, 3) each."""
-    order = np.argsort(labels, kind='stable')
-    bounds = np.searchsorted(labels[order], np.arange(n_planes + 1))
+    order, bounds = group_by_label(c_array(labels, np.int32), n_planes)  # a stable counting sort, compiled
     out = []
     for k in range(n_planes):
         rows = order[bounds[k]:bounds[k + 1]]
@@ -87,10 +88,11 @@ class PlaneTracker:
         coefficients = np.asarray(coefficients, dtype=float).reshape(-1, 4)
         samples = plane_samples(np.asarray(points), np.asarray(labels), len(coefficients), cfg.samples)
         cost = np.full((len(self._tracks), len(coefficients)), _REFUSED)
+        trees = [cKDTree(sample) if len(sample) else None for sample in samples] if self._tracks else []
         for i, track in enumerate(self._tracks):
             tree = cKDTree(track.sample) if len(track.sample) else None
             for j, (coeff, sample) in enumerate(zip(coefficients, samples)):
-                cost[i, j] = self._cost(track, tree, coeff, sample)
+                cost[i, j] = self._cost(track, tree, coeff, sample, trees[j])
         ids = [-1] * len(coefficients)
         if cost.size:
             for i, j in zip(*linear_sum_assignment(cost)):
@@ -110,9 +112,9 @@ class PlaneTracker:
                 self._next_id += 1
         return tuple(ids)
 
-    def _cost(self, track: _Track, tree, coeff: np.ndarray, sample: np.ndarray) -> float:
+    def _cost(self, track: _Track, tree, coeff: np.ndarray, sample: np.ndarray, sample_tree) -> float:
         cfg = self.config
-        if tree is None or not len(sample):
+        if tree is None or sample_tree is None:
             return _REFUSED
         cos = abs(float(track.coefficients[:3] @ coeff[:3]))
         angle = np.degrees(np.arccos(min(cos, 1.0)))
@@ -125,7 +127,7 @@ class PlaneTracker:
         if offset > cfg.max_offset:
             return _REFUSED
         near_track = np.isfinite(tree.query(sample, distance_upper_bound=cfg.overlap_radius)[0]).mean()
-        near_plane = np.isfinite(cKDTree(sample).query(track.sample, distance_upper_bound=cfg.overlap_radius)[0]).mean()
+        near_plane = np.isfinite(sample_tree.query(track.sample, distance_upper_bound=cfg.overlap_radius)[0]).mean()
         overlap = max(near_track, near_plane)
         if overlap < cfg.min_overlap:
             return _REFUSED
