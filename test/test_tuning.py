@@ -962,8 +962,9 @@ def test_lack_of_fit_tells_one_surface_from_a_shallow_ridge():
     patches fit theirs; each side alone, or a plane whose noise grows fivefold across it, does not."""
     from plane_validation.core.verdict import MAX_LACK_OF_FIT, judge, plane_lack_of_fit
     points, side = _gable(3.0)
-    merged = pv.detect_planes(points, 0.5, max_planes=1, seed=0)
-    assert merged.n_planes == 1 and plane_lack_of_fit(points, merged)[0] >= MAX_LACK_OF_FIT
+    merged = pv.detect_planes(points, 0.15, max_planes=1, seed=0)  # t as the sweep chose without the test
+    assert merged.n_planes == 1 and len(merged.planes[0].inliers) > 0.95 * len(points)
+    assert plane_lack_of_fit(points, merged)[0] >= MAX_LACK_OF_FIT
     reliable, why = judge(points, merged, pv.validity_indices(points, merged.labels, seed=0))
     assert not reliable and 'worse than its patches' in why
     for s in (0, 1):
