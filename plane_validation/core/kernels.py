@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
-           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask', 'warm',
+           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask', 'voxel_grid', 'voxel_knn', 'warm',
            'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -435,6 +435,145 @@ def pack_segmented(points: np.ndarray, labels: np.ndarray, plane_ids: np.ndarray
     return dense
 
 
+@numba.njit(**_JIT)
+def _slot(key: int, mask: int) -> int:
+    """The first slot of ``key`` in a hash table of mask + 1 slots (a power of two)."""
+    h = key * 0x9E3779B1
+    return (h ^ (h >> 17)) & mask
+
+
+@numba.njit(**_JIT)
+def voxel_grid(points: np.ndarray, origin: np.ndarray, cell: float, dims: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Hash ``points`` (m, 3) meters into cubic voxels of side ``cell`` (meters) from ``origin`` (3,), ``dims`` (3,)
+    voxels along each axis (every point inside them). Returns (order (m,): the points voxel by voxel, in the order of
+    their voxel's key; keys (c,) of the occupied voxels, ascending; starts (c + 1,): voxel j holds
+    order[starts[j]:starts[j + 1]]; table (2^b,): an open-addressing hash of key to voxel, -1 empty)."""
+    m = points.shape[0]
+    keys = np.empty(m, np.int64)
+    for i in range(m):
+        ix = int((points[i, 0] - origin[0]) / cell)
+        iy = int((points[i, 1] - origin[1]) / cell)
+        iz = int((points[i, 2] - origin[2]) / cell)
+        keys[i] = ix + dims[0] * (iy + dims[1] * iz)
+    order = np.argsort(keys, kind='mergesort')
+    c = 0
+    for q in range(m):
+        if q == 0 or keys[order[q]] != keys[order[q - 1]]:
+            c += 1
+    cell_keys = np.empty(c, np.int64)
+    starts = np.empty(c + 1, np.int64)
+    c = 0
+    for q in range(m):
+        key = keys[order[q]]
+        if q == 0 or key != keys[order[q - 1]]:
+            cell_keys[c] = key
+            starts[c] = q
+            c += 1
+    starts[c] = m
+    size = 1
+    while size < 2 * c + 2:
+        size *= 2
+    table = np.full(size, -1, np.int64)
+    for j in range(c):
+        s = _slot(cell_keys[j], size - 1)
+        while table[s] >= 0:
+            s = (s + 1) & (size - 1)
+        table[s] = j
+    return order, cell_keys, starts, table
+
+
+@numba.njit(**_JIT)
+def _voxel(cell_keys: np.ndarray, table: np.ndarray, key: int) -> int:
+    """The occupied voxel of ``key`` in :func:`voxel_grid`'s hash, -1 when none."""
+    mask = table.shape[0] - 1
+    s = _slot(key, mask)
+    while table[s] >= 0:
+        if cell_keys[table[s]] == key:
+            return table[s]
+        s = (s + 1) & mask
+    return -1
+
+
+@numba.njit(**_JIT)
+def _gap(f: float, c: int, d: int) -> float:
+    """How far (in voxels) a query at ``f`` along an axis, in voxel ``c``, lies from voxel c + ``d``."""
+    if d < 0:
+        return f - (c + d + 1)
+    if d > 0:
+        return (c + d) - f
+    return 0.0
+
+
+@numba.njit(**_JIT)
+def voxel_knn(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
+              origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray, k: int, max_ring: int
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ``k`` nearest of the points hashed by :func:`voxel_grid` (``points`` (m, 3): those points voxel by voxel,
+    in its ``order``) to each of ``queries`` (q, 3), inside the grid, nearest first (equal distances: the first in
+    ``order`` first; indices into the points as hashed), searched ring by ring of voxels around the query's
+    own up to ``max_ring`` rings. Returns (distances (q, k) meters, indices (q, k), exact (q,) bool): a query whose k
+    nearest are not certain within those rings has exact False (its other rows are then meaningless)."""
+    nq = queries.shape[0]
+    dist = np.full((nq, k), np.inf)
+    idx = np.full((nq, k), -1, np.int64)
+    exact = np.zeros(nq, np.bool_)
+    d2 = np.empty(k)
+    for q in range(nq):
+        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+        fx, fy, fz = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
+        cx, cy, cz = int(fx), int(fy), int(fz)
+        margin = min(fx - cx, cx + 1 - fx, fy - cy, cy + 1 - fy, fz - cz, cz + 1 - fz) * cell
+        d2[:] = np.inf
+        found = 0
+        best = idx[q]
+        for r in range(max_ring + 1):
+            for dz in range(-r, r + 1):
+                iz = cz + dz
+                if iz < 0 or iz >= dims[2]:
+                    continue
+                gz = _gap(fz, cz, dz) * cell
+                for dy in range(-r, r + 1):
+                    iy = cy + dy
+                    if iy < 0 or iy >= dims[1]:
+                        continue
+                    gy = _gap(fy, cy, dy) * cell
+                    gyz = gy * gy + gz * gz
+                    if found == k and gyz > d2[k - 1]:
+                        continue
+                    edge = abs(dz) == r or abs(dy) == r
+                    dx = -r
+                    while dx <= r:
+                        ix = cx + dx
+                        gx = _gap(fx, cx, dx) * cell
+                        if 0 <= ix < dims[0] and not (found == k and gx * gx + gyz > d2[k - 1]):
+                            v = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz))
+                            if v >= 0:
+                                for j in range(starts[v], starts[v + 1]):
+                                    ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+                                    e = ex * ex + ey * ey + ez * ez
+                                    if found == k and not (e < d2[k - 1] or (e == d2[k - 1] and j < best[k - 1])):
+                                        continue
+                                    p = min(found, k - 1)
+                                    while p > 0 and (e < d2[p - 1] or (e == d2[p - 1] and j < best[p - 1])):
+                                        d2[p] = d2[p - 1]
+                                        best[p] = best[p - 1]
+                                        p -= 1
+                                    d2[p] = e
+                                    best[p] = j
+                                    if found < k:
+                                        found += 1
+                        dx += 1 if edge or dx == r else 2 * r  # inside the ring: only its two ends
+            reach = r * cell + margin
+            if found == k and d2[k - 1] <= reach * reach:
+                exact[q] = True
+                break
+        for p in range(found):
+            dist[q, p] = np.sqrt(d2[p])
+            best[p] = order[best[p]]
+    return dist, idx, exact
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -463,9 +602,12 @@ def warm() -> Warmup:
     grid_compete(np.zeros((2, 4)), np.zeros(4, np.int64), index, index, 2, EIGHT, 2)
     graph_components(4, np.zeros((1, 2), np.int64), flags)
     graph_region(np.zeros((1, 2), np.int64), pts, np.ones(3), 0.5, flags, flags, flags, np.ones(3))
+    dims = np.ones(3, np.int64)
+    grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
+    voxel_knn(pts, *grid, np.zeros(3), 1.0, dims, pts, 2, 1)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components, grid_region,
-            grid_compete, graph_components, graph_region, pack_segmented)
+            grid_compete, graph_components, graph_region, pack_segmented, voxel_grid, voxel_knn)

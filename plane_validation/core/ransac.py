@@ -30,6 +30,7 @@ from .regions import (
     SUPPORT_BALANCE,
     Neighbours,
     graph_neighbours,
+    voxel_index,
     grid_neighbours,
 )
 
@@ -1108,11 +1109,24 @@ def _search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | 
             search_idx = valid_idx[np.sort(rng.choice(n_valid, int(ransac_points), replace=False))]
         searched = pts[search_idx] - center
         if len(search_idx) < n_valid:
-            nearest = cKDTree(searched).query(pts[valid_idx] - center, k=1)[1]
+            nearest = _nearest_searched(searched, pts[valid_idx] - center)
         neighbours = graph_neighbours(searched, viewpoint=viewpoint - center)
     return SearchGraph(n_points=len(pts), search_idx=search_idx, step=step, center=center, neighbours=neighbours,
                        shape=shape, ransac_points=ransac_points, n_valid=n_valid, nearest=nearest,
                        viewpoint=tuple(viewpoint.tolist()), grid_points=grid_points)
+
+
+def _nearest_searched(searched: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(n,) the position among ``searched`` (m, 3) of the nearest to each of ``points`` (n, 3), through voxels."""
+    index = voxel_index(searched, span=points)
+    if index is None:  # far-out coordinates
+        return _nearest_searched_tree(searched, points)
+    return index.query(points, 1)[1][:, 0]
+
+
+def _nearest_searched_tree(searched: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """:func:`_nearest_searched` by scipy's kd-tree (the reference)."""
+    return cKDTree(searched).query(points, k=1)[1]
 
 
 def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,

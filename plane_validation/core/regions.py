@@ -28,12 +28,15 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from . import kernels
+
 try:  # the kernel behind csgraph.connected_components, without its per-call checks and transpose
     from scipy.sparse.csgraph._traversal import _connected_components_undirected
 except ImportError:  # pragma: no cover - a SciPy that moved it: the public function below
     _connected_components_undirected = None
 
-__all__ = ['Neighbours', 'grid_neighbours', 'graph_neighbours', 'JUMP', 'NEIGHBOURS', 'RADIUS', 'NORMAL_MIN_COS']
+__all__ = ['Neighbours', 'VoxelIndex', 'grid_neighbours', 'graph_neighbours', 'voxel_index', 'JUMP', 'NEIGHBOURS',
+           'RADIUS', 'NORMAL_MIN_COS']
 
 #: A gap between grid neighbours this many times the gaps next to it along the image line (and
 #: this many typical pixel spacings at its range) is a depth jump.
@@ -125,6 +128,13 @@ FRAGMENT_PIECE = 0.05
 #: band of a plane offset from the surface it crosses (0.6 t off at noise t: 0.05 against 0.26 of the points;
 #: without the test such a plane keeps more than the surface's own one, 3.8 mm off a wall with 1 cm noise).
 SUPPORT_BALANCE = 0.5
+#: Nearest-neighbour queries hash the points into voxels holding about this many points each (kernels.voxel_grid) ...
+VOXEL_POINTS = 4.0
+#: ... and search up to this many rings of voxels around a query's own; a query whose nearest are not certain
+#: within them (an outlier far from the rest) is answered by a kd-tree.
+VOXEL_RINGS = 3
+#: A cloud spanning more voxels than this along an axis (a far-out coordinate) is searched by a kd-tree alone.
+VOXEL_SPAN = 1 << 20
 #: Scales of :meth:`Neighbours.nearby`: a window of this many sub-grid pixels around the point
 #: (organized) or a random walk of this many graph hops (unorganized), one drawn per sample.
 NEARBY_SCALES = (1, 2, 4, 8)
@@ -641,6 +651,74 @@ def _search(space: _Space, idx: np.ndarray, rows: np.ndarray, test: _Test, skip:
     return np.concatenate(found_rows), np.concatenate(found_targets)
 
 
+@dataclass(frozen=True, eq=False)
+class VoxelIndex:
+    """``points`` (m, 3) meters hashed into cubic voxels of side ``cell`` from ``origin`` (3,), ``dims`` (3,)
+    voxels along each axis (the rest: :func:`kernels.voxel_grid`'s output), for exact nearest-neighbour queries
+    of points inside those voxels."""
+
+    points: np.ndarray
+    origin: np.ndarray
+    cell: float
+    dims: np.ndarray
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+    @functools.cached_property
+    def ordered(self) -> np.ndarray:
+        """(m, 3) the points voxel by voxel (in the grid's order)."""
+        return self.points[self.grid[0]]
+
+    def query(self, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The ``k`` nearest points to each of ``queries`` (q, 3), inside the voxels, as cKDTree.query gives them
+        (distances (q, k) meters, nearest first; indices (q, k), len(points) where fewer than k exist; ties may be
+        ordered otherwise)."""
+        dist, idx, exact = kernels.voxel_knn(self.ordered, *self.grid, self.origin, self.cell, self.dims,
+                                             kernels.c_array(queries, np.float64), k, VOXEL_RINGS)
+        rest = np.flatnonzero(~exact)
+        if len(rest):  # far from every point (or fewer than k of them): the kd-tree
+            d, i = cKDTree(self.points).query(queries[rest], k=k)
+            dist[rest], idx[rest] = d.reshape(len(rest), k), i.reshape(len(rest), k)
+        return dist, idx
+
+
+def voxel_index(points: np.ndarray, span: np.ndarray | None = None) -> VoxelIndex | None:
+    """A :class:`VoxelIndex` of ``points`` (m, 3) meters, m >= 1, finite, with about VOXEL_POINTS points per
+    occupied voxel; ``span`` (q, 3): the queries, when others than ``points``. None when the voxels would span more
+    than VOXEL_SPAN along an axis (far-out coordinates: use a kd-tree)."""
+    points = kernels.c_array(points, np.float64)
+    inside = points if span is None else np.concatenate([points, span])
+    lo, hi = inside.min(axis=0), inside.max(axis=0)
+    extent = hi - lo
+    size = float(extent.max())
+    if not size > 0:
+        size = 1.0
+    cell = size / max(1.0, len(points) / VOXEL_POINTS) ** (1 / 3)  # as if filling a cube: then refined
+    for _ in range(6):
+        if not (size / cell < VOXEL_SPAN and np.prod(extent // cell + 1) < 2.0 ** 62):
+            return None
+        dims = (extent // cell).astype(np.int64) + 1
+        grid = kernels.voxel_grid(points, lo, cell, dims)
+        per_voxel = len(points) / len(grid[1])
+        if VOXEL_POINTS / 2 <= per_voxel <= 2 * VOXEL_POINTS:
+            break
+        cell *= float(np.clip(np.sqrt(VOXEL_POINTS / per_voxel), 0.25, 4.0))  # a surface: points grow as cell^2
+    return VoxelIndex(points=points, origin=lo, cell=cell, dims=dims, grid=grid)
+
+
+def _knn(points: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` nearest of ``points`` (n, 3) to each of them (distances (n, k), indices (n, k), as cKDTree.query):
+    through a :class:`VoxelIndex`, or a kd-tree for clouds with far-out coordinates."""
+    index = voxel_index(points)
+    if index is None:
+        return _knn_tree(points, k)
+    return index.query(points, k)
+
+
+def _knn_tree(points: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_knn` by scipy's kd-tree (the reference)."""
+    return cKDTree(points).query(points, k=k)
+
+
 def graph_neighbours(points: np.ndarray, viewpoint: np.ndarray | None = None) -> Neighbours:
     """Neighbours of unorganized (n, 3) points (meters): each joined to its NEIGHBOURS nearest within
     RADIUS median NEIGHBOURS-th-neighbour distances and, where those lie along a line or a strip of
@@ -656,8 +734,7 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Nei
     k = min(NEIGHBOURS + 1, n)
     if k < 2:
         return Neighbours(n=n, edges=np.empty((0, 2), np.int64))
-    tree = cKDTree(points)
-    dist, idx = tree.query(points, k=k)
+    dist, idx = _knn(points, k)
     if merge_copies and np.any(dist[:, 1] == 0):  # copies would fill the neighbour lists (stacked scans)
         return _with_copies(points, viewpoint)
     missing = idx >= n  # far-out coordinates (a driver's FLT_MAX rows) find no neighbour
@@ -684,7 +761,7 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Nei
         widest = np.einsum('nkd,nd->nk', unit[idx[flat_rows]], unit[flat_rows]).min(axis=1)
         one_ring[flat_rows] = widest < np.cos(ANOTHER_RING)
         directions = _space(unit, RING_CANDIDATES)
-        nearby = _space(points, ACROSS_CANDIDATES, tree)
+        nearby = _space(points, ACROSS_CANDIDATES)
 
         def search(rows: np.ndarray, off: _Test, far: bool) -> tuple[np.ndarray, np.ndarray]:
             """Each row's partner: the nearest point off its line or plane (farther only with ``far``; for
