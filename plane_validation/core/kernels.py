@@ -18,7 +18,8 @@ import numba
 import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
-           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask', 'voxel_grid', 'voxel_knn', 'warm',
+           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask', 'voxel_grid', 'voxel_knn',
+           'principal_axes', 'pair_graph', 'warm',
            'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -574,6 +575,142 @@ def voxel_knn(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, star
     return dist, idx, exact
 
 
+@numba.njit(**_JIT)
+def _rotate(a: np.ndarray, v: np.ndarray, p: int, q: int) -> None:
+    """One Jacobi rotation zeroing a[p, q] of the symmetric 3 x 3 ``a``, applied to the columns of ``v`` too."""
+    apq = a[p, q]
+    if apq == 0.0:
+        return
+    theta = (a[q, q] - a[p, p]) / (2.0 * apq)
+    if abs(theta) > 1e150:
+        t = 0.5 / theta
+    else:
+        t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
+        if theta < 0:
+            t = -t
+    c = 1.0 / np.sqrt(t * t + 1.0)
+    s = t * c
+    for r in range(3):  # a <- a J (columns p, q)
+        arp, arq = a[r, p], a[r, q]
+        a[r, p], a[r, q] = c * arp - s * arq, s * arp + c * arq
+    for r in range(3):  # a <- J^T a (rows p, q)
+        apr, aqr = a[p, r], a[q, r]
+        a[p, r], a[q, r] = c * apr - s * aqr, s * apr + c * aqr
+    a[p, q] = a[q, p] = 0.0
+    for r in range(3):
+        vrp, vrq = v[r, p], v[r, q]
+        v[r, p], v[r, q] = c * vrp - s * vrq, s * vrp + c * vrq
+
+
+@numba.njit(**_JIT)
+def principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (m, 3), ascending, and unit principal axes (m, 3, 3), as columns, of the scatter about their mean
+    of the point sets ``points[idx[i]]`` (``points`` (n, 3) meters, ``idx`` (m, k)), by cyclic Jacobi rotations (an
+    axis' sign is arbitrary, as is the basis of equal eigenvalues)."""
+    m, k = idx.shape
+    values = np.empty((m, 3))
+    axes = np.empty((m, 3, 3))
+    a = np.empty((3, 3))
+    v = np.empty((3, 3))
+    for i in range(m):
+        mx = my = mz = 0.0
+        for j in range(k):
+            p = idx[i, j]
+            mx += points[p, 0]
+            my += points[p, 1]
+            mz += points[p, 2]
+        mx, my, mz = mx / k, my / k, mz / k
+        xx = xy = xz = yy = yz = zz = 0.0
+        for j in range(k):
+            p = idx[i, j]
+            x, y, z = points[p, 0] - mx, points[p, 1] - my, points[p, 2] - mz
+            xx += x * x
+            xy += x * y
+            xz += x * z
+            yy += y * y
+            yz += y * z
+            zz += z * z
+        a[0, 0], a[0, 1], a[0, 2] = xx, xy, xz
+        a[1, 0], a[1, 1], a[1, 2] = xy, yy, yz
+        a[2, 0], a[2, 1], a[2, 2] = xz, yz, zz
+        v[:] = 0.0
+        v[0, 0] = v[1, 1] = v[2, 2] = 1.0
+        scale = xx * xx + yy * yy + zz * zz + 2 * (xy * xy + xz * xz + yz * yz)
+        for _ in range(32):
+            off = a[0, 1] * a[0, 1] + a[0, 2] * a[0, 2] + a[1, 2] * a[1, 2]
+            if not off > 1e-32 * scale:
+                break
+            _rotate(a, v, 0, 1)
+            _rotate(a, v, 0, 2)
+            _rotate(a, v, 1, 2)
+        d0, d1, d2 = a[0, 0], a[1, 1], a[2, 2]
+        o0, o1, o2 = 0, 1, 2  # ascending by a 3-element sort
+        if d1 < d0:
+            d0, d1, o0, o1 = d1, d0, o1, o0
+        if d2 < d1:
+            d1, d2, o1, o2 = d2, d1, o2, o1
+        if d1 < d0:
+            d0, d1, o0, o1 = d1, d0, o1, o0
+        values[i, 0], values[i, 1], values[i, 2] = d0, d1, d2
+        for r in range(3):
+            axes[i, r, 0], axes[i, r, 1], axes[i, r, 2] = v[r, o0], v[r, o1], v[r, o2]
+    return values, axes
+
+
+@numba.njit(**_JIT)
+def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The graph of n points joined by ``pairs`` (e, 2) (any order, repeats allowed): (edges (2, u) each joined pair
+    once, smaller index first, sorted by it then by the other; indptr (n + 1,) and indices: each point's neighbours,
+    first the larger ones ascending, then the smaller ones ascending)."""
+    e = pairs.shape[0]
+    count = np.zeros(n + 1, np.int64)
+    for q in range(e):
+        count[min(pairs[q, 0], pairs[q, 1]) + 1] += 1
+    for i in range(n):
+        count[i + 1] += count[i]
+    fill = count[:-1].copy()
+    larger = np.empty(e, np.int64)
+    for q in range(e):
+        a, b = pairs[q, 0], pairs[q, 1]
+        if b < a:
+            a, b = b, a
+        larger[fill[a]] = b
+        fill[a] += 1
+    unique = 0
+    degree = np.zeros(n, np.int64)
+    stop = 0
+    for i in range(n):  # each row's larger ends sorted, repeats dropped, in place
+        start, stop = stop, count[i + 1]
+        row = np.sort(larger[start:stop])
+        last = -1
+        for b in row:
+            if b != last:
+                larger[unique] = b
+                unique += 1
+                degree[i] += 1
+                degree[b] += 1
+                last = b
+        count[i + 1] = unique  # now the bounds of the deduplicated rows
+    edges = np.empty((2, unique), np.int64)
+    indptr = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        indptr[i + 1] = indptr[i] + degree[i]
+    at = indptr[:-1].copy()
+    indices = np.empty(2 * unique, np.int64)
+    for i in range(n):
+        for q in range(count[i], count[i + 1]):
+            b = larger[q]
+            edges[0, q], edges[1, q] = i, b
+            indices[at[i]] = b
+            at[i] += 1
+    for i in range(n):
+        for q in range(count[i], count[i + 1]):
+            b = larger[q]
+            indices[at[b]] = i
+            at[b] += 1
+    return edges, indptr, indices
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -605,9 +742,12 @@ def warm() -> Warmup:
     dims = np.ones(3, np.int64)
     grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
     voxel_knn(pts, *grid, np.zeros(3), 1.0, dims, pts, 2, 1)
+    principal_axes(pts, np.zeros((4, 3), np.int64))
+    pair_graph(4, np.zeros((1, 2), np.int64))
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components, grid_region,
-            grid_compete, graph_components, graph_region, pack_segmented, voxel_grid, voxel_knn)
+            grid_compete, graph_components, graph_region, pack_segmented, voxel_grid, voxel_knn,
+            principal_axes, pair_graph)

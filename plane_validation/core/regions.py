@@ -747,7 +747,7 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Nei
     edges = [np.column_stack([rows[near], idx[:, 1:k][near]])]
     normals = None
     if k >= 4:  # local normals: the smallest principal axis of each point's neighbourhood
-        values, vectors = _principal_axes(points[idx])
+        values, vectors = _principal_axes(points, idx)
         normals = _normals(values, vectors)
         line = values[:, 1] < 0.05 * values[:, 2]  # neighbours along a line: no normal, a ring
         normals[line] = np.nan
@@ -780,14 +780,20 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Nei
         rows_s, target = _strips(points, ~line & (values[:, 0] < STRIP_FLATNESS * values[:, 1]), normals,
                                  rays, search)
         edges.append(np.column_stack([rows_s, target]))
-        normals[rows_s] = _normals(*_principal_axes(points[np.concatenate([idx[rows_s], idx[target]], axis=1)]))
+        normals[rows_s] = _normals(*_principal_axes(points, np.concatenate([idx[rows_s], idx[target]], axis=1)))
         rows_l, target = search(np.flatnonzero(line), _off(points, vectors[:, :, 2], off_plane=False), True)
         edges.append(np.column_stack([rows_l, target]))
     return _neighbours(n, np.concatenate(edges), normals)
 
 
-def _principal_axes(neighbourhoods: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Eigenvalues (m, 3), ascending, and unit principal axes (m, 3, 3), as columns, of point sets (m, k, 3)."""
+def _principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (m, 3), ascending, and unit principal axes (m, 3, 3), as columns (signs arbitrary), of the point
+    sets ``points[idx]`` (``points`` (n, 3), ``idx`` (m, k))."""
+    return kernels.principal_axes(kernels.c_array(points, np.float64), kernels.c_array(idx, np.int64))
+
+
+def _principal_axes_numpy(neighbourhoods: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_principal_axes` of point sets (m, k, 3) by numpy (the reference)."""
     nb = neighbourhoods - neighbourhoods.mean(axis=1, keepdims=True)
     x, y, z = nb[..., 0], nb[..., 1], nb[..., 2]
     xy, xz, yz = (np.einsum('nk,nk->n', a, b) for a, b in ((x, y), (x, z), (y, z)))  # 2-d products are faster
@@ -832,6 +838,12 @@ def _with_copies(points: np.ndarray, viewpoint: np.ndarray) -> Neighbours:
 
 def _neighbours(n: int, edges: np.ndarray, normals: np.ndarray | None) -> Neighbours:
     """The graph form of :class:`Neighbours` from joined pairs ``edges`` (e, 2), in any order, repeats allowed."""
+    unique, indptr, indices = kernels.pair_graph(n, kernels.c_array(edges.reshape(-1, 2), np.int64))
+    return Neighbours(n=n, edges=unique.T, normals=normals, adjacency=(indptr, indices))
+
+
+def _neighbours_numpy(n: int, edges: np.ndarray, normals: np.ndarray | None) -> Neighbours:
+    """:func:`_neighbours` by numpy (the reference)."""
     edges = np.sort(edges, axis=1)  # each joined pair once, smaller index first
     key = np.sort(edges[:, 0] * n + edges[:, 1])  # sorted by source, then destination
     key = key[np.r_[True, key[1:] != key[:-1]][:len(key)]]  # each pair once (numpy 2's np.unique is much slower)
