@@ -18,11 +18,14 @@ import numba
 import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
-           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask', 'voxel_grid', 'voxel_knn',
+           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask', 'coordinate_bounds', 'voxel_grid', 'voxel_knn',
            'principal_axes', 'pair_graph', 'warm',
            'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
+
+#: A voxel grid of up to this many voxels is indexed by a direct table (an int64 each), a larger one by a hash.
+DENSE_VOXELS = 1 << 22
 
 #: The 8 image neighbours (row, column offsets), in the order a tie goes to the first.
 EIGHT = np.array([(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc], dtype=np.int64)
@@ -437,6 +440,21 @@ def pack_segmented(points: np.ndarray, labels: np.ndarray, plane_ids: np.ndarray
 
 
 @numba.njit(**_JIT)
+def coordinate_bounds(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The smallest and the largest coordinates (3,) each of ``points`` (n, 3), n >= 1."""
+    lo = points[0].copy()
+    hi = points[0].copy()
+    for i in range(1, points.shape[0]):
+        for a in range(3):
+            v = points[i, a]
+            if v < lo[a]:
+                lo[a] = v
+            elif v > hi[a]:
+                hi[a] = v
+    return lo, hi
+
+
+@numba.njit(**_JIT)
 def _slot(key: int, mask: int) -> int:
     """The first slot of ``key`` in a hash table of mask + 1 slots (a power of two)."""
     h = key * 0x9E3779B1
@@ -449,7 +467,8 @@ def voxel_grid(points: np.ndarray, origin: np.ndarray, cell: float, dims: np.nda
     """Hash ``points`` (m, 3) meters into cubic voxels of side ``cell`` (meters) from ``origin`` (3,), ``dims`` (3,)
     voxels along each axis (every point inside them). Returns (order (m,): the points voxel by voxel, in the order of
     their voxel's key; keys (c,) of the occupied voxels, ascending; starts (c + 1,): voxel j holds
-    order[starts[j]:starts[j + 1]]; table (2^b,): an open-addressing hash of key to voxel, -1 empty)."""
+    order[starts[j]:starts[j + 1]]; table: the voxel of each key (-1: empty), directly ((dims.prod(),), when that is
+    at most DENSE_VOXELS or 8 m) or as an open-addressing hash (2^b,))."""
     m = points.shape[0]
     keys = np.empty(m, np.int64)
     for i in range(m):
@@ -472,6 +491,12 @@ def voxel_grid(points: np.ndarray, origin: np.ndarray, cell: float, dims: np.nda
             starts[c] = q
             c += 1
     starts[c] = m
+    total = dims[0] * dims[1] * dims[2]
+    if total <= max(DENSE_VOXELS, 8 * m):  # few enough voxels for a direct table: no hashing
+        table = np.full(total, -1, np.int64)
+        for j in range(c):
+            table[cell_keys[j]] = j
+        return order, cell_keys, starts, table
     size = 1
     while size < 2 * c + 2:
         size *= 2
@@ -485,8 +510,10 @@ def voxel_grid(points: np.ndarray, origin: np.ndarray, cell: float, dims: np.nda
 
 
 @numba.njit(**_JIT)
-def _voxel(cell_keys: np.ndarray, table: np.ndarray, key: int) -> int:
-    """The occupied voxel of ``key`` in :func:`voxel_grid`'s hash, -1 when none."""
+def _voxel(cell_keys: np.ndarray, table: np.ndarray, key: int, dense: bool) -> int:
+    """The occupied voxel of ``key`` in :func:`voxel_grid`'s table (``dense``: a direct one), -1 when none."""
+    if dense:
+        return table[key]
     mask = table.shape[0] - 1
     s = _slot(key, mask)
     while table[s] >= 0:
@@ -520,6 +547,8 @@ def voxel_knn(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, star
     idx = np.full((nq, k), -1, np.int64)
     exact = np.zeros(nq, np.bool_)
     d2 = np.empty(k)
+    total = dims[0] * dims[1] * dims[2]
+    dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * points.shape[0])
     for q in range(nq):
         x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
         fx, fy, fz = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
@@ -548,7 +577,7 @@ def voxel_knn(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, star
                         ix = cx + dx
                         gx = _gap(fx, cx, dx) * cell
                         if 0 <= ix < dims[0] and not (found == k and gx * gx + gyz > d2[k - 1]):
-                            v = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz))
+                            v = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
                             if v >= 0:
                                 for j in range(starts[v], starts[v + 1]):
                                     ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
@@ -739,6 +768,7 @@ def warm() -> Warmup:
     grid_compete(np.zeros((2, 4)), np.zeros(4, np.int64), index, index, 2, EIGHT, 2)
     graph_components(4, np.zeros((1, 2), np.int64), flags)
     graph_region(np.zeros((1, 2), np.int64), pts, np.ones(3), 0.5, flags, flags, flags, np.ones(3))
+    coordinate_bounds(pts)
     dims = np.ones(3, np.int64)
     grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
     voxel_knn(pts, *grid, np.zeros(3), 1.0, dims, pts, 2, 1)
@@ -749,5 +779,5 @@ def warm() -> Warmup:
 
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components, grid_region,
-            grid_compete, graph_components, graph_region, pack_segmented, voxel_grid, voxel_knn,
+            grid_compete, graph_components, graph_region, pack_segmented, coordinate_bounds, voxel_grid, voxel_knn,
             principal_axes, pair_graph)

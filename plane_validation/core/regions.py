@@ -684,25 +684,27 @@ class VoxelIndex:
 def voxel_index(points: np.ndarray, span: np.ndarray | None = None) -> VoxelIndex | None:
     """A :class:`VoxelIndex` of ``points`` (m, 3) meters, m >= 1, finite, with about VOXEL_POINTS points per
     occupied voxel; ``span`` (q, 3): the queries, when others than ``points``. None when the voxels would span more
-    than VOXEL_SPAN along an axis (far-out coordinates: use a kd-tree)."""
+    than VOXEL_SPAN along an axis, or no voxel size gives about that many (far-out coordinates: use a kd-tree)."""
     points = kernels.c_array(points, np.float64)
-    inside = points if span is None else np.concatenate([points, span])
-    lo, hi = inside.min(axis=0), inside.max(axis=0)
+    lo, hi = kernels.coordinate_bounds(points)
+    if span is not None and len(span):
+        span_lo, span_hi = kernels.coordinate_bounds(kernels.c_array(span, np.float64))
+        lo, hi = np.minimum(lo, span_lo), np.maximum(hi, span_hi)
     extent = hi - lo
     size = float(extent.max())
     if not size > 0:
         size = 1.0
     cell = size / max(1.0, len(points) / VOXEL_POINTS) ** (1 / 3)  # as if filling a cube: then refined
-    for _ in range(6):
+    for _ in range(8):
         if not (size / cell < VOXEL_SPAN and np.prod(extent // cell + 1) < 2.0 ** 62):
             return None
         dims = (extent // cell).astype(np.int64) + 1
         grid = kernels.voxel_grid(points, lo, cell, dims)
         per_voxel = len(points) / len(grid[1])
-        if VOXEL_POINTS / 2 <= per_voxel <= 2 * VOXEL_POINTS:
-            break
+        if per_voxel <= 2 * VOXEL_POINTS and (per_voxel >= VOXEL_POINTS / 2 or len(grid[1]) == len(points)):
+            return VoxelIndex(points=points, origin=lo, cell=cell, dims=dims, grid=grid)
         cell *= float(np.clip(np.sqrt(VOXEL_POINTS / per_voxel), 0.25, 4.0))  # a surface: points grow as cell^2
-    return VoxelIndex(points=points, origin=lo, cell=cell, dims=dims, grid=grid)
+    return None  # the points' spacing varies beyond what one voxel size serves (far-out coordinates)
 
 
 def _knn(points: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
