@@ -293,7 +293,7 @@ def test_nearest_searched_matches_the_kd_tree(seed):
     searched = pts[rng.random(len(pts)) < 0.3]
     if len(searched) == 0:
         searched = pts[:1]
-    near = _nearest_searched(searched, pts)
+    near = _nearest_searched(searched, pts)[0]
     ref = _nearest_searched_tree(searched, pts)
     np.testing.assert_allclose(np.linalg.norm(searched[near] - pts, axis=1),
                                np.linalg.norm(searched[ref] - pts, axis=1), rtol=1e-12, atol=0)

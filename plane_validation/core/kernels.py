@@ -18,9 +18,8 @@ import numba
 import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
-           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask', 'coordinate_bounds', 'voxel_grid', 'voxel_knn',
-           'principal_axes', 'pair_graph', 'warm',
-           'Warmup']
+           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
+           'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'pair_graph', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 

@@ -721,22 +721,25 @@ def _knn_tree(points: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     return cKDTree(points).query(points, k=k)
 
 
-def graph_neighbours(points: np.ndarray, viewpoint: np.ndarray | None = None) -> Neighbours:
+def graph_neighbours(points: np.ndarray, viewpoint: np.ndarray | None = None, index: VoxelIndex | None = None
+                     ) -> Neighbours:
     """Neighbours of unorganized (n, 3) points (meters): each joined to its NEIGHBOURS nearest within
     RADIUS median NEIGHBOURS-th-neighbour distances and, where those lie along a line or a strip of
     one lidar ring, to a point of the next ring (see ACROSS_CANDIDATES, ACROSS_SEARCHING,
     STRIP_FLATNESS, ONE_RING). ``viewpoint`` (3,): where the sensor is in these coordinates (default
     the origin; a spinning lidar's axis is taken as z), for the strip and ring tests. Exact copies of
-    a point are joined to it and share its neighbours and normal."""
-    return _graph(points, merge_copies=True, viewpoint=np.zeros(3) if viewpoint is None else viewpoint)
+    a point are joined to it and share its neighbours and normal. ``index``: a :func:`voxel_index` of ``points``
+    already built (else one is)."""
+    return _graph(points, merge_copies=True, viewpoint=np.zeros(3) if viewpoint is None else viewpoint, index=index)
 
 
-def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Neighbours:
+def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index: VoxelIndex | None = None
+           ) -> Neighbours:
     n = len(points)
     k = min(NEIGHBOURS + 1, n)
     if k < 2:
         return Neighbours(n=n, edges=np.empty((0, 2), np.int64))
-    dist, idx = _knn(points, k)
+    dist, idx = _knn(points, k) if index is None else index.query(points, k)
     if merge_copies and np.any(dist[:, 1] == 0):  # copies would fill the neighbour lists (stacked scans)
         return _with_copies(points, viewpoint)
     missing = idx >= n  # far-out coordinates (a driver's FLT_MAX rows) find no neighbour
