@@ -709,9 +709,19 @@ def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     stop = 0
     for i in range(n):  # each row's larger ends sorted, repeats dropped, in place
         start, stop = stop, count[i + 1]
-        row = np.sort(larger[start:stop])
+        if stop - start > 16:
+            larger[start:stop].sort()
+        else:  # a few: insertion sort
+            for q in range(start + 1, stop):
+                b = larger[q]
+                p = q
+                while p > start and larger[p - 1] > b:
+                    larger[p] = larger[p - 1]
+                    p -= 1
+                larger[p] = b
         last = -1
-        for b in row:
+        for q in range(start, stop):
+            b = larger[q]
             if b != last:
                 larger[unique] = b
                 unique += 1
