@@ -11,10 +11,11 @@ points; :meth:`Neighbours.components` then labels the connected components of an
   neighbours are labelled afterwards from the regions around them). Components come from
   ``scipy.ndimage.label``.
 * Unorganized clouds: each point's ``NEIGHBOURS`` nearest neighbours within ``RADIUS`` median
-  neighbour spacings (scipy's kd-tree), components by ``scipy.sparse.csgraph``. A point whose
+  neighbour spacings (exact, through a voxel hash: :class:`VoxelIndex`; scipy's kd-tree for far-out
+  coordinates and the searches across lidar rings), components by ``scipy.sparse.csgraph``. A point whose
   neighbours all lie on one lidar ring (a line, or a strip widened by range noise) is also joined to
   the next ring; a strip's own normal is the beam cone's, so it takes one from both rings, or none.
-Pure numpy/scipy.
+numpy/scipy, with the loops over points in compiled kernels (:mod:`.kernels`).
 """
 from __future__ import annotations
 
