@@ -564,16 +564,23 @@ def _grid_normals(image_points: np.ndarray, valid: np.ndarray, reach: tuple[int,
     return n
 
 
-#: Kd-trees over coordinates and over every ACROSS_FAR_STRIDE-th of them, each built on first use, the
-#: coordinates and how many nearest candidates a search looks at: (tree(), far(), coordinates (n, 3), candidates).
-_Space = tuple[Callable[[], cKDTree], Callable[[], cKDTree], np.ndarray, int]
+#: Searchers (voxel indices, or kd-trees) over coordinates and over every ACROSS_FAR_STRIDE-th of them, each built on
+#: first use, the coordinates and how many nearest candidates a search looks at: (tree(), far(), coordinates (n, 3),
+#: candidates).
+_Space = tuple[Callable[[], 'VoxelIndex | cKDTree'], Callable[[], 'VoxelIndex | cKDTree'], np.ndarray, int]
 #: Which candidates (m, c) of the rows (m,) are across: (rows, candidates) -> bool (m, c).
 _Test = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def _space(coords: np.ndarray, candidates: int, tree: cKDTree | None = None) -> _Space:
-    return ((lambda: tree) if tree is not None else functools.cache(lambda: cKDTree(coords)),
-            functools.cache(lambda: cKDTree(coords[::ACROSS_FAR_STRIDE])), coords, candidates)
+def _space(coords: np.ndarray, candidates: int, searcher: VoxelIndex | cKDTree | None = None) -> _Space:
+    return ((lambda: searcher) if searcher is not None else functools.cache(lambda: _searcher(coords)),
+            functools.cache(lambda: _searcher(coords[::ACROSS_FAR_STRIDE])), coords, candidates)
+
+
+def _searcher(coords: np.ndarray) -> VoxelIndex | cKDTree:
+    """Nearest-neighbour queries over ``coords`` (n, 3): a :class:`VoxelIndex`, or a kd-tree for far-out coordinates."""
+    index = voxel_index(coords) if len(coords) else None
+    return cKDTree(coords) if index is None else index
 
 
 def _off(points: np.ndarray, direction: np.ndarray, off_plane: bool) -> _Test:
@@ -664,6 +671,15 @@ class VoxelIndex:
     dims: np.ndarray
     grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
+    @property
+    def n(self) -> int:
+        """How many points (as cKDTree.n)."""
+        return len(self.points)
+
+    @functools.cached_property
+    def _tree(self) -> cKDTree:
+        return cKDTree(self.points)
+
     @functools.cached_property
     def ordered(self) -> np.ndarray:
         """(m, 3) the points voxel by voxel (in the grid's order)."""
@@ -677,7 +693,7 @@ class VoxelIndex:
                                              kernels.c_array(queries, np.float64), k, VOXEL_RINGS)
         rest = np.flatnonzero(~exact)
         if len(rest):  # far from every point (or fewer than k of them): the kd-tree
-            d, i = cKDTree(self.points).query(queries[rest], k=k)
+            d, i = self._tree.query(queries[rest], k=k)
             dist[rest], idx[rest] = d.reshape(len(rest), k), i.reshape(len(rest), k)
         return dist, idx
 
@@ -709,12 +725,8 @@ def voxel_index(points: np.ndarray, span: np.ndarray | None = None) -> VoxelInde
 
 
 def _knn(points: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """The ``k`` nearest of ``points`` (n, 3) to each of them (distances (n, k), indices (n, k), as cKDTree.query):
-    through a :class:`VoxelIndex`, or a kd-tree for clouds with far-out coordinates."""
-    index = voxel_index(points)
-    if index is None:
-        return _knn_tree(points, k)
-    return index.query(points, k)
+    """The ``k`` nearest of ``points`` (n, 3) to each of them (distances (n, k), indices (n, k), as cKDTree.query)."""
+    return _searcher(points).query(points, k=k)
 
 
 def _knn_tree(points: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -740,7 +752,8 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
     k = min(NEIGHBOURS + 1, n)
     if k < 2:
         return Neighbours(n=n, edges=np.empty((0, 2), np.int64))
-    dist, idx = _knn(points, k) if index is None else index.query(points, k)
+    searcher = _searcher(points) if index is None else index
+    dist, idx = searcher.query(points, k=k)
     if merge_copies and np.any(dist[:, 1] == 0):  # copies would fill the neighbour lists (stacked scans)
         return _with_copies(points, viewpoint)
     missing = idx >= n  # far-out coordinates (a driver's FLT_MAX rows) find no neighbour
@@ -767,7 +780,7 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
         widest = np.einsum('nkd,nd->nk', unit[idx[flat_rows]], unit[flat_rows]).min(axis=1)
         one_ring[flat_rows] = widest < np.cos(ANOTHER_RING)
         directions = _space(unit, RING_CANDIDATES)
-        nearby = _space(points, ACROSS_CANDIDATES)
+        nearby = _space(points, ACROSS_CANDIDATES, searcher)
 
         def search(rows: np.ndarray, off: _Test, far: bool) -> tuple[np.ndarray, np.ndarray]:
             """Each row's partner: the nearest point off its line or plane (farther only with ``far``; for
