@@ -133,7 +133,7 @@ SUPPORT_BALANCE = 0.5
 VOXEL_POINTS = 4.0
 #: ... and search up to this many rings of voxels around a query's own; a query whose nearest are not certain
 #: within them (an outlier far from the rest) is answered by a kd-tree.
-VOXEL_RINGS = 3
+VOXEL_RINGS = 5
 #: A cloud spanning more voxels than this along an axis (a far-out coordinate) is searched by a kd-tree alone.
 VOXEL_SPAN = 1 << 20
 #: Scales of :meth:`Neighbours.nearby`: a window of this many sub-grid pixels around the point
