@@ -273,3 +273,114 @@ def test_patches_match_numpy(seed, n, thickness):
     closed = _patches(pca, axes=False)[0]  # the kernel's closed-form eigenvalues
     scale = reference[0][:, 2:]
     assert np.allclose(closed / scale, reference[0] / scale, atol=1e-9)
+
+
+def _cloud_case(seed: int) -> np.ndarray:
+    """Random (n, 3) points: a noisy plane, a line, clusters, exact copies, grid-quantized ties and far outliers."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 400))
+    kind = rng.integers(0, 4, n)
+    pts = rng.uniform(-1, 1, (n, 3))
+    pts[kind == 0, 2] = rng.normal(scale=0.01, size=int(np.sum(kind == 0)))  # a plane
+    pts[kind == 1, 1:] = 0.0  # a line
+    pts[kind == 2] = np.round(pts[kind == 2] * 20) / 20  # quantized: equal distances
+    if n > 3 and rng.random() < 0.3:
+        pts[rng.integers(0, n, 3)] = pts[0]  # exact copies
+    if n > 2 and rng.random() < 0.3:
+        pts[-1] = rng.uniform(-1e3, 1e3, 3)  # far from the rest
+    return pts * rng.uniform(0.01, 100)
+
+
+def _same_neighbours(points, queries, dist, idx, ref_dist, ref_idx, next_dist):
+    """Equal distances and, where not tied (``next_dist``: the reference's next nearest), equal indices; each index at
+    its stated distance."""
+    np.testing.assert_allclose(dist, ref_dist, rtol=1e-12, atol=0)
+    found = idx < len(points)
+    np.testing.assert_array_equal(found, ref_idx < len(points))
+    at = np.where(found, idx, 0)
+    np.testing.assert_allclose(np.where(found, np.linalg.norm(points[at] - queries[:, None], axis=-1), np.inf), dist,
+                               rtol=1e-12, atol=1e-15)
+    tied = np.zeros_like(found)
+    tied[:, 1:] |= dist[:, 1:] == dist[:, :-1]
+    tied[:, :-1] |= dist[:, 1:] == dist[:, :-1]
+    tied[:, -1] |= dist[:, -1] == next_dist
+    np.testing.assert_array_equal(np.where(tied, 0, idx), np.where(tied, 0, ref_idx))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(1, 12))
+def test_voxel_knn_matches_the_kd_tree(seed, k):
+    from plane_validation.core.regions import _knn, _knn_tree
+    pts = _cloud_case(seed)
+    dist, idx = _knn(pts, k)
+    ref_dist, ref_idx = _knn_tree(pts, k)
+    next_dist = _knn_tree(pts, k + 1)[0].reshape(len(pts), -1)[:, -1]
+    _same_neighbours(pts, pts, dist.reshape(len(pts), -1), idx.reshape(len(pts), -1),
+                     ref_dist.reshape(len(pts), -1), ref_idx.reshape(len(pts), -1), next_dist)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1))
+def test_nearest_searched_matches_the_kd_tree(seed):
+    from plane_validation.core.ransac import _nearest_searched, _nearest_searched_tree
+    pts = _cloud_case(seed)
+    rng = np.random.default_rng(seed)
+    searched = pts[rng.random(len(pts)) < 0.3]
+    if len(searched) == 0:
+        searched = pts[:1]
+    near = _nearest_searched(searched, pts)[0]
+    ref = _nearest_searched_tree(searched, pts)
+    np.testing.assert_allclose(np.linalg.norm(searched[near] - pts, axis=1),
+                               np.linalg.norm(searched[ref] - pts, axis=1), rtol=1e-12, atol=0)
+
+
+def test_voxel_index_declines_far_out_coordinates():
+    from plane_validation.core.regions import voxel_index
+    pts = np.random.default_rng(0).normal(size=(1000, 3))
+    pts[0] = 3e38  # a driver's FLT_MAX row: 2^20 voxels would not reach it
+    assert voxel_index(pts) is None
+    assert voxel_index(pts[1:]) is not None
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 200))
+def test_coordinate_bounds_match_numpy(seed, n):
+    pts = np.random.default_rng(seed).normal(size=(n + 1, 3))
+    lo, hi = kernels.coordinate_bounds(pts)
+    np.testing.assert_array_equal(lo, pts.min(axis=0))
+    np.testing.assert_array_equal(hi, pts.max(axis=0))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(3, 16))
+def test_principal_axes_match_numpy_eigh(seed, k):
+    from plane_validation.core.regions import _principal_axes, _principal_axes_numpy
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(size=(200, 3)) * rng.uniform(1e-4, 10, 3)  # anisotropic: flat, linear and round sets
+    pts[rng.random(200) < 0.2, 2] = 0.0
+    idx = rng.integers(0, 200, (50, k))
+    idx[:5] = idx[:5, :1]  # a set of one point repeated: all eigenvalues zero
+    values, axes = _principal_axes(pts, idx)
+    ref_values, ref_axes = _principal_axes_numpy(pts[idx])
+    scale = np.abs(ref_values).max(axis=1, keepdims=True)
+    np.testing.assert_allclose(values, ref_values, rtol=0, atol=1e-12 * float(scale.max()) + 1e-300)
+    np.testing.assert_allclose(np.einsum('mij,mik->mjk', axes, axes), np.broadcast_to(np.eye(3), axes.shape),
+                               atol=1e-12)  # orthonormal
+    gap = np.diff(ref_values, axis=1) > 1e-6 * scale  # a well-separated eigenvalue: the same axis up to sign
+    for j in range(3):
+        separate = (gap[:, j - 1] if j > 0 else True) & (gap[:, j] if j < 2 else True)
+        dots = np.abs(np.einsum('mi,mi->m', axes[:, :, j], ref_axes[:, :, j]))
+        np.testing.assert_allclose(dots[separate], 1.0, atol=1e-6)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1))
+def test_pair_graph_matches_numpy(seed):
+    from plane_validation.core.regions import _neighbours, _neighbours_numpy
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 200))
+    pairs = rng.integers(0, n, (int(rng.integers(0, 5 * n)), 2))
+    graph, ref = _neighbours(n, pairs, None), _neighbours_numpy(n, pairs, None)
+    np.testing.assert_array_equal(graph.edges, ref.edges)
+    for part, ref_part in zip(graph.adjacency, ref.adjacency):
+        np.testing.assert_array_equal(part, ref_part)

@@ -19,9 +19,13 @@ import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
-           'cell_scatter', 'pack_xyz', 'warm', 'Warmup']
+           'cell_scatter', 'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'pair_graph',
+           'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
+
+#: A voxel grid of up to this many voxels is indexed by a direct table (an int64 each), a larger one by a hash.
+DENSE_VOXELS = 1 << 22
 
 #: The 8 image neighbours (row, column offsets), in the order a tie goes to the first.
 EIGHT = np.array([(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc], dtype=np.int64)
@@ -510,6 +514,317 @@ def pack_xyz(points: np.ndarray, keep: np.ndarray, out: np.ndarray) -> bool:
     return dense
 
 
+@numba.njit(**_JIT)
+def coordinate_bounds(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The smallest and the largest coordinates (3,) each of ``points`` (n, 3), n >= 1."""
+    lo = points[0].copy()
+    hi = points[0].copy()
+    for i in range(1, points.shape[0]):
+        for a in range(3):
+            v = points[i, a]
+            if v < lo[a]:
+                lo[a] = v
+            elif v > hi[a]:
+                hi[a] = v
+    return lo, hi
+
+
+@numba.njit(**_JIT)
+def _slot(key: int, mask: int) -> int:
+    """The first slot of ``key`` in a hash table of mask + 1 slots (a power of two)."""
+    h = key * 0x9E3779B1
+    return (h ^ (h >> 17)) & mask
+
+
+@numba.njit(**_JIT)
+def voxel_grid(points: np.ndarray, origin: np.ndarray, cell: float, dims: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Hash ``points`` (m, 3) meters into cubic voxels of side ``cell`` (meters) from ``origin`` (3,), ``dims`` (3,)
+    voxels along each axis (every point inside them). Returns (order (m,): the points voxel by voxel, in the order of
+    their voxel's key; keys (c,) of the occupied voxels, ascending; starts (c + 1,): voxel j holds
+    order[starts[j]:starts[j + 1]]; table: the voxel of each key (-1: empty), directly ((dims.prod(),), when that is
+    at most DENSE_VOXELS or 8 m) or as an open-addressing hash (2^b,))."""
+    m = points.shape[0]
+    keys = np.empty(m, np.int64)
+    for i in range(m):
+        ix = int((points[i, 0] - origin[0]) / cell)
+        iy = int((points[i, 1] - origin[1]) / cell)
+        iz = int((points[i, 2] - origin[2]) / cell)
+        keys[i] = ix + dims[0] * (iy + dims[1] * iz)
+    order = np.argsort(keys, kind='mergesort')
+    c = 0
+    for q in range(m):
+        if q == 0 or keys[order[q]] != keys[order[q - 1]]:
+            c += 1
+    cell_keys = np.empty(c, np.int64)
+    starts = np.empty(c + 1, np.int64)
+    c = 0
+    for q in range(m):
+        key = keys[order[q]]
+        if q == 0 or key != keys[order[q - 1]]:
+            cell_keys[c] = key
+            starts[c] = q
+            c += 1
+    starts[c] = m
+    total = dims[0] * dims[1] * dims[2]
+    if total <= max(DENSE_VOXELS, 8 * m):  # few enough voxels for a direct table: no hashing
+        table = np.full(total, -1, np.int64)
+        for j in range(c):
+            table[cell_keys[j]] = j
+        return order, cell_keys, starts, table
+    size = 1
+    while size < 2 * c + 2:
+        size *= 2
+    table = np.full(size, -1, np.int64)
+    for j in range(c):
+        s = _slot(cell_keys[j], size - 1)
+        while table[s] >= 0:
+            s = (s + 1) & (size - 1)
+        table[s] = j
+    return order, cell_keys, starts, table
+
+
+@numba.njit(**_JIT)
+def _voxel(cell_keys: np.ndarray, table: np.ndarray, key: int, dense: bool) -> int:
+    """The occupied voxel of ``key`` in :func:`voxel_grid`'s table (``dense``: a direct one), -1 when none."""
+    if dense:
+        return table[key]
+    mask = table.shape[0] - 1
+    s = _slot(key, mask)
+    while table[s] >= 0:
+        if cell_keys[table[s]] == key:
+            return table[s]
+        s = (s + 1) & mask
+    return -1
+
+
+@numba.njit(**_JIT)
+def _gap(f: float, c: int, d: int) -> float:
+    """How far (in voxels) a query at ``f`` along an axis, in voxel ``c``, lies from voxel c + ``d``."""
+    if d < 0:
+        return f - (c + d + 1)
+    if d > 0:
+        return (c + d) - f
+    return 0.0
+
+
+@numba.njit(**_JIT)
+def voxel_knn(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
+              origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray, k: int, max_ring: int
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ``k`` nearest of the points hashed by :func:`voxel_grid` (``points`` (m, 3): those points voxel by voxel,
+    in its ``order``) to each of ``queries`` (q, 3), inside the grid, nearest first (equal distances: the first in
+    ``order`` first; indices into the points as hashed), searched ring by ring of voxels around the query's
+    own up to ``max_ring`` rings. Returns (distances (q, k) meters, indices (q, k), exact (q,) bool): a query whose k
+    nearest are not certain within those rings has exact False (its other rows are then meaningless)."""
+    nq = queries.shape[0]
+    dist = np.full((nq, k), np.inf)
+    idx = np.full((nq, k), -1, np.int64)
+    exact = np.zeros(nq, np.bool_)
+    d2 = np.empty(k)
+    total = dims[0] * dims[1] * dims[2]
+    dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * points.shape[0])
+    for q in range(nq):
+        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+        fx, fy, fz = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
+        cx, cy, cz = int(fx), int(fy), int(fz)
+        margin = min(fx - cx, cx + 1 - fx, fy - cy, cy + 1 - fy, fz - cz, cz + 1 - fz) * cell
+        d2[:] = np.inf
+        found = 0
+        best = idx[q]
+        for r in range(max_ring + 1):
+            for dz in range(-r, r + 1):
+                iz = cz + dz
+                if iz < 0 or iz >= dims[2]:
+                    continue
+                gz = _gap(fz, cz, dz) * cell
+                for dy in range(-r, r + 1):
+                    iy = cy + dy
+                    if iy < 0 or iy >= dims[1]:
+                        continue
+                    gy = _gap(fy, cy, dy) * cell
+                    gyz = gy * gy + gz * gz
+                    if found == k and gyz > d2[k - 1]:
+                        continue
+                    edge = abs(dz) == r or abs(dy) == r
+                    dx = -r
+                    while dx <= r:
+                        ix = cx + dx
+                        gx = _gap(fx, cx, dx) * cell
+                        if 0 <= ix < dims[0] and not (found == k and gx * gx + gyz > d2[k - 1]):
+                            v = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
+                            if v >= 0:
+                                for j in range(starts[v], starts[v + 1]):
+                                    ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+                                    e = ex * ex + ey * ey + ez * ez
+                                    if found == k and not (e < d2[k - 1] or (e == d2[k - 1] and j < best[k - 1])):
+                                        continue
+                                    p = min(found, k - 1)
+                                    while p > 0 and (e < d2[p - 1] or (e == d2[p - 1] and j < best[p - 1])):
+                                        d2[p] = d2[p - 1]
+                                        best[p] = best[p - 1]
+                                        p -= 1
+                                    d2[p] = e
+                                    best[p] = j
+                                    if found < k:
+                                        found += 1
+                        dx += 1 if edge or dx == r else 2 * r  # inside the ring: only its two ends
+            reach = r * cell + margin
+            if found == k and d2[k - 1] <= reach * reach:
+                exact[q] = True
+                break
+        for p in range(found):
+            dist[q, p] = np.sqrt(d2[p])
+            best[p] = order[best[p]]
+    return dist, idx, exact
+
+
+@numba.njit(**_JIT)
+def _rotate(a: np.ndarray, v: np.ndarray, p: int, q: int) -> None:
+    """One Jacobi rotation zeroing a[p, q] of the symmetric 3 x 3 ``a``, applied to the columns of ``v`` too."""
+    apq = a[p, q]
+    if apq == 0.0:
+        return
+    theta = (a[q, q] - a[p, p]) / (2.0 * apq)
+    if abs(theta) > 1e150:
+        t = 0.5 / theta
+    else:
+        t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
+        if theta < 0:
+            t = -t
+    c = 1.0 / np.sqrt(t * t + 1.0)
+    s = t * c
+    for r in range(3):  # a <- a J (columns p, q)
+        arp, arq = a[r, p], a[r, q]
+        a[r, p], a[r, q] = c * arp - s * arq, s * arp + c * arq
+    for r in range(3):  # a <- J^T a (rows p, q)
+        apr, aqr = a[p, r], a[q, r]
+        a[p, r], a[q, r] = c * apr - s * aqr, s * apr + c * aqr
+    a[p, q] = a[q, p] = 0.0
+    for r in range(3):
+        vrp, vrq = v[r, p], v[r, q]
+        v[r, p], v[r, q] = c * vrp - s * vrq, s * vrp + c * vrq
+
+
+@numba.njit(**_JIT)
+def principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (m, 3), ascending, and unit principal axes (m, 3, 3), as columns, of the scatter about their mean
+    of the point sets ``points[idx[i]]`` (``points`` (n, 3) meters, ``idx`` (m, k)), by cyclic Jacobi rotations (an
+    axis' sign is arbitrary, as is the basis of equal eigenvalues)."""
+    m, k = idx.shape
+    values = np.empty((m, 3))
+    axes = np.empty((m, 3, 3))
+    a = np.empty((3, 3))
+    v = np.empty((3, 3))
+    for i in range(m):
+        mx = my = mz = 0.0
+        for j in range(k):
+            p = idx[i, j]
+            mx += points[p, 0]
+            my += points[p, 1]
+            mz += points[p, 2]
+        mx, my, mz = mx / k, my / k, mz / k
+        xx = xy = xz = yy = yz = zz = 0.0
+        for j in range(k):
+            p = idx[i, j]
+            x, y, z = points[p, 0] - mx, points[p, 1] - my, points[p, 2] - mz
+            xx += x * x
+            xy += x * y
+            xz += x * z
+            yy += y * y
+            yz += y * z
+            zz += z * z
+        a[0, 0], a[0, 1], a[0, 2] = xx, xy, xz
+        a[1, 0], a[1, 1], a[1, 2] = xy, yy, yz
+        a[2, 0], a[2, 1], a[2, 2] = xz, yz, zz
+        v[:] = 0.0
+        v[0, 0] = v[1, 1] = v[2, 2] = 1.0
+        scale = xx * xx + yy * yy + zz * zz + 2 * (xy * xy + xz * xz + yz * yz)
+        for _ in range(32):
+            off = a[0, 1] * a[0, 1] + a[0, 2] * a[0, 2] + a[1, 2] * a[1, 2]
+            if not off > 1e-32 * scale:
+                break
+            _rotate(a, v, 0, 1)
+            _rotate(a, v, 0, 2)
+            _rotate(a, v, 1, 2)
+        d0, d1, d2 = a[0, 0], a[1, 1], a[2, 2]
+        o0, o1, o2 = 0, 1, 2  # ascending by a 3-element sort
+        if d1 < d0:
+            d0, d1, o0, o1 = d1, d0, o1, o0
+        if d2 < d1:
+            d1, d2, o1, o2 = d2, d1, o2, o1
+        if d1 < d0:
+            d0, d1, o0, o1 = d1, d0, o1, o0
+        values[i, 0], values[i, 1], values[i, 2] = d0, d1, d2
+        for r in range(3):
+            axes[i, r, 0], axes[i, r, 1], axes[i, r, 2] = v[r, o0], v[r, o1], v[r, o2]
+    return values, axes
+
+
+@numba.njit(**_JIT)
+def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The graph of n points joined by ``pairs`` (e, 2) (any order, repeats allowed): (edges (2, u) each joined pair
+    once, smaller index first, sorted by it then by the other; indptr (n + 1,) and indices: each point's neighbours,
+    first the larger ones ascending, then the smaller ones ascending)."""
+    e = pairs.shape[0]
+    count = np.zeros(n + 1, np.int64)
+    for q in range(e):
+        count[min(pairs[q, 0], pairs[q, 1]) + 1] += 1
+    for i in range(n):
+        count[i + 1] += count[i]
+    fill = count[:-1].copy()
+    larger = np.empty(e, np.int64)
+    for q in range(e):
+        a, b = pairs[q, 0], pairs[q, 1]
+        if b < a:
+            a, b = b, a
+        larger[fill[a]] = b
+        fill[a] += 1
+    unique = 0
+    degree = np.zeros(n, np.int64)
+    stop = 0
+    for i in range(n):  # each row's larger ends sorted, repeats dropped, in place
+        start, stop = stop, count[i + 1]
+        if stop - start > 16:
+            larger[start:stop].sort()
+        else:  # a few: insertion sort
+            for q in range(start + 1, stop):
+                b = larger[q]
+                p = q
+                while p > start and larger[p - 1] > b:
+                    larger[p] = larger[p - 1]
+                    p -= 1
+                larger[p] = b
+        last = -1
+        for q in range(start, stop):
+            b = larger[q]
+            if b != last:
+                larger[unique] = b
+                unique += 1
+                degree[i] += 1
+                degree[b] += 1
+                last = b
+        count[i + 1] = unique  # now the bounds of the deduplicated rows
+    edges = np.empty((2, unique), np.int64)
+    indptr = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        indptr[i + 1] = indptr[i] + degree[i]
+    at = indptr[:-1].copy()
+    indices = np.empty(2 * unique, np.int64)
+    for i in range(n):
+        for q in range(count[i], count[i + 1]):
+            b = larger[q]
+            edges[0, q], edges[1, q] = i, b
+            indices[at[i]] = b
+            at[i] += 1
+    for i in range(n):
+        for q in range(count[i], count[i + 1]):
+            b = larger[q]
+            indices[at[b]] = i
+            at[b] += 1
+    return edges, indptr, indices
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -540,9 +855,16 @@ def warm() -> Warmup:
     grid_compete(np.zeros((2, 4)), np.zeros(4, np.int64), index, index, 2, EIGHT, 2)
     graph_components(4, np.zeros((1, 2), np.int64), flags)
     graph_region(np.zeros((1, 2), np.int64), pts, np.ones(3), 0.5, flags, flags, flags, np.ones(3))
+    coordinate_bounds(pts)
+    dims = np.ones(3, np.int64)
+    grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
+    voxel_knn(pts, *grid, np.zeros(3), 1.0, dims, pts, 2, 1)
+    principal_axes(pts, np.zeros((4, 3), np.int64))
+    pair_graph(4, np.zeros((1, 2), np.int64))
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
 
 _KERNELS = (finite_mask, cell_scatter, spread_grid, group_by_label, centroids_and_extremes, grid_components,
-            grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz)
+            grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
+            voxel_grid, voxel_knn, principal_axes, pair_graph)

@@ -29,8 +29,10 @@ from .regions import (
     NORMAL_MIN_COS,
     SUPPORT_BALANCE,
     Neighbours,
+    VoxelIndex,
     graph_neighbours,
     grid_neighbours,
+    voxel_index,
 )
 
 __all__ = ['Plane', 'Segmentation', 'SearchGraph', 'detect_planes', 'search_graph', 'fit_plane', 'as_points',
@@ -1107,12 +1109,27 @@ def _search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | 
                 return None
             search_idx = valid_idx[np.sort(rng.choice(n_valid, int(ransac_points), replace=False))]
         searched = pts[search_idx] - center
+        index = None
         if len(search_idx) < n_valid:
-            nearest = cKDTree(searched).query(pts[valid_idx] - center, k=1)[1]
-        neighbours = graph_neighbours(searched, viewpoint=viewpoint - center)
+            nearest, index = _nearest_searched(searched, pts[valid_idx] - center)
+        neighbours = graph_neighbours(searched, viewpoint=viewpoint - center, index=index)
     return SearchGraph(n_points=len(pts), search_idx=search_idx, step=step, center=center, neighbours=neighbours,
                        shape=shape, ransac_points=ransac_points, n_valid=n_valid, nearest=nearest,
                        viewpoint=tuple(viewpoint.tolist()), grid_points=grid_points)
+
+
+def _nearest_searched(searched: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, VoxelIndex | None]:
+    """(n,) the position among ``searched`` (m, 3) of the nearest to each of ``points`` (n, 3), through voxels; and
+    the voxel index of ``searched`` (None for far-out coordinates: then by a kd-tree)."""
+    index = voxel_index(searched, span=points)
+    if index is None:
+        return _nearest_searched_tree(searched, points), None
+    return index.query(points, 1)[1][:, 0], index
+
+
+def _nearest_searched_tree(searched: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """:func:`_nearest_searched` by scipy's kd-tree (the reference)."""
+    return cKDTree(searched).query(points, k=1)[1]
 
 
 def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,

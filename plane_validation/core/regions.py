@@ -11,10 +11,11 @@ points; :meth:`Neighbours.components` then labels the connected components of an
   neighbours are labelled afterwards from the regions around them). Components come from
   ``scipy.ndimage.label``.
 * Unorganized clouds: each point's ``NEIGHBOURS`` nearest neighbours within ``RADIUS`` median
-  neighbour spacings (scipy's kd-tree), components by ``scipy.sparse.csgraph``. A point whose
+  neighbour spacings (exact, through a voxel hash: :class:`VoxelIndex`; scipy's kd-tree for far-out
+  coordinates and the searches across lidar rings), components by ``scipy.sparse.csgraph``. A point whose
   neighbours all lie on one lidar ring (a line, or a strip widened by range noise) is also joined to
   the next ring; a strip's own normal is the beam cone's, so it takes one from both rings, or none.
-Pure numpy/scipy.
+numpy/scipy, with the loops over points in compiled kernels (:mod:`.kernels`).
 """
 from __future__ import annotations
 
@@ -28,12 +29,15 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from . import kernels
+
 try:  # the kernel behind csgraph.connected_components, without its per-call checks and transpose
     from scipy.sparse.csgraph._traversal import _connected_components_undirected
 except ImportError:  # pragma: no cover - a SciPy that moved it: the public function below
     _connected_components_undirected = None
 
-__all__ = ['Neighbours', 'grid_neighbours', 'graph_neighbours', 'JUMP', 'NEIGHBOURS', 'RADIUS', 'NORMAL_MIN_COS']
+__all__ = ['Neighbours', 'VoxelIndex', 'grid_neighbours', 'graph_neighbours', 'voxel_index', 'JUMP', 'NEIGHBOURS',
+           'RADIUS', 'NORMAL_MIN_COS']
 
 #: A gap between grid neighbours this many times the gaps next to it along the image line (and
 #: this many typical pixel spacings at its range) is a depth jump.
@@ -125,6 +129,13 @@ FRAGMENT_PIECE = 0.05
 #: band of a plane offset from the surface it crosses (0.6 t off at noise t: 0.05 against 0.26 of the points;
 #: without the test such a plane keeps more than the surface's own one, 3.8 mm off a wall with 1 cm noise).
 SUPPORT_BALANCE = 0.5
+#: Nearest-neighbour queries hash the points into voxels holding about this many points each (kernels.voxel_grid) ...
+VOXEL_POINTS = 4.0
+#: ... and search up to this many rings of voxels around a query's own; a query whose nearest are not certain
+#: within them (an outlier far from the rest) is answered by a kd-tree.
+VOXEL_RINGS = 5
+#: A cloud spanning more voxels than this along an axis (a far-out coordinate) is searched by a kd-tree alone.
+VOXEL_SPAN = 1 << 20
 #: Scales of :meth:`Neighbours.nearby`: a window of this many sub-grid pixels around the point
 #: (organized) or a random walk of this many graph hops (unorganized), one drawn per sample.
 NEARBY_SCALES = (1, 2, 4, 8)
@@ -553,16 +564,23 @@ def _grid_normals(image_points: np.ndarray, valid: np.ndarray, reach: tuple[int,
     return n
 
 
-#: Kd-trees over coordinates and over every ACROSS_FAR_STRIDE-th of them, each built on first use, the
-#: coordinates and how many nearest candidates a search looks at: (tree(), far(), coordinates (n, 3), candidates).
-_Space = tuple[Callable[[], cKDTree], Callable[[], cKDTree], np.ndarray, int]
+#: Searchers (voxel indices, or kd-trees) over coordinates and over every ACROSS_FAR_STRIDE-th of them, each built on
+#: first use, the coordinates and how many nearest candidates a search looks at: (tree(), far(), coordinates (n, 3),
+#: candidates).
+_Space = tuple[Callable[[], 'VoxelIndex | cKDTree'], Callable[[], 'VoxelIndex | cKDTree'], np.ndarray, int]
 #: Which candidates (m, c) of the rows (m,) are across: (rows, candidates) -> bool (m, c).
 _Test = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def _space(coords: np.ndarray, candidates: int, tree: cKDTree | None = None) -> _Space:
-    return ((lambda: tree) if tree is not None else functools.cache(lambda: cKDTree(coords)),
-            functools.cache(lambda: cKDTree(coords[::ACROSS_FAR_STRIDE])), coords, candidates)
+def _space(coords: np.ndarray, candidates: int, searcher: VoxelIndex | cKDTree | None = None) -> _Space:
+    return ((lambda: searcher) if searcher is not None else functools.cache(lambda: _searcher(coords)),
+            functools.cache(lambda: _searcher(coords[::ACROSS_FAR_STRIDE])), coords, candidates)
+
+
+def _searcher(coords: np.ndarray) -> VoxelIndex | cKDTree:
+    """Nearest-neighbour queries over ``coords`` (n, 3): a :class:`VoxelIndex`, or a kd-tree for far-out coordinates."""
+    index = voxel_index(coords) if len(coords) else None
+    return cKDTree(coords) if index is None else index
 
 
 def _off(points: np.ndarray, direction: np.ndarray, off_plane: bool) -> _Test:
@@ -641,23 +659,102 @@ def _search(space: _Space, idx: np.ndarray, rows: np.ndarray, test: _Test, skip:
     return np.concatenate(found_rows), np.concatenate(found_targets)
 
 
-def graph_neighbours(points: np.ndarray, viewpoint: np.ndarray | None = None) -> Neighbours:
+@dataclass(frozen=True, eq=False)
+class VoxelIndex:
+    """``points`` (m, 3) meters hashed into cubic voxels of side ``cell`` from ``origin`` (3,), ``dims`` (3,)
+    voxels along each axis (the rest: :func:`kernels.voxel_grid`'s output), for exact nearest-neighbour queries
+    of points inside those voxels."""
+
+    points: np.ndarray
+    origin: np.ndarray
+    cell: float
+    dims: np.ndarray
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+    @property
+    def n(self) -> int:
+        """How many points (as cKDTree.n)."""
+        return len(self.points)
+
+    @functools.cached_property
+    def _tree(self) -> cKDTree:
+        return cKDTree(self.points)
+
+    @functools.cached_property
+    def ordered(self) -> np.ndarray:
+        """(m, 3) the points voxel by voxel (in the grid's order)."""
+        return self.points[self.grid[0]]
+
+    def query(self, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The ``k`` nearest points to each of ``queries`` (q, 3), inside the voxels, as cKDTree.query gives them
+        (distances (q, k) meters, nearest first; indices (q, k), len(points) where fewer than k exist; ties may be
+        ordered otherwise)."""
+        dist, idx, exact = kernels.voxel_knn(self.ordered, *self.grid, self.origin, self.cell, self.dims,
+                                             kernels.c_array(queries, np.float64), k, VOXEL_RINGS)
+        rest = np.flatnonzero(~exact)
+        if len(rest):  # far from every point (or fewer than k of them): the kd-tree
+            d, i = self._tree.query(queries[rest], k=k)
+            dist[rest], idx[rest] = d.reshape(len(rest), k), i.reshape(len(rest), k)
+        return dist, idx
+
+
+def voxel_index(points: np.ndarray, span: np.ndarray | None = None) -> VoxelIndex | None:
+    """A :class:`VoxelIndex` of ``points`` (m, 3) meters, m >= 1, finite, with about VOXEL_POINTS points per
+    occupied voxel; ``span`` (q, 3): the queries, when others than ``points``. None when the voxels would span more
+    than VOXEL_SPAN along an axis, or no voxel size gives about that many (far-out coordinates: use a kd-tree)."""
+    points = kernels.c_array(points, np.float64)
+    lo, hi = kernels.coordinate_bounds(points)
+    if span is not None and len(span):
+        span_lo, span_hi = kernels.coordinate_bounds(kernels.c_array(span, np.float64))
+        lo, hi = np.minimum(lo, span_lo), np.maximum(hi, span_hi)
+    extent = hi - lo
+    size = float(extent.max())
+    if not size > 0:
+        size = 1.0
+    cell = size / max(1.0, len(points) / VOXEL_POINTS) ** (1 / 3)  # as if filling a cube: then refined
+    for _ in range(8):
+        if not (size / cell < VOXEL_SPAN and np.prod(extent // cell + 1) < 2.0 ** 62):
+            return None
+        # one voxel more than the extent needs: the kernels' (p - lo) / cell may round up to extent // cell + 1
+        dims = (extent // cell).astype(np.int64) + 2
+        grid = kernels.voxel_grid(points, lo, cell, dims)
+        per_voxel = len(points) / len(grid[1])
+        if per_voxel <= 2 * VOXEL_POINTS and (per_voxel >= VOXEL_POINTS / 2 or len(grid[1]) == len(points)):
+            return VoxelIndex(points=points, origin=lo, cell=cell, dims=dims, grid=grid)
+        cell *= float(np.clip(np.sqrt(VOXEL_POINTS / per_voxel), 0.25, 4.0))  # a surface: points grow as cell^2
+    return None  # the points' spacing varies beyond what one voxel size serves (far-out coordinates)
+
+
+def _knn(points: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` nearest of ``points`` (n, 3) to each of them (distances (n, k), indices (n, k), as cKDTree.query)."""
+    return _searcher(points).query(points, k=k)
+
+
+def _knn_tree(points: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_knn` by scipy's kd-tree (the reference)."""
+    return cKDTree(points).query(points, k=k)
+
+
+def graph_neighbours(points: np.ndarray, viewpoint: np.ndarray | None = None, index: VoxelIndex | None = None
+                     ) -> Neighbours:
     """Neighbours of unorganized (n, 3) points (meters): each joined to its NEIGHBOURS nearest within
     RADIUS median NEIGHBOURS-th-neighbour distances and, where those lie along a line or a strip of
     one lidar ring, to a point of the next ring (see ACROSS_CANDIDATES, ACROSS_SEARCHING,
     STRIP_FLATNESS, ONE_RING). ``viewpoint`` (3,): where the sensor is in these coordinates (default
     the origin; a spinning lidar's axis is taken as z), for the strip and ring tests. Exact copies of
-    a point are joined to it and share its neighbours and normal."""
-    return _graph(points, merge_copies=True, viewpoint=np.zeros(3) if viewpoint is None else viewpoint)
+    a point are joined to it and share its neighbours and normal. ``index``: a :func:`voxel_index` of ``points``
+    already built (else one is)."""
+    return _graph(points, merge_copies=True, viewpoint=np.zeros(3) if viewpoint is None else viewpoint, index=index)
 
 
-def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Neighbours:
+def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index: VoxelIndex | None = None
+           ) -> Neighbours:
     n = len(points)
     k = min(NEIGHBOURS + 1, n)
     if k < 2:
         return Neighbours(n=n, edges=np.empty((0, 2), np.int64))
-    tree = cKDTree(points)
-    dist, idx = tree.query(points, k=k)
+    searcher = _searcher(points) if index is None else index
+    dist, idx = searcher.query(points, k=k)
     if merge_copies and np.any(dist[:, 1] == 0):  # copies would fill the neighbour lists (stacked scans)
         return _with_copies(points, viewpoint)
     missing = idx >= n  # far-out coordinates (a driver's FLT_MAX rows) find no neighbour
@@ -670,7 +767,7 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Nei
     edges = [np.column_stack([rows[near], idx[:, 1:k][near]])]
     normals = None
     if k >= 4:  # local normals: the smallest principal axis of each point's neighbourhood
-        values, vectors = _principal_axes(points[idx])
+        values, vectors = _principal_axes(points, idx)
         normals = _normals(values, vectors)
         line = values[:, 1] < 0.05 * values[:, 2]  # neighbours along a line: no normal, a ring
         normals[line] = np.nan
@@ -684,7 +781,7 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Nei
         widest = np.einsum('nkd,nd->nk', unit[idx[flat_rows]], unit[flat_rows]).min(axis=1)
         one_ring[flat_rows] = widest < np.cos(ANOTHER_RING)
         directions = _space(unit, RING_CANDIDATES)
-        nearby = _space(points, ACROSS_CANDIDATES, tree)
+        nearby = _space(points, ACROSS_CANDIDATES, searcher)
 
         def search(rows: np.ndarray, off: _Test, far: bool) -> tuple[np.ndarray, np.ndarray]:
             """Each row's partner: the nearest point off its line or plane (farther only with ``far``; for
@@ -703,14 +800,20 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray) -> Nei
         rows_s, target = _strips(points, ~line & (values[:, 0] < STRIP_FLATNESS * values[:, 1]), normals,
                                  rays, search)
         edges.append(np.column_stack([rows_s, target]))
-        normals[rows_s] = _normals(*_principal_axes(points[np.concatenate([idx[rows_s], idx[target]], axis=1)]))
+        normals[rows_s] = _normals(*_principal_axes(points, np.concatenate([idx[rows_s], idx[target]], axis=1)))
         rows_l, target = search(np.flatnonzero(line), _off(points, vectors[:, :, 2], off_plane=False), True)
         edges.append(np.column_stack([rows_l, target]))
     return _neighbours(n, np.concatenate(edges), normals)
 
 
-def _principal_axes(neighbourhoods: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Eigenvalues (m, 3), ascending, and unit principal axes (m, 3, 3), as columns, of point sets (m, k, 3)."""
+def _principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (m, 3), ascending, and unit principal axes (m, 3, 3), as columns (signs arbitrary), of the point
+    sets ``points[idx]`` (``points`` (n, 3), ``idx`` (m, k))."""
+    return kernels.principal_axes(kernels.c_array(points, np.float64), kernels.c_array(idx, np.int64))
+
+
+def _principal_axes_numpy(neighbourhoods: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_principal_axes` of point sets (m, k, 3) by numpy (the reference)."""
     nb = neighbourhoods - neighbourhoods.mean(axis=1, keepdims=True)
     x, y, z = nb[..., 0], nb[..., 1], nb[..., 2]
     xy, xz, yz = (np.einsum('nk,nk->n', a, b) for a, b in ((x, y), (x, z), (y, z)))  # 2-d products are faster
@@ -755,6 +858,12 @@ def _with_copies(points: np.ndarray, viewpoint: np.ndarray) -> Neighbours:
 
 def _neighbours(n: int, edges: np.ndarray, normals: np.ndarray | None) -> Neighbours:
     """The graph form of :class:`Neighbours` from joined pairs ``edges`` (e, 2), in any order, repeats allowed."""
+    unique, indptr, indices = kernels.pair_graph(n, kernels.c_array(edges.reshape(-1, 2), np.int64))
+    return Neighbours(n=n, edges=unique.T, normals=normals, adjacency=(indptr, indices))
+
+
+def _neighbours_numpy(n: int, edges: np.ndarray, normals: np.ndarray | None) -> Neighbours:
+    """:func:`_neighbours` by numpy (the reference)."""
     edges = np.sort(edges, axis=1)  # each joined pair once, smaller index first
     key = np.sort(edges[:, 0] * n + edges[:, 1])  # sorted by source, then destination
     key = key[np.r_[True, key[1:] != key[:-1]][:len(key)]]  # each pair once (numpy 2's np.unique is much slower)
