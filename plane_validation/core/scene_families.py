@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scenes import Scene, _look_at, _raycast, _Rect
+from .scenes import Scene, _look_at, _pinhole_rays, _raycast, _Rect
 
 __all__ = ['indoor_depth', 'lidar_scan', 'aerial_roof', 'FAMILIES', 'TUNING_SEEDS', 'HELD_OUT_SEEDS',
            'SCENES_PER_SPLIT', 'QUICK_SCENES_PER_SPLIT', 'SPLITS', 'split']
@@ -237,11 +237,7 @@ def indoor_depth(seed: int, *, width: int = 640, height: int = 480, hfov_deg: fl
     target[:2] += _rot(rng.uniform(-0.35, 0.35))[:2, :2] @ (target[:2] - eye[:2]) - (target[:2] - eye[:2])
     rot = _look_at(eye, target)
 
-    f = width / 2 / np.tan(np.radians(hfov_deg) / 2)
-    u, v = np.meshgrid(np.arange(width) + 0.5 - width / 2, np.arange(height) + 0.5 - height / 2)
-    rays_cam = np.column_stack([u.ravel() / f, v.ravel() / f, np.ones(width * height)])
-    rays = rays_cam @ rot.T
-    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    rays_cam, rays = _pinhole_rays(width, height, hfov_deg, rot)
     dist, surface, cos = _cast(surfaces, clutter, eye, rays)
     z = dist * (rays @ rot[:, 2])  # optical depth
     a, b = rng.uniform(0.0, 3 * KINECT_A), rng.uniform(0.0005, 3 * KINECT_B)
