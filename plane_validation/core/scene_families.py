@@ -173,9 +173,9 @@ def indoor_depth(seed: int, *, width: int = 640, height: int = 480, hfov_deg: fl
     at a random point near it (pitch from the geometry, yaw jitter +-20 deg). Depth noise
     sigma(z) = a + b z^2 with a in [0, 3 mm] and b in [0.5, 4.5] mm/m^2 (up to 3 x a Kinect's), depth
     quantised in steps q z^2 (q 1-3 mm/m^2); lost: 0-5 % random dropouts, grazing rays
-    (|cos| < 0.1-0.3), beyond 4-8 m; at depth jumps (> 4 % between neighbours) a pixel is lost or
-    takes a depth between both sides (a flying pixel, -1). Planes with fewer than 0.1 % of the pixels
-    are -1. ``noise`` is sigma at 1 m (a + b).
+    (|cos| < 0.1-0.3), beyond 3.5-6 m (a Kinect's working range); at depth jumps (> 4 % between
+    neighbours) a pixel is lost or takes a depth between both sides (a flying pixel, -1). Planes with
+    fewer than 0.1 % of the pixels are -1. ``noise`` is sigma at 1 m (a + b).
     """
     seed = _check_seed(seed)
     if width < 8 or height < 8 or not 20 <= hfov_deg <= 120:
@@ -241,7 +241,7 @@ def indoor_depth(seed: int, *, width: int = 640, height: int = 480, hfov_deg: fl
     dist, surface, cos = _cast(surfaces, clutter, eye, rays)
     z = dist * (rays @ rot[:, 2])  # optical depth
     a, b = rng.uniform(0.0, 3 * KINECT_A), rng.uniform(0.0005, 3 * KINECT_B)
-    q, min_cos, max_range = rng.uniform(0.001, 0.003), rng.uniform(0.1, 0.3), rng.uniform(4.0, 8.0)
+    q, min_cos, max_range = rng.uniform(0.001, 0.003), rng.uniform(0.1, 0.3), rng.uniform(3.5, 6.0)
     lost = ~np.isfinite(z) | (cos < min_cos) | (z > max_range) | (rng.random(len(z)) < rng.uniform(0, 0.05))
     labels = np.where(lost, -1, surface)
 
