@@ -457,8 +457,8 @@ TUNING_SEEDS: tuple[int, ...] = tuple(range(0, 100))
 HELD_OUT_SEEDS: tuple[int, ...] = tuple(range(1000, 1100))
 SPLITS = {'tuning': TUNING_SEEDS, 'held-out': HELD_OUT_SEEDS}
 #: Scenes per family in one split (the first seeds of the split's set), full and --quick.
-SCENES_PER_SPLIT = {'indoor_depth': 4, 'lidar_scan': 8, 'aerial_roof': 24}
-QUICK_SCENES_PER_SPLIT = {'indoor_depth': 2, 'lidar_scan': 2, 'aerial_roof': 6}
+SCENES_PER_SPLIT = {'indoor_depth': 4, 'lidar_scan': 6, 'aerial_roof': 20}
+QUICK_SCENES_PER_SPLIT = {'indoor_depth': 1, 'lidar_scan': 2, 'aerial_roof': 6}
 
 
 def split(name: str, quick: bool = False) -> list[tuple[str, int]]:
