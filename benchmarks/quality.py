@@ -320,7 +320,7 @@ def evaluate_cloud(split: str, family: str, cloud: Cloud, count: int, open3d_gri
     share = q.correct / q.true_planes if q.true_planes else 1.0
     return Row(split, family, cloud.name, int(np.isfinite(cloud.points).all(axis=1).sum()), cloud.true_planes,
                best['regions'], best['infinite'], best['open3d'], Result(float(tuned.tolerance), q, seconds),
-               bool(tuned.reliable), tuned.verdict, float(ratio),
+               bool(tuned.reliable), str(tuned.verdict), float(ratio),
                bool(share >= GOOD_CORRECT and ratio >= GOOD_RATIO), bool(share < BAD_CORRECT or not ratio >= BAD_RATIO))
 
 
