@@ -18,6 +18,7 @@ cannot be held out honestly.
 
 Run: .venv/bin/python benchmarks/quality.py [--criteria] [--quick] [--write-readme] [--only NAME ...]
      .venv/bin/python benchmarks/quality.py --split both [--quick] [--families NAME ...] [--json PATH]
+         [--no-baselines] [--gt DIR]
 """
 from __future__ import annotations
 
@@ -255,9 +256,10 @@ class Result:
 
 @dataclass(frozen=True)
 class Row:
-    """One cloud of a split: the best fixed t of each method over the grid (open3d None when not
-    installed), the auto-tuned result and its verdict; ratio = auto F1 / regions' best F1; good as
-    defined by GOOD_CORRECT and GOOD_RATIO; bad: below BAD_CORRECT or BAD_RATIO (must not be reliable)."""
+    """One cloud of a split: the best fixed t of each method over the grid (most Hoover-correct, then F1;
+    None when not run: Open3D not installed, or no baselines), the auto-tuned result and its verdict;
+    ratio = auto F1 / regions' best F1; good: GOOD_CORRECT and GOOD_RATIO met; bad: below BAD_CORRECT
+    or BAD_RATIO (must not be reliable)."""
 
     split: str
     family: str
@@ -265,7 +267,7 @@ class Row:
     points: int
     true_planes: int
     regions: Result
-    infinite: Result
+    infinite: Result | None
     open3d: Result | None
     auto: Result
     reliable: bool
@@ -297,15 +299,16 @@ def _split_grid(cloud: Cloud, count: int) -> np.ndarray:
 OPEN3D_GRID, OPEN3D_QUICK_GRID = np.geomspace(0.002, 0.3, 6), np.geomspace(0.002, 0.3, 4)
 
 
-def evaluate_cloud(split: str, family: str, cloud: Cloud, count: int, open3d_grid: np.ndarray = OPEN3D_GRID) -> Row:
+def evaluate_cloud(split: str, family: str, cloud: Cloud, count: int, open3d_grid: np.ndarray = OPEN3D_GRID,
+                   baselines: bool = True) -> Row:
     """Every method on one cloud (ours over ``count`` tolerances, Open3D over ``open3d_grid``) and the
-    auto-tuned result."""
+    auto-tuned result; without ``baselines`` only ours with regions (infinite planes and Open3D None)."""
     grid = _split_grid(cloud, count)
     best = {}
     for key, fn, ts in (('regions', lambda t: ours(cloud, t, True), grid),
                         ('infinite', lambda t: ours(cloud, t, False), grid),
                         ('open3d', lambda t: open3d(cloud, t), open3d_grid)):
-        if key == 'open3d' and not open3d_ref.available():
+        if key != 'regions' and not baselines or key == 'open3d' and not open3d_ref.available():
             best[key] = None
             continue
         t, q, sec = _best([(t, *fn(t)) for t in ts])
@@ -325,16 +328,16 @@ def evaluate_cloud(split: str, family: str, cloud: Cloud, count: int, open3d_gri
 
 
 def evaluate(split: str, quick: bool = False, gt: Path = GT, families: list[str] | None = None,
-             on_row: Callable[[Row], None] | None = None) -> list[Row]:
+             on_row: Callable[[Row], None] | None = None, baselines: bool = True) -> list[Row]:
     """Rows of one split ('tuning' or 'held-out'): 12 tolerances for ours, 6 for Open3D (6 and 4 with
     ``quick``, which also takes fewer seeds per family); families: only these (LABELLED for the labelled
-    clouds)."""
+    clouds); ``baselines``: also infinite planes and Open3D (else None, faster)."""
     rows = []
     for family, cloud in split_clouds(split, quick, gt):
         if families and family not in families:
             continue
         open3d_grid = OPEN3D_QUICK_GRID if quick else OPEN3D_GRID
-        rows.append(evaluate_cloud(split, family, cloud, 6 if quick else 12, open3d_grid))
+        rows.append(evaluate_cloud(split, family, cloud, 6 if quick else 12, open3d_grid, baselines))
         if on_row:
             on_row(rows[-1])
     return rows
@@ -342,7 +345,7 @@ def evaluate(split: str, quick: bool = False, gt: Path = GT, families: list[str]
 
 def _short(r: Result | None) -> str:
     if r is None:
-        return 'not installed'
+        return '—'
     return f'{r.quality.correct}/{r.quality.true_planes} F1 {r.quality.f1:.3f} @ {1000 * r.t:.3g} mm'
 
 
@@ -371,8 +374,9 @@ def summary_lines(rows: list[Row]) -> list[str]:
     groups: dict[tuple[str, str], list[Row]] = {}
     for r in rows:
         groups.setdefault((r.split, r.family), []).append(r)
-        groups.setdefault((r.split, 'all'), []).append(r)
-    for (split, family), g in groups.items():
+    for split in dict.fromkeys(r.split for r in rows):
+        groups[split, 'all'] = [r for r in rows if r.split == split]
+    for (split, family), g in sorted(groups.items(), key=lambda kv: (SPLIT_NAMES.index(kv[0][0]), kv[0][1] == 'all')):
         ratios = [r.ratio for r in g]
         lines.append(f'| {split} | {"**all**" if family == "all" else family} | {len(g)} | '
                      + ' | '.join(_sum_correct(g, k) for k in ('regions', 'infinite', 'open3d', 'auto'))
@@ -409,12 +413,22 @@ def write_json(path: Path, rows: list[Row], command: str) -> None:
     os.replace(tmp, path)
 
 
-def run_splits(splits: list[str], quick: bool, gt: Path, families: list[str] | None) -> list[Row]:
+def read_json(path: Path) -> list[Row]:
+    """The rows :func:`write_json` wrote (to summarise again without rerunning)."""
+    def result(d: dict | None) -> Result | None:
+        return None if d is None else Result(d['t'], Quality(**d['quality']), d['seconds'])
+    return [Row(**{**r, **{k: result(r[k]) for k in ('regions', 'infinite', 'open3d', 'auto')}})
+            for r in json.loads(Path(path).read_text())['rows']]
+
+
+def run_splits(splits: list[str], quick: bool, gt: Path, families: list[str] | None,
+               baselines: bool = True) -> list[Row]:
     """Print the per-scene table as it goes, then the summary and the verdict's confusion table."""
     print(SCENE_HEADER, flush=True)
     rows = []
     for split in splits:
-        rows += evaluate(split, quick, gt, families, on_row=lambda r: print(scene_line(r), flush=True))
+        rows += evaluate(split, quick, gt, families, on_row=lambda r: print(scene_line(r), flush=True),
+                         baselines=baselines)
     print('', *summary_lines(rows), '', *confusion_lines(rows), sep='\n', flush=True)
     return rows
 
@@ -430,6 +444,8 @@ def main() -> None:
     parser.add_argument('--families', nargs='*', help=f'with --split: only these families ({LABELLED}, '
                         + ', '.join(scene_families.FAMILIES) + ')')
     parser.add_argument('--json', type=Path, help='with --split: write the rows to this file')
+    parser.add_argument('--no-baselines', action='store_true',
+                        help='with --split: ours only (no infinite planes, no Open3D), for trying rules fast')
     parser.add_argument('--gt', type=Path, default=GT, help=f'the labelled clouds (default {GT})')
     parser.add_argument('--write-readme', action='store_true', help='put the table into benchmarks/README.md')
     parser.add_argument('--only', nargs='*', help='cloud names')
@@ -444,7 +460,7 @@ def main() -> None:
         print(f'Open3D: {open3d_ref.version()}', flush=True)
         start = time.perf_counter()
         splits = list(SPLIT_NAMES) if args.split == 'both' else [args.split]
-        rows = run_splits(splits, args.quick, args.gt, args.families)
+        rows = run_splits(splits, args.quick, args.gt, args.families, baselines=not args.no_baselines)
         print(f'\n{len(rows)} scenes in {time.perf_counter() - start:.0f} s: `{command}`', flush=True)
         if args.json:
             write_json(args.json, rows, command)
