@@ -327,6 +327,16 @@ def _look_at(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
     return np.column_stack([right, down, forward])
 
 
+def _pinhole_rays(width: int, height: int, hfov_deg: float, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each pixel's ray, rows in image order: (camera frame with z = 1 (H*W, 3), unit, world frame
+    (H*W, 3)) for a camera turned by ``rot`` (:func:`_look_at`)."""
+    f = width / 2 / np.tan(np.radians(hfov_deg) / 2)
+    u, v = np.meshgrid(np.arange(width) + 0.5 - width / 2, np.arange(height) + 0.5 - height / 2)
+    rays_cam = np.column_stack([u.ravel() / f, v.ravel() / f, np.ones(width * height)])
+    rays = rays_cam @ rot.T
+    return rays_cam, rays / np.linalg.norm(rays, axis=1, keepdims=True)
+
+
 def depth_camera(view: str = 'room', *, width: int = 640, height: int = 480, hfov_deg: float = 58.0,
                  sigma_1m: float = 0.0015, quantum_1m: float = 0.002, min_cos: float = 0.2,
                  max_range: float = 6.0, eye=None, target=None, seed=None) -> Scene:
@@ -346,11 +356,7 @@ def depth_camera(view: str = 'room', *, width: int = 640, height: int = 480, hfo
     rng = np.random.default_rng(seed)
     eye, target = np.asarray(eye, float), np.asarray(target, float)
     rot = _look_at(eye, target)
-    f = width / 2 / np.tan(np.radians(hfov_deg) / 2)
-    u, v = np.meshgrid(np.arange(width) + 0.5 - width / 2, np.arange(height) + 0.5 - height / 2)
-    rays_cam = np.column_stack([u.ravel() / f, v.ravel() / f, np.ones(width * height)])
-    rays = rays_cam @ rot.T
-    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    rays_cam, rays = _pinhole_rays(width, height, hfov_deg, rot)
     rng_, which = _raycast(rects, eye, rays)
     normals = np.array([r.normal for r in rects])
     cos = np.abs(np.einsum('ij,ij->i', rays, normals[np.maximum(which, 0)]))
