@@ -255,26 +255,6 @@ def test_graph_region_matches_numpy(seed):
     np.testing.assert_array_equal(taken, ref_taken)
 
 
-@SETTINGS
-@given(st.integers(0, 2**32 - 1), st.integers(0, 400), st.floats(0.0, 0.2))
-def test_patches_match_numpy(seed, n, thickness):
-    """The verdict's patches (cell scatter and its closed-form eigenvalues) against bincount moments and eigh."""
-    from plane_validation.core.verdict import _patches, _patches_numpy, _pca
-    rng = np.random.default_rng(seed)
-    points = np.column_stack([rng.uniform(0, 3, n), rng.uniform(0, 1 + 2 * rng.random(), n),
-                              rng.normal(0, thickness, n) + 0.1 * np.sin(rng.uniform(0, 6, n))])
-    pca = _pca(points)
-    compiled, reference = _patches(pca), _patches_numpy(pca)
-    assert (compiled is None) == (reference is None)
-    if compiled is None:
-        return
-    assert np.array_equal(compiled[2], reference[2])
-    assert np.allclose(compiled[0], reference[0], rtol=1e-9, atol=1e-12)
-    closed = _patches(pca, axes=False)[0]  # the kernel's closed-form eigenvalues
-    scale = reference[0][:, 2:]
-    assert np.allclose(closed / scale, reference[0] / scale, atol=1e-9)
-
-
 def _cloud_case(seed: int) -> np.ndarray:
     """Random (n, 3) points: a noisy plane, a line, clusters, exact copies, grid-quantized ties and far outliers."""
     rng = np.random.default_rng(seed)

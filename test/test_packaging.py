@@ -324,11 +324,12 @@ def test_installed_node_starts_and_exits_cleanly_on_sigint(prefix, tmp_path):
         node = subprocess.Popen([str(exe), '--ros-args', '-r', f'__ns:={ns}', '--params-file', str(params)],
                                 env=env, cwd=tmp_path, stdout=out, stderr=subprocess.STDOUT,
                                 start_new_session=True)
-        probe = subprocess.Popen([sys.executable, '-c', PROBE, ns, '30'], env=env, cwd=tmp_path,
+        # the installed copy compiles its kernels on a cold cache first (20-35 s): the probe waits for that
+        probe = subprocess.Popen([sys.executable, '-c', PROBE, ns, '90'], env=env, cwd=tmp_path,
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                  start_new_session=True)
         try:
-            deadline = time.monotonic() + 40.0
+            deadline = time.monotonic() + 100.0
             while probe.poll() is None and node.poll() is None and time.monotonic() < deadline:
                 time.sleep(0.05)
             assert node.poll() is None, (f'node exited with {node.returncode} before it was discovered:\n'

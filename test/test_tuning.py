@@ -813,14 +813,17 @@ def test_the_library_leaves_sigint_alone_unless_asked(monkeypatch):
     from plane_validation.core import tuning
     calls = []
     real = signal.signal
-    monkeypatch.setattr(signal, 'signal', lambda sig, handler: calls.append(handler) or real(sig, handler))
+    monkeypatch.setattr(signal, 'signal', lambda sig, handler: calls.append((sig, handler)) or real(sig, handler))
     before = signal.getsignal(signal.SIGINT)
     with tuning._sigint_ignored():
         assert signal.getsignal(signal.SIGINT) is before
     assert calls == []
+    terminate = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGHUP)}
     with tuning.workers_ignore_sigint(), tuning._sigint_ignored():
         assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
-    assert calls == [signal.SIG_IGN, before] and signal.getsignal(signal.SIGINT) is before
+    assert [h for sig, h in calls if sig == signal.SIGINT] == [signal.SIG_IGN, before]
+    assert signal.getsignal(signal.SIGINT) is before
+    assert {sig: signal.getsignal(sig) for sig in terminate} == terminate  # held meanwhile, then as they were
 
 
 def test_a_choice_at_the_largest_candidate_is_flagged():
@@ -989,3 +992,24 @@ def test_a_shallow_gable_roof_is_tuned_to_its_two_sides(pitch):
     quality = segmentation_quality(result.segmentation.labels, side)
     assert result.segmentation.n_planes == 2 and quality.correct == 2 and quality.f1 > 0.9, result.tolerance
     assert result.reliable, result.verdict
+
+
+@pytest.mark.parametrize('seed', range(40))
+def test_the_patches_closed_form_eigenvalues_match_eigvalsh(seed):
+    """The verdict's patches: closed-form eigenvalues (lack of fit) against np.linalg.eigh (tilt), flat and
+    diagonal scatters included."""
+    from plane_validation.core.verdict import _patches, _pca, symmetric_eigenvalues
+    rng = np.random.default_rng(seed)
+    n, thickness = int(rng.integers(0, 400)), float(rng.choice([0.0, 1e-6, 0.01, 0.2]))
+    points = np.column_stack([rng.uniform(0, 3, n), rng.uniform(0, 1 + 2 * rng.random(), n),
+                              rng.normal(0, thickness, n) + 0.1 * np.sin(rng.uniform(0, 6, n))])
+    pca = _pca(points)
+    closed, full = _patches(pca, axes=False), _patches(pca)
+    assert (closed is None) == (full is None)
+    if closed is not None:
+        assert np.array_equal(closed[2], full[2])
+        scale = full[0][:, 2:]
+        assert np.allclose(closed[0] / scale, full[0] / scale, atol=1e-9)
+    diagonal = np.zeros((2, 3, 3))
+    diagonal[0][np.diag_indices(3)] = (3.0, 1.0, 2.0)
+    assert np.allclose(symmetric_eigenvalues(diagonal), [[1, 2, 3], [0, 0, 0]])

@@ -19,7 +19,7 @@ import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
-           'cell_scatter', 'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'pair_graph',
+           'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'pair_graph',
            'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -36,61 +36,6 @@ def c_array(values, dtype) -> np.ndarray:
     layout and flags the kernels are compiled for (another would compile them again, at a frame's cost)."""
     arr = np.ascontiguousarray(values, dtype=dtype)
     return arr if arr.flags.writeable else arr.copy()
-
-
-@numba.njit(**_JIT)
-def cell_scatter(cells: np.ndarray, centred: np.ndarray, n_cells: int, min_count: int
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per cell 0..n_cells-1 of the points ``centred`` (n, 3) (``cells`` (n,) int64, each point's cell) with at
-    least ``min_count`` points, in cell order: its points (c,) int64, the scatter (c, 3, 3) of its points about
-    their mean, per point (m^2), and that scatter's eigenvalues (c, 3) ascending (closed form)."""
-    counts = np.zeros(n_cells, np.int64)
-    sums = np.zeros((n_cells, 3))
-    second = np.zeros((n_cells, 3, 3))
-    for i in range(cells.shape[0]):
-        c = cells[i]
-        counts[c] += 1
-        for a in range(3):
-            sums[c, a] += centred[i, a]
-            for b in range(3):
-                second[c, a, b] += centred[i, a] * centred[i, b]
-    used = 0
-    for c in range(n_cells):
-        used += counts[c] >= min_count
-    out_counts = np.empty(used, np.int64)
-    out = np.empty((used, 3, 3))
-    values = np.empty((used, 3))
-    j = 0
-    for c in range(n_cells):
-        if counts[c] < min_count:
-            continue
-        out_counts[j] = counts[c]
-        for a in range(3):
-            for b in range(3):
-                out[j, a, b] = second[c, a, b] / counts[c] - (sums[c, a] / counts[c]) * (sums[c, b] / counts[c])
-        values[j] = _symmetric_eigenvalues(out[j])
-        j += 1
-    return out_counts, out, values
-
-
-@numba.njit(**_JIT)
-def _symmetric_eigenvalues(m: np.ndarray) -> np.ndarray:
-    """The eigenvalues (3,) ascending of a symmetric 3 x 3 matrix ``m``, by the trigonometric closed form."""
-    off = m[0, 1] ** 2 + m[0, 2] ** 2 + m[1, 2] ** 2
-    out = np.empty(3)
-    if off == 0.0:
-        out[0], out[1], out[2] = m[0, 0], m[1, 1], m[2, 2]
-        return np.sort(out)
-    q = (m[0, 0] + m[1, 1] + m[2, 2]) / 3
-    p = np.sqrt(((m[0, 0] - q) ** 2 + (m[1, 1] - q) ** 2 + (m[2, 2] - q) ** 2 + 2 * off) / 6)
-    b00, b11, b22 = (m[0, 0] - q) / p, (m[1, 1] - q) / p, (m[2, 2] - q) / p
-    b01, b02, b12 = m[0, 1] / p, m[0, 2] / p, m[1, 2] / p
-    r = (b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02) + b02 * (b01 * b12 - b11 * b02)) / 2
-    phi = np.arccos(min(max(r, -1.0), 1.0)) / 3
-    out[2] = q + 2 * p * np.cos(phi)
-    out[0] = q + 2 * p * np.cos(phi + 2 * np.pi / 3)
-    out[1] = 3 * q - out[0] - out[2]
-    return out
 
 
 @numba.njit(**_JIT)
@@ -840,7 +785,6 @@ def warm() -> Warmup:
     pts = np.zeros((4, 3))
     labels = np.array([0, -1, 0, 1], np.int32)
     finite_mask(pts)
-    cell_scatter(np.zeros(4, np.int64), pts, 1, 1)
     spread_grid(pts, np.ones(4, np.bool_), np.zeros((1, 1), np.int64), np.zeros(2, np.int64), np.zeros(2, np.int64),
                 np.zeros((1, 4)), np.ones(1), EIGHT)
     rows, bounds = group_by_label(labels, 2)
@@ -865,6 +809,6 @@ def warm() -> Warmup:
     return Warmup(time.perf_counter() - start, compiled)
 
 
-_KERNELS = (finite_mask, cell_scatter, spread_grid, group_by_label, centroids_and_extremes, grid_components,
+_KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
             grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
             voxel_grid, voxel_knn, principal_axes, pair_graph)

@@ -787,18 +787,21 @@ def workers_ignore_sigint() -> Iterator[None]:
 
 @contextlib.contextmanager
 def _sigint_ignored() -> Iterator[None]:
-    """While joblib starts worker processes: SIGINT ignored (they inherit it) when the caller asked for it
-    (:func:`workers_ignore_sigint`), a Ctrl-C in that moment (milliseconds) being lost; SIGTERM and SIGHUP,
-    when Python handles them, held until the workers are started and known to loky (a handler's exception
-    in between left a started worker that nothing ends)."""
+    """While joblib starts worker processes, when the caller asked for it (:func:`workers_ignore_sigint`): SIGINT
+    ignored (they inherit it), a Ctrl-C in that moment (milliseconds) being lost; SIGTERM and SIGHUP, when Python
+    handles them, held until the workers are started and known to loky (a handler's exception in between left a
+    started worker that nothing ends)."""
     if threading.current_thread() is not threading.main_thread():
         yield  # only the main thread may set handlers
+        return
+    if not _QUIET_WORKERS.get():
+        yield  # not asked for: a process with rclpy keeps its handlers as they are
         return
     held: list[int] = []
     deferred = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGHUP)}
     deferred = {sig: handler for sig, handler in deferred.items() if callable(handler)}
     previous = signal.getsignal(signal.SIGINT)
-    quiet = _QUIET_WORKERS.get() and previous is not None  # None: a handler set outside Python
+    quiet = previous is not None  # None: a handler set outside Python
     try:
         for sig in deferred:
             signal.signal(sig, lambda signum, _frame: held.append(signum))
