@@ -275,6 +275,7 @@ class Row:
     ratio: float
     good: bool
     bad: bool
+    failures: tuple[str, ...] = ()  # the verdict's failure kinds (core/failures.py)
 
 
 def split_clouds(split: str, quick: bool = False, gt: Path = GT) -> list[tuple[str, Cloud]]:
@@ -324,7 +325,8 @@ def evaluate_cloud(split: str, family: str, cloud: Cloud, count: int, open3d_gri
     return Row(split, family, cloud.name, int(np.isfinite(cloud.points).all(axis=1).sum()), cloud.true_planes,
                best['regions'], best['infinite'], best['open3d'], Result(float(tuned.tolerance), q, seconds),
                bool(tuned.reliable), str(tuned.verdict), float(ratio),
-               bool(share >= GOOD_CORRECT and ratio >= GOOD_RATIO), bool(share < BAD_CORRECT or not ratio >= BAD_RATIO))
+               bool(share >= GOOD_CORRECT and ratio >= GOOD_RATIO), bool(share < BAD_CORRECT or not ratio >= BAD_RATIO),
+               tuple(f.kind.value for f in tuned.verdict.failures))
 
 
 def evaluate(split: str, quick: bool = False, gt: Path = GT, families: list[str] | None = None,
@@ -417,7 +419,8 @@ def read_json(path: Path) -> list[Row]:
     """The rows :func:`write_json` wrote (to summarise again without rerunning)."""
     def result(d: dict | None) -> Result | None:
         return None if d is None else Result(d['t'], Quality(**d['quality']), d['seconds'])
-    return [Row(**{**r, **{k: result(r[k]) for k in ('regions', 'infinite', 'open3d', 'auto')}})
+    return [Row(**{**r, **{k: result(r[k]) for k in ('regions', 'infinite', 'open3d', 'auto')},
+                   'failures': tuple(r.get('failures', ()))})
             for r in json.loads(Path(path).read_text())['rows']]
 
 

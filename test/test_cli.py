@@ -104,7 +104,8 @@ def test_detect_json_equals_the_python_api(corner_npy, mode):
         tuned = pv.tune_tolerance(points, seed=7, max_planes=6, min_inliers=0.02)
         seg, scores, tolerance, source = tuned.segmentation, tuned.indices, tuned.tolerance, 'auto'
         assert doc['noise_estimate'] == pytest.approx(tuned.noise_estimate, rel=1e-9)
-        assert doc['reliable'] == tuned.reliable and doc['verdict'] == tuned.verdict
+        assert doc['reliable'] == tuned.reliable and doc['verdict'] == str(tuned.verdict)
+        assert [f['kind'] for f in doc['failures']] == [f.kind.value for f in tuned.verdict.failures]
         assert doc['tuning']['candidates'] == len(tuned.rows)
     assert doc['tolerance_source'] == source and doc['tolerance'] == pytest.approx(tolerance, rel=1e-12)
     assert (doc['file'], doc['seed'], doc['n_points'], doc['n_valid']) == (str(corner_npy), 7, 900, 900)

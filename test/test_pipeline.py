@@ -280,7 +280,9 @@ def test_frames_with_a_tuned_t_carry_the_sweeps_seed_agreement_into_their_verdic
     pipe.last_tuning = dataclasses.replace(pipe.last_tuning, seed_agreement=0.5)
     again = pipe.process(cloud, 2 * 10**9)
     assert again.diagnostic.level == WARN and 'seeds' in again.diagnostic.message
-    assert float(dict(again.diagnostic.values)['seed_agreement']) == 0.5
+    values = dict(again.diagnostic.values)
+    assert float(values['seed_agreement']) == 0.5 and values['verdict_failures'] == 'seeds_disagree'
+    assert values['reliable'] == 'false' and dict(first.diagnostic.values)['verdict_failures'] == 'none'
 
 
 def test_a_sweep_without_planes_is_not_adopted_and_is_tried_again():

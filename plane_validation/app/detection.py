@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.failures import Verdict
 from ..core.geometry import ring_image
 from ..core.indices import ValidityIndices, validity_indices
 from ..core.noise import noise_coefficient
@@ -36,20 +37,24 @@ __all__ = ['Detection', 'detect', 'ring_layout', 'tune_scan']
 class Detection:
     """points: (N, 3) as given (NaN rows included); tolerance: meters; tolerance_source: 'fixed'
     or 'auto'; noise_estimate: half-width e of uniform noise matching the planes' residuals (m);
-    tuning: the sweep when auto-tuned; seconds: wall time of detection and scoring."""
+    tuning: the sweep when auto-tuned; seconds: wall time of detection and scoring; verdict: whether the planes
+    are reliable, and every test they fail."""
 
     points: np.ndarray
     segmentation: Segmentation
     indices: ValidityIndices
     tolerance: float
     tolerance_source: str
-    reliable: bool
-    verdict: str
+    verdict: Verdict
     noise_estimate: float
     seed: int
     seconds: float
     tuning: TuningResult | None = None
     ring_image: str | None = None  # a lidar scan laid out by its rings: 'HxW', or 'not used: why'
+
+    @property
+    def reliable(self) -> bool:
+        return self.verdict.reliable
 
 
 def ring_layout(points: np.ndarray, ring: np.ndarray | None, viewpoint: Viewpoint = None
@@ -93,9 +98,9 @@ def tune_scan(points: np.ndarray, *, search: SearchParams | None = None, ring: n
     tuned = tune_tolerance(laid[0], seed=seed, shape=laid[1], **options)
     seg = carried(tuned.segmentation, points, laid[2])
     scores = validity_indices(points, seg.labels, seed=seed)
-    reliable, verdict = judge(points, seg, scores, None if np.isnan(tuned.seed_agreement) else tuned.seed_agreement)
+    verdict = judge(points, seg, scores, None if np.isnan(tuned.seed_agreement) else tuned.seed_agreement)
     return dataclasses.replace(
-        tuned, segmentation=seg, indices=scores, reliable=reliable, verdict=verdict,
+        tuned, segmentation=seg, indices=scores, verdict=verdict,
         noise_estimate=noise_from_segmentation(seg, points),
         noise_coefficient=noise_coefficient(points, seg.labels, seg.coefficients, seg.viewpoint)
         if seg.noise_model == 'depth_quadratic' else float('nan')), note
@@ -121,7 +126,7 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, search: Search
         tuned, note = tune_scan(pts, search=search, ring=ring, organize_rings=organize_rings, shape=shape, seed=seed,
                                 progress=progress, jobs=jobs)
         return Detection(points=pts, segmentation=tuned.segmentation, indices=tuned.indices,
-                         tolerance=tuned.tolerance, tolerance_source='auto', reliable=tuned.reliable,
+                         tolerance=tuned.tolerance, tolerance_source='auto',
                          verdict=tuned.verdict, noise_estimate=tuned.noise_estimate, seed=seed,
                          seconds=time.perf_counter() - start, tuning=tuned, ring_image=note)
     laid, note = _laid(pts, ring, shape, organize_rings, search.connectivity, search.viewpoint)
@@ -130,8 +135,7 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, search: Search
     if laid is not None:
         seg = carried(seg, pts, laid[2])
     scores = validity_indices(pts, seg.labels, seed=seed)
-    reliable, verdict = judge(pts, seg, scores)
     return Detection(points=pts, segmentation=seg, indices=scores, tolerance=float(tolerance),
-                     tolerance_source='fixed', reliable=reliable, verdict=verdict,
+                     tolerance_source='fixed', verdict=judge(pts, seg, scores),
                      noise_estimate=noise_from_segmentation(seg, pts), seed=seed, seconds=time.perf_counter() - start,
                      ring_image=note)

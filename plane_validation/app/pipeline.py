@@ -399,14 +399,15 @@ class FramePipeline:
                 scored = (valid, labels) if shape is not None or laid is not None else (work, seg.labels)
                 scores = validity_indices(*scored, sample_size=cfg.index_sample_size, seed=seed,
                                           sampled_separation=not cfg.exact_indices)
-                reliable, verdict = judge(work, seg, scores, agreement)
-                seg, labels, ids = _by_id(seg, labels, self.tracker.update(valid, labels, seg.coefficients))
+                found = self.tracker.update(valid, labels, seg.coefficients)
+                verdict = judge(work, seg, scores, agreement).renumbered(found)  # planes named by their ids
+                seg, labels, ids = _by_id(seg, labels, found)
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
             return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
                            (tolerance, source), n_input=n_input, n_valid=len(valid))
         if seg.n_planes == 0 and sweep is None and self.last_good is None and tolerance == self.quick:
             self.quick = None  # no plane with the quick estimate (a line, one point): the next frame's instead
-        level, message = (OK, verdict) if reliable else (WARN, f'no reliable planes: {verdict}')
+        level, message = (OK, str(verdict)) if verdict.reliable else (WARN, f'no reliable planes: {verdict}')
         if tune_problem:
             used = source.split(' (')[0]
             level, message = WARN, f'{tune_problem}; detected with {used} t={tolerance:.4g} m: {message}'
@@ -414,7 +415,8 @@ class FramePipeline:
         obstacles = obstacle_mask(valid, labels, seg, counts, cfg.ground_margin)
         values = _values(cfg, tolerance, source, n_input, len(valid), (no_returns, infinite), int(np.sum(labels < 0)),
                          seg, counts, scores, noise_from_segmentation(seg, work), work, ids)
-        values += (('obstacle_points', str(int(obstacles.sum()))),)
+        values += (('obstacle_points', str(int(obstacles.sum()))), ('reliable', str(verdict.reliable).lower()),
+                   ('verdict_failures', ' '.join(f.kind.value for f in verdict.failures) or 'none'))
         if cfg.ground_margin > 0:
             ground = ground_plane(seg, counts)
             values += (('ground_plane', 'none' if ground is None else str(ids[ground])),)

@@ -89,7 +89,7 @@ def detection_document(source: str, det: Detection, *, max_planes: int, min_inli
         'max_planes': max_planes, 'min_inliers': min_inliers,
         'planes': planes_json(seg), 'stop_reason': seg.reason,
         'indices': indices_json(det.indices),
-        'reliable': det.reliable, 'verdict': det.verdict, 'noise_estimate': det.noise_estimate,
+        **det.verdict.as_dict(), 'noise_estimate': det.noise_estimate,
         **_noise_model(seg, det.points), 'viewpoint': seg.viewpoint, 'tuning': tuning, 'ring_image': det.ring_image,
         'output': output,
         'seconds': det.seconds,
@@ -131,7 +131,7 @@ def sweep_document(source: str, points: np.ndarray, result: TuningResult, *, see
         'tolerance': result.tolerance, 'chosen': result.best,
         'sweep': [_sweep_row(r, i == result.best) for i, r in enumerate(result.rows)],
         'planes': planes_json(seg), 'indices': indices_json(result.indices),
-        'reliable': result.reliable, 'verdict': result.verdict, 'seed_agreement': result.seed_agreement,
+        **result.verdict.as_dict(), 'seed_agreement': result.seed_agreement,
         'noise_estimate': result.noise_estimate, **_noise_model(seg, points), 'ring_image': ring_image,
         'seconds': result.seconds,
     })

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .blas import single_blas_thread
+from .failures import Verdict
 from .indices import ValidityIndices, validity_indices
 from .noise import NOISE_REFERENCE, noise_coefficient, tolerance_scale
 from .orientation import Orientation
@@ -150,7 +151,7 @@ class TuningResult:
     ``depth_quadratic`` model, of the residuals scaled to the reference range.
     noise_model: the segmentation's (:mod:`.noise`); noise_coefficient: with ``depth_quadratic``, c
     (1/m) of the depth noise sigma(r) = c r^2 fitted to the residuals (NaN with ``constant``).
-    reliable: whether the planes are trustworthy; verdict: one line saying why.
+    verdict: whether the planes are trustworthy, and every test they fail (core/failures.py); reliable: its answer.
     seed_agreement: mean point F1 between the sweep's planes at the chosen t and those of
     STABILITY_RESEEDS other RANSAC seeds on the same points (core/verdict.py, a condition of reliable).
     """
@@ -162,13 +163,16 @@ class TuningResult:
     segmentation: Segmentation
     indices: ValidityIndices
     noise_estimate: float
-    reliable: bool
-    verdict: str
+    verdict: Verdict
     seconds: float
     noise_model: str = 'constant'
     noise_coefficient: float = float('nan')
     sweep_points: int = 0  # valid points the candidates were scored on (the subsample)
     seed_agreement: float = float('nan')
+
+    @property
+    def reliable(self) -> bool:
+        return self.verdict.reliable
 
     @property
     def tolerances(self) -> np.ndarray:
@@ -481,10 +485,10 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
             final_scores = validity_indices(pts, final.labels, sample_size=sample_size, seed=int(index_seed),
                                             sampled_separation=sampled_separation)
         agreement = seed_agreement(sweep_labels[best], reruns)
-    reliable, verdict = judge(pts, final, final_scores, agreement)
     return TuningResult(rows=tuple(rows), criterion=criterion, best=best, tolerance=t_best, segmentation=final,
-                        indices=final_scores, noise_estimate=noise_from_segmentation(final, pts), reliable=reliable,
-                        verdict=verdict, seconds=time.perf_counter() - start, noise_model=noise_model,
+                        indices=final_scores, noise_estimate=noise_from_segmentation(final, pts),
+                        verdict=judge(pts, final, final_scores, agreement), seconds=time.perf_counter() - start,
+                        noise_model=noise_model,
                         noise_coefficient=noise_coefficient(pts, final.labels, final.coefficients, view)
                         if noise_model == 'depth_quadratic' else float('nan'), sweep_points=n_sweep,
                         seed_agreement=agreement)

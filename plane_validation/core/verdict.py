@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .failures import Failure, FailureKind, Verdict
 from .indices import ValidityIndices
 from .noise import tolerance_scale
 from .plane_silhouette import EXTENT_PERCENTILES
@@ -444,15 +445,16 @@ def coordinate_step(points: np.ndarray) -> np.ndarray:
 
 
 def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
-          agreement: float | None = None) -> tuple[bool, str]:
-    """Whether the planes of ``seg`` are reliable, with a one-line reason.
+          agreement: float | None = None) -> Verdict:
+    """Whether the planes of ``seg`` are reliable, with every test they fail (:class:`~.failures.Verdict`).
 
     Reliable needs at least one plane, the planes on enough points (those with fewer than
     MIN_PLANE_POINTS distinct points hold less than MINOR_SHARE of the planes' points), the planes flat
     (curved slabs, planes with a thickness ratio above MAX_THICKNESS, see :func:`plane_thickness`, whose
     residuals are at least MIN_CURVATURE explained by curvature, see :func:`plane_curvature`, hold less
     than MINOR_SHARE of their points), surfaces (planes cut out of a volume, MAX_BEYOND, see
-    :func:`plane_beyond`, and planes whose points lie on two layers that fill their band, MAX_LAYERING and
+    :func:`plane_beyond`, planes across several surfaces, MAX_TILT and MAX_LACK_OF_FIT, see :func:`plane_tilt` and
+    :func:`plane_lack_of_fit`, and planes whose points lie on two layers that fill their band, MAX_LAYERING and
     MAX_FILL, see :func:`plane_layering` and :func:`plane_fill`, each hold less than MINOR_SHARE of their
     points) and a plane silhouette PS >= RELIABLE_PS: the points lie on their planes and clear of the
     other regions. On plane-free clouds (sphere, bunny) the "planes" are thick slabs or patches whose
@@ -460,68 +462,50 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     tune_tolerance gives it) it must also reach MIN_SEED_AGREEMENT: other RANSAC seeds find the same
     planes (a curved surface is cut into different patches each time); NaN (not measured) skips this test.
     """
+    ps = float(scores.plane_silhouette)
     if seg.n_planes == 0:
-        return False, f'no plane found ({seg.reason})'
+        return Verdict(False, (Failure(FailureKind.NO_PLANES, 0.0, 1.0, note=seg.reason),), 0, ps)
     pts = as_points(points)
     samples = _samples(pts, seg)
     frames = [_pca(inl) for inl in samples]
     thickness = np.array([_thickness(pca) for pca in frames])
     sizes = np.array([len(p.inliers) for p in seg.planes], dtype=float)
     curvature = np.array([_curvature(pca) if t > MAX_THICKNESS else 0.0 for pca, t in zip(frames, thickness)])
-    slab = (thickness > MAX_THICKNESS) & (curvature >= MIN_CURVATURE)
     beyond, layering, fill, tilt = _surface(pts, seg, samples, frames)
-    problems = []  # every test that fails, so that fixing one cause does not reveal another
+    lack = np.array([_lack_of_fit(pca, _tolerance(inl, seg)) for pca, inl in zip(frames, samples)])
     distinct = np.array([_distinct(pts, p.inliers) for p in seg.planes])
+    failures = []  # every test that fails, so that fixing one cause does not reveal another
     tiny = distinct < MIN_PLANE_POINTS
     if sizes[tiny].sum() >= MINOR_SHARE * sizes.sum():
         few = int(np.argmin(distinct))
-        copies = f' ({int(sizes[few])} with copies)' if distinct[few] < sizes[few] else ''
-        problems.append(f'plane {few} rests on {distinct[few]}{" distinct" if copies else ""} points{copies} '
-                        f'(< {MIN_PLANE_POINTS}): too few to tell a plane from chance')
-    if (worst := _worst(slab, sizes)) is not None:
-        problems.append(f'plane {worst} is a curved slab (thickness ratio {_up(thickness[worst])} > {MAX_THICKNESS}, '
-                        f'{curvature[worst]:.0%} of its residual variance is curvature)')
-    if (worst := _worst(thickness >= MAX_ROUNDNESS, sizes)) is not None:
-        why = f'thickness ratio {_down(thickness[worst])} >= {MAX_ROUNDNESS}' if np.isfinite(thickness[worst]) \
-            else 'its points lie on a line'
-        problems.append(f'plane {worst} is as thick as it is wide ({why}): a pole, a cable or an edge, whose normal '
-                        'is not determined')
-    if (worst := _worst(beyond >= MAX_BEYOND, sizes)) is not None:
-        problems.append(f'plane {worst} is cut out of a volume (the cloud has {_up(beyond[worst])} points at t..2t '
-                        f'from it per point within t, >= {MAX_BEYOND}): clutter or outliers, or t below the noise')
-    if (worst := _worst(tilt >= MAX_TILT, sizes)) is not None:  # NaN: not judged
-        problems.append(f'plane {worst}\'s local surfaces are tilted from it ({tilt[worst]:.0%} of its patches with '
-                        f'a normal, >= {MAX_TILT:.0%}, lie over {TILT_DEG:g} degrees off): a slab across steps or '
-                        'several surfaces, not one surface')
-    lack = np.array([_lack_of_fit(pca, _tolerance(inl, seg)) for pca, inl in zip(frames, samples)])
-    if (worst := _worst(lack >= MAX_LACK_OF_FIT, sizes)) is not None:  # NaN: not judged
-        problems.append(f'plane {worst} fits its points {_up(lack[worst])} times worse than its patches fit theirs '
-                        f'(>= {MAX_LACK_OF_FIT}): several surfaces found as one, such as the two sides of a shallow '
-                        'ridge')
-    if (worst := _worst(layering >= MAX_LAYERING, sizes)) is not None:
-        problems.append(f'plane {worst}\'s points lie on two parallel layers near the edges of its band of +-t '
-                        f'({layering[worst]:.0%} of its residual variance is the step between them, RMS distance '
-                        f'{_up(fill[worst])} t): two surfaces found as one')
-    if scores.plane_silhouette < RELIABLE_PS:
+        failures.append(Failure(FailureKind.TOO_FEW_POINTS, float(distinct[few]), MIN_PLANE_POINTS, few,
+                                float(sizes[few])))
+    per_plane = (  # kind, failed (k,), value (k,), limit, other (k,) or None
+        (FailureKind.CURVED_SLAB, (thickness > MAX_THICKNESS) & (curvature >= MIN_CURVATURE), thickness,
+         MAX_THICKNESS, curvature),
+        (FailureKind.NO_PLANE_SHAPE, thickness >= MAX_ROUNDNESS, thickness, MAX_ROUNDNESS, None),
+        (FailureKind.CUT_FROM_VOLUME, beyond >= MAX_BEYOND, beyond, MAX_BEYOND, None),
+        (FailureKind.TILTED_PATCHES, tilt >= MAX_TILT, tilt, MAX_TILT, np.full(len(tilt), TILT_DEG)),  # NaN: not judged
+        (FailureKind.SURFACES_MERGED, lack >= MAX_LACK_OF_FIT, lack, MAX_LACK_OF_FIT, None),  # NaN: not judged
+        (FailureKind.TWO_LAYERS, layering >= MAX_LAYERING, layering, MAX_LAYERING, fill),
+    )
+    for kind, failed, value, limit, other in per_plane:
+        if (worst := _worst(failed, sizes)) is not None:
+            failures.append(Failure(kind, float(value[worst]), limit, worst,
+                                    None if other is None else float(other[worst])))
+    if ps < RELIABLE_PS:
         unassigned = 1 - np.count_nonzero(seg.labels >= 0) / max(seg.n_valid, 1)
-        problems.append(f'PS {_down(scores.plane_silhouette)} < {RELIABLE_PS}: the points do not sit clearly on '
-                        'their planes' + (f' (the search stopped at max_planes with {unassigned:.0%} of them in no '
-                                          'plane, which count against PS: more planes may be there)'
-                                          if seg.capped else ''))
+        failures.append(Failure(FailureKind.LOW_SILHOUETTE, ps, RELIABLE_PS,
+                                other=float(unassigned) if seg.capped else None))
     stride = max(1, int(sizes.sum()) // COORDINATE_STEP_SAMPLE)
     rows = np.concatenate([p.inliers[::stride] for p in seg.planes])
     along = np.abs(seg.coefficients[:, :3]) @ coordinate_step(pts[rows])  # each plane's step along its normal
     if (along > seg.tolerance).any():
         coarse = int(np.argmax(along))
-        problems.append(f'plane {coarse}\'s points come in steps of {along[coarse]:.3g} m along its normal (float32 '
-                        f'coordinates), coarser than t = {seg.tolerance:.3g} m: the planes may be those steps (a '
-                        'larger t; far from the origin, subtract an offset such as a local origin before storing '
-                        'coordinates as float32)')
+        failures.append(Failure(FailureKind.COORDINATE_STEPS, float(along[coarse]), float(seg.tolerance), coarse))
     if agreement is not None and agreement < MIN_SEED_AGREEMENT:  # NaN: not measured
-        problems.append(f'other RANSAC seeds find other planes (agreement {_down(agreement)} < {MIN_SEED_AGREEMENT})')
-    if problems:
-        return False, f'{seg.n_planes} plane(s) but ' + '; '.join(problems)
-    return True, f'{seg.n_planes} plane(s), PS {scores.plane_silhouette:.2f}'
+        failures.append(Failure(FailureKind.SEEDS_DISAGREE, float(agreement), MIN_SEED_AGREEMENT))
+    return Verdict(not failures, tuple(failures), seg.n_planes, ps)
 
 
 def _worst(failed: np.ndarray, sizes: np.ndarray) -> int | None:
@@ -541,13 +525,3 @@ def _distinct(points: np.ndarray, rows: np.ndarray) -> int:
         if distinct >= MIN_PLANE_POINTS or head >= len(rows):
             return distinct
         head *= 8
-
-
-def _up(value: float) -> str:
-    """``value`` to 2 decimals, rounded up: a value just above a limit never prints as the limit."""
-    return f'{np.ceil(value * 100) / 100:.2f}'
-
-
-def _down(value: float) -> str:
-    """``value`` to 2 decimals, rounded down: a value just below a limit never prints as the limit."""
-    return f'{np.floor(value * 100) / 100:.2f}'

@@ -1,0 +1,73 @@
+"""The verdict's structured result: kinds and numbers first, the sentence derived from them."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+import plane_validation as pv
+from plane_validation.app.report import dumps
+from plane_validation.core import scenes
+from plane_validation.core.failures import Failure, FailureKind, Verdict
+from plane_validation.core.verdict import MAX_LACK_OF_FIT, RELIABLE_PS, judge
+
+
+def test_a_verdict_is_reliable_exactly_when_no_test_failed():
+    merged = Failure(FailureKind.SURFACES_MERGED, 3.2, MAX_LACK_OF_FIT, plane=1)
+    with pytest.raises(ValueError, match='reliable exactly when'):
+        Verdict(True, (merged,), 2, 0.9)
+    with pytest.raises(ValueError, match='reliable exactly when'):
+        Verdict(False, (), 2, 0.9)
+    bad = Verdict(False, (merged, Failure(FailureKind.LOW_SILHOUETTE, 0.55, RELIABLE_PS)), 2, 0.55)
+    assert bad.kinds == {FailureKind.SURFACES_MERGED, FailureKind.LOW_SILHOUETTE}
+    assert str(bad).startswith('2 plane(s) but plane 1 fits its points 3.20 times worse')
+    assert 'PS 0.55 < 0.7' in str(bad) and str(Verdict(True, (), 3, 0.914)) == '3 plane(s), PS 0.91'
+
+
+@pytest.mark.parametrize('kind', list(FailureKind))
+def test_every_kind_has_a_sentence_that_names_its_numbers(kind):
+    failure = Failure(kind, 0.123, 0.5, plane=4, other=0.25, note='the search found nothing')
+    text = str(failure)
+    assert text and ('plane 4' in text or kind in (FailureKind.LOW_SILHOUETTE, FailureKind.SEEDS_DISAGREE,
+                                                   FailureKind.NO_PLANES))
+    assert kind is FailureKind.NO_PLANES or '0.5' in text or '50%' in text  # the limit is stated
+
+
+def test_a_limit_is_never_printed_as_met():
+    """A value just past a limit is rounded away from it: 0.699 < 0.7 never reads '0.70 < 0.7'."""
+    assert 'PS 0.69 < 0.7' in str(Failure(FailureKind.LOW_SILHOUETTE, 0.6999, RELIABLE_PS))
+    assert '2.01 times worse' in str(Failure(FailureKind.SURFACES_MERGED, 2.0001, MAX_LACK_OF_FIT, 0))
+
+
+def test_failures_are_renumbered_by_track_id_and_written_as_json():
+    verdict = Verdict(False, (Failure(FailureKind.SURFACES_MERGED, 3.0, 2.0, plane=1),
+                              Failure(FailureKind.SEEDS_DISAGREE, 0.5, 0.9)), 2, 0.8)
+    renamed = verdict.renumbered((7, 12))
+    assert [f.plane for f in renamed.failures] == [12, None] and 'plane 12 fits' in str(renamed)
+    doc = json.loads(dumps(renamed.as_dict()))
+    assert doc == {'reliable': False, 'verdict': str(renamed), 'failures': [
+        {'kind': 'surfaces_merged', 'plane': 12, 'value': 3.0, 'limit': 2.0, 'other': None},
+        {'kind': 'seeds_disagree', 'plane': None, 'value': 0.5, 'limit': 0.9, 'other': None}]}
+
+
+def test_judge_gives_no_planes_and_the_searchs_reason():
+    line = np.outer(np.linspace(0.0, 1.0, 50), [1.0, 2.0, 3.0])
+    seg = pv.detect_planes(line, 0.01, seed=0)
+    verdict = judge(line, seg, pv.validity_indices(line, seg.labels, seed=0))
+    assert not verdict.reliable and [f.kind for f in verdict.failures] == [FailureKind.NO_PLANES]
+    assert verdict.failures[0].note == seg.reason and str(verdict) == f'no plane found ({seg.reason})'
+
+
+def test_a_merged_ridge_fails_with_its_numbers_and_its_plane():
+    """A 4 degree gable found as one plane: SURFACES_MERGED, naming the plane and its lack of fit."""
+    rng = np.random.default_rng(3)
+    x, y = rng.uniform(-5, 5, 6000), rng.uniform(0, 8, 6000)
+    roof = np.column_stack([x, y, -np.abs(x) * math.tan(math.radians(4)) + rng.normal(0, 0.01, 6000)])
+    seg = pv.detect_planes(roof, 0.4, seed=0, max_planes=1)
+    verdict = judge(roof, seg, pv.validity_indices(roof, seg.labels, seed=0))
+    merged = [f for f in verdict.failures if f.kind is FailureKind.SURFACES_MERGED]
+    assert seg.n_planes == 1 and len(merged) == 1 and merged[0].plane == 0, verdict
+    assert merged[0].value >= merged[0].limit == MAX_LACK_OF_FIT
+    cube = scenes.cube(6000, 2.5, seed=3).points
+    tuned = pv.tune_tolerance(cube, seed=0)
+    assert tuned.reliable and tuned.verdict.failures == () and tuned.reliable is tuned.verdict.reliable
