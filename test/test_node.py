@@ -592,7 +592,8 @@ def test_live_sweeps_the_frames_offline_sweeps_after_a_first_frame_without_plane
     from plane_validation.app.pipeline import FROZEN_FRAME_S, RETRY_AFTER_S
     params = {'auto_tune': True, 'seed': 5}
     frames = [np.outer(np.linspace(0.0, 3.0, 20000), [1.0, 0.5, 0.2])]  # a line: no plane
-    frames += [scenes.room(20000, 0.01, seed=k).points for k in range(1, 31)]
+    retry = round(RETRY_AFTER_S / FROZEN_FRAME_S)  # the frame RETRY_AFTER_S after the first, at 10 Hz
+    frames += [scenes.room(20000, 0.01, seed=k).points for k in range(1, retry + 4)]  # a few past the retry
     frames = [f.astype(np.float32).astype(np.float64) for f in frames]  # as the node receives them
     stamps = [8_000_000_000_000 + k * step_ns for k in range(len(frames))]  # 10 Hz header time, or frozen
     offline = FramePipeline(PipelineConfig(**params))
@@ -603,7 +604,6 @@ def test_live_sweeps_the_frames_offline_sweeps_after_a_first_frame_without_plane
                 offline.retune(result.points, result.clock, stamp_ns)
             except ValueError:
                 pass
-    retry = round(RETRY_AFTER_S / FROZEN_FRAME_S)  # the frame RETRY_AFTER_S after the first, at 10 Hz
     assert offline.tuned_at == pytest.approx(stamps[0] * 1e-9 + retry * FROZEN_FRAME_S)
     node = PlaneValidationNode(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
     kept = []  # whether a sweep ended with a frame kept for the next one
