@@ -14,7 +14,16 @@ from dataclasses import dataclass
 
 from .orientation import Orientation
 
-__all__ = ['SearchParams', 'TuneParams']
+__all__ = ['SearchParams', 'TuneParams', 'RANSAC_POINTS', 'GRID_POINTS']
+
+#: Default for ``detect_planes(ransac_points=...)``: larger clouds are searched on a random
+#: sample of this many points; every point is then labelled against the planes found.
+RANSAC_POINTS = 32768
+#: Default for ``detect_planes(grid_points=...)``: an image (``shape``) with more valid pixels is searched on a
+#: regular sub-grid of about this many (a step of 3 pixels on a 640x480 Kinect frame). Fewer is faster but
+#: loses small faces: at 20,000 (a step of 4) the Kinect frame's search is a third faster, but milk_cartoon's
+#: auto-tuned planes go from 4 to 2 (the objects' fronts are lost; benchmarks/README.md).
+GRID_POINTS = RANSAC_POINTS
 
 
 @dataclass(frozen=True)
