@@ -6,12 +6,11 @@ from __future__ import annotations
 import numpy as np
 
 from .. import kernels
-from ..regions import Neighbours
 from .checks import finite_rows, resolve_min_inliers
 from .fit import _allowed, _at, _canonical, _distances, _fit_columns, _refit
 from .graph import SearchGraph, _search_graph, _spread_nearest
 from .grid import _spread_grid
-from .neighbourhood import _EIGHT, COMPETE_ROUNDS, _adjacent, _settle
+from .neighbours import Neighbours
 from .sequential import _sequential
 from .types import Allows, Plane, Segmentation, Tolerance
 
@@ -109,7 +108,7 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
     """Merge touching regions of one surface: a pair of regions joined by a neighbour pair whose
     joint least-squares plane has MERGE_KEEP of their points (3, m) within ``tolerance`` becomes one
     region (the earlier one's number), with that plane. Regions renumbered in order."""
-    src, dst = _adjacent(neighbours)
+    src, dst = neighbours.touching()
     a, b = region[src], region[dst]
     touch = (a >= 0) & (b >= 0) & (a != b)
     if not touch.any():
@@ -169,7 +168,7 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
     an earlier plane took along an edge goes back to the surface it lies on, and unassigned points
     next to a region join it when they fit its plane; repeated COMPETE_ROUNDS times. Only points next
     to another region can change, and after the first round only the neighbours of points that
-    changed: only they are looked at."""
+    changed: only they are looked at (:meth:`.neighbours.Neighbours.settle`)."""
     k, m = len(found), search.shape[1]
     normals = np.array([n for n, _ in found])
     dist = np.empty((k + 1, m))
@@ -180,9 +179,4 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
     with np.errstate(invalid='ignore', divide='ignore'):  # a point at the viewpoint: NaN, never nearer
         rays /= np.linalg.norm(rays, axis=0)
         dist[:k] /= np.maximum(np.abs(normals @ rays), np.cos(np.radians(GRAZING_DEG)))
-    region = np.where(region >= 0, region, k)
-    if neighbours.shape is not None:  # a sub-grid: one compiled call (kernels.grid_compete)
-        region = kernels.grid_compete(dist, region, neighbours.pixel, neighbours.node, neighbours.shape[1],
-                                      _EIGHT, COMPETE_ROUNDS)
-        return np.where(region < k, region, -1)
-    return _settle(dist, region, neighbours)
+    return neighbours.settle(dist, np.where(region >= 0, region, k))

@@ -5,9 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from .. import kernels
-from ..regions import Neighbours
 from .fit import _at
-from .neighbourhood import _EIGHT
+from .neighbours_grid import EIGHT, GridNeighbours
 from .types import Tolerance
 
 __all__ = ['grid_step', 'grid_pixels', 'grid_image', 'MIN_GRID_SIDE']
@@ -64,7 +63,7 @@ def grid_image(points: np.ndarray, finite: np.ndarray, shape: tuple[int, int], s
 
 
 def _spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
-                 neighbours: Neighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+                 neighbours: GridNeighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
     """Labels (N,) of every pixel of the image ``pts`` (N, 3; ``valid`` (N,): its finite rows) from
     the regions of the searched sub-grid: the region of the nearest sub-grid pixel when the pixel is
     within ``tolerance`` of its plane (``planes`` in the coordinates of ``pts``), else, of the 3 x 3
@@ -78,7 +77,7 @@ def _spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], ste
                                coeffs, tol, kernels.EIGHT)
 
 
-def _sub_regions(shape: tuple[int, int], step: int, region: np.ndarray, neighbours: Neighbours, k: int
+def _sub_regions(shape: tuple[int, int], step: int, region: np.ndarray, neighbours: GridNeighbours, k: int
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The sub-grid's regions as an image (gh, gw) int64 (k: no region), and the nearest sub-grid row of each
     image row (H,) and column of each image column (W,)."""
@@ -92,7 +91,7 @@ def _sub_regions(shape: tuple[int, int], step: int, region: np.ndarray, neighbou
 
 
 def _spread_grid_numpy(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
-                       neighbours: Neighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+                       neighbours: GridNeighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_spread_grid` in numpy: the reference its kernel is tested against."""
     h, w = shape
     gh, gw = neighbours.shape
@@ -115,7 +114,7 @@ def _spread_grid_numpy(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int
     r, c = np.divmod(todo, w)
     around = np.pad(sub, 1, constant_values=k).reshape(-1)  # off the image: no region
     centre = (near_r[r] + 1) * (gw + 2) + near_c[c] + 1
-    for dr, dc in _EIGHT:  # the rest: the eight sub-grid pixels around the nearest one
+    for dr, dc in EIGHT:  # the rest: the eight sub-grid pixels around the nearest one
         lab = around[centre + dr * (gw + 2) + dc]
         d = flat[lab * n + todo]
         better = (d <= todo_tolerance) & (d < best[todo])

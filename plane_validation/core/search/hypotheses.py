@@ -7,8 +7,8 @@ import functools
 
 import numpy as np
 
-from ..regions import NORMAL_MIN_COS
 from .fit import MIN_SINE, _allowed, _at, _distances, _fit_columns, _signed, _within
+from .neighbours import NORMAL_MIN_COS
 from .types import Allows, Keep, Sampler, Tolerance
 
 __all__ = ['BATCH', 'SUBSET', 'CONFIRM', 'PRESCORE', 'LOCAL_SHARE', 'SUPPORT']

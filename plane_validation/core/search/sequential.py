@@ -1,15 +1,11 @@
 """Sequential RANSAC: the best plane, its points taken out, and again, until none is large enough."""
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 
-from .. import kernels
-from ..regions import Neighbours
 from .fit import _at, _degeneracy
 from .hypotheses import _best_plane
-from .neighbourhood import _NO_NORMALS, _graph_region, _grid_region, _grid_region_numpy, _nearby_sampler
+from .neighbours import Neighbours
 from .types import Allows, Tolerance
 
 __all__: list[str] = []
@@ -24,14 +20,12 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
     (n,) (-1: none), and whether it stopped at ``max_planes`` with ``min_count`` points left."""
     n = cols.shape[1]
     rest = cols
-    rest_idx = np.arange(n)
-    if neighbours is not None and neighbours.usable is not None:  # only points that can join a region
-        rest_idx = np.flatnonzero(neighbours.usable[neighbours.pixel])
+    rest_idx = np.arange(n) if neighbours is None else neighbours.searchable()  # the points that can join a region
+    if len(rest_idx) < n:
         rest = cols[:, rest_idx]
         tolerance = _at(tolerance, rest_idx)
     region = None if neighbours is None else np.full(n, -1, dtype=np.int64)
-    region_of = None
-    local = None if neighbours is None or neighbours.shape is not None else neighbours.subgraph(rest_idx)
+    remaining = None if neighbours is None else neighbours.remaining(rest_idx)
     found: list[tuple[np.ndarray, float]] = []
     reason = f'reached max_planes={max_planes}'
     while len(found) < max_planes:
@@ -39,15 +33,10 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
         if why is not None:
             reason = why if rest.shape[1] < n or n_total < 3 else f'no plane: {why}'
             break
-        if local is not None:  # the graph of the points left: one compiled call per region (kernels.graph_region)
-            region_of = functools.partial(_graph_region, kernels.c_array(local.edges, np.int64),
-                                          _NO_NORMALS if local.normals is None else local.normals)
-        elif neighbours is not None:
-            region_of = functools.partial(_grid_region if neighbours.normals is not None else _grid_region_numpy,
-                                          neighbours, rest_idx)
+        region_of = None if remaining is None else remaining.keep
         rest_normals = None if neighbours is None or neighbours.normals is None else \
             np.ascontiguousarray(neighbours.normals[rest_idx].T)
-        sampler = None if neighbours is None else _nearby_sampler(neighbours, rest_idx)
+        sampler = None if neighbours is None else neighbours.sampler(rest_idx)
         best = _best_plane(rest, tolerance, probability, max_iterations, rng, region_of, rest_normals, sampler,
                            allows)
         if best is None:
@@ -64,7 +53,7 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
         if region is not None:
             region[rest_idx[inliers]] = len(found)
             rest_idx = rest_idx[left]
-            local = None if local is None else local.subgraph(np.flatnonzero(left))
+            remaining = remaining.without(left)
         found.append((normal, offset))
         rest = np.compress(left, rest, axis=1)
         tolerance = _at(tolerance, left)
