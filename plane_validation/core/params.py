@@ -14,8 +14,15 @@ from dataclasses import dataclass
 
 from .orientation import Orientation
 
-__all__ = ['SearchParams', 'TuneParams', 'RANSAC_POINTS', 'GRID_POINTS']
+__all__ = ['SearchParams', 'TuneParams', 'MAX_PLANES', 'MIN_INLIERS', 'PROBABILITY', 'MAX_ITERATIONS', 'RANSAC_POINTS',
+           'GRID_POINTS']
 
+#: Defaults of :func:`.ransac.detect_planes` and of the parameter table (``PipelineConfig``): planes searched for at
+#: most; the smallest plane, a share of the valid points; RANSAC's success probability and hypotheses per plane.
+MAX_PLANES = 10
+MIN_INLIERS = 0.02
+PROBABILITY = 0.99
+MAX_ITERATIONS = 1000
 #: Default for ``detect_planes(ransac_points=...)``: larger clouds are searched on a random
 #: sample of this many points; every point is then labelled against the planes found.
 RANSAC_POINTS = 32768

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..noise import NOISE_REFERENCE, tolerance_scale
 from ..orientation import Orientation
-from ..params import GRID_POINTS, RANSAC_POINTS
+from ..params import GRID_POINTS, MAX_ITERATIONS, MAX_PLANES, MIN_INLIERS, PROBABILITY, RANSAC_POINTS
 from .checks import (
     _check_search_size,
     as_points,
@@ -28,9 +28,9 @@ from .types import Plane, Segmentation, Viewpoint
 __all__ = ['detect_planes']
 
 
-def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = 10,
-                  min_inliers: int | float = 0.02, probability: float = 0.99,
-                  max_iterations: int = 1000, seed: int | np.random.Generator | None = None,
+def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX_PLANES,
+                  min_inliers: int | float = MIN_INLIERS, probability: float = PROBABILITY,
+                  max_iterations: int = MAX_ITERATIONS, seed: int | np.random.Generator | None = None,
                   ransac_points: int | None = RANSAC_POINTS, shape: tuple[int, int] | None = None,
                   connectivity: bool = True, graph: SearchGraph | None = None, noise_model: str = 'constant',
                   noise_reference: float = NOISE_REFERENCE, viewpoint: Viewpoint = None,
