@@ -39,7 +39,7 @@ PRESCORE_SIGMAS = 3.0
 
 
 #: A little below NORMAL_MIN_COS: _best_region's count of the inliers whose normal agrees is at
-#: least what a region may keep (regions.Neighbours.coherent), whatever the rounding of the dot products.
+#: least what a region may keep (neighbours.Neighbours.coherent), whatever the rounding of the dot products.
 _COHERENT_BOUND = NORMAL_MIN_COS - 1e-9
 
 
@@ -56,7 +56,7 @@ LOCAL_HIT = 0.25
 
 #: Where the noise exceeds t, a surface's points within t are too sparse to hold together (on an image
 #: grid, below about 60 % of its pixels): the suite's synthetic room at t = 1 cm fell apart into pieces below
-#: min_inliers (F1 0.04; Open3D 0.71). A region whose inliers fall apart (regions.fragmented) is connected
+#: min_inliers (F1 0.04; Open3D 0.71). A region whose inliers fall apart (neighbours.fragmented) is connected
 #: through the points within this many tolerances of its plane whose normals agree, keeps those within one
 #: (F1 0.70) and takes the others out of the search (else they came back as planes parallel to it). Always
 #: joining them instead cost planes at the best t (quality.py's depth room 8/9 -> 7/9).
