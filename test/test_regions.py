@@ -730,3 +730,33 @@ def test_separate_coplanar_fronts_are_not_joined_through_a_recess_within_two_tol
     part = part.reshape(-1)
     left = [np.bincount(part[p.inliers], minlength=4) for p in seg.planes]
     assert any(c[0] >= 0.95 * np.sum(part == 0) and c[1] + c[2] == 0 for c in left), left  # the left front alone
+
+
+def test_the_two_neighbourhood_forms_answer_alike_on_one_topology():
+    """The valid pixels of an image as GridNeighbours and as GraphNeighbours joined by the grid's touching pairs
+    (4-connected): the same components, in the same order, and the same regions kept and taken, by the grid's
+    numpy rule and the graph's compiled one (with and without joining through the support)."""
+    from plane_validation.core.regions import _neighbours
+    from plane_validation.core.search.neighbours_grid import GridNeighbours
+    rng = np.random.default_rng(3)
+    h, w = 12, 17
+    valid = rng.random(h * w) < 0.85
+    pixel = np.flatnonzero(valid)
+    node = np.full(h * w, -1)
+    node[pixel] = np.arange(len(pixel))
+    grid = GridNeighbours(n=len(pixel), shape=(h, w), pixel=pixel, node=node, usable=valid)
+    graph = _neighbours(grid.n, np.column_stack(grid.touching()), None)
+    assert np.array_equal(grid.searchable(), graph.searchable())
+    rules = [form.remaining(form.searchable()) for form in (grid, graph)]
+    normal = np.array([0.0, 0.0, 1.0])
+    joined = 0
+    for _ in range(40):
+        mask = rng.random(grid.n) < rng.uniform(0.05, 0.8)
+        support = mask | (rng.random(grid.n) < rng.uniform(0.0, 0.9))
+        above = rng.random(grid.n) < 0.5
+        (labels, count), (graph_labels, graph_count) = grid.components(mask), graph.components(mask)
+        assert count == graph_count and np.array_equal(labels, graph_labels)
+        (kept, taken), (graph_kept, graph_taken) = (rule.keep(mask, normal, support, above) for rule in rules)
+        assert np.array_equal(kept, graph_kept) and np.array_equal(taken, graph_taken)
+        joined += int(not np.array_equal(kept, taken))
+    assert joined > 0  # some masks fell apart and were joined through their support

@@ -9,6 +9,7 @@ draw hypotheses from, for the pairs of points that touch and to settle the borde
 """
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -54,25 +55,25 @@ NEARBY_SCALES = (1, 2, 4, 8)
 COMPETE_ROUNDS = 6
 
 
-class Remaining:
+class Remaining(ABC):
     """The region rule of a neighbourhood restricted to the points a sequential search has left
     (:meth:`Neighbours.remaining`)."""
 
+    @abstractmethod
     def keep(self, mask: np.ndarray, normal: np.ndarray, support: np.ndarray, above: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray]:
         """(kept, taken) (r,) bool of the points left for a plane of unit ``normal`` (3,) with inliers ``mask``
         (r,), support band ``support`` (r,) and side ``above`` (r,): see :data:`.types.Keep`."""
-        raise NotImplementedError
 
+    @abstractmethod
     def without(self, left: np.ndarray) -> Remaining:
         """The same for the points ``left`` (r,) bool of these."""
-        raise NotImplementedError
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
-class Neighbours:
+class Neighbours(ABC):
     """Adjacency of n points, with ``normals`` (n, 3) their unit local surface normals (NaN where unknown; None:
-    none known). The methods that raise NotImplementedError here are those each form answers its own way."""
+    none known). The abstract methods are those each form answers its own way."""
 
     n: int
     normals: np.ndarray | None = None
@@ -133,49 +134,49 @@ class Neighbours:
             return np.column_stack([first, near[:count], near[count:]])
         return sample
 
+    @abstractmethod
     def nearby(self, nodes: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """A random point near each of ``nodes`` (m,), NEARBY_SCALES away; -1 where there is none."""
-        raise NotImplementedError
 
+    @abstractmethod
     def components(self, mask: np.ndarray) -> tuple[np.ndarray, int]:
         """Connected components of the points where ``mask`` (n,) is True: (labels (n,) int, -1
         outside the mask, components 0..c-1; c)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def _component(self, within: np.ndarray, counted: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The component of ``within`` with the most points of ``counted`` (all when None), as (n,) bool,
         and those points per component."""
-        raise NotImplementedError
 
+    @abstractmethod
     def searchable(self) -> np.ndarray:
         """The points (ascending) that may join a region."""
-        raise NotImplementedError
 
+    @abstractmethod
     def remaining(self, rest_idx: np.ndarray) -> Remaining:
         """The region rule over the points ``rest_idx`` (ascending) of :meth:`searchable`."""
-        raise NotImplementedError
 
+    @abstractmethod
     def touching(self) -> tuple[np.ndarray, np.ndarray]:
         """(src, dst) pairs of points that touch (see the forms)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def around(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every (node, neighbour) pair of the points ``nodes`` (c,), as two arrays, for border settling."""
-        raise NotImplementedError
 
+    @abstractmethod
     def bordering(self, region: np.ndarray) -> np.ndarray:
         """The points (ascending) with a neighbour (as in :meth:`around`) in another region than theirs."""
-        raise NotImplementedError
 
+    @abstractmethod
     def tie_keys(self, src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Sort keys that break ties between equal offers of neighbours ``src`` to points ``dst`` in
-        :func:`settle_numpy` (the last key counts first)."""
-        raise NotImplementedError
+        """np.lexsort keys (the last one first) that order equal offers of neighbours ``src`` to points ``dst``
+        in :func:`settle_numpy`: the first offer wins."""
 
+    @abstractmethod
     def settle(self, dist: np.ndarray, region: np.ndarray) -> np.ndarray:
         """Border settling: ``region`` (m,) 0..k (k: none) after COMPETE_ROUNDS rounds in which each point takes,
         of its own and its neighbours' regions, the one nearest by ``dist`` (k + 1, m); -1 for none."""
-        raise NotImplementedError
 
 
 def settle_numpy(dist: np.ndarray, region: np.ndarray, neighbours: Neighbours) -> np.ndarray:
