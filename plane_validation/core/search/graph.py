@@ -8,10 +8,11 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..params import GRID_POINTS, RANSAC_POINTS
-from ..regions import VoxelIndex, graph_neighbours, grid_neighbours, voxel_index
+from ..regions import VoxelIndex, graph_neighbours, voxel_index
 from .checks import _check_search_size, as_points, check_shape, check_viewpoint, finite_rows
 from .grid import grid_image, grid_step
 from .neighbours import Neighbours
+from .neighbours_grid import grid_neighbours
 from .types import Tolerance, Viewpoint
 
 __all__ = ['SearchGraph', 'search_graph']
