@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from plane_validation.core import kernels
 from plane_validation.core.ransac import finite_rows
-from plane_validation.core.search.grid import _spread_grid, _spread_grid_numpy
+from plane_validation.core.search.grid import spread_grid, spread_grid_numpy
 from plane_validation.core.search.neighbours_graph import GraphNeighbours
 from plane_validation.core.search.neighbours_grid import GridNeighbours
 
@@ -46,8 +46,8 @@ def _image_case(seed: int, per_point: bool):
 @given(st.integers(0, 2**32 - 1), st.booleans())
 def test_spread_grid_matches_numpy(seed, per_point):
     case = _image_case(seed, per_point)
-    labels, best = _spread_grid(*case)
-    ref_labels, ref_best = _spread_grid_numpy(*case)
+    labels, best = spread_grid(*case)
+    ref_labels, ref_best = spread_grid_numpy(*case)
     np.testing.assert_array_equal(labels, ref_labels)
     np.testing.assert_allclose(best, ref_best, rtol=1e-12, atol=1e-12)
     assert labels.dtype == np.int32

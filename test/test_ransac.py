@@ -440,7 +440,7 @@ def test_prescoring_keeps_the_best_hypotheses(make, monkeypatch):
     """Dropping hypotheses after PRESCORE points (their count there cannot reach the best few) scores
     fewer distances and gives the same planes as scoring every hypothesis on the whole subset."""
     scene = make()
-    distances = hypotheses._distances
+    distances = hypotheses.plane_distances
     runs = []
     for prescore in (hypotheses.PRESCORE, 10**9):
         scored = []
@@ -449,7 +449,7 @@ def test_prescoring_keeps_the_best_hypotheses(make, monkeypatch):
             scored.append(cols.shape[1] * len(normals) if cols.dtype == np.float32 else 0)
             return distances(cols, normals, offsets)
         monkeypatch.setattr(hypotheses, 'PRESCORE', prescore)
-        monkeypatch.setattr(hypotheses, '_distances', spy)
+        monkeypatch.setattr(hypotheses, 'plane_distances', spy)
         seg = pv.detect_planes(scene.points, 0.02, seed=5, max_planes=8)
         runs.append((seg.labels, seg.coefficients, sum(scored)))
     np.testing.assert_array_equal(runs[0][0], runs[1][0])

@@ -245,7 +245,7 @@ def test_a_graph_pickles_without_its_caches():
 def test_touching_regions_of_one_surface_are_merged_and_others_are_not():
     from plane_validation.core.regions import graph_neighbours
     from plane_validation.core.search.connected import _merge_coplanar
-    from plane_validation.core.search.fit import _fit_columns
+    from plane_validation.core.search.fit import fit_columns
     rng = np.random.default_rng(1)
     floor = np.column_stack([rng.uniform(0, 2, 4000), rng.uniform(0, 1, 4000), rng.normal(0, 0.002, 4000)])
     wall = np.column_stack([rng.uniform(0, 2, 2000), np.full(2000, 1.0) + rng.normal(0, 0.002, 2000),
@@ -254,7 +254,7 @@ def test_touching_regions_of_one_surface_are_merged_and_others_are_not():
     pts = np.vstack([floor, wall, apart])
     region = np.concatenate([np.where(floor[:, 0] < 1, 0, 2), np.full(2000, 1), np.full(1000, 3)])
     search = np.ascontiguousarray(pts.T)
-    found = [_fit_columns(np.compress(region == j, search, axis=1)) for j in range(4)]
+    found = [fit_columns(np.compress(region == j, search, axis=1)) for j in range(4)]
     merged, planes = _merge_coplanar(search, region.copy(), found, 0.01, graph_neighbours(pts))
     assert len(planes) == 3  # the two floor halves are one region; the wall and the far patch stay apart
     assert np.array_equal(merged, np.concatenate([np.zeros(4000), np.ones(2000), np.full(1000, 2)]))
@@ -293,7 +293,7 @@ def test_border_settling_compares_planes_along_the_viewing_ray():
 
 @pytest.mark.parametrize('organized', [True, False])
 def test_skipping_hypotheses_by_their_coherent_inliers_keeps_the_same_planes(monkeypatch, organized):
-    """_best_region labels a hypothesis only when its inliers with agreeing normals could beat the
+    """best_region labels a hypothesis only when its inliers with agreeing normals could beat the
     region found so far: the same planes as labelling every hypothesis."""
     from plane_validation.core.search import hypotheses, neighbours_graph, neighbours_grid
     if organized:
@@ -308,9 +308,9 @@ def test_skipping_hypotheses_by_their_coherent_inliers_keeps_the_same_planes(mon
     monkeypatch.setattr(module, name, lambda *args: calls.append(1) or compiled(*args))
     fast = pv.detect_planes(points, t, seed=5, shape=shape, max_planes=8)
     n_fast, calls[:] = len(calls), []
-    best_region = hypotheses._best_region
+    best_region = hypotheses.best_region
     # no point normals
-    monkeypatch.setattr(hypotheses, '_best_region', lambda *args, **kw: best_region(*args[:7], **kw))
+    monkeypatch.setattr(hypotheses, 'best_region', lambda *args, **kw: best_region(*args[:7], **kw))
     full = pv.detect_planes(points, t, seed=5, shape=shape, max_planes=8)
     assert fast.n_planes >= 3 and np.array_equal(fast.labels, full.labels)
     coefficients = [np.array([p.coefficients for p in seg.planes]) for seg in (fast, full)]

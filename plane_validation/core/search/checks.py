@@ -12,7 +12,7 @@ from .types import Viewpoint
 
 __all__ = ['generator', 'check_integer', 'check_number', 'check_flag', 'as_points', 'finite_rows', 'no_returns_as_nan',
            'no_returns_note', 'check_magnitude', 'min_inliers_number', 'resolve_min_inliers', 'check_shape',
-           'check_viewpoint', 'AT_VIEWPOINT', 'MAX_COORDINATE', 'MAX_SPREAD']
+           'check_viewpoint', 'check_search_size', 'AT_VIEWPOINT', 'MAX_COORDINATE', 'MAX_SPREAD']
 
 
 def generator(seed: int | np.random.Generator | None) -> np.random.Generator:
@@ -184,7 +184,7 @@ def resolve_min_inliers(min_inliers: int | float, n_valid: int) -> int:
     return max(3, int(number))
 
 
-def _check_search_size(name: str, value) -> None:
+def check_search_size(name: str, value) -> None:
     """ValueError unless ``value`` (``ransac_points`` or ``grid_points``) is None or a whole number >= 3."""
     if value is not None:
         try:

@@ -7,17 +7,17 @@ import numpy as np
 
 from .. import kernels
 from .checks import finite_rows, resolve_min_inliers
-from .fit import _allowed, _at, _canonical, _distances, _fit_columns, _refit
-from .graph import SearchGraph, _search_graph, _spread_nearest
-from .grid import _spread_grid
+from .fit import allows_normal, canonical, fit_columns, plane_distances, refit_regions, tolerance_at
+from .graph import SearchGraph, build_search_graph, spread_nearest
+from .grid import spread_grid
 from .neighbours import Neighbours
-from .sequential import _sequential
+from .sequential import sequential_search
 from .types import Allows, Plane, Segmentation, Tolerance
 
-__all__: list[str] = []
+__all__ = ['detect_regions', 'MERGE_KEEP', 'MERGE_SPREAD', 'GRAZING_DEG']
 
 
-def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
+def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
                     probability: float, max_iterations: int, rng: np.random.Generator,
                     ransac_points: int | None, shape: tuple[int, int] | None,
                     graph: SearchGraph | None, viewpoint: np.ndarray, grid_points: int | None,
@@ -28,7 +28,7 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
     n_valid = len(valid_idx)
     min_count = resolve_min_inliers(min_inliers, n_valid)
     if graph is None:
-        graph = _search_graph(pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
+        graph = build_search_graph(pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
     elif not isinstance(graph, SearchGraph):
         raise ValueError(f'graph must be a SearchGraph (search_graph) or None, got {type(graph).__name__}')
     elif (graph.n_points, graph.shape, graph.ransac_points, graph.grid_points) != \
@@ -43,17 +43,17 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
     search_idx, step, center, neighbours = graph.search_idx, graph.step, graph.center, graph.neighbours
     search = np.ascontiguousarray((pts[search_idx] - center).T)
     search_min = max(3, int(np.ceil(min_count * len(search_idx) / max(n_valid, 1))))
-    search_tolerance = _at(tolerance, search_idx)
-    found, reason, region, capped = _sequential(search, search_tolerance, max_planes, search_min, probability,
+    search_tolerance = tolerance_at(tolerance, search_idx)
+    found, reason, region, capped = sequential_search(search, search_tolerance, max_planes, search_min, probability,
                                                 max_iterations, rng, n_total=n_valid, neighbours=neighbours,
                                                 allows=allows)
     labels = np.full(len(pts), -1, dtype=np.int32)
     if not found:
         return Segmentation(labels=labels, planes=(), tolerance=tolerance, n_valid=n_valid, reason=reason)
     # each region's plane refitted on its own points, then the borders settled by nearest plane
-    found = _refit(search, region, found, allows)
+    found = refit_regions(search, region, found, allows)
     region = _compete(search, region, found, search_tolerance, neighbours, viewpoint - center)
-    found = _refit(search, region, found, allows)
+    found = refit_regions(search, region, found, allows)
     searched = len(found)
     region, found = _merge_coplanar(search, region, found, search_tolerance, neighbours, allows)
     if len(found) < searched:
@@ -61,7 +61,7 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
     residual = None
     if step:
         uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]
-        labels, residual = _spread_grid(pts, finite, shape, step, region, neighbours, uncentred, tolerance)
+        labels, residual = spread_grid(pts, finite, shape, step, region, neighbours, uncentred, tolerance)
     elif len(search_idx) == n_valid:
         own = np.where(region >= 0, region, 0)
         normals = np.array([n for n, _ in found])
@@ -69,8 +69,8 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
         near = np.abs(np.einsum('ji,ij->j', normals[own], search) + offsets[own]) <= search_tolerance
         labels[search_idx] = np.where((region >= 0) & near, region, -1)  # within t of the refitted plane
     else:
-        labels[valid_idx] = _spread_nearest(pts[valid_idx] - center, graph.nearest, region, found,
-                                            _at(tolerance, valid_idx))
+        labels[valid_idx] = spread_nearest(pts[valid_idx] - center, graph.nearest, region, found,
+                                            tolerance_at(tolerance, valid_idx))
     counts = np.bincount(labels[labels >= 0], minlength=len(found))
     small = np.flatnonzero(counts < min_count)
     if len(small):
@@ -86,7 +86,7 @@ def _detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
     for j, (normal, offset) in enumerate(found):
         members = rows[bounds[j]:bounds[j + 1]]
         resid = residual[members] if residual is not None else (pts[members] - center) @ normal + offset
-        normal, offset = _canonical(normal, offset - float(normal @ center))
+        normal, offset = canonical(normal, offset - float(normal @ center))
         planes.append(Plane(normal=normal, offset=offset, inliers=members,
                             rms=float(np.sqrt(np.mean(resid ** 2))) if len(members) else 0.0))
     return Segmentation(labels=labels, planes=tuple(planes), tolerance=tolerance, n_valid=n_valid, reason=reason,
@@ -129,16 +129,16 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
         i, j = min(i, j), max(i, j)
         members = np.sort(np.concatenate([points_of[i], points_of[j]]), kind='stable')  # two sorted runs: merged
         cols = search[:, members]
-        normal, offset = _fit_columns(cols.copy())
-        if not _allowed(allows, normal):
+        normal, offset = fit_columns(cols.copy())
+        if not allows_normal(allows, normal):
             continue  # their joint plane leaves the orientation constraint
         contact = (a == i) & (b == j) | (a == j) & (b == i)
         if not (neighbours.coherent(normal, src[contact]) & neighbours.coherent(normal, dst[contact])).any():
             continue  # they touch where normals disagree only
-        joint = _distances(cols, normal[None, :], np.array([offset]))[0]
+        joint = plane_distances(cols, normal[None, :], np.array([offset]))[0]
         on_i = region[members] == i
         own = np.where(on_i, found[i][0] @ cols + found[i][1], found[j][0] @ cols + found[j][1])
-        if np.count_nonzero(joint <= _at(tolerance, members)) >= MERGE_KEEP * cols.shape[1] and \
+        if np.count_nonzero(joint <= tolerance_at(tolerance, members)) >= MERGE_KEEP * cols.shape[1] and \
                 np.mean(joint ** 2) <= MERGE_SPREAD ** 2 * np.mean(own ** 2):
             region[points_of[j]] = i
             points_of[i], points_of[j] = members, members[:0]
@@ -172,7 +172,7 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
     k, m = len(found), search.shape[1]
     normals = np.array([n for n, _ in found])
     dist = np.empty((k + 1, m))
-    dist[:k] = _distances(search, normals, np.array([d for _, d in found]))
+    dist[:k] = plane_distances(search, normals, np.array([d for _, d in found]))
     dist[k] = np.inf
     dist[dist > tolerance] = np.inf  # only planes within t can be taken
     rays = search - viewpoint[:, None]

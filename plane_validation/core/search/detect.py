@@ -10,19 +10,19 @@ from ..noise import NOISE_REFERENCE, tolerance_scale
 from ..orientation import Orientation
 from ..params import GRID_POINTS, MAX_ITERATIONS, MAX_PLANES, MIN_INLIERS, PROBABILITY, RANSAC_POINTS
 from .checks import (
-    _check_search_size,
     as_points,
     check_flag,
     check_integer,
     check_magnitude,
     check_number,
+    check_search_size,
     check_shape,
     check_viewpoint,
     generator,
 )
-from .connected import _detect_regions
+from .connected import detect_regions
 from .graph import SearchGraph
-from .infinite import _detect_infinite
+from .infinite import detect_infinite
 from .types import Plane, Segmentation, Viewpoint
 
 __all__ = ['detect_planes']
@@ -91,8 +91,8 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX
         raise ValueError(f'probability must be in (0, 1), got {probability!r}')
     max_iterations = check_integer('max_iterations', max_iterations, 1)
     connectivity = check_flag('connectivity', connectivity)
-    _check_search_size('ransac_points', ransac_points)
-    _check_search_size('grid_points', grid_points)
+    check_search_size('ransac_points', ransac_points)
+    check_search_size('grid_points', grid_points)
     if shape is not None:
         shape = check_shape(shape, len(pts))
     check_magnitude(pts)
@@ -106,10 +106,10 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX
     point_tolerance = tolerance if scale is None else tolerance * scale  # (N,) with a noise model
     rng = generator(seed)
     if connectivity:
-        seg = _detect_regions(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
+        seg = detect_regions(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
                               ransac_points, shape, graph, view, grid_points, allows)
     else:
-        seg = _detect_infinite(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
+        seg = detect_infinite(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
                                ransac_points, allows)
     return _facing_away(dataclasses.replace(seg, tolerance=tolerance, **model), view)
 

@@ -11,7 +11,8 @@ import numpy as np
 from .checks import as_points, check_magnitude, finite_rows
 from .types import Allows, Tolerance
 
-__all__ = ['fit_plane', 'MIN_SINE']
+__all__ = ['fit_plane', 'fit_columns', 'canonical', 'degeneracy', 'signed_distances', 'plane_distances',
+           'tolerance_at', 'within_plane', 'allows_normal', 'kept_fit', 'refit_regions', 'MIN_SINE']
 
 
 #: Random points the degeneracy (spread) test looks at.
@@ -32,17 +33,17 @@ def fit_plane(points: np.ndarray) -> tuple[np.ndarray, float]:
     if len(pts) < 3:
         raise ValueError(f'a plane needs at least 3 points, got {len(pts)}')
     check_magnitude(pts)
-    cols = np.array(pts.T)  # a copy: _fit_columns centres it
+    cols = np.array(pts.T)  # a copy: fit_columns centres it
     centered = cols - cols.mean(axis=1, keepdims=True)
     spread = np.linalg.eigvalsh(centered @ centered.T)  # ascending; every point counts (no outlier guard here)
     if spread[2] <= 0 or np.all(pts == pts[0]):  # the mean need not round-trip: compare the points themselves
         raise ValueError('no plane fits these points: they are all identical')
     if spread[1] <= MIN_SINE ** 2 * spread[2]:
         raise ValueError('no plane fits these points: they all lie on one line')
-    return _fit_columns(cols)
+    return fit_columns(cols)
 
 
-def _fit_columns(cols: np.ndarray) -> tuple[np.ndarray, float]:
+def fit_columns(cols: np.ndarray) -> tuple[np.ndarray, float]:
     """Least-squares plane through the columns of ``cols`` (3, n), a scratch copy: it is centred
     in place (raw second moments of far-away points would lose precision)."""
     centroid = cols.mean(axis=1)
@@ -53,14 +54,14 @@ def _fit_columns(cols: np.ndarray) -> tuple[np.ndarray, float]:
     return normal, float(-normal @ centroid)
 
 
-def _canonical(normal: np.ndarray, offset: float) -> tuple[np.ndarray, float]:
+def canonical(normal: np.ndarray, offset: float) -> tuple[np.ndarray, float]:
     """Fix the sign ambiguity: offset <= 0 (normal points away from the origin), ties by normal."""
     if offset > 0 or (offset == 0 and normal[np.argmax(np.abs(normal))] < 0):
         return -normal, -offset
     return normal, offset
 
 
-def _degeneracy(cols: np.ndarray) -> str | None:
+def degeneracy(cols: np.ndarray) -> str | None:
     """Reason why no plane can be fitted to the points ``cols`` (3, n), or None.
 
     The spread is judged on the points nearest the median (98 %), so that one far outlier (a
@@ -90,42 +91,42 @@ def _degeneracy(cols: np.ndarray) -> str | None:
     return None
 
 
-def _signed(cols: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+def signed_distances(cols: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """(k, n) signed distances of the points ``cols`` (3, n) to k planes (positive on the side the normal points to)."""
     dist = normals @ cols
     dist += offsets[:, None]
     return dist
 
 
-def _distances(cols: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+def plane_distances(cols: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """(k, n) absolute distances of the points ``cols`` (3, n) to k planes (in place, one buffer)."""
-    dist = _signed(cols, normals, offsets)
+    dist = signed_distances(cols, normals, offsets)
     return np.abs(dist, out=dist)
 
 
-def _at(tolerance: Tolerance, idx) -> Tolerance:
+def tolerance_at(tolerance: Tolerance, idx) -> Tolerance:
     """A tolerance for a subset ``idx`` of the points: a scalar as is, a per-point (n,) array indexed."""
     return tolerance if np.ndim(tolerance) == 0 else tolerance[idx]
 
 
-def _within(cols: np.ndarray, normal: np.ndarray, offset: float, tolerance: Tolerance) -> np.ndarray:
+def within_plane(cols: np.ndarray, normal: np.ndarray, offset: float, tolerance: Tolerance) -> np.ndarray:
     """(n,) bool: points ``cols`` (3, n) within ``tolerance`` of the plane."""
-    return _distances(cols, normal[None, :], np.array([offset]))[0] <= tolerance
+    return plane_distances(cols, normal[None, :], np.array([offset]))[0] <= tolerance
 
 
-def _allowed(allows: Allows, normal: np.ndarray) -> bool:
+def allows_normal(allows: Allows, normal: np.ndarray) -> bool:
     """Whether a plane may have the unit ``normal`` (3,) (``allows`` None: any)."""
     return allows is None or bool(allows(normal[None, :])[0])
 
 
-def _kept_fit(fit: tuple[np.ndarray, float], plane: tuple[np.ndarray, float], allows: Allows
+def kept_fit(fit: tuple[np.ndarray, float], plane: tuple[np.ndarray, float], allows: Allows
               ) -> tuple[np.ndarray, float]:
     """``fit`` when a plane may have its normal, else the ``plane`` it would replace."""
-    return fit if _allowed(allows, fit[0]) else plane
+    return fit if allows_normal(allows, fit[0]) else plane
 
 
-def _refit(search: np.ndarray, region: np.ndarray, found: list, allows: Allows = None) -> list:
+def refit_regions(search: np.ndarray, region: np.ndarray, found: list, allows: Allows = None) -> list:
     """Each region's plane fitted to its points (3, m) ``search`` (kept when it has fewer than 3, or when the fit
     leaves the normals ``allows`` takes)."""
-    return [_kept_fit(_fit_columns(np.compress(region == j, search, axis=1)), plane, allows)
+    return [kept_fit(fit_columns(np.compress(region == j, search, axis=1)), plane, allows)
             if np.count_nonzero(region == j) >= 3 else plane for j, plane in enumerate(found)]

@@ -9,13 +9,13 @@ from scipy.spatial import cKDTree
 
 from ..params import GRID_POINTS, RANSAC_POINTS
 from ..regions import VoxelIndex, graph_neighbours, voxel_index
-from .checks import _check_search_size, as_points, check_shape, check_viewpoint, finite_rows
+from .checks import as_points, check_search_size, check_shape, check_viewpoint, finite_rows
 from .grid import grid_image, grid_step
 from .neighbours import Neighbours
 from .neighbours_grid import grid_neighbours
 from .types import Tolerance, Viewpoint
 
-__all__ = ['SearchGraph', 'search_graph']
+__all__ = ['SearchGraph', 'search_graph', 'build_search_graph', 'spread_nearest']
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,13 +54,13 @@ def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
     searched on a random sample drawn from ``rng``; without ``rng`` such a cloud has no fixed graph
     and None is returned."""
     pts = as_points(points)
-    _check_search_size('ransac_points', ransac_points)
-    _check_search_size('grid_points', grid_points)
-    return _search_graph(pts, finite_rows(pts), None if shape is None else check_shape(shape, len(pts)),
+    check_search_size('ransac_points', ransac_points)
+    check_search_size('grid_points', grid_points)
+    return build_search_graph(pts, finite_rows(pts), None if shape is None else check_shape(shape, len(pts)),
                          ransac_points, rng, check_viewpoint(viewpoint), grid_points)
 
 
-def _search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | None, ransac_points: int | None,
+def build_search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | None, ransac_points: int | None,
                   rng: np.random.Generator | None, viewpoint: np.ndarray, grid_points: int | None
                   ) -> SearchGraph | None:
     """:func:`search_graph` of checked points ``pts`` with their finite rows ``finite`` (N,)."""
@@ -103,7 +103,7 @@ def _nearest_searched_tree(searched: np.ndarray, points: np.ndarray) -> np.ndarr
     return cKDTree(searched).query(points, k=1)[1]
 
 
-def _spread_nearest(points: np.ndarray, nearest: np.ndarray, region: np.ndarray, found: list,
+def spread_nearest(points: np.ndarray, nearest: np.ndarray, region: np.ndarray, found: list,
                     tolerance: Tolerance) -> np.ndarray:
     """Labels of ``points`` (n, 3) from the region of their nearest searched point (``nearest`` (n,):
     its position among the searched points), when within ``tolerance`` of that region's plane; -1 otherwise."""

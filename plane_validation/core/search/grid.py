@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from .. import kernels
-from .fit import _at
+from .fit import tolerance_at
 from .neighbours_grid import EIGHT, GridNeighbours
 from .types import Tolerance
 
-__all__ = ['grid_step', 'grid_pixels', 'grid_image', 'MIN_GRID_SIDE']
+__all__ = ['grid_step', 'grid_pixels', 'grid_image', 'spread_grid', 'spread_grid_numpy', 'MIN_GRID_SIDE']
 
 
 #: An image whose (sub-)grid would have fewer rows or columns than this is searched as an unorganized
@@ -62,14 +62,14 @@ def grid_image(points: np.ndarray, finite: np.ndarray, shape: tuple[int, int], s
     return image, pixels
 
 
-def _spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
+def spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
                  neighbours: GridNeighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
     """Labels (N,) of every pixel of the image ``pts`` (N, 3; ``valid`` (N,): its finite rows) from
     the regions of the searched sub-grid: the region of the nearest sub-grid pixel when the pixel is
     within ``tolerance`` of its plane (``planes`` in the coordinates of ``pts``), else, of the 3 x 3
     sub-grid pixels around it, the region whose plane is nearest within ``tolerance``; -1 otherwise.
     Also the distance (N,) to the chosen plane (inf when none). One compiled pass
-    (:func:`.kernels.spread_grid`; :func:`_spread_grid_numpy` is its reference)."""
+    (:func:`.kernels.spread_grid`; :func:`spread_grid_numpy` is its reference)."""
     sub, near_r, near_c = _sub_regions(shape, step, region, neighbours, len(planes))
     coeffs = np.array([np.append(normal, offset) for normal, offset in planes], dtype=np.float64).reshape(-1, 4)
     tol = kernels.c_array(np.reshape(tolerance, -1), np.float64)  # (1,) or (N,)
@@ -90,9 +90,9 @@ def _sub_regions(shape: tuple[int, int], step: int, region: np.ndarray, neighbou
     return sub.reshape(gh, gw), near_r, near_c
 
 
-def _spread_grid_numpy(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
+def spread_grid_numpy(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
                        neighbours: GridNeighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_spread_grid` in numpy: the reference its kernel is tested against."""
+    """:func:`spread_grid` in numpy: the reference its kernel is tested against."""
     h, w = shape
     gh, gw = neighbours.shape
     k, n = len(planes), len(pts)
@@ -110,7 +110,7 @@ def _spread_grid_numpy(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int
     out = np.where(take, lab, -1).astype(np.int32)
     best = np.where(take, d, np.inf)
     todo = np.flatnonzero(~take & valid)  # valid pixels left
-    todo_tolerance = _at(tolerance, todo)
+    todo_tolerance = tolerance_at(tolerance, todo)
     r, c = np.divmod(todo, w)
     around = np.pad(sub, 1, constant_values=k).reshape(-1)  # off the image: no region
     centre = (near_r[r] + 1) * (gw + 2) + near_c[c] + 1

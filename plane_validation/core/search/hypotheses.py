@@ -7,11 +7,11 @@ import functools
 
 import numpy as np
 
-from .fit import MIN_SINE, _allowed, _at, _distances, _fit_columns, _signed, _within
+from .fit import MIN_SINE, allows_normal, fit_columns, plane_distances, signed_distances, tolerance_at, within_plane
 from .neighbours import NORMAL_MIN_COS
 from .types import Allows, Keep, Sampler, Tolerance
 
-__all__ = ['BATCH', 'SUBSET', 'CONFIRM', 'PRESCORE', 'LOCAL_SHARE', 'SUPPORT']
+__all__ = ['best_plane', 'best_region', 'BATCH', 'SUBSET', 'CONFIRM', 'PRESCORE', 'LOCAL_SHARE', 'SUPPORT']
 
 
 #: Hypotheses scored per numpy call.
@@ -38,7 +38,7 @@ PRESCORE = 512
 PRESCORE_SIGMAS = 3.0
 
 
-#: A little below NORMAL_MIN_COS: _best_region's count of the inliers whose normal agrees is at
+#: A little below NORMAL_MIN_COS: best_region's count of the inliers whose normal agrees is at
 #: least what a region may keep (neighbours.Neighbours.coherent), whatever the rounding of the dot products.
 _COHERENT_BOUND = NORMAL_MIN_COS - 1e-9
 
@@ -130,7 +130,7 @@ def _shuffled(m: int) -> np.ndarray:
     return order
 
 
-def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_iterations: int,
+def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_iterations: int,
                 rng: np.random.Generator, region_of: Keep | None = None,
                 point_normals: np.ndarray | None = None, sampler: Sampler | None = None, allows: Allows = None
                 ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
@@ -152,7 +152,7 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
     # range becomes inf (its distances inf or NaN): never an inlier, as in float64.
     with np.errstate(over='ignore'):
         subset32 = subset.astype(np.float32)
-    sub_tolerance = _at(tolerance, pick)
+    sub_tolerance = tolerance_at(tolerance, pick)
     sub_normals = None
     if point_normals is not None:
         sub_normals = point_normals[:, pick]
@@ -165,7 +165,7 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
     def score(normals32: np.ndarray, offsets32: np.ndarray, part: slice) -> np.ndarray:
         """(h,) inliers of the hypotheses among the subset's points ``part`` (whose normal agrees)."""
         with np.errstate(over='ignore', invalid='ignore'):  # far-out rows: inf or NaN, never inliers
-            near = _distances(subset32[:, part], normals32, offsets32) <= _at(sub_tolerance, part)
+            near = plane_distances(subset32[:, part], normals32, offsets32) <= tolerance_at(sub_tolerance, part)
         if sub_normals is not None:
             coherent = np.abs(normals32 @ sub_normals[:, part]) >= np.float32(NORMAL_MIN_COS)
             coherent |= unknown[part]
@@ -212,23 +212,23 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
     # its inliers hug (a plane tilted across a small face and its neighbours' edges loses).
     with np.errstate(over='ignore', invalid='ignore'):  # a far-out row (a driver's FLT_MAX): inf, no inlier
         if region_of is not None:
-            signed = _signed(cols, best_normals, best_offsets)
-            return _best_region(cols, tolerance, best_normals, best_offsets, np.abs(signed), signed > 0, region_of,
+            signed = signed_distances(cols, best_normals, best_offsets)
+            return best_region(cols, tolerance, best_normals, best_offsets, np.abs(signed), signed > 0, region_of,
                                 point_normals, allows=allows)
-        dist = _distances(cols, best_normals, best_offsets)
+        dist = plane_distances(cols, best_normals, best_offsets)
     np.minimum(dist, tolerance, out=dist)
     winner = int(np.argmin(np.einsum('ij,ij->i', dist, dist)))
     normal, offset = best_normals[winner], best_offsets[winner]
-    inliers = _within(cols, normal, offset, tolerance)
+    inliers = within_plane(cols, normal, offset, tolerance)
     # Least-squares refinement on the inliers; repeat while the inlier set changes (at most 3 times).
     for _ in range(3):
         count = int(np.count_nonzero(inliers))
         if count < 3:
             break
-        new_normal, new_offset = _fit_columns(np.compress(inliers, cols, axis=1))
-        if not _allowed(allows, new_normal):
+        new_normal, new_offset = fit_columns(np.compress(inliers, cols, axis=1))
+        if not allows_normal(allows, new_normal):
             break  # the fit leaves the orientation constraint: keep the RANSAC plane
-        new_inliers = _within(cols, new_normal, new_offset, tolerance)
+        new_inliers = within_plane(cols, new_normal, new_offset, tolerance)
         if np.count_nonzero(new_inliers) < count:
             break  # the fit drifted away from the consensus set: keep the RANSAC plane
         normal, offset = new_normal, new_offset
@@ -238,7 +238,7 @@ def _best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_
     return normal, offset, inliers, inliers
 
 
-def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, offsets: np.ndarray, dist: np.ndarray,
+def best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, offsets: np.ndarray, dist: np.ndarray,
                  above: np.ndarray, keep: Keep, point_normals: np.ndarray | None = None, *, allows: Allows = None
                  ) -> tuple[np.ndarray, float, np.ndarray]:
     """Of the confirmed hypotheses (distances ``dist`` (h, m), ``above`` (h, m): the points on the side of each
@@ -268,10 +268,10 @@ def _best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, of
         count = int(np.count_nonzero(region))
         if count < 3:
             break
-        new_normal, new_offset = _fit_columns(np.compress(region, cols, axis=1))
-        if not _allowed(allows, new_normal):
+        new_normal, new_offset = fit_columns(np.compress(region, cols, axis=1))
+        if not allows_normal(allows, new_normal):
             break
-        signed = _signed(cols, new_normal[None, :], np.array([new_offset]))[0]
+        signed = signed_distances(cols, new_normal[None, :], np.array([new_offset]))[0]
         near = np.abs(signed)
         new_region, new_taken = keep(near <= tolerance, new_normal, near <= SUPPORT * tolerance, signed > 0)
         if np.count_nonzero(new_region) < count:

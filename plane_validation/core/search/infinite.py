@@ -4,14 +4,14 @@ from __future__ import annotations
 import numpy as np
 
 from .checks import resolve_min_inliers
-from .fit import _at, _canonical, _distances, _fit_columns, _kept_fit
-from .sequential import _sequential
+from .fit import canonical, fit_columns, kept_fit, plane_distances, tolerance_at
+from .sequential import sequential_search
 from .types import Allows, Plane, Segmentation, Tolerance
 
-__all__: list[str] = []
+__all__ = ['detect_infinite']
 
 
-def _detect_infinite(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
+def detect_infinite(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
                      probability: float, max_iterations: int, rng: np.random.Generator, ransac_points: int | None,
                      allows: Allows = None) -> Segmentation:
     """detect_planes without connectivity (see its docstring): the planes found on a sample of the valid points
@@ -28,13 +28,13 @@ def _detect_infinite(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min
     valid -= center[:, None]
 
     search, search_min = valid, min_count
-    valid_tolerance = _at(tolerance, valid_idx)
+    valid_tolerance = tolerance_at(tolerance, valid_idx)
     search_tolerance = valid_tolerance
     if ransac_points is not None and n_valid > ransac_points:
         sample = np.sort(rng.choice(n_valid, int(ransac_points), replace=False))
-        search, search_tolerance = valid[:, sample], _at(valid_tolerance, sample)
+        search, search_tolerance = valid[:, sample], tolerance_at(valid_tolerance, sample)
         search_min = max(3, int(np.ceil(min_count * ransac_points / n_valid)))
-    found, reason, _, capped = _sequential(search, search_tolerance, max_planes, search_min, probability,
+    found, reason, _, capped = sequential_search(search, search_tolerance, max_planes, search_min, probability,
                                            max_iterations, rng, n_total=n_valid, allows=allows)
     labels = np.full(len(pts), -1, dtype=np.int32)
     tolerances = (valid_tolerance, search_tolerance)
@@ -53,7 +53,7 @@ def _nearest(cols: np.ndarray, found: list[tuple[np.ndarray, float]], tolerance:
              ) -> tuple[np.ndarray, np.ndarray]:
     """Label each point of ``cols`` (3, n) with the nearest plane within ``tolerance`` (ties to
     the earlier plane; -1 when none). Returns (labels (n,) int32, distance to that plane (n,))."""
-    dist = _distances(cols, np.array([n for n, _ in found]), np.array([d for _, d in found]))
+    dist = plane_distances(cols, np.array([n for n, _ in found]), np.array([d for _, d in found]))
     best = dist[0]  # the running minimum, in place (dist is our own buffer)
     labels = np.zeros(cols.shape[1], dtype=np.int32)
     for j in range(1, len(found)):
@@ -77,7 +77,7 @@ def _label_all(valid: np.ndarray, search: np.ndarray, valid_idx: np.ndarray, cen
     own, _ = _nearest(search, found, tolerances[1])
     # Each plane's first fit saw the edge bands of the planes found after it: refit on the points
     # nearest to it (on the search sample when there is one: as precise, and 4x fewer points).
-    found = [_kept_fit(_fit_columns(np.compress(own == j, search, axis=1)), plane, allows)
+    found = [kept_fit(fit_columns(np.compress(own == j, search, axis=1)), plane, allows)
              if np.count_nonzero(own == j) >= 3 else plane for j, plane in enumerate(found)]
     own, dist = _nearest(valid, found, tolerances[0])
     labels[valid_idx] = own
@@ -88,7 +88,7 @@ def _label_all(valid: np.ndarray, search: np.ndarray, valid_idx: np.ndarray, cen
     mean_sq = np.bincount(own + 1, weights=dist, minlength=k + 1)[1:] / np.maximum(sizes, 1)
     planes = []
     for j, (normal, offset) in enumerate(found):
-        normal, offset = _canonical(normal, offset - float(normal @ center))
+        normal, offset = canonical(normal, offset - float(normal @ center))
         planes.append(Plane(normal=normal, offset=offset, inliers=valid_idx[own == j],
                             rms=float(np.sqrt(mean_sq[j]))))
     return tuple(planes)

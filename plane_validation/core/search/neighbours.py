@@ -23,8 +23,9 @@ try:  # the kernel behind csgraph.connected_components, without its per-call che
 except ImportError:  # pragma: no cover - a SciPy that moved it: the public function below
     _connected_components_undirected = None
 
-__all__ = ['Neighbours', 'Remaining', 'fragmented', 'joined_components', 'NORMAL_ANGLE_DEG', 'NORMAL_MIN_COS',
-           'FRAGMENTED', 'FRAGMENT_PIECE', 'SUPPORT_BALANCE', 'NEARBY_SCALES', 'COMPETE_ROUNDS']
+__all__ = ['Neighbours', 'Remaining', 'settle_numpy', 'fragmented', 'joined_components', 'row_starts',
+           'NORMAL_ANGLE_DEG', 'NORMAL_MIN_COS', 'FRAGMENTED', 'FRAGMENT_PIECE', 'SUPPORT_BALANCE', 'NEARBY_SCALES',
+           'COMPETE_ROUNDS']
 
 #: A point whose local surface normal is farther than this from a candidate plane's normal does not
 #: count towards that plane's region (a plane slanted across the nosings of a staircase keeps only

@@ -19,7 +19,7 @@ from .neighbours import (
     settle_numpy,
 )
 
-__all__ = ['GraphNeighbours', 'COMPACT_SHARE']
+__all__ = ['GraphNeighbours', 'graph_region', 'graph_region_numpy', 'COMPACT_SHARE']
 
 #: Components of a mask of up to this share of the points come from the graph of its points alone;
 #: of a larger one, from the whole graph with the edges leaving it cut (faster then).

@@ -24,7 +24,8 @@ from .neighbours import (
     joined_components,
 )
 
-__all__ = ['GridNeighbours', 'grid_neighbours', 'JUMP', 'HOLE_BRIDGE', 'LIDAR_BEND']
+__all__ = ['GridNeighbours', 'grid_neighbours', 'grid_region', 'grid_region_numpy', 'EIGHT', 'JUMP', 'HOLE_BRIDGE',
+           'LIDAR_BEND']
 
 #: A gap between grid neighbours this many times the gaps next to it along the image line (and
 #: this many typical pixel spacings at its range) is a depth jump.

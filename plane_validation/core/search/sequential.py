@@ -3,15 +3,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fit import _at, _degeneracy
-from .hypotheses import _best_plane
+from .fit import degeneracy, tolerance_at
+from .hypotheses import best_plane
 from .neighbours import Neighbours
 from .types import Allows, Tolerance
 
-__all__: list[str] = []
+__all__ = ['sequential_search']
 
 
-def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_count: int, probability: float,
+def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_count: int, probability: float,
                 max_iterations: int, rng: np.random.Generator, n_total: int,
                 neighbours: Neighbours | None = None, allows: Allows = None
                 ) -> tuple[list, str, np.ndarray | None, bool]:
@@ -23,13 +23,13 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
     rest_idx = np.arange(n) if neighbours is None else neighbours.searchable()  # the points that can join a region
     if len(rest_idx) < n:
         rest = cols[:, rest_idx]
-        tolerance = _at(tolerance, rest_idx)
+        tolerance = tolerance_at(tolerance, rest_idx)
     region = None if neighbours is None else np.full(n, -1, dtype=np.int64)
     remaining = None if neighbours is None else neighbours.remaining(rest_idx)
     found: list[tuple[np.ndarray, float]] = []
     reason = f'reached max_planes={max_planes}'
     while len(found) < max_planes:
-        why = _degeneracy(rest)
+        why = degeneracy(rest)
         if why is not None:
             reason = why if rest.shape[1] < n or n_total < 3 else f'no plane: {why}'
             break
@@ -37,7 +37,7 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
         rest_normals = None if neighbours is None or neighbours.normals is None else \
             np.ascontiguousarray(neighbours.normals[rest_idx].T)
         sampler = None if neighbours is None else neighbours.sampler(rest_idx)
-        best = _best_plane(rest, tolerance, probability, max_iterations, rng, region_of, rest_normals, sampler,
+        best = best_plane(rest, tolerance, probability, max_iterations, rng, region_of, rest_normals, sampler,
                            allows)
         if best is None:
             reason = 'every sampled triple was degenerate (nearly collinear or duplicate points)' if allows is None \
@@ -56,5 +56,5 @@ def _sequential(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_cou
             remaining = remaining.without(left)
         found.append((normal, offset))
         rest = np.compress(left, rest, axis=1)
-        tolerance = _at(tolerance, left)
+        tolerance = tolerance_at(tolerance, left)
     return found, reason, region, len(found) == max_planes > 0 and rest.shape[1] >= min_count
