@@ -8,7 +8,7 @@ import numpy as np
 from .. import kernels
 from .checks import finite_rows, resolve_min_inliers
 from .fit import allows_normal, canonical, fit_columns, plane_distances, refit_regions, tolerance_at
-from .graph import SearchGraph, build_search_graph, spread_nearest
+from .graph import SearchGraph, checked_search_graph, spread_nearest
 from .grid import spread_grid
 from .neighbours import Neighbours
 from .sequential import sequential_search
@@ -18,35 +18,23 @@ __all__ = ['detect_regions', 'MERGE_KEEP', 'MERGE_SPREAD', 'GRAZING_DEG']
 
 
 def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
-                    probability: float, max_iterations: int, rng: np.random.Generator,
-                    ransac_points: int | None, shape: tuple[int, int] | None,
-                    graph: SearchGraph | None, viewpoint: np.ndarray, grid_points: int | None,
-                    allows: Allows = None) -> Segmentation:
+                   probability: float, max_iterations: int, rng: np.random.Generator,
+                   ransac_points: int | None, shape: tuple[int, int] | None,
+                   graph: SearchGraph | None, viewpoint: np.ndarray, grid_points: int | None,
+                   allows: Allows = None) -> Segmentation:
     """detect_planes with connected regions (see its docstring)."""
     finite = finite_rows(pts)
     valid_idx = np.flatnonzero(finite)
     n_valid = len(valid_idx)
     min_count = resolve_min_inliers(min_inliers, n_valid)
-    if graph is None:
-        graph = build_search_graph(pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
-    elif not isinstance(graph, SearchGraph):
-        raise ValueError(f'graph must be a SearchGraph (search_graph) or None, got {type(graph).__name__}')
-    elif (graph.n_points, graph.shape, graph.ransac_points, graph.grid_points) != \
-            (len(pts), shape, ransac_points, grid_points):
-        raise ValueError(f'graph was built for {graph.n_points} points, shape {graph.shape}, ransac_points '
-                         f'{graph.ransac_points} and grid_points {graph.grid_points}, not {len(pts)}, {shape}, '
-                         f'{ransac_points} and {grid_points}')
-    elif graph.viewpoint != tuple(viewpoint.tolist()):
-        raise ValueError(f'graph was built for viewpoint {graph.viewpoint}, not {tuple(viewpoint.tolist())}')
-    elif graph.n_valid != n_valid or not finite[graph.search_idx].all():
-        raise ValueError('graph was built for a cloud with other valid (finite) rows')
+    graph = checked_search_graph(graph, pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
     search_idx, step, center, neighbours = graph.search_idx, graph.step, graph.center, graph.neighbours
     search = np.ascontiguousarray((pts[search_idx] - center).T)
     search_min = max(3, int(np.ceil(min_count * len(search_idx) / max(n_valid, 1))))
     search_tolerance = tolerance_at(tolerance, search_idx)
     found, reason, region, capped = sequential_search(search, search_tolerance, max_planes, search_min, probability,
-                                                max_iterations, rng, n_total=n_valid, neighbours=neighbours,
-                                                allows=allows)
+                                                      max_iterations, rng, n_total=n_valid, neighbours=neighbours,
+                                                      allows=allows)
     labels = np.full(len(pts), -1, dtype=np.int32)
     if not found:
         return Segmentation(labels=labels, planes=(), tolerance=tolerance, n_valid=n_valid, reason=reason)
@@ -70,7 +58,7 @@ def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_i
         labels[search_idx] = np.where((region >= 0) & near, region, -1)  # within t of the refitted plane
     else:
         labels[valid_idx] = spread_nearest(pts[valid_idx] - center, graph.nearest, region, found,
-                                            tolerance_at(tolerance, valid_idx))
+                                           tolerance_at(tolerance, valid_idx))
     counts = np.bincount(labels[labels >= 0], minlength=len(found))
     small = np.flatnonzero(counts < min_count)
     if len(small):

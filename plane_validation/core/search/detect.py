@@ -107,10 +107,10 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX
     rng = generator(seed)
     if connectivity:
         seg = detect_regions(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
-                              ransac_points, shape, graph, view, grid_points, allows)
+                             ransac_points, shape, graph, view, grid_points, allows)
     else:
         seg = detect_infinite(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
-                               ransac_points, allows)
+                              ransac_points, allows)
     return _facing_away(dataclasses.replace(seg, tolerance=tolerance, **model), view)
 
 

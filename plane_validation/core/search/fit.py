@@ -120,7 +120,7 @@ def allows_normal(allows: Allows, normal: np.ndarray) -> bool:
 
 
 def kept_fit(fit: tuple[np.ndarray, float], plane: tuple[np.ndarray, float], allows: Allows
-              ) -> tuple[np.ndarray, float]:
+             ) -> tuple[np.ndarray, float]:
     """``fit`` when a plane may have its normal, else the ``plane`` it would replace."""
     return fit if allows_normal(allows, fit[0]) else plane
 

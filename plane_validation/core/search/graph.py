@@ -15,7 +15,7 @@ from .neighbours import Neighbours
 from .neighbours_grid import grid_neighbours
 from .types import Tolerance, Viewpoint
 
-__all__ = ['SearchGraph', 'search_graph', 'build_search_graph', 'spread_nearest']
+__all__ = ['SearchGraph', 'search_graph', 'build_search_graph', 'checked_search_graph', 'spread_nearest']
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,12 +57,34 @@ def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
     check_search_size('ransac_points', ransac_points)
     check_search_size('grid_points', grid_points)
     return build_search_graph(pts, finite_rows(pts), None if shape is None else check_shape(shape, len(pts)),
-                         ransac_points, rng, check_viewpoint(viewpoint), grid_points)
+                              ransac_points, rng, check_viewpoint(viewpoint), grid_points)
+
+
+def checked_search_graph(graph: SearchGraph | None, pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | None,
+                         ransac_points: int | None, rng: np.random.Generator, viewpoint: np.ndarray,
+                         grid_points: int | None) -> SearchGraph:
+    """``graph`` when it was built for these checked points ``pts`` (finite rows ``finite`` (N,)), ``shape``,
+    ``ransac_points``, ``grid_points`` and ``viewpoint`` (3,), else ValueError; None: built here, from ``rng``."""
+    n_valid = int(np.count_nonzero(finite))
+    if graph is None:
+        return build_search_graph(pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
+    elif not isinstance(graph, SearchGraph):
+        raise ValueError(f'graph must be a SearchGraph (search_graph) or None, got {type(graph).__name__}')
+    elif (graph.n_points, graph.shape, graph.ransac_points, graph.grid_points) != \
+            (len(pts), shape, ransac_points, grid_points):
+        raise ValueError(f'graph was built for {graph.n_points} points, shape {graph.shape}, ransac_points '
+                         f'{graph.ransac_points} and grid_points {graph.grid_points}, not {len(pts)}, {shape}, '
+                         f'{ransac_points} and {grid_points}')
+    elif graph.viewpoint != tuple(viewpoint.tolist()):
+        raise ValueError(f'graph was built for viewpoint {graph.viewpoint}, not {tuple(viewpoint.tolist())}')
+    elif graph.n_valid != n_valid or not finite[graph.search_idx].all():
+        raise ValueError('graph was built for a cloud with other valid (finite) rows')
+    return graph
 
 
 def build_search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | None, ransac_points: int | None,
-                  rng: np.random.Generator | None, viewpoint: np.ndarray, grid_points: int | None
-                  ) -> SearchGraph | None:
+                       rng: np.random.Generator | None, viewpoint: np.ndarray, grid_points: int | None
+                       ) -> SearchGraph | None:
     """:func:`search_graph` of checked points ``pts`` with their finite rows ``finite`` (N,)."""
     valid_idx = np.flatnonzero(finite)
     n_valid = len(valid_idx)
@@ -104,7 +126,7 @@ def _nearest_searched_tree(searched: np.ndarray, points: np.ndarray) -> np.ndarr
 
 
 def spread_nearest(points: np.ndarray, nearest: np.ndarray, region: np.ndarray, found: list,
-                    tolerance: Tolerance) -> np.ndarray:
+                   tolerance: Tolerance) -> np.ndarray:
     """Labels of ``points`` (n, 3) from the region of their nearest searched point (``nearest`` (n,):
     its position among the searched points), when within ``tolerance`` of that region's plane; -1 otherwise."""
     lab = region[nearest]

@@ -63,7 +63,7 @@ def grid_image(points: np.ndarray, finite: np.ndarray, shape: tuple[int, int], s
 
 
 def spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
-                 neighbours: GridNeighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+                neighbours: GridNeighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
     """Labels (N,) of every pixel of the image ``pts`` (N, 3; ``valid`` (N,): its finite rows) from
     the regions of the searched sub-grid: the region of the nearest sub-grid pixel when the pixel is
     within ``tolerance`` of its plane (``planes`` in the coordinates of ``pts``), else, of the 3 x 3
@@ -91,7 +91,7 @@ def _sub_regions(shape: tuple[int, int], step: int, region: np.ndarray, neighbou
 
 
 def spread_grid_numpy(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
-                       neighbours: GridNeighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+                      neighbours: GridNeighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
     """:func:`spread_grid` in numpy: the reference its kernel is tested against."""
     h, w = shape
     gh, gw = neighbours.shape

@@ -131,9 +131,9 @@ def _shuffled(m: int) -> np.ndarray:
 
 
 def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_iterations: int,
-                rng: np.random.Generator, region_of: Keep | None = None,
-                point_normals: np.ndarray | None = None, sampler: Sampler | None = None, allows: Allows = None
-                ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
+               rng: np.random.Generator, region_of: Keep | None = None,
+               point_normals: np.ndarray | None = None, sampler: Sampler | None = None, allows: Allows = None
+               ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
     """One RANSAC run on the points ``cols`` (3, m): (normal, offset, inlier mask, mask of the points it
     takes out of the search) after refinement, or None when every sampled triple was degenerate. ``region_of``
     maps an inlier mask (m,) to the part a plane would really keep (its largest connected region, see
@@ -214,7 +214,7 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
         if region_of is not None:
             signed = signed_distances(cols, best_normals, best_offsets)
             return best_region(cols, tolerance, best_normals, best_offsets, np.abs(signed), signed > 0, region_of,
-                                point_normals, allows=allows)
+                               point_normals, allows=allows)
         dist = plane_distances(cols, best_normals, best_offsets)
     np.minimum(dist, tolerance, out=dist)
     winner = int(np.argmin(np.einsum('ij,ij->i', dist, dist)))
@@ -239,8 +239,8 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
 
 
 def best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, offsets: np.ndarray, dist: np.ndarray,
-                 above: np.ndarray, keep: Keep, point_normals: np.ndarray | None = None, *, allows: Allows = None
-                 ) -> tuple[np.ndarray, float, np.ndarray]:
+                above: np.ndarray, keep: Keep, point_normals: np.ndarray | None = None, *, allows: Allows = None
+                ) -> tuple[np.ndarray, float, np.ndarray]:
     """Of the confirmed hypotheses (distances ``dist`` (h, m), ``above`` (h, m): the points on the side of each
     plane its normal points to), the one whose region (``keep``: its
     largest connected one, see :data:`Keep` and SUPPORT) is largest (ties: MSAC); then refit on the region

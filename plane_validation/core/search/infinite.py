@@ -12,8 +12,8 @@ __all__ = ['detect_infinite']
 
 
 def detect_infinite(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
-                     probability: float, max_iterations: int, rng: np.random.Generator, ransac_points: int | None,
-                     allows: Allows = None) -> Segmentation:
+                    probability: float, max_iterations: int, rng: np.random.Generator, ransac_points: int | None,
+                    allows: Allows = None) -> Segmentation:
     """detect_planes without connectivity (see its docstring): the planes found on a sample of the valid points
     (``ransac_points``), refitted and every valid point of ``pts`` (N, 3) labelled with its nearest plane."""
     cols = np.ascontiguousarray(pts.T)
@@ -35,7 +35,7 @@ def detect_infinite(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_
         search, search_tolerance = valid[:, sample], tolerance_at(valid_tolerance, sample)
         search_min = max(3, int(np.ceil(min_count * ransac_points / n_valid)))
     found, reason, _, capped = sequential_search(search, search_tolerance, max_planes, search_min, probability,
-                                           max_iterations, rng, n_total=n_valid, allows=allows)
+                                                 max_iterations, rng, n_total=n_valid, allows=allows)
     labels = np.full(len(pts), -1, dtype=np.int32)
     tolerances = (valid_tolerance, search_tolerance)
     planes = _label_all(valid, search, valid_idx, center, labels, found, tolerances, allows)

@@ -12,9 +12,9 @@ __all__ = ['sequential_search']
 
 
 def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_count: int, probability: float,
-                max_iterations: int, rng: np.random.Generator, n_total: int,
-                neighbours: Neighbours | None = None, allows: Allows = None
-                ) -> tuple[list, str, np.ndarray | None, bool]:
+                      max_iterations: int, rng: np.random.Generator, n_total: int,
+                      neighbours: Neighbours | None = None, allows: Allows = None
+                      ) -> tuple[list, str, np.ndarray | None, bool]:
     """Sequential RANSAC on the points ``cols`` (3, n): the planes [(normal, offset)] in
     extraction order, why the search stopped, with ``neighbours`` the region of each point
     (n,) (-1: none), and whether it stopped at ``max_planes`` with ``min_count`` points left."""
@@ -38,7 +38,7 @@ def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, m
             np.ascontiguousarray(neighbours.normals[rest_idx].T)
         sampler = None if neighbours is None else neighbours.sampler(rest_idx)
         best = best_plane(rest, tolerance, probability, max_iterations, rng, region_of, rest_normals, sampler,
-                           allows)
+                          allows)
         if best is None:
             reason = 'every sampled triple was degenerate (nearly collinear or duplicate points)' if allows is None \
                 else 'no sampled plane satisfied the orientation constraint (or every triple was degenerate)'
