@@ -12,8 +12,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from plane_validation.core import kernels
-from plane_validation.core.ransac import _spread_grid, _spread_grid_numpy, finite_rows
-from plane_validation.core.regions import Neighbours
+from plane_validation.core.ransac import finite_rows
+from plane_validation.core.search.grid import spread_grid, spread_grid_numpy
+from plane_validation.core.search.neighbours_graph import GraphNeighbours
+from plane_validation.core.search.neighbours_grid import GridNeighbours
 
 SETTINGS = settings(max_examples=60, deadline=None)
 
@@ -30,7 +32,7 @@ def _image_case(seed: int, per_point: bool):
     pixel = np.flatnonzero(rng.random(gh * gw) < 0.8)
     node = np.full(gh * gw, -1)
     node[pixel] = np.arange(len(pixel))
-    neighbours = Neighbours(n=len(pixel), shape=(gh, gw), pixel=pixel, node=node)
+    neighbours = GridNeighbours(n=len(pixel), shape=(gh, gw), pixel=pixel, node=node)
     k = int(rng.integers(1, 6))
     region = rng.integers(-1, k, len(pixel))
     normals = rng.normal(size=(k, 3))
@@ -44,8 +46,8 @@ def _image_case(seed: int, per_point: bool):
 @given(st.integers(0, 2**32 - 1), st.booleans())
 def test_spread_grid_matches_numpy(seed, per_point):
     case = _image_case(seed, per_point)
-    labels, best = _spread_grid(*case)
-    ref_labels, ref_best = _spread_grid_numpy(*case)
+    labels, best = spread_grid(*case)
+    ref_labels, ref_best = spread_grid_numpy(*case)
     np.testing.assert_array_equal(labels, ref_labels)
     np.testing.assert_allclose(best, ref_best, rtol=1e-12, atol=1e-12)
     assert labels.dtype == np.int32
@@ -169,7 +171,7 @@ def _grid_case(seed: int):
     normals[rng.random(len(pixel)) < 0.1] = np.nan
     b = int(rng.integers(0, 6))
     bridges = np.column_stack([rng.integers(0, h * w, b), rng.integers(0, h * w, b), rng.integers(0, 2, b)])
-    neighbours = Neighbours(n=len(pixel), shape=(h, w), pixel=pixel, node=node, usable=usable, normals=normals,
+    neighbours = GridNeighbours(n=len(pixel), shape=(h, w), pixel=pixel, node=node, usable=usable, normals=normals,
                             bridges=bridges.astype(np.int64) if b else None)
     rest = np.flatnonzero(rng.random(len(pixel)) < 0.9)
     support = rng.random(len(rest)) < rng.uniform(0.3, 1.0)
@@ -187,10 +189,10 @@ def _grid_case(seed: int):
 @settings(max_examples=300, deadline=None)
 @given(st.integers(0, 2**32 - 1))
 def test_grid_region_matches_numpy(seed):
-    from plane_validation.core.ransac import _grid_region, _grid_region_numpy
+    from plane_validation.core.search.neighbours_grid import grid_region, grid_region_numpy
     case = _grid_case(seed)
-    kept, taken = _grid_region(*case)
-    ref_kept, ref_taken = _grid_region_numpy(*case)
+    kept, taken = grid_region(*case)
+    ref_kept, ref_taken = grid_region_numpy(*case)
     np.testing.assert_array_equal(kept, ref_kept)
     np.testing.assert_array_equal(taken, ref_taken)
 
@@ -212,7 +214,7 @@ def test_grid_components_match_the_numpy_labelling(seed):
 @given(st.integers(0, 2**32 - 1))
 def test_grid_compete_matches_numpy(seed):
     """Random distances on a random sub-grid, rounded so that equal offers occur (ties go to the smaller index)."""
-    from plane_validation.core.ransac import COMPETE_ROUNDS, _settle
+    from plane_validation.core.search.neighbours import COMPETE_ROUNDS, settle_numpy
     neighbours, _, _, _, _, _ = _grid_case(seed)
     rng = np.random.default_rng(seed)
     k, m = int(rng.integers(1, 5)), neighbours.n
@@ -223,7 +225,7 @@ def test_grid_compete_matches_numpy(seed):
     region = rng.integers(0, k + 1, m)
     got = kernels.grid_compete(dist, region.copy(), neighbours.pixel, neighbours.node, neighbours.shape[1],
                                kernels.EIGHT, COMPETE_ROUNDS)
-    expected = _settle(dist, region.copy(), neighbours)
+    expected = settle_numpy(dist, region.copy(), neighbours)
     np.testing.assert_array_equal(np.where(got < k, got, -1), expected)
 
 
@@ -239,7 +241,7 @@ def _graph_case(seed: int):
     normals = normal + rng.normal(scale=rng.choice([0.1, 1.0]), size=(n, 3))
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     normals[rng.random(n) < 0.1] = np.nan
-    local = Neighbours(n=n, edges=pairs.astype(np.int64), normals=None if rng.random() < 0.2 else normals)
+    local = GraphNeighbours(n=n, edges=pairs.astype(np.int64), normals=None if rng.random() < 0.2 else normals)
     support = rng.random(n) < rng.uniform(0.3, 1.0)
     mask = support & (rng.random(n) < rng.uniform(0.1, 0.7))
     return local, mask, normal, support, rng.random(n) < 0.5
@@ -248,11 +250,11 @@ def _graph_case(seed: int):
 @settings(max_examples=300, deadline=None)
 @given(st.integers(0, 2**32 - 1))
 def test_graph_region_matches_numpy(seed):
-    from plane_validation.core.ransac import _NO_NORMALS, _graph_region, _graph_region_numpy
+    from plane_validation.core.search.neighbours_graph import _NO_NORMALS, graph_region, graph_region_numpy
     local, mask, normal, support, above = _graph_case(seed)
     normals = _NO_NORMALS if local.normals is None else local.normals
-    kept, taken = _graph_region(kernels.c_array(local.edges, np.int64), normals, mask, normal, support, above)
-    ref_kept, ref_taken = _graph_region_numpy(local, mask, normal, support, above)
+    kept, taken = graph_region(kernels.c_array(local.edges, np.int64), normals, mask, normal, support, above)
+    ref_kept, ref_taken = graph_region_numpy(local, mask, normal, support, above)
     np.testing.assert_array_equal(kept, ref_kept)
     np.testing.assert_array_equal(taken, ref_taken)
 
@@ -304,7 +306,7 @@ def test_voxel_knn_matches_the_kd_tree(seed, k):
 @SETTINGS
 @given(st.integers(0, 2**32 - 1))
 def test_nearest_searched_matches_the_kd_tree(seed):
-    from plane_validation.core.ransac import _nearest_searched, _nearest_searched_tree
+    from plane_validation.core.search.graph import _nearest_searched, _nearest_searched_tree
     pts = _cloud_case(seed)
     rng = np.random.default_rng(seed)
     searched = pts[rng.random(len(pts)) < 0.3]

@@ -126,3 +126,20 @@ def test_every_parameter_default_is_valid_and_each_range_is_enforced():
 def test_params_yaml_is_the_generated_file():
     from plane_validation.ros.node import params_yaml
     assert (ROOT / 'config' / 'params.yaml').read_text() == params_yaml()
+
+
+def test_the_search_functions_default_to_the_parameter_table_s_search():
+    """detect_planes, search_graph, tune_tolerance and select_plane_count take the parameter table's search settings
+    by default (core/params.py defines the RANSAC defaults once; the viewpoint's default is None, the origin)."""
+    import inspect
+
+    from plane_validation.core.ransac import detect_planes, search_graph
+    from plane_validation.core.tuning import select_plane_count, tune_tolerance
+    table = PipelineConfig().search.kwargs()
+    del table['viewpoint']
+    for function, least in ((detect_planes, set(table)), (search_graph, {'ransac_points', 'grid_points'}),
+                            (tune_tolerance, set(table)), (select_plane_count, {'max_planes', 'min_inliers'})):
+        defaults = {name: p.default for name, p in inspect.signature(function).parameters.items() if name in table}
+        assert least <= set(defaults), (function.__name__, least - set(defaults))
+        differ = {name: (value, table[name]) for name, value in defaults.items() if value != table[name]}
+        assert not differ, (function.__name__, differ)

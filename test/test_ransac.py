@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 import plane_validation as pv
 from plane_validation import scenes
-from plane_validation.core import ransac
+from plane_validation.core.search import hypotheses
 
 
 def match_planes(found: np.ndarray, truth: np.ndarray) -> np.ndarray:
@@ -440,16 +440,16 @@ def test_prescoring_keeps_the_best_hypotheses(make, monkeypatch):
     """Dropping hypotheses after PRESCORE points (their count there cannot reach the best few) scores
     fewer distances and gives the same planes as scoring every hypothesis on the whole subset."""
     scene = make()
-    distances = ransac._distances
+    distances = hypotheses.plane_distances
     runs = []
-    for prescore in (ransac.PRESCORE, 10**9):
+    for prescore in (hypotheses.PRESCORE, 10**9):
         scored = []
 
         def spy(cols, normals, offsets, scored=scored):
             scored.append(cols.shape[1] * len(normals) if cols.dtype == np.float32 else 0)
             return distances(cols, normals, offsets)
-        monkeypatch.setattr(ransac, 'PRESCORE', prescore)
-        monkeypatch.setattr(ransac, '_distances', spy)
+        monkeypatch.setattr(hypotheses, 'PRESCORE', prescore)
+        monkeypatch.setattr(hypotheses, 'plane_distances', spy)
         seg = pv.detect_planes(scene.points, 0.02, seed=5, max_planes=8)
         runs.append((seg.labels, seg.coefficients, sum(scored)))
     np.testing.assert_array_equal(runs[0][0], runs[1][0])

@@ -178,7 +178,9 @@ def test_nearby_points_lie_in_the_window_or_at_the_end_of_a_short_walk():
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import shortest_path
 
-    from plane_validation.core.regions import NEARBY_SCALES, graph_neighbours, grid_neighbours
+    from plane_validation.core.regions import graph_neighbours
+    from plane_validation.core.search.neighbours import NEARBY_SCALES
+    from plane_validation.core.search.neighbours_grid import grid_neighbours
     rng = np.random.default_rng(0)
     pts, _ = _wall_with_box()
     image, valid = pts.reshape(120, 160, 3), np.isfinite(pts).all(axis=1).reshape(120, 160)
@@ -206,7 +208,7 @@ def test_nearby_points_lie_in_the_window_or_at_the_end_of_a_short_walk():
 def test_sampling_nearby_points_finds_small_planes_that_global_triples_miss(monkeypatch):
     """60 tiles of 100 points, 20 x 20 cm, randomly turned, in as many uniform clutter points: a
     budget of 200 hypotheses per plane finds every tile only with local triples (LOCAL_SHARE)."""
-    from plane_validation.core import ransac
+    from plane_validation.core.search import hypotheses
     rng = np.random.default_rng(0)
     pts, truth = [], []
     for j in range(60):
@@ -215,9 +217,9 @@ def test_sampling_nearby_points_finds_small_planes_that_global_triples_miss(monk
         pts.append(rng.uniform(0, 3, 3) + rng.uniform(-0.1, 0.1, (100, 2)) @ basis)
         truth.append(np.full(100, j))
     pts, truth = np.vstack(pts + [rng.uniform(0, 3, (6000, 3))]), np.concatenate(truth + [np.full(6000, -1)])
-    found, local = {}, ransac.LOCAL_SHARE
+    found, local = {}, hypotheses.LOCAL_SHARE
     for share in (local, 0.0):
-        monkeypatch.setattr(ransac, 'LOCAL_SHARE', share)
+        monkeypatch.setattr(hypotheses, 'LOCAL_SHARE', share)
         seg = pv.detect_planes(pts, 0.004, max_planes=70, min_inliers=50, max_iterations=200, seed=0)
         found[share] = segmentation_quality(seg.labels, truth).correct
     assert local > 0 and found[local] >= 58 and found[0.0] < found[local], found
@@ -241,8 +243,9 @@ def test_a_graph_pickles_without_its_caches():
 
 
 def test_touching_regions_of_one_surface_are_merged_and_others_are_not():
-    from plane_validation.core.ransac import _fit_columns, _merge_coplanar
     from plane_validation.core.regions import graph_neighbours
+    from plane_validation.core.search.connected import _merge_coplanar
+    from plane_validation.core.search.fit import fit_columns
     rng = np.random.default_rng(1)
     floor = np.column_stack([rng.uniform(0, 2, 4000), rng.uniform(0, 1, 4000), rng.normal(0, 0.002, 4000)])
     wall = np.column_stack([rng.uniform(0, 2, 2000), np.full(2000, 1.0) + rng.normal(0, 0.002, 2000),
@@ -251,7 +254,7 @@ def test_touching_regions_of_one_surface_are_merged_and_others_are_not():
     pts = np.vstack([floor, wall, apart])
     region = np.concatenate([np.where(floor[:, 0] < 1, 0, 2), np.full(2000, 1), np.full(1000, 3)])
     search = np.ascontiguousarray(pts.T)
-    found = [_fit_columns(np.compress(region == j, search, axis=1)) for j in range(4)]
+    found = [fit_columns(np.compress(region == j, search, axis=1)) for j in range(4)]
     merged, planes = _merge_coplanar(search, region.copy(), found, 0.01, graph_neighbours(pts))
     assert len(planes) == 3  # the two floor halves are one region; the wall and the far patch stay apart
     assert np.array_equal(merged, np.concatenate([np.zeros(4000), np.ones(2000), np.full(1000, 2)]))
@@ -267,7 +270,7 @@ def _chain(n: int):
 def test_border_settling_breaks_exact_ties_towards_the_smaller_index_neighbour():
     # a point between two regions whose planes are exactly as far: the graph neighbour with the
     # smaller index wins (as before border settling looked only at changed points)
-    from plane_validation.core.ransac import _compete
+    from plane_validation.core.search.connected import _compete
     nb = _chain(3)
     search = np.array([[-1.0, 0.0, 1.0], [0.0, 0.5, 1.0], [0.0, 0.0, 0.0]])  # y = 0, 0.5, 1
     planes = [(np.array([0.0, 1.0, 0.0]), 0.0), (np.array([0.0, 1.0, 0.0]), -1.0)]  # y = 0 and y = 1
@@ -279,7 +282,7 @@ def test_border_settling_breaks_exact_ties_towards_the_smaller_index_neighbour()
 def test_border_settling_compares_planes_along_the_viewing_ray():
     # a wall 2 m ahead of the sensor (y = 2) and a side face (x = 0.3) the rays graze: a wall point 2 cm
     # off the wall near the corner is 1 cm from the side face in meters, but its ray meets the wall first
-    from plane_validation.core.ransac import _compete
+    from plane_validation.core.search.connected import _compete
     nb = _chain(3)
     search = np.array([[0.3, 1.5, 0.0], [0.31, 2.02, 0.0], [0.8, 2.0, 0.0]]).T  # side, the wall point, wall
     planes = [(np.array([1.0, 0.0, 0.0]), -0.3), (np.array([0.0, 1.0, 0.0]), -2.0)]  # side, wall
@@ -290,9 +293,9 @@ def test_border_settling_compares_planes_along_the_viewing_ray():
 
 @pytest.mark.parametrize('organized', [True, False])
 def test_skipping_hypotheses_by_their_coherent_inliers_keeps_the_same_planes(monkeypatch, organized):
-    """_best_region labels a hypothesis only when its inliers with agreeing normals could beat the
+    """best_region labels a hypothesis only when its inliers with agreeing normals could beat the
     region found so far: the same planes as labelling every hypothesis."""
-    from plane_validation.core import ransac
+    from plane_validation.core.search import hypotheses, neighbours_graph, neighbours_grid
     if organized:
         scene = scenes.depth_camera('table', width=160, height=120, seed=3)
         points, shape, t = scene.points, (120, 160), 0.02
@@ -300,13 +303,14 @@ def test_skipping_hypotheses_by_their_coherent_inliers_keeps_the_same_planes(mon
         scene = scenes.room(6000, 0.01, seed=3)
         points, shape, t = scene.points, None, 0.03
     calls = []
-    name = '_grid_region' if organized else '_graph_region'  # each region comes from one compiled call
-    compiled = getattr(ransac, name)
-    monkeypatch.setattr(ransac, name, lambda *args: calls.append(1) or compiled(*args))
+    module, name = (neighbours_grid, 'grid_region') if organized else (neighbours_graph, 'graph_region')
+    compiled = getattr(module, name)  # each region comes from one compiled call
+    monkeypatch.setattr(module, name, lambda *args: calls.append(1) or compiled(*args))
     fast = pv.detect_planes(points, t, seed=5, shape=shape, max_planes=8)
     n_fast, calls[:] = len(calls), []
-    best_region = ransac._best_region
-    monkeypatch.setattr(ransac, '_best_region', lambda *args, **kw: best_region(*args[:7], **kw))  # no point normals
+    best_region = hypotheses.best_region
+    # no point normals
+    monkeypatch.setattr(hypotheses, 'best_region', lambda *args, **kw: best_region(*args[:7], **kw))
     full = pv.detect_planes(points, t, seed=5, shape=shape, max_planes=8)
     assert fast.n_planes >= 3 and np.array_equal(fast.labels, full.labels)
     coefficients = [np.array([p.coefficients for p in seg.planes]) for seg in (fast, full)]
@@ -422,7 +426,7 @@ def test_a_seam_behind_missing_returns_still_wraps():
 
 
 def test_lidar_regions_span_short_runs_of_holes_but_not_a_depth_jump_behind_one():
-    from plane_validation.core.regions import HOLE_BRIDGE, grid_neighbours
+    from plane_validation.core.search.neighbours_grid import HOLE_BRIDGE, grid_neighbours
     # a lidar's image: its rows (rings) 10 times farther apart in angle than its columns
     v, u = np.mgrid[0:20, 0:40]
     depth = np.where(u < 20, 2.0, 1.0)  # the right half 1 m nearer: a depth jump at column 20
@@ -442,7 +446,7 @@ def test_lidar_regions_span_short_runs_of_holes_but_not_a_depth_jump_behind_one(
 
 
 def test_only_a_scan_whose_last_column_is_next_to_its_first_wraps_around():
-    from plane_validation.core.regions import grid_neighbours
+    from plane_validation.core.search.neighbours_grid import grid_neighbours
     for scene, wraps in ((scenes.lidar(organized=True, rings=16, seed=1), True),
                          (scenes.depth_camera('room', width=160, height=120, seed=0), False)):
         image = scene.points.reshape(*scene.shape, 3)
@@ -571,7 +575,7 @@ def test_a_viewpoint_must_be_three_finite_coordinates_and_match_a_prebuilt_graph
 def test_grid_normals_of_a_lidar_image_look_one_ring_away():
     # a lidar's rings lie 13 times farther apart than its returns along a ring: normals from 3 rings away
     # reached past a wall that 5 rings cross, and the wall fell apart (no region of it above 341 points)
-    from plane_validation.core.regions import _reach
+    from plane_validation.core.search.neighbours_grid import _reach
     scan = scenes.lidar(rings=16, seed=1, organized=True)
     image = scan.points.reshape(*scan.shape, 3)
     valid = np.isfinite(image).all(axis=2)
@@ -588,12 +592,12 @@ def test_noisy_normals_of_a_lidar_image_are_unknown_not_wrong(monkeypatch):
     # 3 cm range noise in a 2.4 m corridor: a normal over one ring is noise, and such normals cut the floor
     # and walls apart (0/8 correct, F1 0.41, where only the inliers connect a region); unknown, they let
     # any plane keep the point
-    from plane_validation.core import ransac, regions
+    from plane_validation.core.search import hypotheses, neighbours_grid
     scan = scenes.lidar(**{**scenes.VLP16_CORRIDOR, 'sigma': 0.03}, seed=1, organized=True)
     seg = pv.detect_planes(scan.points, 0.05, seed=0, shape=scan.shape)
     assert segmentation_quality(seg.labels, scan.labels).f1 > 0.9
-    monkeypatch.setattr(regions, 'LIDAR_BEND', np.inf)  # no normal unknown for noise
-    monkeypatch.setattr(ransac, 'SUPPORT', 1.0)
+    monkeypatch.setattr(neighbours_grid, 'LIDAR_BEND', np.inf)  # no normal unknown for noise
+    monkeypatch.setattr(hypotheses, 'SUPPORT', 1.0)
     seg = pv.detect_planes(scan.points, 0.05, seed=0, shape=scan.shape)
     assert segmentation_quality(seg.labels, scan.labels).f1 < 0.6
 
@@ -605,7 +609,7 @@ def test_components_of_joined_pairs_equal_scipys_connected_components(n):
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from plane_validation.core.regions import joined_components
+    from plane_validation.core.search.neighbours import joined_components
     rng = np.random.default_rng(n)
     for _ in range(20 if n < 1000 else 2):
         a, b = rng.integers(0, n, (2, int(rng.integers(0, 2 * n + 1))))
@@ -620,7 +624,7 @@ def test_components_of_joined_pairs_equal_scipys_connected_components(n):
 def test_a_bridge_within_a_wrapping_row_is_found_once_and_not_taken_for_the_seam():
     # the row's end pixels were scanned twice (the row extended past its end for the seam): a bridge from
     # column 0 to 2 came out a second time flagged as crossing the seam, and its steps beside it differed
-    from plane_validation.core.regions import _bridges
+    from plane_validation.core.search.neighbours_grid import _bridges
     x = np.array([0.0, np.nan, 0.05, 0.06, 0.07, 0.08, 0.09, 0.10, 0.11, -0.04])
     image = np.stack([x, np.zeros(10), np.full(10, 5.0)], -1)[None]
     valid = np.isfinite(image).all(-1)
@@ -644,24 +648,27 @@ def _noisy_wall(sigma: float, seed: int = 0) -> np.ndarray:
 def test_a_wall_noisier_than_t_stays_one_region_on_the_image(monkeypatch):
     # t = 0.6 sigma: 45 % of the wall lies within t, too few to hold together as 4-connected pixels;
     # the points within SUPPORT tolerances connect them
+    from plane_validation.core.search import hypotheses
     pts = _noisy_wall(0.01)
     within = np.abs(pts[:, 2] - 2.0) <= 0.006  # about the points within t of the true wall
     seg = pv.detect_planes(pts, 0.006, seed=0, shape=(120, 160), max_planes=3, min_inliers=0.05)
     assert seg.n_planes >= 1
     kept = np.count_nonzero(seg.labels == 0)
     assert kept >= 0.8 * within.sum() and abs(seg.planes[0].normal[2]) > 0.99, (kept, within.sum())
-    monkeypatch.setattr(pv.core.ransac, 'SUPPORT', 1.0)  # connected through the inliers alone: pieces
+    monkeypatch.setattr(hypotheses, 'SUPPORT', 1.0)  # connected through the inliers alone: pieces
     pieces = pv.detect_planes(pts, 0.006, seed=0, shape=(120, 160), max_planes=3, min_inliers=0.05)
     assert np.count_nonzero(pieces.labels == 0) < 0.5 * within.sum()
 
 
 def test_a_region_is_joined_through_its_support_only_when_its_inliers_fall_apart():
-    from plane_validation.core.regions import Neighbours, fragmented
+    from plane_validation.core.search.neighbours import fragmented
+    from plane_validation.core.search.neighbours_graph import GraphNeighbours
+    from plane_validation.core.search.neighbours_grid import GridNeighbours
     assert not fragmented(np.array([60, 30]))  # the larger piece holds >= FRAGMENTED (half)
     assert not fragmented(np.array([34, 33, 33]))  # three drawer fronts: large pieces, kept apart
     assert fragmented(np.array([5] + [1] * 95)) and not fragmented(np.zeros(0, np.int64))
     h, w = 10, 20
-    grid = Neighbours(n=h * w, shape=(h, w), pixel=np.arange(h * w), node=np.arange(h * w),
+    grid = GridNeighbours(n=h * w, shape=(h, w), pixel=np.arange(h * w), node=np.arange(h * w),
                       usable=np.ones(h * w, bool))
     support = np.ones((h, w), bool)
     above = (np.arange(h)[:, None] < h // 2).repeat(w, axis=1).ravel()  # the support beyond t on both sides
@@ -683,7 +690,7 @@ def test_a_region_is_joined_through_its_support_only_when_its_inliers_fall_apart
     joined = grid.largest(dots.ravel(), gap.ravel(), above).reshape(h, w)
     assert joined.sum() == 25 and not joined[:, 10:].any()
     # the same on a graph: a chain of 200 points, every other one in the mask, the support cut after 120
-    chain = Neighbours(n=200, edges=np.column_stack([np.arange(199), np.arange(1, 200)]))
+    chain = GraphNeighbours(n=200, edges=np.column_stack([np.arange(199), np.arange(1, 200)]))
     every_other, support = np.arange(200) % 2 == 0, np.arange(200) != 121
     kept, taken = chain.region(every_other, support, np.arange(200) % 4 == 1)
     assert np.array_equal(kept, every_other & (np.arange(200) <= 120)) and np.array_equal(taken, np.arange(200) <= 120)
@@ -723,3 +730,33 @@ def test_separate_coplanar_fronts_are_not_joined_through_a_recess_within_two_tol
     part = part.reshape(-1)
     left = [np.bincount(part[p.inliers], minlength=4) for p in seg.planes]
     assert any(c[0] >= 0.95 * np.sum(part == 0) and c[1] + c[2] == 0 for c in left), left  # the left front alone
+
+
+def test_the_two_neighbourhood_forms_answer_alike_on_one_topology():
+    """The valid pixels of an image as GridNeighbours and as GraphNeighbours joined by the grid's touching pairs
+    (4-connected): the same components, in the same order, and the same regions kept and taken, by the grid's
+    numpy rule and the graph's compiled one (with and without joining through the support)."""
+    from plane_validation.core.regions import _neighbours
+    from plane_validation.core.search.neighbours_grid import GridNeighbours
+    rng = np.random.default_rng(3)
+    h, w = 12, 17
+    valid = rng.random(h * w) < 0.85
+    pixel = np.flatnonzero(valid)
+    node = np.full(h * w, -1)
+    node[pixel] = np.arange(len(pixel))
+    grid = GridNeighbours(n=len(pixel), shape=(h, w), pixel=pixel, node=node, usable=valid)
+    graph = _neighbours(grid.n, np.column_stack(grid.touching()), None)
+    assert np.array_equal(grid.searchable(), graph.searchable())
+    rules = [form.remaining(form.searchable()) for form in (grid, graph)]
+    normal = np.array([0.0, 0.0, 1.0])
+    joined = 0
+    for _ in range(40):
+        mask = rng.random(grid.n) < rng.uniform(0.05, 0.8)
+        support = mask | (rng.random(grid.n) < rng.uniform(0.0, 0.9))
+        above = rng.random(grid.n) < 0.5
+        (labels, count), (graph_labels, graph_count) = grid.components(mask), graph.components(mask)
+        assert count == graph_count and np.array_equal(labels, graph_labels)
+        (kept, taken), (graph_kept, graph_taken) = (rule.keep(mask, normal, support, above) for rule in rules)
+        assert np.array_equal(kept, graph_kept) and np.array_equal(taken, graph_taken)
+        joined += int(not np.array_equal(kept, taken))
+    assert joined > 0  # some masks fell apart and were joined through their support

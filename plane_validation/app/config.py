@@ -12,8 +12,16 @@ from typing import Any
 
 from ..core.noise import NOISE_MODELS, NOISE_REFERENCE
 from ..core.orientation import AXIS_MODES, Orientation, orientation
-from ..core.params import SearchParams, TuneParams
-from ..core.ransac import GRID_POINTS, RANSAC_POINTS
+from ..core.params import (
+    GRID_POINTS,
+    MAX_ITERATIONS,
+    MAX_PLANES,
+    MIN_INLIERS,
+    PROBABILITY,
+    RANSAC_POINTS,
+    SearchParams,
+    TuneParams,
+)
 from ..core.tuning import CRITERIA, DEFAULT_CRITERION, SWEEP_MAX_PLANES, TUNE_CANDIDATES, TUNE_POINTS
 
 __all__ = ['Parameter', 'PipelineConfig', 'PARAMETERS', 'parameters_markdown', 'min_inliers_value']
@@ -107,14 +115,14 @@ class PipelineConfig:
     retune_period: float = _p(0.0, 'header time between retunes; 0 = tune on the first frame only (a failed '
                               'sweep, or one whose verdict is not reliable, is retried, less often after each)',
                               low=0.0, high=1e6, unit='s')
-    max_planes: int = _p(10, 'stop after this many planes (a tuning sweep looks for at least '
+    max_planes: int = _p(MAX_PLANES, 'stop after this many planes (a tuning sweep looks for at least '
                          f'{SWEEP_MAX_PLANES}: t is the sensor\'s, whatever number of planes is wanted)',
                          low=1, high=100)
-    min_inliers: float = _p(0.02, 'smallest plane: a fraction of the valid points when < 1, else a count',
+    min_inliers: float = _p(MIN_INLIERS, 'smallest plane: a fraction of the valid points when < 1, else a count',
                             low=0.0, high=1e9)
-    probability: float = _p(0.99, 'RANSAC success probability that sets the iteration count',
+    probability: float = _p(PROBABILITY, 'RANSAC success probability that sets the iteration count',
                             low=1e-6, high=0.999999)
-    max_iterations: int = _p(1000, 'RANSAC hypotheses per plane, at most', low=1, high=1_000_000)
+    max_iterations: int = _p(MAX_ITERATIONS, 'RANSAC hypotheses per plane, at most', low=1, high=1_000_000)
     index_sample_size: int = _p(2000, 'points the validity indices are computed on per frame (stratified sample; '
                                 'the silhouettes cost grows as its square)', low=10, high=20_000)
     exact_indices: bool = _p(False, 'Dunn and Davies-Bouldin on all points (exact, slow on large clouds) instead '

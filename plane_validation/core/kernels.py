@@ -251,7 +251,7 @@ def grid_region(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: 
                 normals: np.ndarray, normal: np.ndarray, min_cos: float, rest: np.ndarray, mask: np.ndarray,
                 support: np.ndarray, above: np.ndarray, rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The region a plane of unit ``normal`` (3,) keeps among the points ``rest`` (r,) of a sub-grid (see
-    :func:`grid_components`), as :meth:`.regions.Neighbours.region` gives it: its inliers ``mask`` (r,) and
+    :func:`grid_components`), as :meth:`.search.neighbours.Neighbours.region` gives it: its inliers ``mask`` (r,) and
     the points within the support band ``support`` (r,), both cut to the points whose ``normals`` (n, 3)
     lie within ``min_cos`` of it (NaN: unknown, kept); ``above`` (r,): on the side its normal points to.
     ``rules``: (FRAGMENTED, FRAGMENT_PIECE, SUPPORT_BALANCE). Returns (kept (r,), taken (r,)) bool."""
@@ -353,7 +353,7 @@ def _offer(dist: np.ndarray, region: np.ndarray, best: np.ndarray, dst: int, src
 @numba.njit(**_JIT)
 def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: np.ndarray, width: int,
                  eight: np.ndarray, rounds: int) -> np.ndarray:
-    """Border settling on a sub-grid (see ``ransac._compete``): ``dist`` (k + 1, m) each point's distance to each
+    """Border settling on a sub-grid (see ``Neighbours.settle``): ``dist`` (k + 1, m) each point's distance to each
     region's plane (row k: no region, inf; inf beyond t), ``region`` (m,) 0..k (k: none). Each round every point
     takes the region of an 8-neighbour (``eight``) whose plane is nearer than its own (the nearest; equals: the
     neighbour with the smaller index), all from the labels before the round; the first round looks at the points

@@ -14,7 +14,23 @@ from dataclasses import dataclass
 
 from .orientation import Orientation
 
-__all__ = ['SearchParams', 'TuneParams']
+__all__ = ['SearchParams', 'TuneParams', 'MAX_PLANES', 'MIN_INLIERS', 'PROBABILITY', 'MAX_ITERATIONS', 'RANSAC_POINTS',
+           'GRID_POINTS']
+
+#: Defaults of :func:`.ransac.detect_planes` and of the parameter table (``PipelineConfig``): planes searched for at
+#: most; the smallest plane, a share of the valid points; RANSAC's success probability and hypotheses per plane.
+MAX_PLANES = 10
+MIN_INLIERS = 0.02
+PROBABILITY = 0.99
+MAX_ITERATIONS = 1000
+#: Default for ``detect_planes(ransac_points=...)``: larger clouds are searched on a random
+#: sample of this many points; every point is then labelled against the planes found.
+RANSAC_POINTS = 32768
+#: Default for ``detect_planes(grid_points=...)``: an image (``shape``) with more valid pixels is searched on a
+#: regular sub-grid of about this many (a step of 3 pixels on a 640x480 Kinect frame). Fewer is faster but
+#: loses small faces: at 20,000 (a step of 4) the Kinect frame's search is a third faster, but milk_cartoon's
+#: auto-tuned planes go from 4 to 2 (the objects' fronts are lost; benchmarks/README.md).
+GRID_POINTS = RANSAC_POINTS
 
 
 @dataclass(frozen=True)

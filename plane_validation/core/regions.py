@@ -1,47 +1,30 @@
-"""Which points touch: the neighbourhood graph that splits a plane's inliers into connected regions.
+"""How an unorganized cloud's neighbourhood graph is built: :func:`graph_neighbours`, the
+:class:`.search.neighbours_graph.GraphNeighbours` of the searched points (an image's grid form is built by
+:func:`.search.neighbours_grid.grid_neighbours`; both answer the search through one interface,
+:class:`.search.neighbours.Neighbours`).
 
-A plane is a connected planar region (after Schnabel, Wahl and Klein 2007, who score a candidate by
-its largest connected component). :class:`Neighbours` is built once per detection on the searched
-points; :meth:`Neighbours.components` then labels the connected components of any subset.
-
-* Organized clouds (an H x W image): neighbours on the image grid (4-connected), except across a
-  depth jump: a gap between two pixels ``JUMP`` times the gaps beside it on the same image line
-  (and larger than ``JUMP`` typical pixel spacings at that range) separates surfaces, and the far
-  pixel of such a jump joins no region (its full-resolution
-  neighbours are labelled afterwards from the regions around them). Components come from
-  ``scipy.ndimage.label``.
-* Unorganized clouds: each point's ``NEIGHBOURS`` nearest neighbours within ``RADIUS`` median
-  neighbour spacings (exact, through a voxel hash: :class:`VoxelIndex`; scipy's kd-tree for far-out
-  coordinates and the searches across lidar rings), components by ``scipy.sparse.csgraph``. A point whose
-  neighbours all lie on one lidar ring (a line, or a strip widened by range noise) is also joined to
-  the next ring; a strip's own normal is the beam cone's, so it takes one from both rings, or none.
+Each point is joined to its ``NEIGHBOURS`` nearest neighbours within ``RADIUS`` median neighbour spacings (exact,
+through a voxel hash: :class:`VoxelIndex`; scipy's kd-tree for far-out coordinates and the searches across lidar
+rings). A point whose neighbours all lie on one lidar ring (a line, or a strip widened by range noise) is also
+joined to the next ring; a strip's own normal is the beam cone's, so it takes one from both rings, or none.
 numpy/scipy, with the loops over points in compiled kernels (:mod:`.kernels`).
 """
 from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from . import kernels
+from .search.neighbours import NORMAL_MIN_COS, Neighbours, row_starts
+from .search.neighbours_graph import GraphNeighbours
 
-try:  # the kernel behind csgraph.connected_components, without its per-call checks and transpose
-    from scipy.sparse.csgraph._traversal import _connected_components_undirected
-except ImportError:  # pragma: no cover - a SciPy that moved it: the public function below
-    _connected_components_undirected = None
+__all__ = ['Neighbours', 'GraphNeighbours', 'VoxelIndex', 'graph_neighbours', 'voxel_index', 'NEIGHBOURS', 'RADIUS',
+           'NORMAL_MIN_COS']
 
-__all__ = ['Neighbours', 'VoxelIndex', 'grid_neighbours', 'graph_neighbours', 'voxel_index', 'JUMP', 'NEIGHBOURS',
-           'RADIUS', 'NORMAL_MIN_COS']
-
-#: A gap between grid neighbours this many times the gaps next to it along the image line (and
-#: this many typical pixel spacings at its range) is a depth jump.
-JUMP = 4.0
 #: Unorganized clouds: each point is joined to up to this many nearest neighbours ...
 NEIGHBOURS = 10
 #: ... that lie within this many median k-th-neighbour distances.
@@ -88,47 +71,6 @@ STRIP_FLATNESS = 0.01
 STRIP_EDGE_ON = float(np.sin(np.radians(10.0)))
 #: A neighbourhood thicker than this share of its width (eigenvalues) is noise above the spacing: no normal.
 NOISY = 0.1
-#: A point whose local surface normal is farther than this from a candidate plane's normal does not
-#: count towards that plane's region (a plane slanted across the nosings of a staircase keeps only
-#: strips of the treads, not the risers that would join them into one region).
-NORMAL_ANGLE_DEG = 25.0
-#: ... its cosine.
-NORMAL_MIN_COS = float(np.cos(np.radians(NORMAL_ANGLE_DEG)))
-#: Grid normals from neighbours this many pixels away (smoother than adjacent pixels).
-NORMAL_REACH = 3
-#: The image's pitch along each axis (see _reach) is measured on every this many-th line.
-REACH_SAMPLE = 4
-#: A lidar image's normal (its pixels coarser across the rings than along them) is unknown where its pixel lies
-#: off the middle of its neighbours by more than this share of their distance: 3 cm range noise near walls
-#: swamps a normal over one ring, and such normals cut walls apart (synthetic VLP-16 scans at 3 cm noise: office
-#: F1 0.69 and corridor 0.43 without this test, 0.96 and 0.93 with it). A depth camera's normals stay exact: the
-#: coherence test needs them at stair nosings (with this test its stairs fell from 12/12 to 9/12).
-LIDAR_BEND = 0.05
-#: Components of a mask of up to this share of the points come from the graph of its points alone;
-#: of a larger one, from the whole graph with the edges leaving it cut (faster then).
-COMPACT_SHARE = 0.5
-#: On a lidar's image (pixels coarser across the rings), a run of up to this many pixels without a point
-#: (no return) along a row or column does not cut a region whose pixels lie on both sides of it: a lidar misses
-#: single returns (a 16-ring scan with one return in ten missing fell apart into pieces below min_inliers: no
-#: plane), and a floor seen by one ring is one pixel high. Not on a depth camera's image, whose holes are
-#: patches at grazing angles and behind edges: there it changed which t quality.py's depth room was tuned to
-#: (8/9 planes correct, F1 0.978, became 6/9, 0.964), and its sub-grid already steps over scattered holes.
-HOLE_BRIDGE = 3
-#: ... unless the two pixels are farther apart than this many times the run's pixel steps times the gaps
-#: beside it (a box front 8 cm before a wall, seen across one missing pixel, stays apart).
-BRIDGE_SLACK = 1.5
-#: A region whose inliers fall apart (its largest piece holds less than this share of them, and a typical
-#: inlier lies in a piece of less than FRAGMENT_PIECE of them) is connected through its support instead
-#: (see ransac.SUPPORT and :func:`fragmented`).
-FRAGMENTED = 0.5
-FRAGMENT_PIECE = 0.05
-#: ... and only when its support beyond t lies on both sides of the plane, the smaller side holding at least this
-#: share of the larger: noise spreads a surface's points to both sides, while a recess or a panel behind separate
-#: coplanar objects lies on one side (without this test 25 drawer fronts 1.8 cm before their cabinet, 2 mm noise,
-#: t = 1 cm, are joined into one plane and the cabinet is taken out of the search, F1 0.03), and so does most of the
-#: band of a plane offset from the surface it crosses (0.6 t off at noise t: 0.05 against 0.26 of the points;
-#: without the test such a plane keeps more than the surface's own one, 3.8 mm off a wall with 1 cm noise).
-SUPPORT_BALANCE = 0.5
 #: Nearest-neighbour queries hash the points into voxels holding about this many points each (kernels.voxel_grid) ...
 VOXEL_POINTS = 4.0
 #: ... and search up to this many rings of voxels around a query's own; a query whose nearest are not certain
@@ -136,432 +78,6 @@ VOXEL_POINTS = 4.0
 VOXEL_RINGS = 5
 #: A cloud spanning more voxels than this along an axis (a far-out coordinate) is searched by a kd-tree alone.
 VOXEL_SPAN = 1 << 20
-#: Scales of :meth:`Neighbours.nearby`: a window of this many sub-grid pixels around the point
-#: (organized) or a random walk of this many graph hops (unorganized), one drawn per sample.
-NEARBY_SCALES = (1, 2, 4, 8)
-
-
-@dataclass(frozen=True, eq=False)
-class Neighbours:
-    """Adjacency of n points. Grid form: ``shape`` (h, w) with point i at flat pixel ``pixel[i]``,
-    ``node`` (h * w,) the point at each pixel (-1: none), ``usable`` (h * w,) the pixels that may
-    join a region (valid, at no depth jump); graph form:
-    ``edges`` (e, 2) point pairs, each pair once with the smaller index first, sorted."""
-
-    n: int
-    shape: tuple[int, int] | None = None
-    pixel: np.ndarray | None = None
-    node: np.ndarray | None = None
-    usable: np.ndarray | None = None
-    edges: np.ndarray | None = None
-    normals: np.ndarray | None = None  # (n, 3) unit local surface normals, NaN where unknown
-    adjacency: tuple[np.ndarray, np.ndarray] | None = None  # graph form: CSR (indptr, indices), both ways
-    wraps: bool = False  # grid form: the last column is next to the first (a 360-degree lidar scan)
-    # grid form: (b, 3) pixel pairs on either side of a run of pixels without a point that a region spans
-    # (_bridges), and whether the pair crosses the image's seam (1)
-    bridges: np.ndarray | None = None
-
-    def __getstate__(self) -> dict:
-        """The fields, without the cached properties: a parallel sweep pickles the graph for its workers while this
-        process, searching too, may be filling those in (pickling the live __dict__ then failed: "dictionary
-        changed size during iteration")."""
-        return {f.name: getattr(self, f.name) for f in fields(self)}
-
-    def __setstate__(self, state: dict) -> None:
-        self.__dict__.update(state)
-
-    def nearby(self, nodes: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """A random point near each of ``nodes`` (m,): within a window of NEARBY_SCALES pixels
-        (grid form) or at the end of a random walk of that many hops (graph form); -1 where the
-        window falls on no point, and the node itself where the walk cannot leave it."""
-        scale = np.asarray(NEARBY_SCALES)[rng.integers(0, len(NEARBY_SCALES), len(nodes))]
-        if self.shape is not None:
-            h, w = self.shape
-            r, c = np.divmod(self.pixel[nodes], w)
-            r = r + np.rint((2 * rng.random(len(nodes)) - 1) * scale).astype(np.int64)
-            c = c + np.rint((2 * rng.random(len(nodes)) - 1) * scale).astype(np.int64)
-            inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-            return np.where(inside, self.node[np.where(inside, r * w + c, 0)], -1)
-        at = np.array(nodes, dtype=np.int64)
-        if self.adjacency is None:  # no edges
-            return at
-        indptr, indices, degrees = self._walk
-        hops = int(scale.max(initial=0))
-        draws = rng.random((hops, len(at)))  # the numbers of one draw per hop, in the same order
-        walking = scale > np.arange(hops)[:, None]
-        for hop in range(hops):
-            step = indptr[at] + (draws[hop] * degrees[at]).astype(np.int64)
-            at = np.where(walking[hop], indices[step], at)
-        return at
-
-    @functools.cached_property
-    def _walk(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Graph form: the adjacency (indptr, indices) and degrees (n,) with a loop at each point without
-        neighbours, so that a walk's step from it stays there."""
-        indptr, indices = self.adjacency
-        alone = self.degrees == 0
-        if not alone.any():
-            return indptr, indices, self.degrees
-        degrees = np.maximum(self.degrees, 1)
-        looped = np.zeros(self.n + 1, np.int64)
-        np.cumsum(degrees, out=looped[1:])
-        loop = np.zeros(looped[-1], bool)
-        loop[looped[:-1][alone]] = True
-        walk = np.empty(looped[-1], indices.dtype)
-        walk[~loop], walk[loop] = indices, np.flatnonzero(alone)
-        return looped, walk, degrees
-
-    @functools.cached_property
-    def degrees(self) -> np.ndarray:
-        """Graph form: (n,) neighbours of each point."""
-        return np.diff(self.adjacency[0])
-
-    def coherent(self, normal: np.ndarray, at: np.ndarray | None = None) -> np.ndarray:
-        """(n,) bool: points whose local normal is within NORMAL_ANGLE_DEG of ``normal`` (or unknown);
-        only for the points ``at`` (m,) when given."""
-        if self.normals is None:
-            return np.ones(self.n if at is None else len(at), bool)
-        cos = np.abs((self.normals if at is None else self.normals[at]) @ normal)
-        return ~(cos < NORMAL_MIN_COS)  # NaN (unknown) counts as coherent
-
-    def subgraph(self, keep: np.ndarray) -> Neighbours:
-        """Graph form: the neighbourhood of the points ``keep`` (ascending indices), renumbered
-        0..len(keep)-1. Components of points among them are the same as in the whole graph."""
-        position = np.full(self.n, -1, dtype=np.int64)
-        position[keep] = np.arange(len(keep))
-        pairs = position[self.edges.T]  # (2, e)
-        edges = np.compress((pairs >= 0).all(axis=0), pairs, axis=1)  # still sorted: keep ascends
-        return Neighbours(n=len(keep), edges=edges.T, normals=None if self.normals is None else self.normals[keep])
-
-    def components(self, mask: np.ndarray) -> tuple[np.ndarray, int]:
-        """Connected components of the points where ``mask`` (n,) is True: (labels (n,) int, -1
-        outside the mask, components 0..c-1; c)."""
-        if self.shape is not None:
-            return self._grid_components(mask)
-        members, labels, sizes = self._graph_components(mask)
-        out = np.full(self.n, -1, dtype=np.int64)
-        out[members] = labels
-        return out, len(sizes)
-
-    def _graph_components(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Graph form: the masked points (ascending), the component of each (numbered in the order
-        of their first point) and the points per component, from the graph of the masked points alone."""
-        members = np.flatnonzero(mask)
-        m = len(members)
-        if m == 0:
-            return members, members, members
-        if m > COMPACT_SHARE * self.n:  # most points: gathering their edges costs more than masking all
-            return self._components_of_whole(mask, members)
-        # the edges from the masked points (the rows of the source-sorted edge list) to masked points
-        first = self.edge_rows[members]
-        counts = self.edge_rows[members + 1] - first
-        total = int(counts.sum())
-        ends = np.cumsum(counts)
-        at = np.arange(total) + np.repeat(first - (ends - counts), counts)
-        dst = self.edges[at, 1]
-        inside = mask[dst]
-        position = np.empty(self.n, np.int32)
-        position[members] = np.arange(m, dtype=np.int32)
-        count, labels = joined_components(m, np.repeat(np.arange(m, dtype=np.int32), counts)[inside],
-                                          position[dst[inside]])
-        return members, labels, np.bincount(labels, minlength=count)
-
-    def _components_of_whole(self, mask: np.ndarray, members: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`_graph_components` from the whole graph with the edges that leave the mask cut."""
-        src, dst = self.edges.T  # sorted by source (graph_neighbours): the CSR rows need no sort
-        inside = mask[src] & mask[dst]
-        count, labels = joined_components(self.n, src[inside], dst[inside])
-        sizes = np.bincount(labels[members], minlength=count)
-        used = np.flatnonzero(sizes)  # the other labels are unmasked points
-        dense = np.full(count, -1, dtype=np.int64)
-        dense[used] = np.arange(len(used))
-        return members, dense[labels[members]], sizes[used]
-
-    @functools.cached_property
-    def edge_rows(self) -> np.ndarray:
-        """Graph form: (n + 1,) where each point's edges to larger indices start in ``edges``."""
-        return _row_starts(self.edges[:, 0], self.n)
-
-    def _grid_components(self, mask: np.ndarray) -> tuple[np.ndarray, int]:
-        image = np.zeros(self.shape[0] * self.shape[1], bool)
-        image[self.pixel[mask]] = True
-        image &= self.usable
-        labelled, count = ndimage.label(image.reshape(self.shape))
-        labelled = labelled.reshape(-1)
-        if count > 1 and self.bridges is not None and len(self.bridges):
-            a, b = labelled[self.bridges[:, 0]], labelled[self.bridges[:, 1]]
-            # a bridge across the seam only joins regions in the coplanar merge (_adjacent), as the seam itself does
-            joined = (a > 0) & (b > 0) & (a != b) & ~self.bridges[:, 2].astype(bool)
-            if joined.any():  # components of the components joined by bridges; 0 (background) stays alone
-                a, b = a[joined], b[joined]
-                order = np.argsort(a, kind='stable')
-                total, merged = joined_components(count + 1, a[order], b[order])
-                renumber = np.full(total, -1, dtype=np.int64)
-                renumber[np.arange(total) != merged[0]] = np.arange(total - 1)
-                return renumber[merged[labelled[self.pixel]]], total - 1
-        return labelled[self.pixel] - 1, count
-
-    def largest(self, mask: np.ndarray, support: np.ndarray | None = None, above: np.ndarray | None = None
-                ) -> np.ndarray:
-        """(n,) bool: the largest connected component of ``mask`` (empty when ``mask`` is); with
-        ``support`` and ``above``, the region :meth:`region` keeps."""
-        return self.region(mask, support, above)[0]
-
-    def region(self, mask: np.ndarray, support: np.ndarray | None = None, above: np.ndarray | None = None
-               ) -> tuple[np.ndarray, np.ndarray]:
-        """(kept, taken), (n,) bool each: the largest connected component of ``mask``, twice. With ``support``
-        (n,) bool, a superset of ``mask``, and ``above`` (n,) bool, the points on the side of the plane its
-        normal points to, where the component of ``support`` around the inliers has its points beyond t on both
-        sides of the plane (SUPPORT_BALANCE: the noise of a surface, not another surface) and the pieces of
-        ``mask`` fall apart (see :func:`fragmented`; a surface's points within t do where its noise exceeds t):
-        kept, the ``mask`` points of the component of ``support`` that holds the most of them; taken, that whole
-        component (the surface's points beyond t, which are no plane of their own)."""
-        out, sizes = self._component(mask)
-        if support is None or above is None or not fragmented(sizes):
-            return out, out
-        whole, _ = self._component(support, mask)
-        beyond = whole & ~mask
-        up = int(np.count_nonzero(beyond & above))
-        down = int(np.count_nonzero(beyond)) - up
-        if min(up, down) < SUPPORT_BALANCE * max(up, down):  # a recess, a backing: not noise
-            return out, out
-        joined = whole & mask
-        return (joined, whole) if np.count_nonzero(joined) > np.count_nonzero(out) else (out, out)
-
-    def _component(self, within: np.ndarray, counted: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """The component of ``within`` with the most points of ``counted`` (all when None), as (n,) bool,
-        and those points per component."""
-        if self.shape is None:
-            members, labels, sizes = self._graph_components(within)
-            out = np.zeros(self.n, bool)
-            if len(members):
-                if counted is not None:
-                    sizes = np.bincount(labels[counted[members]], minlength=len(sizes))
-                out[members[labels == int(np.argmax(sizes))]] = True
-            return out, sizes
-        labels, count = self.components(within)
-        if count == 0:
-            return np.zeros(self.n, bool), np.zeros(0, np.int64)
-        inside = labels >= 0 if counted is None else counted & (labels >= 0)
-        sizes = np.bincount(labels[inside], minlength=count)
-        return labels == int(np.argmax(sizes)), sizes
-
-
-def fragmented(sizes: np.ndarray) -> bool:
-    """Whether pieces of ``sizes`` (points each) have fallen apart, as a surface's points within t do
-    where its noise exceeds t: the largest holds less than FRAGMENTED of the points, and the piece that
-    holds a typical point (the median point, pieces taken largest first) less than FRAGMENT_PIECE. A few
-    separate coplanar objects (three drawer fronts) are large pieces, and stay apart."""
-    total = int(sizes.sum())
-    if total == 0:
-        return False
-    desc = np.sort(sizes)[::-1]
-    if desc[0] >= FRAGMENTED * total:
-        return False
-    typical = desc[int(np.searchsorted(np.cumsum(desc), total / 2))]
-    return bool(typical < FRAGMENT_PIECE * total)
-
-
-def _row_starts(rows: np.ndarray, n: int, dtype=np.int64) -> np.ndarray:
-    """(n + 1,) CSR row pointers of entries whose rows are ``rows`` (e,), once sorted by row: where each row starts."""
-    starts = np.zeros(n + 1, dtype)
-    np.cumsum(np.bincount(rows, minlength=n), out=starts[1:])
-    return starts
-
-
-def joined_components(n: int, src: np.ndarray, dst: np.ndarray) -> tuple[int, np.ndarray]:
-    """Connected components of n points joined by the pairs (``src``, ``dst``) (e,), ``src`` ascending:
-    (count, labels (n,) int32), components numbered in the order of their first point, as
-    ``csgraph.connected_components(..., connection='weak')`` numbers them.
-
-    Calls the kernel of that function directly with both directions of the pairs: the public function
-    checks and converts its graph and builds the transpose on every call, which on the small masks of
-    a search costs several times the labelling itself.
-    """
-    small = max(n, len(src)) < np.iinfo(np.int32).max  # the kernel counts in 32 bits
-    index = np.int32 if small else np.int64
-    src, dst = np.ascontiguousarray(src, index), np.ascontiguousarray(dst, index)
-    indptr = _row_starts(src, n, index)
-    if _connected_components_undirected is None or not small:  # pragma: no cover
-        graph = csr_matrix((np.ones(len(src)), dst, indptr), shape=(n, n))
-        return connected_components(graph, directed=True, connection='weak')
-    order = np.argsort(dst.astype(np.uint16) if n <= 1 << 16 else dst, kind='stable')  # 16 bits: a radix sort
-    back = _row_starts(dst, n, index)
-    labels = np.empty(n, np.int32)
-    count = _connected_components_undirected(dst, indptr, src[order], back, labels)
-    return int(count), labels
-
-
-def _gaps(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, axis: int
-          ) -> tuple[np.ndarray, np.ndarray]:
-    """3-D distance between pixel neighbours along ``axis`` (NaN where either is invalid) and the
-    range of the nearer of the two."""
-    a = image_points[:, :-1] if axis == 1 else image_points[:-1]
-    b = image_points[:, 1:] if axis == 1 else image_points[1:]
-    va = valid[:, :-1] if axis == 1 else valid[:-1]
-    vb = valid[:, 1:] if axis == 1 else valid[1:]
-    ra = ranges[:, :-1] if axis == 1 else ranges[:-1]
-    rb = ranges[:, 1:] if axis == 1 else ranges[1:]
-    d = a - b
-    with np.errstate(invalid='ignore'):
-        gap = np.where(va & vb, np.sqrt(np.einsum('...i,...i->...', d, d)), np.nan)
-    return gap, np.minimum(ra, rb)
-
-
-def _jumps(gap: np.ndarray, reach: np.ndarray, axis: int, typical: float) -> np.ndarray:
-    """Edges whose gap is JUMP times the larger of the gaps just before and after them along the
-    same image line (a surface seen at a grazing angle has large but steady gaps; a depth jump is
-    a lone large one), and more than JUMP typical pixel spacings at their range."""
-    pad = np.full((gap.shape[0], 1) if axis == 1 else (1, gap.shape[1]), np.nan)
-    before = np.concatenate([pad, gap], axis=axis)[:, :-1] if axis == 1 else np.concatenate([pad, gap])[:-1]
-    after = np.concatenate([gap, pad], axis=axis)[:, 1:] if axis == 1 else np.concatenate([gap, pad])[1:]
-    local = np.fmax(before, after)
-    local = np.where(np.isnan(local), gap, local)
-    with np.errstate(invalid='ignore'):
-        return (gap > JUMP * np.maximum(local, typical * reach)) & np.isfinite(gap)
-
-
-def grid_neighbours(image_points: np.ndarray, valid: np.ndarray) -> Neighbours:
-    """Neighbours of the valid pixels of an (h, w, 3) image of points (meters; the sensor at the
-    origin). Points are numbered in row-major order of the valid pixels ``valid`` (h, w)."""
-    h, w = valid.shape
-    with np.errstate(invalid='ignore'):
-        ranges = np.sqrt(np.einsum('...i,...i->...', image_points, image_points))  # from the sensor
-    right, right_reach = _gaps(image_points, valid, ranges, 1)
-    down, down_reach = _gaps(image_points, valid, ranges, 0)
-    with np.errstate(invalid='ignore', divide='ignore'):
-        angular = np.concatenate([(right / right_reach)[np.isfinite(right)], (down / down_reach)[np.isfinite(down)]])
-    typical = float(np.median(angular)) if len(angular) else 0.0  # pixel spacing per meter of range
-    jump_r = _jumps(right, right_reach, 1, typical)
-    jump_d = _jumps(down, down_reach, 0, typical)
-    # the far pixel of a jump joins no region: that cuts the grid there and leaves a thin object
-    # in front (a shelf edge a pixel wide) whole
-    dist = np.where(valid, ranges, 0.0)
-    far_right = dist[:, 1:] > dist[:, :-1]  # the right pixel is the far one
-    far_down = dist[1:] > dist[:-1]
-    usable = valid.copy()
-    usable[:, :-1] &= ~(jump_r & ~far_right)
-    usable[:, 1:] &= ~(jump_r & far_right)
-    usable[:-1] &= ~(jump_d & ~far_down)
-    usable[1:] &= ~(jump_d & far_down)
-    pixel = np.flatnonzero(valid.reshape(-1))
-    reach = _reach(image_points, valid, ranges)
-    lidar = reach != (NORMAL_REACH, NORMAL_REACH)  # pixels coarser one way: a lidar's rings
-    normals = _grid_normals(image_points, valid, reach, LIDAR_BEND if lidar else None).reshape(-1, 3)[pixel]
-    node = np.full(h * w, -1, dtype=np.int64)
-    node[pixel] = np.arange(len(pixel))
-    wraps = _wraps(image_points, valid, ranges, typical)
-    return Neighbours(n=len(pixel), shape=(h, w), pixel=pixel, node=node, usable=usable.reshape(-1),
-                      normals=normals, wraps=wraps,
-                      bridges=_bridges(image_points, valid, ranges, typical, wraps) if lidar else None)
-
-
-def _bridges(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, typical: float, wraps: bool
-             ) -> np.ndarray:
-    """(b, 3) int64: pixels (flat) on either side of a run of up to HOLE_BRIDGE invalid pixels along a row or
-    column, whose distance fits a surface going on under the run (at most BRIDGE_SLACK times the run's pixel
-    steps times the larger gap next to either end, or the typical pixel spacing at their range: a depth jump
-    hidden by a hole is larger), and 1 where the pair crosses the seam of an image that wraps."""
-    h, w = valid.shape
-    flat = np.arange(h * w).reshape(h, w)
-    out = [np.empty((0, 3), np.int64)]
-    for axis in (1, 0):
-        pts, ok, rng, idx = ((image_points, valid, ranges, flat) if axis == 1 else
-                             (image_points.transpose(1, 0, 2), valid.T, ranges.T, flat.T))
-        length, start = ok.shape[1], 0
-        if axis == 1 and wraps:  # the row goes on past either end: its last pixel before, its first ones after
-            start = 1
-            pts, ok, rng, idx = (np.concatenate([x[:, -1:], x, x[:, :HOLE_BRIDGE + 2]], axis=1)
-                                 for x in (pts, ok, rng, idx))
-        with np.errstate(invalid='ignore'):
-            step = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=-1)
-        step[~(ok[:, 1:] & ok[:, :-1])] = np.nan
-        step = np.pad(step, ((0, 0), (1, 1)), constant_values=np.nan)  # step[:, c] ends at pixel c
-        cols = ok.shape[1]
-        for run in range(1, HOLE_BRIDGE + 1):
-            n = min(cols - run - 1, start + length) - start  # runs starting at each pixel of the row itself
-            if n <= 0:
-                break
-            near, far_ok = ok[:, start:start + n], ok[:, start + run + 1:start + run + 1 + n]
-            span = near & far_ok
-            for k in range(1, run + 1):
-                span &= ~ok[:, start + k:start + k + n]
-            r, c = np.nonzero(span)
-            if not len(r):
-                continue
-            c = c + start
-            far = c + run + 1
-            with np.errstate(invalid='ignore'):
-                gap = np.linalg.norm(pts[r, c] - pts[r, far], axis=-1)
-                local = np.fmax(step[r, c], step[r, far + 1])
-                local = np.fmax(local, typical * np.minimum(rng[r, c], rng[r, far]))
-                fits = gap <= BRIDGE_SLACK * (run + 1) * local
-            out.append(np.column_stack([idx[r, c][fits], idx[r, far][fits], (far - start >= length)[fits]]))
-    return np.concatenate(out).astype(np.int64)
-
-
-def _wraps(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, typical: float) -> bool:
-    """Whether the image's last column lies next to its first, as in a spinning lidar's 360-degree scan:
-    their gaps, per meter of range, are typically within JUMP typical pixel spacings. A row's end pixels are
-    its first and last points within HOLE_BRIDGE + 1 pixels of the ends (the gap then per pixel between them)."""
-    w = image_points.shape[1]
-    if w < 2 * HOLE_BRIDGE + 3 or typical <= 0:
-        return False
-    head, tail = valid[:, :HOLE_BRIDGE + 1], valid[:, ::-1][:, :HOLE_BRIDGE + 1]
-    rows = np.flatnonzero(head.any(axis=1) & tail.any(axis=1))
-    if not len(rows):
-        return False
-    first, last = np.argmax(head[rows], axis=1), w - 1 - np.argmax(tail[rows], axis=1)
-    gap = np.linalg.norm(image_points[rows, first] - image_points[rows, last], axis=1) / (w - last + first)
-    with np.errstate(divide='ignore', invalid='ignore'):  # a point at the sensor (range 0): inf, or NaN left out
-        ratio = gap / np.minimum(ranges[rows, first], ranges[rows, last])
-    ratio = ratio[~np.isnan(ratio)]
-    return bool(len(ratio)) and bool(np.median(ratio) <= JUMP * typical)
-
-
-def _reach(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray) -> tuple[int, int]:
-    """Pixels (down, across) that grid normals look: NORMAL_REACH along the finer axis of the image, as
-    far in angle along the other (a lidar's rings lie 10-15 times farther apart than its returns along a
-    ring: 3 rings would reach past a wall that 5 rings cross). The image's pitch along each axis is the
-    median angle between neighbouring pixels' rays, whatever the surfaces."""
-    pitch = []
-    for axis in (1, 0):  # neighbours along every REACH_SAMPLE-th row, then down every REACH_SAMPLE-th column
-        every = slice(None, None, REACH_SAMPLE)
-        lines = (every, slice(None)) if axis == 1 else (slice(None), every)
-        pts, ok, rng = image_points[lines], valid[lines], ranges[lines]
-        with np.errstate(invalid='ignore', divide='ignore'):
-            rays = pts / rng[..., None]
-        a, b = (rays[:, 1:], rays[:, :-1]) if axis == 1 else (rays[1:], rays[:-1])
-        both = (ok[:, 1:] & ok[:, :-1]) if axis == 1 else (ok[1:] & ok[:-1])
-        chord = np.linalg.norm(a[both] - b[both], axis=-1)
-        pitch.append(float(np.median(chord)) if len(chord) else np.nan)
-    if not (np.isfinite(pitch).all() and min(pitch) > 0):
-        return NORMAL_REACH, NORMAL_REACH
-    angle = max(NORMAL_REACH * min(pitch), max(pitch))  # the same angle both ways, at least one coarse pixel
-    return max(1, round(angle / pitch[1])), max(1, round(angle / pitch[0]))
-
-
-def _grid_normals(image_points: np.ndarray, valid: np.ndarray, reach: tuple[int, int] = (NORMAL_REACH, NORMAL_REACH),
-                  bend: float | None = None) -> np.ndarray:
-    """(h, w, 3) unit normals from the image neighbours ``reach`` (down, across) pixels away (NaN at holes);
-    with ``bend``, NaN also where the pixel lies off the middle of its two neighbours along either axis, along
-    the normal, by more than ``bend`` times their distance (see LIDAR_BEND)."""
-    rv, rh = reach
-    pts = np.where(valid[..., None], image_points, np.nan)
-    pad = np.pad(pts, ((rv, rv), (rh, rh), (0, 0)), constant_values=np.nan)
-    h, w = valid.shape
-    right, left = pad[rv:rv + h, 2 * rh:], pad[rv:rv + h, :w]
-    down, up = pad[2 * rv:, rh:rh + w], pad[:h, rh:rh + w]
-    du, dv = right - left, down - up
-    n = np.cross(du, dv)
-    with np.errstate(invalid='ignore', divide='ignore'):
-        n /= np.sqrt(np.einsum('...i,...i->...', n, n))[..., None]
-        if bend is not None:  # the surface through the pixel and its 4 neighbours is not flat along n: noise
-            centre = pad[rv:rv + h, rh:rh + w]
-            bend_u = np.abs(np.einsum('...i,...i->...', right + left - 2 * centre, n)) / np.linalg.norm(du, axis=-1)
-            bend_v = np.abs(np.einsum('...i,...i->...', down + up - 2 * centre, n)) / np.linalg.norm(dv, axis=-1)
-            n[(bend_u > bend) | (bend_v > bend)] = np.nan
-    return n
 
 
 #: Searchers (voxel indices, or kd-trees) over coordinates and over every ACROSS_FAR_STRIDE-th of them, each built on
@@ -736,7 +252,7 @@ def _knn_tree(points: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def graph_neighbours(points: np.ndarray, viewpoint: np.ndarray | None = None, index: VoxelIndex | None = None
-                     ) -> Neighbours:
+                     ) -> GraphNeighbours:
     """Neighbours of unorganized (n, 3) points (meters): each joined to its NEIGHBOURS nearest within
     RADIUS median NEIGHBOURS-th-neighbour distances and, where those lie along a line or a strip of
     one lidar ring, to a point of the next ring (see ACROSS_CANDIDATES, ACROSS_SEARCHING,
@@ -748,11 +264,11 @@ def graph_neighbours(points: np.ndarray, viewpoint: np.ndarray | None = None, in
 
 
 def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index: VoxelIndex | None = None
-           ) -> Neighbours:
+           ) -> GraphNeighbours:
     n = len(points)
     k = min(NEIGHBOURS + 1, n)
     if k < 2:
-        return Neighbours(n=n, edges=np.empty((0, 2), np.int64))
+        return GraphNeighbours(n=n, edges=np.empty((0, 2), np.int64))
     searcher = _searcher(points) if index is None else index
     dist, idx = searcher.query(points, k=k)
     if merge_copies and np.any(dist[:, 1] == 0):  # copies would fill the neighbour lists (stacked scans)
@@ -843,7 +359,7 @@ def _strips(points: np.ndarray, flat: np.ndarray, normals: np.ndarray, rays: np.
     return rows[found], target[found]
 
 
-def _with_copies(points: np.ndarray, viewpoint: np.ndarray) -> Neighbours:
+def _with_copies(points: np.ndarray, viewpoint: np.ndarray) -> GraphNeighbours:
     """:func:`graph_neighbours` of points with exact copies: the graph of the distinct points, each
     copy joined to the first point at its place."""
     n = len(points)
@@ -856,13 +372,13 @@ def _with_copies(points: np.ndarray, viewpoint: np.ndarray) -> Neighbours:
     return _neighbours(n, edges, None if distinct.normals is None else distinct.normals[inverse])
 
 
-def _neighbours(n: int, edges: np.ndarray, normals: np.ndarray | None) -> Neighbours:
+def _neighbours(n: int, edges: np.ndarray, normals: np.ndarray | None) -> GraphNeighbours:
     """The graph form of :class:`Neighbours` from joined pairs ``edges`` (e, 2), in any order, repeats allowed."""
     unique, indptr, indices = kernels.pair_graph(n, kernels.c_array(edges.reshape(-1, 2), np.int64))
-    return Neighbours(n=n, edges=unique.T, normals=normals, adjacency=(indptr, indices))
+    return GraphNeighbours(n=n, edges=unique.T, normals=normals, adjacency=(indptr, indices))
 
 
-def _neighbours_numpy(n: int, edges: np.ndarray, normals: np.ndarray | None) -> Neighbours:
+def _neighbours_numpy(n: int, edges: np.ndarray, normals: np.ndarray | None) -> GraphNeighbours:
     """:func:`_neighbours` by numpy (the reference)."""
     edges = np.sort(edges, axis=1)  # each joined pair once, smaller index first
     key = np.sort(edges[:, 0] * n + edges[:, 1])  # sorted by source, then destination
@@ -870,5 +386,5 @@ def _neighbours_numpy(n: int, edges: np.ndarray, normals: np.ndarray | None) -> 
     edges = np.ascontiguousarray(np.stack([key // n, key % n]))  # (2, e): each row contiguous
     both = np.concatenate([edges, edges[::-1]], axis=1)
     order = np.argsort(both[0], kind='stable')
-    indptr = _row_starts(both[0], n)
-    return Neighbours(n=n, edges=edges.T, normals=normals, adjacency=(indptr, both[1][order]))
+    indptr = row_starts(both[0], n)
+    return GraphNeighbours(n=n, edges=edges.T, normals=normals, adjacency=(indptr, both[1][order]))

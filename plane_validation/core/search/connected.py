@@ -1,0 +1,170 @@
+"""The connected-regions search (``connectivity=True``): sequential RANSAC over a neighbourhood, then each
+region refitted, the borders between regions settled, touching regions of one surface merged, and every
+valid point labelled from the searched ones."""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import kernels
+from .checks import finite_rows, resolve_min_inliers
+from .fit import allows_normal, canonical, fit_columns, plane_distances, refit_regions, tolerance_at
+from .graph import SearchGraph, checked_search_graph, spread_nearest
+from .grid import spread_grid
+from .neighbours import Neighbours
+from .sequential import sequential_search
+from .types import Allows, Plane, Segmentation, Tolerance
+
+__all__ = ['detect_regions', 'MERGE_KEEP', 'MERGE_SPREAD', 'GRAZING_DEG']
+
+
+def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
+                   probability: float, max_iterations: int, rng: np.random.Generator,
+                   ransac_points: int | None, shape: tuple[int, int] | None,
+                   graph: SearchGraph | None, viewpoint: np.ndarray, grid_points: int | None,
+                   allows: Allows = None) -> Segmentation:
+    """detect_planes with connected regions (see its docstring)."""
+    finite = finite_rows(pts)
+    valid_idx = np.flatnonzero(finite)
+    n_valid = len(valid_idx)
+    min_count = resolve_min_inliers(min_inliers, n_valid)
+    graph = checked_search_graph(graph, pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
+    search_idx, step, center, neighbours = graph.search_idx, graph.step, graph.center, graph.neighbours
+    search = np.ascontiguousarray((pts[search_idx] - center).T)
+    search_min = max(3, int(np.ceil(min_count * len(search_idx) / max(n_valid, 1))))
+    search_tolerance = tolerance_at(tolerance, search_idx)
+    found, reason, region, capped = sequential_search(search, search_tolerance, max_planes, search_min, probability,
+                                                      max_iterations, rng, n_total=n_valid, neighbours=neighbours,
+                                                      allows=allows)
+    labels = np.full(len(pts), -1, dtype=np.int32)
+    if not found:
+        return Segmentation(labels=labels, planes=(), tolerance=tolerance, n_valid=n_valid, reason=reason)
+    # each region's plane refitted on its own points, then the borders settled by nearest plane
+    found = refit_regions(search, region, found, allows)
+    region = _compete(search, region, found, search_tolerance, neighbours, viewpoint - center)
+    found = refit_regions(search, region, found, allows)
+    searched = len(found)
+    region, found = _merge_coplanar(search, region, found, search_tolerance, neighbours, allows)
+    if len(found) < searched:
+        reason += f'; merged {searched - len(found)} region(s) into a touching region of the same surface'
+    residual = None
+    if step:
+        uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]
+        labels, residual = spread_grid(pts, finite, shape, step, region, neighbours, uncentred, tolerance)
+    elif len(search_idx) == n_valid:
+        own = np.where(region >= 0, region, 0)
+        normals = np.array([n for n, _ in found])
+        offsets = np.array([d for _, d in found])
+        near = np.abs(np.einsum('ji,ij->j', normals[own], search) + offsets[own]) <= search_tolerance
+        labels[search_idx] = np.where((region >= 0) & near, region, -1)  # within t of the refitted plane
+    else:
+        labels[valid_idx] = spread_nearest(pts[valid_idx] - center, graph.nearest, region, found,
+                                           tolerance_at(tolerance, valid_idx))
+    counts = np.bincount(labels[labels >= 0], minlength=len(found))
+    small = np.flatnonzero(counts < min_count)
+    if len(small):
+        keep = np.flatnonzero(counts >= min_count)
+        remap = np.full(len(found) + 1, -1, dtype=np.int32)
+        remap[keep] = np.arange(len(keep))
+        labels = remap[labels]  # -1 indexes the last entry, which is -1
+        found = [found[j] for j in keep]
+        reason += (f'; dropped {len(small)} region(s) left with fewer than min_inliers={min_count} points '
+                   'once every point was labelled')
+    rows, bounds = kernels.group_by_label(labels, len(found))
+    planes = []
+    for j, (normal, offset) in enumerate(found):
+        members = rows[bounds[j]:bounds[j + 1]]
+        resid = residual[members] if residual is not None else (pts[members] - center) @ normal + offset
+        normal, offset = canonical(normal, offset - float(normal @ center))
+        planes.append(Plane(normal=normal, offset=offset, inliers=members,
+                            rms=float(np.sqrt(np.mean(resid ** 2))) if len(members) else 0.0))
+    return Segmentation(labels=labels, planes=tuple(planes), tolerance=tolerance, n_valid=n_valid, reason=reason,
+                        capped=capped)
+
+
+#: Two touching regions whose joint plane keeps at least this share of their points within t, with
+#: an RMS residual at most MERGE_SPREAD times that of their own planes, are one surface (split by
+#: the order of the search or by points whose local normals disagreed; a step or a ledge within t
+#: of the joint plane fits it much worse than its own plane).
+MERGE_KEEP = 0.95
+
+
+MERGE_SPREAD = 1.5
+
+
+def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance,
+                    neighbours: Neighbours, allows: Allows = None) -> tuple[np.ndarray, list]:
+    """Merge touching regions of one surface: a pair of regions joined by a neighbour pair whose
+    joint least-squares plane has MERGE_KEEP of their points (3, m) within ``tolerance`` becomes one
+    region (the earlier one's number), with that plane. Regions renumbered in order."""
+    src, dst = neighbours.touching()
+    a, b = region[src], region[dst]
+    touch = (a >= 0) & (b >= 0) & (a != b)
+    if not touch.any():
+        return region, found
+    src, dst, a, b = src[touch], dst[touch], a[touch], b[touch]
+    k = len(found)
+    pairs = np.unique(np.minimum(a, b) * k + np.maximum(a, b))  # each touching pair of regions once, sorted
+    root = np.arange(k)
+    found = list(found)
+    # the points of each region, ascending, kept up to date as regions merge (as are a, b: the regions at src, dst)
+    order = np.argsort(region, kind='stable')
+    bounds = np.searchsorted(region[order], np.arange(k + 1))
+    points_of = [order[bounds[r]:bounds[r + 1]] for r in range(k)]
+    for i, j in zip(*np.divmod(pairs, k)):
+        i, j = root[i], root[j]
+        if i == j:
+            continue
+        i, j = min(i, j), max(i, j)
+        members = np.sort(np.concatenate([points_of[i], points_of[j]]), kind='stable')  # two sorted runs: merged
+        cols = search[:, members]
+        normal, offset = fit_columns(cols.copy())
+        if not allows_normal(allows, normal):
+            continue  # their joint plane leaves the orientation constraint
+        contact = (a == i) & (b == j) | (a == j) & (b == i)
+        if not (neighbours.coherent(normal, src[contact]) & neighbours.coherent(normal, dst[contact])).any():
+            continue  # they touch where normals disagree only
+        joint = plane_distances(cols, normal[None, :], np.array([offset]))[0]
+        on_i = region[members] == i
+        own = np.where(on_i, found[i][0] @ cols + found[i][1], found[j][0] @ cols + found[j][1])
+        if np.count_nonzero(joint <= tolerance_at(tolerance, members)) >= MERGE_KEEP * cols.shape[1] and \
+                np.mean(joint ** 2) <= MERGE_SPREAD ** 2 * np.mean(own ** 2):
+            region[points_of[j]] = i
+            points_of[i], points_of[j] = members, members[:0]
+            a[a == j], b[b == j] = i, i
+            root[root == j] = i
+            found[i] = (normal, offset)
+    keep = np.unique(root)
+    if len(keep) == len(found):
+        return region, found
+    renumber = np.full(len(found) + 1, -1, dtype=np.int64)
+    renumber[keep] = np.arange(len(keep))
+    return renumber[region], [found[j] for j in keep]
+
+
+#: Border settling compares planes by the distance along each point's viewing ray (a range sensor's
+#: noise lies along the ray, so a wall's point near a corner is nearer in meters to the other face,
+#: seen at a grazing angle, but not along its ray); a ray farther than this from a plane's normal
+#: counts as this far (degrees), so that the planes a ray nearly grazes still compete.
+GRAZING_DEG = 75.0
+
+
+def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance,
+             neighbours: Neighbours, viewpoint: np.ndarray) -> np.ndarray:
+    """Settle the borders between regions: each searched point (3, m) takes, of its own region and
+    its neighbours' regions (8 image neighbours, or graph neighbours), the one whose plane within
+    ``tolerance`` its ray from ``viewpoint`` (3,) meets nearest (see GRAZING_DEG), so a strip that
+    an earlier plane took along an edge goes back to the surface it lies on, and unassigned points
+    next to a region join it when they fit its plane; repeated COMPETE_ROUNDS times. Only points next
+    to another region can change, and after the first round only the neighbours of points that
+    changed: only they are looked at (:meth:`.neighbours.Neighbours.settle`)."""
+    k, m = len(found), search.shape[1]
+    normals = np.array([n for n, _ in found])
+    dist = np.empty((k + 1, m))
+    dist[:k] = plane_distances(search, normals, np.array([d for _, d in found]))
+    dist[k] = np.inf
+    dist[dist > tolerance] = np.inf  # only planes within t can be taken
+    rays = search - viewpoint[:, None]
+    with np.errstate(invalid='ignore', divide='ignore'):  # a point at the viewpoint: NaN, never nearer
+        rays /= np.linalg.norm(rays, axis=0)
+        dist[:k] /= np.maximum(np.abs(normals @ rays), np.cos(np.radians(GRAZING_DEG)))
+    return neighbours.settle(dist, np.where(region >= 0, region, k))

@@ -1,0 +1,137 @@
+"""What a connected-regions search runs on: the searched points of a cloud and their neighbourhood
+(:class:`SearchGraph`), built once per cloud and reusable across tolerances."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..params import GRID_POINTS, RANSAC_POINTS
+from ..regions import VoxelIndex, graph_neighbours, voxel_index
+from .checks import as_points, check_search_size, check_shape, check_viewpoint, finite_rows
+from .grid import grid_image, grid_step
+from .neighbours import Neighbours
+from .neighbours_grid import grid_neighbours
+from .types import Tolerance, Viewpoint
+
+__all__ = ['SearchGraph', 'search_graph', 'build_search_graph', 'checked_search_graph', 'spread_nearest']
+
+
+@dataclass(frozen=True, eq=False)
+class SearchGraph:
+    """The points a connected-regions search runs on and their neighbourhood graph.
+
+    search_idx: (m,) rows of the cloud searched; step: the image sub-grid step (0: searched as an
+    unorganized cloud, also an image too thin for a grid: :func:`grid_step`);
+    center: (3,) meters subtracted before the search; neighbours: their graph; nearest: when the
+    search is a sample of an unorganized cloud, for each valid row (ascending) the position in
+    search_idx of the searched point nearest to it (the point then takes that one's region). It
+    depends only on the cloud, ``shape``, ``ransac_points`` and ``grid_points``, not on the tolerance: a sweep builds
+    it once (:func:`search_graph`) and passes it to every :func:`detect_planes` call on that cloud.
+    viewpoint: (3,) meters, the sensor it was built for.
+    """
+
+    n_points: int
+    search_idx: np.ndarray
+    step: int
+    center: np.ndarray
+    neighbours: Neighbours
+    shape: tuple[int, int] | None
+    ransac_points: int | None
+    n_valid: int
+    nearest: np.ndarray | None = None
+    viewpoint: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    grid_points: int | None = GRID_POINTS
+
+
+def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
+                 ransac_points: int | None = RANSAC_POINTS, rng: np.random.Generator | None = None,
+                 viewpoint: Viewpoint = None, grid_points: int | None = GRID_POINTS) -> SearchGraph | None:
+    """The :class:`SearchGraph` of ``points`` (N, 3) meters seen from ``viewpoint`` (as in
+    :func:`detect_planes`). An image (``shape``) of more than ``grid_points`` valid pixels is searched on a
+    regular sub-grid of about that many; an unorganized cloud of more than ``ransac_points`` valid points is
+    searched on a random sample drawn from ``rng``; without ``rng`` such a cloud has no fixed graph
+    and None is returned."""
+    pts = as_points(points)
+    check_search_size('ransac_points', ransac_points)
+    check_search_size('grid_points', grid_points)
+    return build_search_graph(pts, finite_rows(pts), None if shape is None else check_shape(shape, len(pts)),
+                              ransac_points, rng, check_viewpoint(viewpoint), grid_points)
+
+
+def checked_search_graph(graph: SearchGraph | None, pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | None,
+                         ransac_points: int | None, rng: np.random.Generator, viewpoint: np.ndarray,
+                         grid_points: int | None) -> SearchGraph:
+    """``graph`` when it was built for these checked points ``pts`` (finite rows ``finite`` (N,)), ``shape``,
+    ``ransac_points``, ``grid_points`` and ``viewpoint`` (3,), else ValueError; None: built here, from ``rng``."""
+    n_valid = int(np.count_nonzero(finite))
+    if graph is None:
+        return build_search_graph(pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
+    elif not isinstance(graph, SearchGraph):
+        raise ValueError(f'graph must be a SearchGraph (search_graph) or None, got {type(graph).__name__}')
+    elif (graph.n_points, graph.shape, graph.ransac_points, graph.grid_points) != \
+            (len(pts), shape, ransac_points, grid_points):
+        raise ValueError(f'graph was built for {graph.n_points} points, shape {graph.shape}, ransac_points '
+                         f'{graph.ransac_points} and grid_points {graph.grid_points}, not {len(pts)}, {shape}, '
+                         f'{ransac_points} and {grid_points}')
+    elif graph.viewpoint != tuple(viewpoint.tolist()):
+        raise ValueError(f'graph was built for viewpoint {graph.viewpoint}, not {tuple(viewpoint.tolist())}')
+    elif graph.n_valid != n_valid or not finite[graph.search_idx].all():
+        raise ValueError('graph was built for a cloud with other valid (finite) rows')
+    return graph
+
+
+def build_search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, int] | None, ransac_points: int | None,
+                       rng: np.random.Generator | None, viewpoint: np.ndarray, grid_points: int | None
+                       ) -> SearchGraph | None:
+    """:func:`search_graph` of checked points ``pts`` with their finite rows ``finite`` (N,)."""
+    valid_idx = np.flatnonzero(finite)
+    n_valid = len(valid_idx)
+    center = np.median(pts[valid_idx[::max(1, n_valid // 1024)]], axis=0) if n_valid else np.zeros(3)
+    nearest = None
+    step = 0 if shape is None else grid_step(shape, n_valid, grid_points)
+    if step:
+        grid, pixels = grid_image(pts, finite, shape, step)
+        neighbours = grid_neighbours(grid - viewpoint if viewpoint.any() else grid, pixels >= 0)  # sensor ranges
+        search_idx = pixels.reshape(-1)[neighbours.pixel]
+    else:  # unorganized, or an image too thin for a 2-D grid
+        search_idx = valid_idx
+        if ransac_points is not None and n_valid > ransac_points:
+            if rng is None:
+                return None
+            search_idx = valid_idx[np.sort(rng.choice(n_valid, int(ransac_points), replace=False))]
+        searched = pts[search_idx] - center
+        index = None
+        if len(search_idx) < n_valid:
+            nearest, index = _nearest_searched(searched, pts[valid_idx] - center)
+        neighbours = graph_neighbours(searched, viewpoint=viewpoint - center, index=index)
+    return SearchGraph(n_points=len(pts), search_idx=search_idx, step=step, center=center, neighbours=neighbours,
+                       shape=shape, ransac_points=ransac_points, n_valid=n_valid, nearest=nearest,
+                       viewpoint=tuple(viewpoint.tolist()), grid_points=grid_points)
+
+
+def _nearest_searched(searched: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, VoxelIndex | None]:
+    """(n,) the position among ``searched`` (m, 3) of the nearest to each of ``points`` (n, 3), through voxels; and
+    the voxel index of ``searched`` (None for far-out coordinates: then by a kd-tree)."""
+    index = voxel_index(searched, span=points)
+    if index is None:
+        return _nearest_searched_tree(searched, points), None
+    return index.query(points, 1)[1][:, 0], index
+
+
+def _nearest_searched_tree(searched: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """:func:`_nearest_searched` by scipy's kd-tree (the reference)."""
+    return cKDTree(searched).query(points, k=1)[1]
+
+
+def spread_nearest(points: np.ndarray, nearest: np.ndarray, region: np.ndarray, found: list,
+                   tolerance: Tolerance) -> np.ndarray:
+    """Labels of ``points`` (n, 3) from the region of their nearest searched point (``nearest`` (n,):
+    its position among the searched points), when within ``tolerance`` of that region's plane; -1 otherwise."""
+    lab = region[nearest]
+    normals = np.array([n for n, _ in found])
+    offsets = np.array([d for _, d in found])
+    j = np.where(lab >= 0, lab, 0)
+    dist = np.abs(np.einsum('ij,ij->i', points, normals[j]) + offsets[j])
+    return np.where((lab >= 0) & (dist <= tolerance), lab, -1).astype(np.int32)

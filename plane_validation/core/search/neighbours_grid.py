@@ -1,0 +1,380 @@
+"""The grid form of :class:`.neighbours.Neighbours`: the pixels of an image (or of its sub-grid), built by
+:func:`grid_neighbours`.
+
+Neighbours on the image grid are 4-connected, except across a depth jump: a gap between two pixels ``JUMP`` times
+the gaps beside it on the same image line (and larger than ``JUMP`` typical pixel spacings at that range) separates
+surfaces, and the far pixel of such a jump joins no region (its full-resolution neighbours are labelled afterwards
+from the regions around them). Components come from ``scipy.ndimage.label``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from .. import kernels
+from .neighbours import (
+    COMPETE_ROUNDS,
+    NEARBY_SCALES,
+    NORMAL_MIN_COS,
+    REGION_RULES,
+    Neighbours,
+    Remaining,
+    joined_components,
+)
+
+__all__ = ['GridNeighbours', 'grid_neighbours', 'grid_region', 'grid_region_numpy', 'EIGHT', 'JUMP', 'HOLE_BRIDGE',
+           'LIDAR_BEND']
+
+#: A gap between grid neighbours this many times the gaps next to it along the image line (and
+#: this many typical pixel spacings at its range) is a depth jump.
+JUMP = 4.0
+#: Grid normals from neighbours this many pixels away (smoother than adjacent pixels).
+NORMAL_REACH = 3
+#: The image's pitch along each axis (see _reach) is measured on every this many-th line.
+REACH_SAMPLE = 4
+#: A lidar image's normal (its pixels coarser across the rings than along them) is unknown where its pixel lies
+#: off the middle of its neighbours by more than this share of their distance: 3 cm range noise near walls
+#: swamps a normal over one ring, and such normals cut walls apart (synthetic VLP-16 scans at 3 cm noise: office
+#: F1 0.69 and corridor 0.43 without this test, 0.96 and 0.93 with it). A depth camera's normals stay exact: the
+#: coherence test needs them at stair nosings (with this test its stairs fell from 12/12 to 9/12).
+LIDAR_BEND = 0.05
+#: On a lidar's image (pixels coarser across the rings), a run of up to this many pixels without a point
+#: (no return) along a row or column does not cut a region whose pixels lie on both sides of it: a lidar misses
+#: single returns (a 16-ring scan with one return in ten missing fell apart into pieces below min_inliers: no
+#: plane), and a floor seen by one ring is one pixel high. Not on a depth camera's image, whose holes are
+#: patches at grazing angles and behind edges: there it changed which t quality.py's depth room was tuned to
+#: (8/9 planes correct, F1 0.978, became 6/9, 0.964), and its sub-grid already steps over scattered holes.
+HOLE_BRIDGE = 3
+#: ... unless the two pixels are farther apart than this many times the run's pixel steps times the gaps
+#: beside it (a box front 8 cm before a wall, seen across one missing pixel, stays apart).
+BRIDGE_SLACK = 1.5
+#: The 8 image neighbours (row, column offsets).
+EIGHT = kernels.EIGHT
+_NO_BRIDGES = np.empty((0, 3), np.int64)
+
+
+@dataclass(frozen=True, eq=False, kw_only=True)
+class GridNeighbours(Neighbours):
+    """``shape`` (h, w) with point i at flat pixel ``pixel[i]``, ``node`` (h * w,) the point at each pixel (-1:
+    none), ``usable`` (h * w,) the pixels that may join a region (valid, at no depth jump); ``wraps``: the last
+    column is next to the first (a 360-degree lidar scan); ``bridges`` (b, 3): pixel pairs on either side of a run
+    of pixels without a point that a region spans (:func:`_bridges`), and whether the pair crosses the
+    image's seam (1)."""
+
+    shape: tuple[int, int]
+    pixel: np.ndarray
+    node: np.ndarray
+    usable: np.ndarray | None = None
+    wraps: bool = False
+    bridges: np.ndarray | None = None
+
+    def nearby(self, nodes: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """A random point within a window of NEARBY_SCALES pixels around each of ``nodes`` (m,); -1 where the
+        window falls on no point."""
+        scale = np.asarray(NEARBY_SCALES)[rng.integers(0, len(NEARBY_SCALES), len(nodes))]
+        h, w = self.shape
+        r, c = np.divmod(self.pixel[nodes], w)
+        r = r + np.rint((2 * rng.random(len(nodes)) - 1) * scale).astype(np.int64)
+        c = c + np.rint((2 * rng.random(len(nodes)) - 1) * scale).astype(np.int64)
+        inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        return np.where(inside, self.node[np.where(inside, r * w + c, 0)], -1)
+
+    def components(self, mask: np.ndarray) -> tuple[np.ndarray, int]:
+        image = np.zeros(self.shape[0] * self.shape[1], bool)
+        image[self.pixel[mask]] = True
+        image &= self.usable
+        labelled, count = ndimage.label(image.reshape(self.shape))
+        labelled = labelled.reshape(-1)
+        if count > 1 and self.bridges is not None and len(self.bridges):
+            a, b = labelled[self.bridges[:, 0]], labelled[self.bridges[:, 1]]
+            # a bridge across the seam only joins regions in the coplanar merge (touching), as the seam itself does
+            joined = (a > 0) & (b > 0) & (a != b) & ~self.bridges[:, 2].astype(bool)
+            if joined.any():  # components of the components joined by bridges; 0 (background) stays alone
+                a, b = a[joined], b[joined]
+                order = np.argsort(a, kind='stable')
+                total, merged = joined_components(count + 1, a[order], b[order])
+                renumber = np.full(total, -1, dtype=np.int64)
+                renumber[np.arange(total) != merged[0]] = np.arange(total - 1)
+                return renumber[merged[labelled[self.pixel]]], total - 1
+        return labelled[self.pixel] - 1, count
+
+    def _component(self, within: np.ndarray, counted: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        labels, count = self.components(within)
+        if count == 0:
+            return np.zeros(self.n, bool), np.zeros(0, np.int64)
+        inside = labels >= 0 if counted is None else counted & (labels >= 0)
+        sizes = np.bincount(labels[inside], minlength=count)
+        return labels == int(np.argmax(sizes)), sizes
+
+    def searchable(self) -> np.ndarray:
+        return np.arange(self.n) if self.usable is None else np.flatnonzero(self.usable[self.pixel])
+
+    def remaining(self, rest_idx: np.ndarray) -> Remaining:
+        return _GridRemaining(self, rest_idx)
+
+    def touching(self) -> tuple[np.ndarray, np.ndarray]:
+        """Right and down neighbours that may both join a region (no depth jump between them), the last and first
+        pixels of each row when the image wraps around, then the pixels on either side of a bridged run."""
+        node = np.where(self.usable, self.node, -1).reshape(self.shape)
+        src = [node[:, :-1].ravel(), node[:-1].ravel()] + ([node[:, -1]] if self.wraps else [])
+        dst = [node[:, 1:].ravel(), node[1:].ravel()] + ([node[:, 0]] if self.wraps else [])
+        if self.bridges is not None and len(self.bridges):
+            src.append(node.reshape(-1)[self.bridges[:, 0]])
+            dst.append(node.reshape(-1)[self.bridges[:, 1]])
+        src, dst = np.concatenate(src), np.concatenate(dst)
+        both = (src >= 0) & (dst >= 0)
+        return src[both], dst[both]
+
+    def around(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The 8 image neighbours, whatever their depth."""
+        gh, gw = self.shape
+        r, c = np.divmod(self.pixel[nodes], gw)
+        r, c = r[:, None] + EIGHT[:, 0], c[:, None] + EIGHT[:, 1]
+        inside = (r >= 0) & (r < gh) & (c >= 0) & (c < gw)
+        near = np.where(inside, self.node[np.where(inside, r * gw + c, 0)], -1)
+        ok = near >= 0
+        return np.broadcast_to(nodes[:, None], near.shape)[ok], near[ok]
+
+    def bordering(self, region: np.ndarray) -> np.ndarray:
+        gh, gw = self.shape
+        image = np.full(gh * gw, -1, dtype=np.int64)  # -1: no point
+        image[self.pixel] = region
+        pad = np.pad(image.reshape(gh, gw), 1, constant_values=-1)
+        centre = pad[1:-1, 1:-1]
+        out = np.zeros((gh, gw), bool)
+        for dr, dc in EIGHT:
+            other = pad[1 + dr:gh + 1 + dr, 1 + dc:gw + 1 + dc]
+            out |= (other != centre) & (other >= 0)
+        out &= centre >= 0
+        return self.node[np.flatnonzero(out)]
+
+    def tie_keys(self, src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The first image direction (the order of EIGHT, which is ascending src)."""
+        return (src,)
+
+    def settle(self, dist: np.ndarray, region: np.ndarray) -> np.ndarray:
+        """One compiled call (:func:`.kernels.grid_compete`; :func:`.neighbours.settle_numpy` is its reference)."""
+        region = kernels.grid_compete(dist, region, self.pixel, self.node, self.shape[1], EIGHT, COMPETE_ROUNDS)
+        return np.where(region < dist.shape[0] - 1, region, -1)
+
+
+@dataclass(frozen=True, eq=False)
+class _GridRemaining(Remaining):
+    """The region rule over the points ``rest_idx`` (ascending) of a grid."""
+
+    neighbours: GridNeighbours
+    rest_idx: np.ndarray
+
+    def keep(self, mask: np.ndarray, normal: np.ndarray, support: np.ndarray, above: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+        rule = grid_region if self.neighbours.normals is not None else grid_region_numpy
+        return rule(self.neighbours, self.rest_idx, mask, normal, support, above)
+
+    def without(self, left: np.ndarray) -> Remaining:
+        return _GridRemaining(self.neighbours, self.rest_idx[left])
+
+
+def grid_region(neighbours: GridNeighbours, rest_idx: np.ndarray, mask: np.ndarray, normal: np.ndarray,
+                support: np.ndarray, above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(kept, taken) (r,) of the points ``rest_idx`` (r,) of a sub-grid for a plane of ``normal`` with inliers
+    ``mask`` (r,), support band ``support`` (r,) and side ``above`` (r,): one compiled call
+    (:func:`.kernels.grid_region`; :func:`grid_region_numpy` is its reference)."""
+    bridges = _NO_BRIDGES if neighbours.bridges is None else kernels.c_array(neighbours.bridges, np.int64)
+    return kernels.grid_region(neighbours.pixel, neighbours.node, neighbours.usable, neighbours.shape[1], bridges,
+                               neighbours.normals, kernels.c_array(normal, np.float64), NORMAL_MIN_COS, rest_idx,
+                               mask, support, above, REGION_RULES)
+
+
+def grid_region_numpy(neighbours: GridNeighbours, rest_idx: np.ndarray, mask: np.ndarray, normal: np.ndarray,
+                      support: np.ndarray, above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`grid_region` in numpy (:meth:`.neighbours.Neighbours.region`)."""
+    n = neighbours.n
+    wide = np.zeros(n, bool)
+    wide[rest_idx[support]] = True
+    wide &= neighbours.coherent(normal)  # an edge's normals cut the support as they cut the region
+    full = np.zeros(n, bool)
+    full[rest_idx[mask]] = True
+    up = np.zeros(n, bool)
+    up[rest_idx[support & above]] = True  # only the support's side is read: a far smaller scatter
+    kept, taken = neighbours.region(full & wide, wide, up)
+    return kept[rest_idx], taken[rest_idx]
+
+
+def _gaps(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, axis: int
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """3-D distance between pixel neighbours along ``axis`` (NaN where either is invalid) and the
+    range of the nearer of the two."""
+    a = image_points[:, :-1] if axis == 1 else image_points[:-1]
+    b = image_points[:, 1:] if axis == 1 else image_points[1:]
+    va = valid[:, :-1] if axis == 1 else valid[:-1]
+    vb = valid[:, 1:] if axis == 1 else valid[1:]
+    ra = ranges[:, :-1] if axis == 1 else ranges[:-1]
+    rb = ranges[:, 1:] if axis == 1 else ranges[1:]
+    d = a - b
+    with np.errstate(invalid='ignore'):
+        gap = np.where(va & vb, np.sqrt(np.einsum('...i,...i->...', d, d)), np.nan)
+    return gap, np.minimum(ra, rb)
+
+
+
+def _jumps(gap: np.ndarray, reach: np.ndarray, axis: int, typical: float) -> np.ndarray:
+    """Edges whose gap is JUMP times the larger of the gaps just before and after them along the
+    same image line (a surface seen at a grazing angle has large but steady gaps; a depth jump is
+    a lone large one), and more than JUMP typical pixel spacings at their range."""
+    pad = np.full((gap.shape[0], 1) if axis == 1 else (1, gap.shape[1]), np.nan)
+    before = np.concatenate([pad, gap], axis=axis)[:, :-1] if axis == 1 else np.concatenate([pad, gap])[:-1]
+    after = np.concatenate([gap, pad], axis=axis)[:, 1:] if axis == 1 else np.concatenate([gap, pad])[1:]
+    local = np.fmax(before, after)
+    local = np.where(np.isnan(local), gap, local)
+    with np.errstate(invalid='ignore'):
+        return (gap > JUMP * np.maximum(local, typical * reach)) & np.isfinite(gap)
+
+
+
+def grid_neighbours(image_points: np.ndarray, valid: np.ndarray) -> GridNeighbours:
+    """Neighbours of the valid pixels of an (h, w, 3) image of points (meters; the sensor at the
+    origin). Points are numbered in row-major order of the valid pixels ``valid`` (h, w)."""
+    h, w = valid.shape
+    with np.errstate(invalid='ignore'):
+        ranges = np.sqrt(np.einsum('...i,...i->...', image_points, image_points))  # from the sensor
+    right, right_reach = _gaps(image_points, valid, ranges, 1)
+    down, down_reach = _gaps(image_points, valid, ranges, 0)
+    with np.errstate(invalid='ignore', divide='ignore'):
+        angular = np.concatenate([(right / right_reach)[np.isfinite(right)], (down / down_reach)[np.isfinite(down)]])
+    typical = float(np.median(angular)) if len(angular) else 0.0  # pixel spacing per meter of range
+    jump_r = _jumps(right, right_reach, 1, typical)
+    jump_d = _jumps(down, down_reach, 0, typical)
+    # the far pixel of a jump joins no region: that cuts the grid there and leaves a thin object
+    # in front (a shelf edge a pixel wide) whole
+    dist = np.where(valid, ranges, 0.0)
+    far_right = dist[:, 1:] > dist[:, :-1]  # the right pixel is the far one
+    far_down = dist[1:] > dist[:-1]
+    usable = valid.copy()
+    usable[:, :-1] &= ~(jump_r & ~far_right)
+    usable[:, 1:] &= ~(jump_r & far_right)
+    usable[:-1] &= ~(jump_d & ~far_down)
+    usable[1:] &= ~(jump_d & far_down)
+    pixel = np.flatnonzero(valid.reshape(-1))
+    reach = _reach(image_points, valid, ranges)
+    lidar = reach != (NORMAL_REACH, NORMAL_REACH)  # pixels coarser one way: a lidar's rings
+    normals = _grid_normals(image_points, valid, reach, LIDAR_BEND if lidar else None).reshape(-1, 3)[pixel]
+    node = np.full(h * w, -1, dtype=np.int64)
+    node[pixel] = np.arange(len(pixel))
+    wraps = _wraps(image_points, valid, ranges, typical)
+    return GridNeighbours(n=len(pixel), shape=(h, w), pixel=pixel, node=node, usable=usable.reshape(-1),
+                      normals=normals, wraps=wraps,
+                      bridges=_bridges(image_points, valid, ranges, typical, wraps) if lidar else None)
+
+
+
+def _bridges(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, typical: float, wraps: bool
+             ) -> np.ndarray:
+    """(b, 3) int64: pixels (flat) on either side of a run of up to HOLE_BRIDGE invalid pixels along a row or
+    column, whose distance fits a surface going on under the run (at most BRIDGE_SLACK times the run's pixel
+    steps times the larger gap next to either end, or the typical pixel spacing at their range: a depth jump
+    hidden by a hole is larger), and 1 where the pair crosses the seam of an image that wraps."""
+    h, w = valid.shape
+    flat = np.arange(h * w).reshape(h, w)
+    out = [np.empty((0, 3), np.int64)]
+    for axis in (1, 0):
+        pts, ok, rng, idx = ((image_points, valid, ranges, flat) if axis == 1 else
+                             (image_points.transpose(1, 0, 2), valid.T, ranges.T, flat.T))
+        length, start = ok.shape[1], 0
+        if axis == 1 and wraps:  # the row goes on past either end: its last pixel before, its first ones after
+            start = 1
+            pts, ok, rng, idx = (np.concatenate([x[:, -1:], x, x[:, :HOLE_BRIDGE + 2]], axis=1)
+                                 for x in (pts, ok, rng, idx))
+        with np.errstate(invalid='ignore'):
+            step = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=-1)
+        step[~(ok[:, 1:] & ok[:, :-1])] = np.nan
+        step = np.pad(step, ((0, 0), (1, 1)), constant_values=np.nan)  # step[:, c] ends at pixel c
+        cols = ok.shape[1]
+        for run in range(1, HOLE_BRIDGE + 1):
+            n = min(cols - run - 1, start + length) - start  # runs starting at each pixel of the row itself
+            if n <= 0:
+                break
+            near, far_ok = ok[:, start:start + n], ok[:, start + run + 1:start + run + 1 + n]
+            span = near & far_ok
+            for k in range(1, run + 1):
+                span &= ~ok[:, start + k:start + k + n]
+            r, c = np.nonzero(span)
+            if not len(r):
+                continue
+            c = c + start
+            far = c + run + 1
+            with np.errstate(invalid='ignore'):
+                gap = np.linalg.norm(pts[r, c] - pts[r, far], axis=-1)
+                local = np.fmax(step[r, c], step[r, far + 1])
+                local = np.fmax(local, typical * np.minimum(rng[r, c], rng[r, far]))
+                fits = gap <= BRIDGE_SLACK * (run + 1) * local
+            out.append(np.column_stack([idx[r, c][fits], idx[r, far][fits], (far - start >= length)[fits]]))
+    return np.concatenate(out).astype(np.int64)
+
+
+
+def _wraps(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, typical: float) -> bool:
+    """Whether the image's last column lies next to its first, as in a spinning lidar's 360-degree scan:
+    their gaps, per meter of range, are typically within JUMP typical pixel spacings. A row's end pixels are
+    its first and last points within HOLE_BRIDGE + 1 pixels of the ends (the gap then per pixel between them)."""
+    w = image_points.shape[1]
+    if w < 2 * HOLE_BRIDGE + 3 or typical <= 0:
+        return False
+    head, tail = valid[:, :HOLE_BRIDGE + 1], valid[:, ::-1][:, :HOLE_BRIDGE + 1]
+    rows = np.flatnonzero(head.any(axis=1) & tail.any(axis=1))
+    if not len(rows):
+        return False
+    first, last = np.argmax(head[rows], axis=1), w - 1 - np.argmax(tail[rows], axis=1)
+    gap = np.linalg.norm(image_points[rows, first] - image_points[rows, last], axis=1) / (w - last + first)
+    with np.errstate(divide='ignore', invalid='ignore'):  # a point at the sensor (range 0): inf, or NaN left out
+        ratio = gap / np.minimum(ranges[rows, first], ranges[rows, last])
+    ratio = ratio[~np.isnan(ratio)]
+    return bool(len(ratio)) and bool(np.median(ratio) <= JUMP * typical)
+
+
+
+def _reach(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray) -> tuple[int, int]:
+    """Pixels (down, across) that grid normals look: NORMAL_REACH along the finer axis of the image, as
+    far in angle along the other (a lidar's rings lie 10-15 times farther apart than its returns along a
+    ring: 3 rings would reach past a wall that 5 rings cross). The image's pitch along each axis is the
+    median angle between neighbouring pixels' rays, whatever the surfaces."""
+    pitch = []
+    for axis in (1, 0):  # neighbours along every REACH_SAMPLE-th row, then down every REACH_SAMPLE-th column
+        every = slice(None, None, REACH_SAMPLE)
+        lines = (every, slice(None)) if axis == 1 else (slice(None), every)
+        pts, ok, rng = image_points[lines], valid[lines], ranges[lines]
+        with np.errstate(invalid='ignore', divide='ignore'):
+            rays = pts / rng[..., None]
+        a, b = (rays[:, 1:], rays[:, :-1]) if axis == 1 else (rays[1:], rays[:-1])
+        both = (ok[:, 1:] & ok[:, :-1]) if axis == 1 else (ok[1:] & ok[:-1])
+        chord = np.linalg.norm(a[both] - b[both], axis=-1)
+        pitch.append(float(np.median(chord)) if len(chord) else np.nan)
+    if not (np.isfinite(pitch).all() and min(pitch) > 0):
+        return NORMAL_REACH, NORMAL_REACH
+    angle = max(NORMAL_REACH * min(pitch), max(pitch))  # the same angle both ways, at least one coarse pixel
+    return max(1, round(angle / pitch[1])), max(1, round(angle / pitch[0]))
+
+
+
+def _grid_normals(image_points: np.ndarray, valid: np.ndarray, reach: tuple[int, int] = (NORMAL_REACH, NORMAL_REACH),
+                  bend: float | None = None) -> np.ndarray:
+    """(h, w, 3) unit normals from the image neighbours ``reach`` (down, across) pixels away (NaN at holes);
+    with ``bend``, NaN also where the pixel lies off the middle of its two neighbours along either axis, along
+    the normal, by more than ``bend`` times their distance (see LIDAR_BEND)."""
+    rv, rh = reach
+    pts = np.where(valid[..., None], image_points, np.nan)
+    pad = np.pad(pts, ((rv, rv), (rh, rh), (0, 0)), constant_values=np.nan)
+    h, w = valid.shape
+    right, left = pad[rv:rv + h, 2 * rh:], pad[rv:rv + h, :w]
+    down, up = pad[2 * rv:, rh:rh + w], pad[:h, rh:rh + w]
+    du, dv = right - left, down - up
+    n = np.cross(du, dv)
+    with np.errstate(invalid='ignore', divide='ignore'):
+        n /= np.sqrt(np.einsum('...i,...i->...', n, n))[..., None]
+        if bend is not None:  # the surface through the pixel and its 4 neighbours is not flat along n: noise
+            centre = pad[rv:rv + h, rh:rh + w]
+            bend_u = np.abs(np.einsum('...i,...i->...', right + left - 2 * centre, n)) / np.linalg.norm(du, axis=-1)
+            bend_v = np.abs(np.einsum('...i,...i->...', down + up - 2 * centre, n)) / np.linalg.norm(dv, axis=-1)
+            n[(bend_u > bend) | (bend_v > bend)] = np.nan
+    return n
