@@ -11,8 +11,8 @@ from .indices import ValidityIndices
 from .noise import tolerance_scale
 from .plane_silhouette import EXTENT_PERCENTILES
 from .ransac import Segmentation, as_points
-from .regions import NORMAL_MIN_COS
 from .scoring import segmentation_quality
+from .search.neighbours import NORMAL_MIN_COS
 
 __all__ = ['judge', 'surface_failures', 'plane_tilt', 'MAX_TILT', 'plane_thickness', 'plane_curvature', 'plane_fill',
            'plane_lack_of_fit', 'MAX_LACK_OF_FIT', 'plane_layering', 'plane_beyond', 'MAX_FILL', 'MAX_LAYERING',
@@ -282,9 +282,9 @@ def plane_layering(points: np.ndarray, seg: Segmentation) -> np.ndarray:
 
 def plane_beyond(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     """Per plane the points of the cloud ``points`` (N, 3) meters (about BEYOND_SAMPLE of them) at t..2t from it,
-    but on no thin plane (plane_fill < MAX_FILL) within regions.NORMAL_ANGLE_DEG of parallel to it, per point
-    within t; both counted within its in-plane extent (between the EXTENT_PERCENTILES of its inliers along their
-    principal axes). Under 0.1 on a surface whose noise is well inside t, about 1 in a volume of clutter."""
+    but on no thin plane (plane_fill < MAX_FILL) within NORMAL_ANGLE_DEG (search/neighbours.py) of parallel to it,
+    per point within t; both counted within its in-plane extent (between the EXTENT_PERCENTILES of its inliers along
+    their principal axes). Under 0.1 on a surface whose noise is well inside t, about 1 in a volume of clutter."""
     pts = as_points(points)
     samples = _samples(pts, seg)
     return _beyond(pts, seg, [_pca(inl) for inl in samples], np.array([_fill(inl, p, seg) for inl, p in
