@@ -760,3 +760,22 @@ def test_the_two_neighbourhood_forms_answer_alike_on_one_topology():
         assert np.array_equal(kept, graph_kept) and np.array_equal(taken, graph_taken)
         joined += int(not np.array_equal(kept, taken))
     assert joined > 0  # some masks fell apart and were joined through their support
+
+
+def test_a_far_wall_of_a_lidar_scan_is_one_piece_of_the_graph():
+    """A corridor's end wall 8.7 m from a 32-ring lidar: its rings lie farther apart than the cloud's typical
+    spacing, and its points are joined across them by their own neighbourhood's spacing (with the cloud's alone it
+    fell apart into one piece per few rings, and no plane was found on it)."""
+    from plane_validation.core import regions, scene_families
+    from plane_validation.core.search.neighbours import joined_components
+    scene = scene_families.lidar_scan(0)
+    wall = np.flatnonzero(scene.labels == 0)
+    assert 'corridor' in scene.name and abs(np.median(scene.points[wall, 0]) + 8.7) < 0.2
+    edges = regions.graph_neighbours(scene.points).edges
+    keep = np.isin(edges[:, 0], wall) & np.isin(edges[:, 1], wall)
+    within = np.searchsorted(wall, edges[keep])
+    count, _ = joined_components(len(wall), within[:, 0], within[:, 1])
+    assert count == 1
+    seg = pv.detect_planes(scene.points, 0.08, seed=0, max_planes=60, min_inliers=0.002)
+    taken = np.bincount(seg.labels[wall][seg.labels[wall] >= 0], minlength=seg.n_planes)
+    assert taken.max() >= 0.9 * len(wall)  # one plane holds the wall
