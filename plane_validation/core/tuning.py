@@ -108,11 +108,12 @@ SILHOUETTE_TIE = 0.01
 #: A sound choice above a merge is kept: the layering test also fires on a quantized camera's depth steps, and
 #: cutting there splits a wall into its two depth layers.
 UNSOUND_SHARE = 0.02
-#: With connected regions, a derived range of candidates ends at this many times the sensor's noise (its sigma from
-#: core/noise_estimate.py at the NOISE_LEVEL_QUANTILE of the cloud's ranges; with ``depth_quadratic``, at the reference
-#: range), extensions included: a larger t takes in strips of other surfaces and merges shallow ridges. On the
-#: benchmark's tuning split (benchmarks/README.md) the best fixed t of the scenes auto-tuning gets right is at most 4.6
-#: sigma; the paper's useful t is 1-2 noise half-widths (1.7-3.5 sigma for uniform noise).
+#: With connected regions, the candidates of a derived range above this many times the sensor's noise are not swept,
+#: nor is the range extended beyond it (the noise: sigma from core/noise_estimate.py at the NOISE_LEVEL_QUANTILE of
+#: the cloud's ranges; with ``depth_quadratic``, at the reference range): a larger t takes in strips of other surfaces
+#: and merges shallow ridges. On the benchmark's tuning split (benchmarks/README.md) the best fixed t of the scenes
+#: auto-tuning gets right is at most 4.6 sigma, and 5 did better there than 3.5 and 7; the paper's useful t is 1-2
+#: noise half-widths (1.7-3.5 sigma for uniform noise).
 NOISE_BOUND = 5.0
 NOISE_LEVEL_QUANTILE = 0.9
 #: A candidate whose planes that fit their points worse than their patches do (verdict.MAX_LACK_OF_FIT: two sides of a
@@ -389,9 +390,9 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     sweep_planes: the candidates look for up to max(max_planes, sweep_planes) planes, and only the
     final detection keeps to ``max_planes`` (t is the sensor's, whatever number of planes is wanted);
     0 = ``max_planes`` (the paper's experiments).
-    noise_bound: with ``connectivity`` and a derived top (no ``tolerances``, no ``t_max``), the candidates and any
-    extension end at this many sigmas of the sensor's noise (NOISE_BOUND; :func:`.noise_estimate.estimate_noise`),
-    unless that leaves fewer than two of the derived candidates (a noise-free cloud); 0 = no bound.
+    noise_bound: with ``connectivity`` and a derived top (no ``tolerances``, no ``t_max``), candidates above this many
+    sigmas of the sensor's noise (NOISE_BOUND; :func:`.noise_estimate.estimate_noise`) are not swept and the range is
+    not extended beyond it, unless that leaves fewer than two candidates (a noise-free cloud); 0 = no bound.
     """
     _check_criterion(criterion)
     if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 0:
@@ -436,7 +437,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     cap = noise_bound * noise_level if connectivity and noise_bound and tolerances is None and t_max is None \
         and len(cand) > 2 and cand[1] <= noise_bound * noise_level < cand[-1] else np.inf
     if cap < np.inf:
-        cand = np.geomspace(cand[0], cap, len(cand))
+        cand = cand[cand <= cap]  # the same candidates below it: a choice changes only where the bound binds
     cand = np.unique(cand)
     if cand.size == 0:
         raise ValueError('tolerances is empty: give at least one candidate (or None to derive them)')
