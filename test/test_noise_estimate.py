@@ -42,7 +42,10 @@ def test_roof_from_its_own_centre_is_perpendicular_noise():
 def test_noise_free_and_degenerate_clouds():
     rng = np.random.default_rng(0)
     flat = np.column_stack([rng.uniform(-1, 1, (5000, 2)), np.full(5000, 3.0)])
-    assert estimate_noise(flat, seed=0).sigma_reference < 1e-9
+    assert estimate_noise(flat, seed=0).patches == 0  # noise-free: nothing measured, not a noise of 0
+    steps = flat + (0, 0, 1)
+    steps[:, 2] = np.round(rng.normal(4, 0.004, 5000) / 0.01) * 0.01  # 1 cm depth steps over 4 mm noise
+    assert estimate_noise(steps, seed=0).a > 0.001
     few = estimate_noise(flat[:12], seed=0)  # too few neighbourhoods: no estimate, no error
     assert few.patches == 0 and np.isnan(few.sigma_reference) and np.isnan(few.level(flat))
     assert estimate_noise(np.full((100, 3), np.nan), seed=0).patches == 0
@@ -103,4 +106,5 @@ def test_noise_free_cloud_is_not_bounded():
     a = np.column_stack([rng.uniform(0, 1, (1500, 2)), np.zeros(1500)])
     b = np.column_stack([rng.uniform(0, 1, 1500), np.zeros(1500), rng.uniform(0, 1, 1500)])
     result = tune_tolerance(np.vstack([a, b]) + (0, 0.5, 2), seed=0)
-    assert result.noise_level < 1e-9 and len(result.tolerances) >= 12 and result.segmentation.n_planes == 2
+    assert np.isnan(result.noise_level) and np.isnan(result.noise_ratio)
+    assert len(result.tolerances) >= 12 and result.segmentation.n_planes == 2

@@ -52,8 +52,13 @@ BROAD = 1 / 16
 QUANTILE = 0.3
 #: Range bins the fit of a + b r^2 uses (equal counts), each of at least MIN_BIN neighbourhoods.
 BINS, MIN_BIN = 8, 40
+#: A neighbourhood whose RMS residual is below this share of its range is on one quantisation step or noise-free
+#: (float32 coordinates: 6e-8): not counted.
+RESOLUTION = 1e-6
+#: NoiseEstimate.level takes the ranges of about this many points.
+LEVEL_POINTS = 20_000
 #: At most this many points of an unorganized cloud are hashed into voxels (a random probe).
-PROBE_POINTS = 50_000
+PROBE_POINTS = 20_000
 
 
 @dataclass(frozen=True)
@@ -63,7 +68,8 @@ class NoiseEstimate:
     a: m; b: 1/m (0 when not ``along_ray``); reference: the range (m) ``sigma_reference`` = a + b reference^2 is at;
     along_ray: the residuals are ranges along each ray (the viewpoint is the sensor), else perpendicular to the
     surfaces (isotropic noise); ranges, sigmas: each range bin's median range and robust sigma (m); patches: the
-    neighbourhoods used. All NaN, with patches 0, when too few neighbourhoods were found."""
+    neighbourhoods used. All NaN, with patches 0, when too few neighbourhoods were found or none has a residual
+    above the coordinates' precision (a noise-free cloud)."""
 
     a: float
     b: float
@@ -79,11 +85,12 @@ class NoiseEstimate:
         return self.a + self.b * np.square(r)
 
     def level(self, points: np.ndarray, viewpoint=None, quantile: float = 0.5) -> float:
-        """The ``quantile`` of sigma over the finite rows of ``points`` (N, 3) m: the noise a constant tolerance meets
-        (NaN without an estimate or points)."""
+        """The ``quantile`` of sigma over the finite rows of ``points`` (N, 3) m (every n-th of them beyond
+        LEVEL_POINTS): the noise a constant tolerance meets (NaN without an estimate or points)."""
         if not self.patches:
             return float('nan')
         pts = as_points(points)
+        pts = pts[::max(1, len(pts) // LEVEL_POINTS)]
         pts = pts[finite_rows(pts)] - check_viewpoint(viewpoint)
         if not len(pts):
             return float('nan')
@@ -200,7 +207,9 @@ def estimate_noise(points: np.ndarray, shape: tuple[int, int] | None = None, *, 
     facing = np.where(plate, plane_facing, ray_facing)
     along_ray = bool(np.nanmedian(facing) >= FACING_COS) if np.any(np.isfinite(facing)) else False
     variances = ray_var if along_ray else np.where(plate, perp_var, np.nan)
-    ok = np.isfinite(variances)
+    # residuals at the coordinates' own precision say nothing about the noise: one step of a quantized depth (a
+    # Kinect's at 3 m is 2.6 cm: a third of the voxels of a frame lie on one), a noise-free render
+    ok = variances > (RESOLUTION * ranges) ** 2
     variances, ranges = variances[ok], ranges[ok]
     nu = int(np.median(dof[ok])) if ok.any() else 1
     correction = chi2.ppf(QUANTILE, nu) / nu  # the quantile of a variance over nu dof, over its mean
