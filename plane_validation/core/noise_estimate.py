@@ -55,6 +55,9 @@ BINS, MIN_BIN = 8, 40
 #: A neighbourhood whose RMS residual is below this share of its range is on one quantisation step or noise-free
 #: (float32 coordinates: 6e-8): not counted.
 RESOLUTION = 1e-6
+#: Without a residual above it on at least this share of the neighbourhoods (a Kinect frame as a plain array: 62 %),
+#: the rest are edges: no estimate.
+MEASURABLE = 0.5
 #: NoiseEstimate.level takes the ranges of about this many points.
 LEVEL_POINTS = 20_000
 #: At most this many points of an unorganized cloud are hashed into voxels (a random probe).
@@ -210,6 +213,8 @@ def estimate_noise(points: np.ndarray, shape: tuple[int, int] | None = None, *, 
     # residuals at the coordinates' own precision say nothing about the noise: one step of a quantized depth (a
     # Kinect's at 3 m is 2.6 cm: a third of the voxels of a frame lie on one), a noise-free render
     ok = variances > (RESOLUTION * ranges) ** 2
+    if ok.sum() < max(MIN_BIN, MEASURABLE * len(ok)):  # what is left is edges: the noise is below the precision
+        return _empty(reference, along_ray)
     variances, ranges = variances[ok], ranges[ok]
     nu = int(np.median(dof[ok])) if ok.any() else 1
     correction = chi2.ppf(QUANTILE, nu) / nu  # the quantile of a variance over nu dof, over its mean
