@@ -81,7 +81,11 @@ def test_other_seeds_find_the_same_planes_but_other_patches_of_a_sphere():
     """Stability under reseeding: the verdict needs other RANSAC seeds to find the same planes."""
     planes = pv.tune_tolerance(scenes.cube(6000, 2.5, seed=3).points, seed=0)
     assert planes.reliable and planes.seed_agreement >= MIN_SEED_AGREEMENT, planes.verdict
-    sphere = pv.tune_tolerance(scenes.sphere(5000, seed=1).points, seed=0)
+    # no plane of a sphere is within 5 sigmas of its local roughness (tune_tolerance's noise_bound) ...
+    bounded = pv.tune_tolerance(scenes.sphere(5000, seed=1).points, seed=0)
+    assert bounded.segmentation.n_planes == 0 and not bounded.reliable
+    # ... and the patches beyond it are cut differently by each seed
+    sphere = pv.tune_tolerance(scenes.sphere(5000, seed=1).points, seed=0, noise_bound=0)
     assert sphere.seed_agreement < MIN_SEED_AGREEMENT - 0.2  # a curved surface is cut differently each time
     # every failed test is named, not only the first
     why = judge(scenes.sphere(5000, seed=1).points, sphere.segmentation, sphere.indices, sphere.seed_agreement)[1]
@@ -860,8 +864,15 @@ def test_a_sweep_whose_choice_is_its_derived_top_goes_on_above_it():
 
 def test_a_sweep_whose_choice_is_below_its_top_is_not_extended():
     from plane_validation.core.tuning import TUNE_CANDIDATES
-    result = pv.tune_tolerance(scenes.corner(2000, 1.0, seed=0).points, seed=0)
+    result = pv.tune_tolerance(scenes.corner(2000, 1.0, seed=0).points, seed=0, noise_bound=0)
     assert not result.at_largest and len(result.rows) == TUNE_CANDIDATES
+    # with the noise bound (sigma 0.6 of uniform noise e = 1): the candidates above 5 sigmas are not swept, and the
+    # same t (2 sigmas, the paper's 1-2 e) is chosen from the same candidates below it
+    bounded = pv.tune_tolerance(scenes.corner(2000, 1.0, seed=0).points, seed=0)
+    assert bounded.noise_level == pytest.approx(1 / np.sqrt(3), rel=0.1)
+    assert len(bounded.rows) < TUNE_CANDIDATES and bounded.bounded and not bounded.at_largest
+    np.testing.assert_array_equal(bounded.tolerances, result.tolerances[:len(bounded.rows)])
+    assert bounded.tolerance == result.tolerance
 
 
 def test_a_small_max_planes_does_not_inflate_the_tuned_t():

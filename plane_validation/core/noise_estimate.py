@@ -39,7 +39,8 @@ MIN_VOXEL_POINTS, VOXEL_REFINE = 10, 4
 #: quantisation's and the sub-pixel structure's scale, still small against a surface).
 PATCH_SIDE, PATCH_STRIDE = 5, 2
 #: The viewpoint is taken as the sensor when the median |cos| between a neighbourhood's normal and its ray is at
-#: least this (depth frames and lidar scans: 0.5-0.9; roofs seen from their own centre: under 0.2).
+#: least this (depth frames and lidar scans: 0.5-0.9; roofs seen from their own centre: under 0.2); neighbourhoods
+#: seen at a smaller one are then left out.
 FACING_COS = 0.3
 #: A neighbourhood is thin, its smallest principal axis its plane's normal, when the smallest eigenvalue of its
 #: scatter is at most this share of the middle one (its thickness a third of its width).
@@ -50,8 +51,10 @@ BROAD = 1 / 16
 #: The quantile of the neighbourhoods' residual variances taken as the noise (corrected for the chi-square spread
 #: of a variance estimated from a few points): below the median, as edges and clutter only inflate residuals.
 QUANTILE = 0.3
-#: Range bins the fit of a + b r^2 uses (equal counts), each of at least MIN_BIN neighbourhoods.
+#: Range bins the fit of a + b r^2 uses (equal counts), each of at least MIN_BIN neighbourhoods; a bin more than
+#: OFF_FIT times off the first fits is left out of the last.
 BINS, MIN_BIN = 8, 40
+OFF_FIT = 2.0
 #: A neighbourhood whose RMS residual is below this share of its range is on one quantisation step or noise-free
 #: (float32 coordinates: 6e-8): not counted.
 RESOLUTION = 1e-6
@@ -170,6 +173,25 @@ def _patch_fits_numpy(points: np.ndarray, members: np.ndarray, starts: np.ndarra
     return tuple(out)
 
 
+def _fit(ranges: np.ndarray, sigmas: np.ndarray, counts: np.ndarray) -> tuple[float, float]:
+    """a, b >= 0 of sigma = a + b r^2 through the bins' (ranges, sigmas) m: least squares in error relative to the
+    model (each bin's sigma has about the same relative spread; relative to the data a bin of near zero, a wall on one
+    depth step, would pull the fit to it), twice, then again without bins off the model by more than OFF_FIT."""
+    keep = np.ones(len(ranges), bool)
+    model = np.full(len(ranges), float(np.median(sigmas)))
+    for step in range(3):
+        weight = np.sqrt(counts) / np.maximum(model, 1e-12 * max(float(sigmas.max()), 1e-300))
+        design = np.column_stack([weight, weight * ranges ** 2])
+        (a, b), _ = nnls(design[keep], (weight * sigmas)[keep])
+        model = a + b * ranges ** 2
+        if step == 1:
+            with np.errstate(divide='ignore', invalid='ignore'):
+                keep = np.abs(np.log(sigmas / model)) <= np.log(OFF_FIT)
+            if keep.sum() < 2:
+                break
+    return float(a), float(b)
+
+
 def _empty(reference: float, along_ray: bool = False) -> NoiseEstimate:
     nan = float('nan')
     return NoiseEstimate(nan, nan, reference, nan, along_ray, (), (), 0)
@@ -213,6 +235,8 @@ def estimate_noise(points: np.ndarray, shape: tuple[int, int] | None = None, *, 
     # residuals at the coordinates' own precision say nothing about the noise: one step of a quantized depth (a
     # Kinect's at 3 m is 2.6 cm: a third of the voxels of a frame lie on one), a noise-free render
     ok = variances > (RESOLUTION * ranges) ** 2
+    if along_ray:  # at a grazing angle a range residual is the thickness over |cos|: of noise across the surface too
+        ok &= facing >= FACING_COS
     if ok.sum() < max(MIN_BIN, MEASURABLE * len(ok)):  # what is left is edges: the noise is below the precision
         return _empty(reference, along_ray)
     variances, ranges = variances[ok], ranges[ok]
@@ -231,9 +255,6 @@ def estimate_noise(points: np.ndarray, shape: tuple[int, int] | None = None, *, 
         centres.append(float(np.median(ranges[part])))
         sigmas.append(float(np.sqrt(np.quantile(variances[part], QUANTILE) / correction)))
         counts.append(len(part))
-    centres_a, sigmas_a = np.array(centres), np.array(sigmas)
-    # least squares in relative error (each bin's sigma has about the same relative spread), a, b >= 0
-    weight = np.sqrt(np.array(counts)) / np.maximum(sigmas_a, 1e-300)
-    (a, b), _ = nnls(np.column_stack([weight, weight * centres_a ** 2]), weight * sigmas_a)
+    a, b = _fit(np.array(centres), np.array(sigmas), np.array(counts))
     return NoiseEstimate(float(a), float(b), reference, float(a + b * reference ** 2), True, tuple(centres),
                          tuple(sigmas), int(len(variances)))

@@ -182,6 +182,7 @@ class TuningResult:
     seed_agreement: float = float('nan')
     sensor_noise: NoiseEstimate | None = None  # from local plane residuals, before any segmentation
     noise_level: float = float('nan')  # sigma (m) the sweep's bound is a multiple of (tune_tolerance's noise_bound)
+    bounded: bool = False  # the next candidate above the last one swept would be above the noise bound
 
     @property
     def noise_ratio(self) -> float:
@@ -195,9 +196,9 @@ class TuningResult:
 
     @property
     def at_largest(self) -> bool:
-        """Whether the chosen t is the largest candidate, after any extension of the sweep (a wider range
-        might choose a larger one)."""
-        return self.best == len(self.rows) - 1 and len(self.rows) > 1
+        """Whether the chosen t is the largest candidate, after any extension of the sweep, and not at the noise
+        bound (a wider range might choose a larger one)."""
+        return self.best == len(self.rows) - 1 and len(self.rows) > 1 and not self.bounded
 
     def scores(self, criterion: str | None = None) -> np.ndarray:
         return np.array([r.score(criterion or self.criterion) for r in self.rows])
@@ -434,10 +435,9 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     sensor = estimate_noise(pts, shape, viewpoint=view, reference=noise_reference, seed=0)
     noise_level = sensor.sigma_reference if scale is not None else \
         sensor.level(finite, view, NOISE_LEVEL_QUANTILE)
-    cap = noise_bound * noise_level if connectivity and noise_bound and tolerances is None and t_max is None \
-        and len(cand) > 2 and cand[1] <= noise_bound * noise_level < cand[-1] else np.inf
-    if cap < np.inf:
-        cand = cand[cand <= cap]  # the same candidates below it: a choice changes only where the bound binds
+    bound = noise_bound * noise_level if connectivity and noise_bound and tolerances is None and t_max is None \
+        and len(cand) > 2 and cand[1] <= noise_bound * noise_level else np.inf
+    cand = cand[cand <= bound]  # the same candidates below it: a choice changes only where the bound binds
     cand = np.unique(cand)
     if cand.size == 0:
         raise ValueError('tolerances is empty: give at least one candidate (or None to derive them)')
@@ -447,9 +447,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     top = TOP_DIAGONAL_SHARE * float(np.linalg.norm(np.ptp(finite, axis=0))) / factor \
         if extend and tolerances is None and t_max is None and len(cand) > 1 and criterion not in SEPARATION_CRITERIA \
         else 0.0
-    if connectivity and noise_bound and tolerances is None and t_max is None and len(cand) > 2 \
-            and cand[1] <= noise_bound * noise_level:
-        top = min(top, noise_bound * noise_level)  # the extension keeps to the bound too
+    top = min(top, bound)  # the extension keeps to the bound too
     sweep_shape = None
     step = 0 if shape is None else grid_step(shape, len(finite), tune_points)
     if step:
@@ -503,6 +501,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                 progress(len(rows), len(rows))
             best = _sound_choice(rows, criterion, n_sweep) if connectivity else _choose(rows, criterion, n_sweep)
         t_best = rows[best].tolerance
+        bounded = bool(len(cand) > 1 and rows[-1].tolerance * cand[-1] / cand[-2] > bound)
         # stability under reseeding, on the sweep's points and graph (a fraction of the full cloud's cost);
         # only when there are planes to find again. With workers they run beside the final detection.
         reseeds = rng.integers(0, 2**63, size=STABILITY_RESEEDS)
@@ -523,7 +522,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                         verdict=verdict, seconds=time.perf_counter() - start, noise_model=noise_model,
                         noise_coefficient=noise_coefficient(pts, final.labels, final.coefficients, view)
                         if noise_model == 'depth_quadratic' else float('nan'), sweep_points=n_sweep,
-                        seed_agreement=agreement, sensor_noise=sensor, noise_level=noise_level)
+                        seed_agreement=agreement, sensor_noise=sensor, noise_level=noise_level, bounded=bounded)
 
 
 def _check_range(t_min, t_max, tune_points) -> tuple[float | None, float | None, int | None]:
