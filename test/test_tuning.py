@@ -878,7 +878,7 @@ def test_a_sweep_whose_choice_is_below_its_top_is_not_extended():
 def test_a_small_max_planes_does_not_inflate_the_tuned_t():
     """The sweep looks for SWEEP_MAX_PLANES planes; capped at 3 it had chosen t = 0.15 m in a 6-wall room
     with 5 mm noise, where each plane took in strips of the walls left out."""
-    from plane_validation.core.tuning import SWEEP_MAX_PLANES
+    from plane_validation.core.tuning import NOISE_BOUND, SWEEP_MAX_PLANES
     scene = scenes.room(20000, noise=0.005, seed=3)
     assert SWEEP_MAX_PLANES > len(scene.planes)
     free = pv.tune_tolerance(scene.points, seed=0)
@@ -896,8 +896,12 @@ def test_a_small_max_planes_does_not_inflate_the_tuned_t():
     assert sampled.indices.n_planes == sampled.segmentation.n_planes == 3
     assert sampled.indices.plane_silhouette < 0.7 and not sampled.reliable, sampled.verdict
     # the paper's experiments keep every candidate to max_planes (sweep_planes=0): the t it inflates
-    paper = pv.tune_tolerance(scene.points, seed=0, max_planes=3, sweep_planes=0)
+    paper = pv.tune_tolerance(scene.points, seed=0, max_planes=3, sweep_planes=0, noise_bound=0)
     assert max(r.n_planes for r in paper.rows) <= 3 and paper.tolerance > 10 * free.tolerance
+    # the noise bound keeps it to 5 sigmas (uniform noise e = 5 mm: sigma 2.9 mm, 4.1 mm along the rays)
+    bounded = pv.tune_tolerance(scene.points, seed=0, max_planes=3, sweep_planes=0)
+    assert bounded.noise_level == pytest.approx(0.0041, rel=0.15)
+    assert bounded.tolerance <= NOISE_BOUND * bounded.noise_level < paper.tolerance
 
 
 def test_noisy_stairs_are_not_one_slanted_plane():
