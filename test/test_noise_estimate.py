@@ -51,6 +51,8 @@ def test_noise_free_and_degenerate_clouds():
     assert estimate_noise(np.full((100, 3), np.nan), seed=0).patches == 0
     with pytest.raises(ValueError, match='shape'):
         estimate_noise(flat, (10, 10))
+    far = np.vstack([flat, [[1e9, 1e9, 1e9]]])  # voxels fine enough for the plane cannot span it: no estimate
+    assert estimate_noise(far, seed=0).patches == 0
 
 
 def test_estimate_is_deterministic_per_seed():

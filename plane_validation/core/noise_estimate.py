@@ -132,8 +132,8 @@ def _voxel_patches(pts: np.ndarray, count: int, rng: np.random.Generator) -> tup
         return np.empty(0, np.int64), np.zeros(1, np.int64)
     cell = size / np.sqrt(max(len(pts) / NEIGHBOURS, 1.0))  # as if the points covered one square sheet
     for _ in range(VOXEL_REFINE):
-        if np.prod(extent / cell + 2) > 2.0 ** 60:
-            break
+        if np.prod(extent / cell + 2) > 2.0 ** 60:  # the voxel keys would overflow (a far-out point): none
+            return np.empty(0, np.int64), np.zeros(1, np.int64)
         order, _, bounds, _ = kernels.voxel_grid(pts, lo, cell, (extent // cell).astype(np.int64) + 2)
         sizes = np.diff(bounds)
         typical = float(np.median(sizes[sizes >= MIN_VOXEL_POINTS])) if np.any(sizes >= MIN_VOXEL_POINTS) else 1.0
