@@ -18,7 +18,7 @@ cannot be held out honestly.
 
 Run: .venv/bin/python benchmarks/quality.py [--criteria] [--quick] [--write-readme] [--only NAME ...]
      .venv/bin/python benchmarks/quality.py --split both [--quick] [--families NAME ...] [--json PATH]
-         [--no-baselines] [--gt DIR]
+         [--no-baselines] [--gt DIR] [--noise-bound K]
 """
 from __future__ import annotations
 
@@ -242,6 +242,8 @@ GOOD_CORRECT = 0.8
 #: A verdict must say "not reliable" below these: correct share, auto / best F1.
 BAD_CORRECT, BAD_RATIO = 0.5, 0.9
 SPLIT_NAMES = ('tuning', 'held-out')
+#: More arguments of the splits' tune_tolerance calls (--noise-bound: to compare a rule on and off).
+TUNE_OPTIONS: dict = {}
 LABELLED = 'labelled'
 
 
@@ -315,7 +317,7 @@ def evaluate_cloud(split: str, family: str, cloud: Cloud, count: int, open3d_gri
         t, q, sec = _best([(t, *fn(t)) for t in ts])
         best[key] = Result(float(t), q, sec)
     start = time.perf_counter()
-    tuned = pv.tune_tolerance(cloud.points, seed=0, shape=cloud.shape, **_params(cloud))
+    tuned = pv.tune_tolerance(cloud.points, seed=0, shape=cloud.shape, **_params(cloud), **TUNE_OPTIONS)
     seconds = time.perf_counter() - start
     seg = tuned.segmentation
     q = segmentation_quality(seg.labels, cloud.labels, points=cloud.points, pred_planes=seg.coefficients)
@@ -450,6 +452,8 @@ def main() -> None:
     parser.add_argument('--no-baselines', action='store_true',
                         help='with --split: ours only (no infinite planes, no Open3D), for trying rules fast')
     parser.add_argument('--gt', type=Path, default=GT, help=f'the labelled clouds (default {GT})')
+    parser.add_argument('--noise-bound', type=float,
+                        help='with --split: tune_tolerance\'s noise_bound (0: none; default the library\'s)')
     parser.add_argument('--write-readme', action='store_true', help='put the table into benchmarks/README.md')
     parser.add_argument('--only', nargs='*', help='cloud names')
     args = parser.parse_args()
@@ -457,6 +461,8 @@ def main() -> None:
     limit_blas_threads()
     command = shlex.join(['python', 'benchmarks/quality.py', *sys.argv[1:]])
     if args.split:
+        if args.noise_bound is not None:
+            TUNE_OPTIONS['noise_bound'] = args.noise_bound
         known = {LABELLED, *scene_families.FAMILIES}
         if args.families and not set(args.families) <= known:
             parser.error(f'unknown families {sorted(set(args.families) - known)}; choose from {sorted(known)}')

@@ -82,7 +82,11 @@ def test_other_seeds_find_the_same_planes_but_other_patches_of_a_sphere():
     """Stability under reseeding: the verdict needs other RANSAC seeds to find the same planes."""
     planes = pv.tune_tolerance(scenes.cube(6000, 2.5, seed=3).points, seed=0)
     assert planes.reliable and planes.seed_agreement >= MIN_SEED_AGREEMENT, planes.verdict
-    sphere = pv.tune_tolerance(scenes.sphere(5000, seed=1).points, seed=0)
+    # no plane of a sphere is within 5 sigmas of its local roughness (tune_tolerance's noise_bound) ...
+    bounded = pv.tune_tolerance(scenes.sphere(5000, seed=1).points, seed=0)
+    assert bounded.segmentation.n_planes == 0 and not bounded.reliable
+    # ... and the patches beyond it are cut differently by each seed
+    sphere = pv.tune_tolerance(scenes.sphere(5000, seed=1).points, seed=0, noise_bound=0)
     assert sphere.seed_agreement < MIN_SEED_AGREEMENT - 0.2  # a curved surface is cut differently each time
     # every failed test is named, not only the first
     why = judge(scenes.sphere(5000, seed=1).points, sphere.segmentation, sphere.indices, sphere.seed_agreement)
@@ -868,14 +872,21 @@ def test_a_sweep_whose_choice_is_its_derived_top_goes_on_above_it():
 
 def test_a_sweep_whose_choice_is_below_its_top_is_not_extended():
     from plane_validation.core.tuning import TUNE_CANDIDATES
-    result = pv.tune_tolerance(scenes.corner(2000, 1.0, seed=0).points, seed=0)
+    result = pv.tune_tolerance(scenes.corner(2000, 1.0, seed=0).points, seed=0, noise_bound=0)
     assert not result.at_largest and len(result.rows) == TUNE_CANDIDATES
+    # with the noise bound (sigma 0.6 of uniform noise e = 1): the candidates above 5 sigmas are not swept, and the
+    # same t (2 sigmas, the paper's 1-2 e) is chosen from the same candidates below it
+    bounded = pv.tune_tolerance(scenes.corner(2000, 1.0, seed=0).points, seed=0)
+    assert bounded.noise_level == pytest.approx(1 / np.sqrt(3), rel=0.1)
+    assert len(bounded.rows) < TUNE_CANDIDATES and bounded.bounded and not bounded.at_largest
+    np.testing.assert_array_equal(bounded.tolerances, result.tolerances[:len(bounded.rows)])
+    assert bounded.tolerance == result.tolerance
 
 
 def test_a_small_max_planes_does_not_inflate_the_tuned_t():
     """The sweep looks for SWEEP_MAX_PLANES planes; capped at 3 it had chosen t = 0.15 m in a 6-wall room
     with 5 mm noise, where each plane took in strips of the walls left out."""
-    from plane_validation.core.tuning import SWEEP_MAX_PLANES
+    from plane_validation.core.tuning import NOISE_BOUND, SWEEP_MAX_PLANES
     scene = scenes.room(20000, noise=0.005, seed=3)
     assert SWEEP_MAX_PLANES > len(scene.planes)
     free = pv.tune_tolerance(scene.points, seed=0)
@@ -895,8 +906,12 @@ def test_a_small_max_planes_does_not_inflate_the_tuned_t():
     assert sampled.indices.n_planes == sampled.segmentation.n_planes == 3
     assert sampled.indices.plane_silhouette < 0.7 and not sampled.reliable, sampled.verdict
     # the paper's experiments keep every candidate to max_planes (sweep_planes=0): the t it inflates
-    paper = pv.tune_tolerance(scene.points, seed=0, max_planes=3, sweep_planes=0)
+    paper = pv.tune_tolerance(scene.points, seed=0, max_planes=3, sweep_planes=0, noise_bound=0)
     assert max(r.n_planes for r in paper.rows) <= 3 and paper.tolerance > 10 * free.tolerance
+    # the noise bound keeps it to 5 sigmas (uniform noise e = 5 mm: sigma 2.9 mm, 4.1 mm along the rays)
+    bounded = pv.tune_tolerance(scene.points, seed=0, max_planes=3, sweep_planes=0)
+    assert bounded.noise_level == pytest.approx(0.0041, rel=0.15)
+    assert bounded.tolerance <= NOISE_BOUND * bounded.noise_level < paper.tolerance
 
 
 def test_noisy_stairs_are_not_one_slanted_plane():

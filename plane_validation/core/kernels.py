@@ -19,7 +19,7 @@ import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
-           'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'pair_graph',
+           'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
            'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -707,6 +707,140 @@ def principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.
 
 
 @numba.njit(**_JIT)
+def _scatter_shape(points: np.ndarray, members: np.ndarray, lo: int, hi: int, cx: float, cy: float, cz: float
+                   ) -> tuple[float, float, float, float]:
+    """Of the points ``points[members[lo:hi]]`` about their mean (cx, cy, cz): (the scatter's smallest eigenvalue,
+    |cos| between its axis and the mean (NaN when undefined), smallest / middle eigenvalue, middle / largest one), in
+    closed form (trigonometric eigenvalues; the axis as the longest cross product of two rows of scatter - smallest I).
+    """
+    xx = xy = xz = yy = yz = zz = 0.0
+    for q in range(lo, hi):
+        p = members[q]
+        x, y, z = points[p, 0] - cx, points[p, 1] - cy, points[p, 2] - cz
+        xx += x * x
+        xy += x * y
+        xz += x * z
+        yy += y * y
+        yz += y * z
+        zz += z * z
+    mean = (xx + yy + zz) / 3.0
+    spread = np.sqrt(((xx - mean) ** 2 + (yy - mean) ** 2 + (zz - mean) ** 2 + 2.0 * (xy * xy + xz * xz + yz * yz))
+                     / 6.0)
+    if not spread > 0.0:
+        return max(mean, 0.0), np.nan, 1.0, 0.0 if not mean > 0.0 else 1.0
+    b00, b11, b22 = (xx - mean) / spread, (yy - mean) / spread, (zz - mean) / spread
+    b01, b02, b12 = xy / spread, xz / spread, yz / spread
+    det = b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02) + b02 * (b01 * b12 - b11 * b02)
+    angle = np.arccos(min(1.0, max(-1.0, det / 2.0))) / 3.0
+    largest = mean + 2.0 * spread * np.cos(angle)
+    smallest = mean + 2.0 * spread * np.cos(angle + 2.0 * np.pi / 3.0)
+    middle = 3.0 * mean - largest - smallest
+    rows = np.array([[xx - smallest, xy, xz], [xy, yy - smallest, yz], [xz, yz, zz - smallest]])
+    best, nx, ny, nz = 0.0, 0.0, 0.0, 0.0
+    for a, b in ((0, 1), (0, 2), (1, 2)):
+        vx = rows[a, 1] * rows[b, 2] - rows[a, 2] * rows[b, 1]
+        vy = rows[a, 2] * rows[b, 0] - rows[a, 0] * rows[b, 2]
+        vz = rows[a, 0] * rows[b, 1] - rows[a, 1] * rows[b, 0]
+        size = vx * vx + vy * vy + vz * vz
+        if size > best:
+            best, nx, ny, nz = size, vx, vy, vz
+    rc = np.sqrt(cx * cx + cy * cy + cz * cz)
+    facing = abs(nx * cx + ny * cy + nz * cz) / (np.sqrt(best) * rc) if best > 0.0 and rc > 0.0 else np.nan
+    return (max(smallest, 0.0), facing, max(smallest, 0.0) / middle if middle > 0.0 else 1.0,
+            max(middle, 0.0) / largest if largest > 0.0 else 0.0)
+
+
+@numba.njit(**_JIT)
+def _ray_fit(points: np.ndarray, members: np.ndarray, lo: int, hi: int, cx: float, cy: float, cz: float
+             ) -> tuple[float, float]:
+    """(sum of squared range residuals m^2, |cos| between the plane's normal and the mean ray) of the least-squares
+    fit of 1 / r to the unit ray directions of ``points[members[lo:hi]]``; NaN, NaN when the directions do not span
+    3-D or a point is at the viewpoint. Solved in a frame about the mean ray (cx, cy, cz): well-conditioned normal
+    equations."""
+    rc = np.sqrt(cx * cx + cy * cy + cz * cz)
+    if not rc > 0.0:
+        return np.nan, np.nan
+    e = np.empty((3, 3))
+    e[0, 0], e[0, 1], e[0, 2] = cx / rc, cy / rc, cz / rc
+    side = np.array([1.0, 0.0, 0.0]) if abs(e[0, 0]) < 0.6 else np.array([0.0, 1.0, 0.0])
+    e[1, 0], e[1, 1], e[1, 2] = (e[0, 1] * side[2] - e[0, 2] * side[1], e[0, 2] * side[0] - e[0, 0] * side[2],
+                                 e[0, 0] * side[1] - e[0, 1] * side[0])
+    e[1] /= np.sqrt(e[1, 0] ** 2 + e[1, 1] ** 2 + e[1, 2] ** 2)
+    e[2, 0], e[2, 1], e[2, 2] = (e[0, 1] * e[1, 2] - e[0, 2] * e[1, 1], e[0, 2] * e[1, 0] - e[0, 0] * e[1, 2],
+                                 e[0, 0] * e[1, 1] - e[0, 1] * e[1, 0])
+    a = np.zeros((3, 4))  # normal equations [M | c]
+    g = np.empty(3)
+    for q in range(lo, hi):
+        p = members[q]
+        r = np.sqrt(points[p, 0] ** 2 + points[p, 1] ** 2 + points[p, 2] ** 2)
+        if not r > 0.0:  # a point at the viewpoint has no ray
+            return np.nan, np.nan
+        for s in range(3):
+            g[s] = (points[p, 0] * e[s, 0] + points[p, 1] * e[s, 1] + points[p, 2] * e[s, 2]) / r
+        for s in range(3):
+            for t in range(3):
+                a[s, t] += g[s] * g[t]
+            a[s, 3] += g[s] / r
+    scale = max(a[0, 0], a[1, 1], a[2, 2])
+    for s in range(3):  # Gaussian elimination with partial pivoting
+        best = s
+        for t in range(s + 1, 3):
+            if abs(a[t, s]) > abs(a[best, s]):
+                best = t
+        if not abs(a[best, s]) > 1e-13 * scale:
+            return np.nan, np.nan
+        for c in range(4):
+            a[s, c], a[best, c] = a[best, c], a[s, c]
+        for t in range(s + 1, 3):
+            f = a[t, s] / a[s, s]
+            for c in range(s, 4):
+                a[t, c] -= f * a[s, c]
+    w2 = a[2, 3] / a[2, 2]
+    w1 = (a[1, 3] - a[1, 2] * w2) / a[1, 1]
+    w0 = (a[0, 3] - a[0, 1] * w1 - a[0, 2] * w2) / a[0, 0]
+    sq = 0.0
+    for q in range(lo, hi):
+        p = members[q]
+        r = np.sqrt(points[p, 0] ** 2 + points[p, 1] ** 2 + points[p, 2] ** 2)
+        fitted = 0.0
+        for s, w in ((0, w0), (1, w1), (2, w2)):
+            fitted += w * (points[p, 0] * e[s, 0] + points[p, 1] * e[s, 1] + points[p, 2] * e[s, 2]) / r
+        d = (1.0 / r - fitted) * r * r  # d(1/r) = -dr / r^2
+        sq += d * d
+    return sq, abs(w0) / np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+
+
+@numba.njit(**_JIT)
+def patch_fits(points: np.ndarray, members: np.ndarray, starts: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per neighbourhood j, the points ``points[members[starts[j]:starts[j + 1]]]`` ((n, 3) meters from the viewpoint,
+    at least 4 each): (range variance (m,) m^2 of the least-squares fit of 1 / r to the unit ray directions u, its
+    residuals times r^2, over k - 3 (NaN when the directions do not span 3-D); facing (m,): |cos| between that fit's
+    plane normal and the mean ray; thickness variance (m,) m^2, the scatter's smallest eigenvalue over k - 3;
+    plane facing (m,): |cos| between the scatter's smallest axis and the mean ray (NaN when undefined); flatness (m,):
+    the smallest eigenvalue over the middle one; breadth (m,): the middle one over the largest; range (m,) m of the
+    mean point)."""
+    m = starts.shape[0] - 1
+    out = np.empty((7, m))
+    for j in range(m):
+        lo, hi = starts[j], starts[j + 1]
+        k = hi - lo
+        cx = cy = cz = 0.0
+        for q in range(lo, hi):
+            p = members[q]
+            cx += points[p, 0]
+            cy += points[p, 1]
+            cz += points[p, 2]
+        cx, cy, cz = cx / k, cy / k, cz / k
+        smallest, out[3, j], out[4, j], out[5, j] = _scatter_shape(points, members, lo, hi, cx, cy, cz)
+        out[2, j] = smallest / (k - 3)
+        sq, out[1, j] = _ray_fit(points, members, lo, hi, cx, cy, cz)
+        out[0, j] = sq / (k - 3)
+        out[6, j] = np.sqrt(cx * cx + cy * cy + cz * cz)
+    return out[0], out[1], out[2], out[3], out[4], out[5], out[6]
+
+
+@numba.njit(**_JIT)
 def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The graph of n points joined by ``pairs`` (e, 2) (any order, repeats allowed): (edges (2, u) each joined pair
     once, smaller index first, sorted by it then by the other; indptr (n + 1,) and indices: each point's neighbours,
@@ -804,6 +938,7 @@ def warm() -> Warmup:
     grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
     voxel_knn(pts, *grid, np.zeros(3), 1.0, dims, pts, 2, 1)
     principal_axes(pts, np.zeros((4, 3), np.int64))
+    patch_fits(pts, index, np.array([0, 4]))
     pair_graph(4, np.zeros((1, 2), np.int64))
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
@@ -811,4 +946,4 @@ def warm() -> Warmup:
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
             grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
-            voxel_grid, voxel_knn, principal_axes, pair_graph)
+            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph)

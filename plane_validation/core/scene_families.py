@@ -163,7 +163,8 @@ def _table(rng: np.random.Generator, size, height: float, yaw: float, at, surfac
         clutter.append(_Post(at[0] + p[0], at[1] + p[1], leg, 0.0, z0))
 
 
-def indoor_depth(seed: int, *, width: int = 640, height: int = 480, hfov_deg: float = 58.0) -> Scene:
+def indoor_depth(seed: int, *, width: int = 640, height: int = 480, hfov_deg: float = 58.0,
+                 noise: tuple[float, float] | None = None, quantum: float | None = None) -> Scene:
     """An organized depth frame (camera frame, meters, NaN rows for lost pixels; shape (height, width))
     of a random furnished room.
 
@@ -176,6 +177,7 @@ def indoor_depth(seed: int, *, width: int = 640, height: int = 480, hfov_deg: fl
     (|cos| < 0.1-0.3), beyond 3.5-6 m (a Kinect's working range); at depth jumps (> 4 % between
     neighbours) a pixel is lost or takes a depth between both sides (a flying pixel, -1). Planes with
     fewer than 0.1 % of the pixels are -1. ``noise`` is sigma at 1 m (a + b).
+    noise (a m, b 1/m), quantum (q 1/m, 0: none): these instead of the drawn ones (the rest of the scene as drawn).
     """
     seed = _check_seed(seed)
     if width < 8 or height < 8 or not 20 <= hfov_deg <= 120:
@@ -242,6 +244,8 @@ def indoor_depth(seed: int, *, width: int = 640, height: int = 480, hfov_deg: fl
     z = dist * (rays @ rot[:, 2])  # optical depth
     a, b = rng.uniform(0.0, 3 * KINECT_A), rng.uniform(0.0005, 3 * KINECT_B)
     q, min_cos, max_range = rng.uniform(0.001, 0.003), rng.uniform(0.1, 0.3), rng.uniform(3.5, 6.0)
+    a, b = (a, b) if noise is None else (float(noise[0]), float(noise[1]))
+    q = q if quantum is None else float(quantum)
     lost = ~np.isfinite(z) | (cos < min_cos) | (z > max_range) | (rng.random(len(z)) < rng.uniform(0, 0.05))
     labels = np.where(lost, -1, surface)
 
@@ -263,8 +267,9 @@ def indoor_depth(seed: int, *, width: int = 640, height: int = 480, hfov_deg: fl
 
     z = np.where(lost, 1.0, z)
     z = z + rng.normal(0.0, 1.0, len(z)) * (a + b * z ** 2)
-    step = q * z ** 2
-    z = np.round(z / step) * step
+    if q > 0:
+        step = q * z ** 2
+        z = np.round(z / step) * step
     points = rays_cam * np.where(lost, np.nan, z)[:, None]
     planes = np.array([_plane(s[0], rot, eye) for s in surfaces])
     labels, planes = _drop_small(labels.astype(np.int32), planes, max(20, int(0.001 * width * height)))

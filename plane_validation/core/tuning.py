@@ -26,6 +26,7 @@ from .blas import single_blas_thread
 from .failures import Verdict
 from .indices import ValidityIndices, validity_indices
 from .noise import NOISE_REFERENCE, noise_coefficient, tolerance_scale
+from .noise_estimate import NoiseEstimate, estimate_noise
 from .orientation import Orientation
 from .ransac import (
     GRID_POINTS,
@@ -108,6 +109,14 @@ SILHOUETTE_TIE = 0.01
 #: A sound choice above a merge is kept: the layering test also fires on a quantized camera's depth steps, and
 #: cutting there splits a wall into its two depth layers.
 UNSOUND_SHARE = 0.02
+#: With connected regions, the candidates of a derived range above this many times the sensor's noise are not swept,
+#: nor is the range extended beyond it (the noise: sigma from core/noise_estimate.py at the NOISE_LEVEL_QUANTILE of
+#: the cloud's ranges; with ``depth_quadratic``, at the reference range): a larger t takes in strips of other surfaces
+#: and merges shallow ridges. On the benchmark's tuning split (benchmarks/README.md) the best fixed t of the scenes
+#: auto-tuning gets right is 1.4-4.6 sigma (one roof 6.7, where its tuned 4.4 is as good), and 5 did better there
+#: than 3.5 and 7; the paper's useful t is 1-2 noise half-widths (1.7-3.5 sigma for uniform noise).
+NOISE_BOUND = 5.0
+NOISE_LEVEL_QUANTILE = 0.9
 #: A candidate whose planes that fit their points worse than their patches do (verdict.MAX_LACK_OF_FIT: two sides of a
 #: shallow ridge, a table top with the floor beside it) hold this share of the planes' points or more is unsound too: as
 #: for the verdict (MINOR_SHARE). Smaller merges, such as a box's top with strips of its sides, come back at every t
@@ -146,6 +155,8 @@ class TuningResult:
     rows: every candidate, ascending tolerance (with any added above a derived range: ``extend``).
     tolerance: the chosen ``t`` (meters).
     segmentation: the chosen ``t`` applied to the full-resolution cloud; indices: its indices.
+    sensor_noise, noise_level, noise_ratio: the sensor's noise before any segmentation (:mod:`.noise_estimate`), the
+    sigma (m) the sweep is bounded by (NOISE_BOUND) and the chosen t over it.
     noise_estimate: half-width ``e`` of the sensor noise (meters), estimated from the residuals of
     the chosen planes (for uniform noise on [-e, e] the residual RMS is e / sqrt(3)); with the
     ``depth_quadratic`` model, of the residuals scaled to the reference range.
@@ -169,6 +180,15 @@ class TuningResult:
     noise_coefficient: float = float('nan')
     sweep_points: int = 0  # valid points the candidates were scored on (the subsample)
     seed_agreement: float = float('nan')
+    sensor_noise: NoiseEstimate | None = None  # from local plane residuals, before any segmentation
+    noise_level: float = float('nan')  # sigma (m) the sweep's bound is a multiple of (tune_tolerance's noise_bound)
+    bounded: bool = False  # the next candidate above the last one swept would be above the noise bound
+
+    @property
+    def noise_ratio(self) -> float:
+        """The chosen t over ``noise_level``: how many sigmas of the sensor's noise the tolerance is (NaN when the
+        noise is unknown or nil)."""
+        return self.tolerance / self.noise_level if self.noise_level > 0 else float('nan')
 
     @property
     def reliable(self) -> bool:
@@ -180,9 +200,9 @@ class TuningResult:
 
     @property
     def at_largest(self) -> bool:
-        """Whether the chosen t is the largest candidate, after any extension of the sweep (a wider range
-        might choose a larger one)."""
-        return self.best == len(self.rows) - 1 and len(self.rows) > 1
+        """Whether the chosen t is the largest candidate, after any extension of the sweep, and not at the noise
+        bound (a wider range might choose a larger one)."""
+        return self.best == len(self.rows) - 1 and len(self.rows) > 1 and not self.bounded
 
     def scores(self, criterion: str | None = None) -> np.ndarray:
         return np.array([r.score(criterion or self.criterion) for r in self.rows])
@@ -337,7 +357,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                    noise_model: str = 'constant', noise_reference: float = NOISE_REFERENCE,
                    viewpoint: Viewpoint = None, jobs: int = 1, sweep_planes: int = SWEEP_MAX_PLANES,
                    extend: int = TUNE_EXTEND, grid_points: int | None = GRID_POINTS,
-                   orientation: Orientation | None = None) -> TuningResult:
+                   orientation: Orientation | None = None, noise_bound: float = NOISE_BOUND) -> TuningResult:
     """Sweep the RANSAC tolerance and pick the best by ``criterion``.
 
     points: (N, 3) meters. tolerances: candidate ``t`` values in meters, or None for ``count``
@@ -375,6 +395,9 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     sweep_planes: the candidates look for up to max(max_planes, sweep_planes) planes, and only the
     final detection keeps to ``max_planes`` (t is the sensor's, whatever number of planes is wanted);
     0 = ``max_planes`` (the paper's experiments).
+    noise_bound: with ``connectivity`` and a derived top (no ``tolerances``, no ``t_max``), candidates above this many
+    sigmas of the sensor's noise (NOISE_BOUND; :func:`.noise_estimate.estimate_noise`) are not swept and the range is
+    not extended beyond it, unless that leaves fewer than two candidates (a noise-free cloud); 0 = no bound.
     """
     _check_criterion(criterion)
     if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 0:
@@ -388,6 +411,9 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         tolerances = _check_tolerances(tolerances)
     count = check_integer('count', count, 2)
     check_flag('connectivity', connectivity)
+    noise_bound = check_number('noise_bound', noise_bound, 'a number >= 0 (0: no bound)')
+    if noise_bound < 0:
+        raise ValueError(f'noise_bound must be a number >= 0 (0: no bound), got {noise_bound!r}')
     start = time.perf_counter()
     pts = as_points(points)
     finite = _finite(pts)
@@ -408,6 +434,14 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
             raise ValueError(f'the smallest candidate {lo:g} m (t_min, the node\'s tune_min) is not below the '
                              f'largest t0 derived from this cloud, {hi:.3g} m: lower it or give t_max too')
         cand = np.geomspace(lo, hi, len(cand))
+    shape = None if shape is None else check_shape(shape, len(pts))
+    # a fixed seed: the estimate is the cloud's, and the sweep's random stream stays as it was without it
+    sensor = estimate_noise(pts, shape, viewpoint=view, reference=noise_reference, seed=0)
+    noise_level = sensor.sigma_reference if scale is not None else \
+        sensor.level(finite, view, NOISE_LEVEL_QUANTILE)
+    bound = noise_bound * noise_level if connectivity and noise_bound and tolerances is None and t_max is None \
+        and len(cand) > 2 and cand[1] <= noise_bound * noise_level else np.inf
+    cand = cand[cand <= bound]  # the same candidates below it: a choice changes only where the bound binds
     cand = np.unique(cand)
     if cand.size == 0:
         raise ValueError('tolerances is empty: give at least one candidate (or None to derive them)')
@@ -417,8 +451,8 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     top = TOP_DIAGONAL_SHARE * float(np.linalg.norm(np.ptp(finite, axis=0))) / factor \
         if extend and tolerances is None and t_max is None and len(cand) > 1 and criterion not in SEPARATION_CRITERIA \
         else 0.0
+    top = min(top, bound)  # the extension keeps to the bound too
     sweep_shape = None
-    shape = None if shape is None else check_shape(shape, len(pts))
     step = 0 if shape is None else grid_step(shape, len(finite), tune_points)
     if step:
         grid, _ = grid_image(pts, finite_rows(pts), shape, step)
@@ -471,6 +505,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                 progress(len(rows), len(rows))
             best = _sound_choice(rows, criterion, n_sweep) if connectivity else _choose(rows, criterion, n_sweep)
         t_best = rows[best].tolerance
+        bounded = bool(len(cand) > 1 and rows[-1].tolerance * cand[-1] / cand[-2] > bound)
         # stability under reseeding, on the sweep's points and graph (a fraction of the full cloud's cost);
         # only when there are planes to find again. With workers they run beside the final detection.
         reseeds = rng.integers(0, 2**63, size=STABILITY_RESEEDS)
@@ -491,7 +526,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                         noise_model=noise_model,
                         noise_coefficient=noise_coefficient(pts, final.labels, final.coefficients, view)
                         if noise_model == 'depth_quadratic' else float('nan'), sweep_points=n_sweep,
-                        seed_agreement=agreement)
+                        seed_agreement=agreement, sensor_noise=sensor, noise_level=noise_level, bounded=bounded)
 
 
 def _check_range(t_min, t_max, tune_points) -> tuple[float | None, float | None, int | None]:
