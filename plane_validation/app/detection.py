@@ -23,11 +23,10 @@ from ..core.ransac import (
     Viewpoint,
     as_points,
     carried,
-    check_viewpoint,
     detect_planes,
     finite_rows,
 )
-from ..core.tuning import TuningResult, noise_from_segmentation, sensor_noise_level, tune_tolerance
+from ..core.tuning import TuningResult, noise_from_segmentation, tune_tolerance
 from ..core.verdict import judge
 from .config import PipelineConfig
 
@@ -99,8 +98,7 @@ def tune_scan(points: np.ndarray, *, search: SearchParams | None = None, ring: n
     tuned = tune_tolerance(laid[0], seed=seed, shape=laid[1], **options)
     seg = carried(tuned.segmentation, points, laid[2])
     scores = validity_indices(points, seg.labels, seed=seed)
-    verdict = judge(points, seg, scores, None if np.isnan(tuned.seed_agreement) else tuned.seed_agreement,
-                    tuned.noise_level)
+    verdict = judge(points, seg, scores, None if np.isnan(tuned.seed_agreement) else tuned.seed_agreement)
     return dataclasses.replace(
         tuned, segmentation=seg, indices=scores, verdict=verdict,
         noise_estimate=noise_from_segmentation(seg, points),
@@ -137,9 +135,7 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, search: Search
     if laid is not None:
         seg = carried(seg, pts, laid[2])
     scores = validity_indices(pts, seg.labels, seed=seed)
-    level = sensor_noise_level(pts, shape, check_viewpoint(search.viewpoint), search.noise_model,
-                               search.noise_reference)[1]  # a fixed t is judged against the sensor's noise too
     return Detection(points=pts, segmentation=seg, indices=scores, tolerance=float(tolerance),
-                     tolerance_source='fixed', verdict=judge(pts, seg, scores, noise_level=level),
+                     tolerance_source='fixed', verdict=judge(pts, seg, scores),
                      noise_estimate=noise_from_segmentation(seg, pts), seed=seed, seconds=time.perf_counter() - start,
                      ring_image=note)

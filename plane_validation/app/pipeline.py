@@ -400,8 +400,7 @@ class FramePipeline:
                 scores = validity_indices(*scored, sample_size=cfg.index_sample_size, seed=seed,
                                           sampled_separation=not cfg.exact_indices)
                 found = self.tracker.update(valid, labels, seg.coefficients)
-                level = None if sweep is None else sweep.noise_level  # the sensor's noise behind a tuned t
-                verdict = judge(work, seg, scores, agreement, level).renumbered(found)  # planes named by their ids
+                verdict = judge(work, seg, scores, agreement).renumbered(found)  # planes named by their ids
                 seg, labels, ids = _by_id(seg, labels, found)
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
             return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,

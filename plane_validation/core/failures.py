@@ -29,7 +29,6 @@ class FailureKind(enum.Enum):
     #: plane when the search stopped at max_planes (else None)
     COORDINATE_STEPS = 'coordinate_steps'    #: step of the coordinates along the normal (m) > limit, t (m)
     SEEDS_DISAGREE = 'seeds_disagree'        #: agreement with other RANSAC seeds < limit
-    TOLERANCE_ABOVE_NOISE = 'tolerance_above_noise'  #: t / the sensor's noise sigma > limit; ``other``: sigma (m)
 
 
 @dataclass(frozen=True)
@@ -140,9 +139,6 @@ _SENTENCES = {
                                              'planes may be those steps (a larger t; far from the origin, subtract '
                                              'an offset such as a local origin before storing coordinates as '
                                              'float32)'),
-    FailureKind.TOLERANCE_ABOVE_NOISE: lambda f: (f't is {_up(f.value)} times the sensor\'s noise (sigma '
-                                                  f'{f.other:.3g} m; > {f.limit:g}): a tolerance this far above the '
-                                                  'noise takes in strips of other surfaces and merges shallow ridges'),
     FailureKind.SEEDS_DISAGREE: lambda f: (f'other RANSAC seeds find other planes (agreement {_down(f.value)} < '
                                            f'{f.limit:g})'),
 }

@@ -59,8 +59,7 @@ from .verdict import (
 
 __all__ = ['CRITERIA', 'DEFAULT_CRITERION', 'TUNE_CANDIDATES', 'TUNE_POINTS',
            'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
-           'select_plane_count', 'sensor_noise_level', 'noise_from_segmentation', 'local_noise', 'quick_tolerance',
-           'MIN_PLANE_SILHOUETTE',
+           'select_plane_count', 'noise_from_segmentation', 'local_noise', 'quick_tolerance', 'MIN_PLANE_SILHOUETTE',
            'TuningWorkerError', 'stop_workers']
 
 #: Default number of tuning candidates and the subsample a sweep runs on (points).
@@ -437,7 +436,9 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         cand = np.geomspace(lo, hi, len(cand))
     shape = None if shape is None else check_shape(shape, len(pts))
     # a fixed seed: the estimate is the cloud's, and the sweep's random stream stays as it was without it
-    sensor, noise_level = sensor_noise_level(pts, shape, view, noise_model, noise_reference)
+    sensor = estimate_noise(pts, shape, viewpoint=view, reference=noise_reference, seed=0)
+    noise_level = sensor.sigma_reference if scale is not None else \
+        sensor.level(finite, view, NOISE_LEVEL_QUANTILE)
     bound = noise_bound * noise_level if connectivity and noise_bound and tolerances is None and t_max is None \
         and len(cand) > 2 and cand[1] <= noise_bound * noise_level else np.inf
     cand = cand[cand <= bound]  # the same candidates below it: a choice changes only where the bound binds
@@ -521,24 +522,11 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         agreement = seed_agreement(sweep_labels[best], reruns)
     return TuningResult(rows=tuple(rows), criterion=criterion, best=best, tolerance=t_best, segmentation=final,
                         indices=final_scores, noise_estimate=noise_from_segmentation(final, pts),
-                        verdict=judge(pts, final, final_scores, agreement, noise_level),
-                        seconds=time.perf_counter() - start, noise_model=noise_model,
+                        verdict=judge(pts, final, final_scores, agreement), seconds=time.perf_counter() - start,
+                        noise_model=noise_model,
                         noise_coefficient=noise_coefficient(pts, final.labels, final.coefficients, view)
                         if noise_model == 'depth_quadratic' else float('nan'), sweep_points=n_sweep,
                         seed_agreement=agreement, sensor_noise=sensor, noise_level=noise_level, bounded=bounded)
-
-
-def sensor_noise_level(points: np.ndarray, shape: tuple[int, int] | None, viewpoint: np.ndarray,
-                       noise_model: str = 'constant', reference: float = NOISE_REFERENCE
-                       ) -> tuple[NoiseEstimate, float]:
-    """The sensor's noise of (N, 3) ``points`` (m; ``shape`` (H, W) when organized) seen from ``viewpoint`` (3,),
-    and the sigma (m) a tolerance is compared with: at the NOISE_LEVEL_QUANTILE of the cloud's ranges, or with
-    ``depth_quadratic`` (a t0) at the ``reference`` range. NaN when the noise cannot be measured."""
-    # a fixed seed: the estimate is the cloud's, and a sweep's random stream stays as it was without it
-    sensor = estimate_noise(points, shape, viewpoint=viewpoint, reference=reference, seed=0)
-    if noise_model == 'depth_quadratic':
-        return sensor, sensor.sigma_reference
-    return sensor, sensor.level(_finite(points), viewpoint, NOISE_LEVEL_QUANTILE)
 
 
 def _check_range(t_min, t_max, tune_points) -> tuple[float | None, float | None, int | None]:

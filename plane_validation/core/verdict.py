@@ -14,8 +14,7 @@ from .ransac import Segmentation, as_points
 from .scoring import segmentation_quality
 from .search.neighbours import NORMAL_MIN_COS
 
-__all__ = ['judge', 'MAX_NOISE_RATIO',
-           'surface_failures', 'plane_tilt', 'MAX_TILT', 'plane_thickness', 'plane_curvature', 'plane_fill',
+__all__ = ['judge', 'surface_failures', 'plane_tilt', 'MAX_TILT', 'plane_thickness', 'plane_curvature', 'plane_fill',
            'plane_lack_of_fit', 'MAX_LACK_OF_FIT', 'plane_layering', 'plane_beyond', 'MAX_FILL', 'MAX_LAYERING',
            'EXACT_LAYERS', 'MAX_BEYOND', 'MAX_ROUNDNESS', 'RELIABLE_PS', 'RELIABLE_GS_PLANES', 'MAX_THICKNESS',
            'MIN_CURVATURE', 'SINGLE_PLANE_THICKNESS', 'seed_agreement', 'MIN_SEED_AGREEMENT', 'STABILITY_RESEEDS',
@@ -133,12 +132,6 @@ MAX_LACK_OF_FIT = 2.0
 #: spread: flatter ones are noise-free up to float32 rounding, or lie on one depth step of a quantizing sensor
 #: without noise (a sensor's noise is 1e-2 of a patch's spread or more).
 EXACT_PATCH = 1e-4
-#: A tolerance more than this many times the sensor's noise sigma (core/noise_estimate.py, before any segmentation)
-#: is not reliable: on the tuning split (benchmarks/README.md) the tuned t of good results with two planes or more is
-#: 1.1-4.8 sigma (three single-slope roofs 6.9-12.2, whose one true plane any t finds); a 27 degree gable merged at
-#: 13 sigma. The sweep's bound (tuning.NOISE_BOUND) keeps a derived sweep at 5 sigma or less: this catches a t the
-#: caller gave (fixed, or a candidate list or t_max above the noise), at the cost of a false alarm on a lone plane.
-MAX_NOISE_RATIO = 8.0
 #: ... and the patches' RMS thickness counts as at least the plane's tolerance over this: deviations from one plane
 #: far inside the band of +-t (a noise-free render's depth steps and warps, 0.3 mm against t = 13 mm on icl_office_0,
 #: or a real wall's bow seen by a precise sensor) are not several surfaces. At a good t the noise is t / 2 or more.
@@ -452,7 +445,7 @@ def coordinate_step(points: np.ndarray) -> np.ndarray:
 
 
 def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
-          agreement: float | None = None, noise_level: float | None = None) -> Verdict:
+          agreement: float | None = None) -> Verdict:
     """Whether the planes of ``seg`` are reliable, with every test they fail (:class:`~.failures.Verdict`).
 
     Reliable needs at least one plane, the planes on enough points (those with fewer than
@@ -467,9 +460,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     other regions. On plane-free clouds (sphere, bunny) the "planes" are thick slabs or patches whose
     points lie near their neighbours' planes. With ``agreement`` (see :func:`seed_agreement`;
     tune_tolerance gives it) it must also reach MIN_SEED_AGREEMENT: other RANSAC seeds find the same
-    planes (a curved surface is cut into different patches each time); NaN (not measured) skips this test. With
-    ``noise_level``, the sensor's noise sigma (m; :func:`.tuning.sensor_noise_level`), t must not exceed
-    MAX_NOISE_RATIO times it; NaN (not measurable, as on a noise-free render) skips this test.
+    planes (a curved surface is cut into different patches each time); NaN (not measured) skips this test.
     """
     ps = float(scores.plane_silhouette)
     if seg.n_planes == 0:
@@ -514,9 +505,6 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
         failures.append(Failure(FailureKind.COORDINATE_STEPS, float(along[coarse]), float(seg.tolerance), coarse))
     if agreement is not None and agreement < MIN_SEED_AGREEMENT:  # NaN: not measured
         failures.append(Failure(FailureKind.SEEDS_DISAGREE, float(agreement), MIN_SEED_AGREEMENT))
-    if noise_level is not None and noise_level > 0 and seg.tolerance > MAX_NOISE_RATIO * noise_level:  # NaN: skip
-        failures.append(Failure(FailureKind.TOLERANCE_ABOVE_NOISE, seg.tolerance / noise_level, MAX_NOISE_RATIO,
-                                other=float(noise_level)))
     return Verdict(not failures, tuple(failures), seg.n_planes, ps)
 
 
