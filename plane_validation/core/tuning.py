@@ -28,9 +28,8 @@ from .indices import ValidityIndices, validity_indices
 from .noise import NOISE_REFERENCE, noise_coefficient, tolerance_scale
 from .noise_estimate import NoiseEstimate, estimate_noise
 from .orientation import Orientation
+from .params import GRID_POINTS, MAX_ITERATIONS, MAX_PLANES, MIN_INLIERS, PROBABILITY, RANSAC_POINTS
 from .ransac import (
-    GRID_POINTS,
-    RANSAC_POINTS,
     Segmentation,
     Viewpoint,
     as_points,
@@ -348,8 +347,9 @@ def noise_from_segmentation(seg: Segmentation, points: np.ndarray | None = None)
 
 @single_blas_thread
 def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT_CRITERION, *,
-                   max_planes: int = 10, min_inliers: int | float = 0.02, probability: float = 0.99,
-                   max_iterations: int = 1000, sample_size: int | None = 2000, tune_points: int | None = TUNE_POINTS,
+                   max_planes: int = MAX_PLANES, min_inliers: int | float = MIN_INLIERS,
+                   probability: float = PROBABILITY, max_iterations: int = MAX_ITERATIONS,
+                   sample_size: int | None = 2000, tune_points: int | None = TUNE_POINTS,
                    t_min: float | None = None, t_max: float | None = None, count: int = TUNE_CANDIDATES,
                    seed: int | None = None, progress: Callable[[int, int], None] | None = None,
                    ransac_points: int | None = RANSAC_POINTS, sampled_separation: bool | None = None,
@@ -913,9 +913,10 @@ def _sound_choice(rows: list[TuningRow], criterion: str, n_points: int) -> int:
 
 
 @single_blas_thread
-def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = 10,
-                       criterion: str = 'gs_planes', *, min_inliers: int | float = 0.02, probability: float = 0.99,
-                       max_iterations: int = 1000, sample_size: int | None = 2000,
+def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = MAX_PLANES,
+                       criterion: str = 'gs_planes', *, min_inliers: int | float = MIN_INLIERS,
+                       probability: float = PROBABILITY, max_iterations: int = MAX_ITERATIONS,
+                       sample_size: int | None = 2000,
                        seed: int | None = None, shape: tuple[int, int] | None = None,
                        connectivity: bool = True, noise_model: str = 'constant',
                        noise_reference: float = NOISE_REFERENCE, viewpoint: Viewpoint = None,
