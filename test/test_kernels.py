@@ -368,3 +368,39 @@ def test_pair_graph_matches_numpy(seed):
     np.testing.assert_array_equal(graph.edges, ref.edges)
     for part, ref_part in zip(graph.adjacency, ref.adjacency):
         np.testing.assert_array_equal(part, ref_part)
+
+
+def _plane_patches_numpy(centred, axes, per_patch, min_count):
+    """plane_patches in numpy: cells numbered from the in-plane coordinates, each cell's scatter about its mean."""
+    x, y, z = centred.T
+    uv = np.column_stack([x * axes[0, i] + y * axes[1, i] + z * axes[2, i] for i in range(2)])  # the kernel's sums
+    lo, extent = uv.min(axis=0), np.ptp(uv, axis=0)
+    side = np.sqrt(np.prod(extent) * per_patch / len(uv))
+    width = int(extent[1] // side) + 1
+    cells = ((uv[:, 0] - lo[0]) // side).astype(np.int64) * width + ((uv[:, 1] - lo[1]) // side).astype(np.int64)
+    numbers, inverse, sizes = np.unique(cells, return_inverse=True, return_counts=True)
+    kept = np.flatnonzero(sizes >= min_count)
+    scatter = []
+    for c in kept:
+        members = centred[inverse.reshape(-1) == c]
+        d = members - members.mean(axis=0)
+        scatter.append(d.T @ d / len(members))
+    return sizes[kept], np.array(scatter).reshape(-1, 3, 3)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(1, 400), st.integers(1, 40), st.integers(1, 20), st.booleans())
+def test_plane_patches_match_numpy(seed, n, per_patch, min_count, strip):
+    rng = np.random.default_rng(seed)
+    axes = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    spread = rng.uniform(0.1, 10, 3) * ([1.0, 1.0, 0.01] if not strip else [1.0, 1e-3, 1e-5])
+    pts = rng.normal(size=(n, 3)) * spread @ axes.T
+    centred = np.ascontiguousarray(pts - pts.mean(axis=0))
+    in_plane = np.ascontiguousarray(axes[:, :2])
+    counts, scatter = kernels.plane_patches(centred, in_plane, per_patch, min_count)
+    if n < 2:  # a single point spans no area
+        assert len(counts) == 0
+        return
+    want_counts, want_scatter = _plane_patches_numpy(centred, in_plane, per_patch, min_count)
+    assert np.array_equal(counts, want_counts)
+    np.testing.assert_allclose(scatter, want_scatter, rtol=1e-9, atol=1e-15 * float(np.abs(centred).max()) ** 2)

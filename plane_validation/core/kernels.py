@@ -20,7 +20,7 @@ import numpy as np
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
            'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
-           'warm', 'Warmup']
+           'plane_patches', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -904,6 +904,85 @@ def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     return edges, indptr, indices
 
 
+# --- verdict ---
+
+
+@numba.njit(**_JIT)
+def plane_patches(centred: np.ndarray, axes: np.ndarray, per_patch: int, min_count: int
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The patches of a plane's points ``centred`` (m, 3) (about their mean, meters): the cells of a square grid along
+    its in-plane ``axes`` (3, 2, unit columns), sized to hold ``per_patch`` points on average. Per cell holding at
+    least ``min_count``, in the order of its number (row along the first axis, then column): (counts (p,), scatter
+    (p, 3, 3): the mean outer product of its points about their own mean, m^2). Empty when the points span no area."""
+    m = centred.shape[0]
+    u = np.empty(m)
+    v = np.empty(m)
+    for i in range(m):
+        x, y, z = centred[i, 0], centred[i, 1], centred[i, 2]
+        u[i] = x * axes[0, 0] + y * axes[1, 0] + z * axes[2, 0]
+        v[i] = x * axes[0, 1] + y * axes[1, 1] + z * axes[2, 1]
+    empty = (np.zeros(0, np.int64), np.zeros((0, 3, 3)))
+    if m == 0:
+        return empty
+    lo_u, lo_v = u.min(), v.min()
+    side = np.sqrt((u.max() - lo_u) * (v.max() - lo_v) * per_patch / m)
+    if not side > 0.0:
+        return empty
+    width = int((v.max() - lo_v) // side) + 1
+    height = int((u.max() - lo_u) // side) + 1
+    cells = np.empty(m, np.int64)
+    for i in range(m):
+        cells[i] = int((u[i] - lo_u) // side) * width + int((v[i] - lo_v) // side)
+    if width * height <= 4 * m:  # a counting sort by cell
+        start = np.zeros(width * height + 1, np.int64)
+        for i in range(m):
+            start[cells[i] + 1] += 1
+        for c in range(width * height):
+            start[c + 1] += start[c]
+        at = start[:-1].copy()
+        order = np.empty(m, np.int64)
+        for i in range(m):
+            order[at[cells[i]]] = i
+            at[cells[i]] += 1
+    else:  # a strip thin for its length: most cells are empty
+        order = np.argsort(cells, kind='mergesort')
+    counts = np.empty(m, np.int64)
+    scatter = np.empty((m, 3, 3))
+    p = 0
+    lo = 0
+    while lo < m:
+        hi = lo + 1
+        while hi < m and cells[order[hi]] == cells[order[lo]]:
+            hi += 1
+        k = hi - lo
+        if k >= min_count:
+            cx = cy = cz = 0.0
+            for q in range(lo, hi):
+                i = order[q]
+                cx += centred[i, 0]
+                cy += centred[i, 1]
+                cz += centred[i, 2]
+            cx, cy, cz = cx / k, cy / k, cz / k
+            xx = xy = xz = yy = yz = zz = 0.0
+            for q in range(lo, hi):
+                i = order[q]
+                x, y, z = centred[i, 0] - cx, centred[i, 1] - cy, centred[i, 2] - cz
+                xx += x * x
+                xy += x * y
+                xz += x * z
+                yy += y * y
+                yz += y * z
+                zz += z * z
+            s = scatter[p]
+            s[0, 0], s[0, 1], s[0, 2] = xx / k, xy / k, xz / k
+            s[1, 0], s[1, 1], s[1, 2] = xy / k, yy / k, yz / k
+            s[2, 0], s[2, 1], s[2, 2] = xz / k, yz / k, zz / k
+            counts[p] = k
+            p += 1
+        lo = hi
+    return counts[:p].copy(), scatter[:p].copy()
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -940,10 +1019,11 @@ def warm() -> Warmup:
     principal_axes(pts, np.zeros((4, 3), np.int64))
     patch_fits(pts, index, np.array([0, 4]))
     pair_graph(4, np.zeros((1, 2), np.int64))
+    plane_patches(pts, np.eye(3)[:, :2].copy(), 2, 1)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
             grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
-            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph)
+            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, plane_patches)

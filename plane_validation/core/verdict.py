@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import kernels
 from .failures import Failure, FailureKind, Verdict
 from .indices import ValidityIndices
 from .noise import tolerance_scale
@@ -180,29 +181,14 @@ def _patches(pca, axes: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.
     if pca is None or len(pca[1]) < 2 * TILT_NEIGHBOURS:
         return None
     _, centred, _, vectors = pca
-    uv = centred @ vectors[:, 1:]
-    lo, extent = uv.min(axis=0), np.ptp(uv, axis=0)
-    side = float(np.sqrt(np.prod(extent) * TILT_NEIGHBOURS / len(uv)))
-    if not side > 0:
+    counts, scatter = kernels.plane_patches(centred, np.ascontiguousarray(vectors[:, 1:]), TILT_NEIGHBOURS,
+                                            TILT_NEIGHBOURS // 2)
+    if not len(counts):
         return None
-    width, height = int(extent[1] // side) + 1, int(extent[0] // side) + 1
-    cells = (((uv[:, 0] - lo[0]) // side) * width + (uv[:, 1] - lo[1]) // side).astype(np.int64)
-    if width * height > 64 * len(uv):  # a strip thin for its length: number the cells that hold points only
-        cells = np.unique(cells, return_inverse=True)[1].reshape(-1)
-    counts = np.bincount(cells)
-    columns = [centred[:, i] for i in range(3)] + [centred[:, i] * centred[:, j] for i in range(3) for j in range(i, 3)]
-    moments = np.stack([np.bincount(cells, weights=c, minlength=len(counts)) for c in columns], axis=1)
-    used = counts >= TILT_NEIGHBOURS // 2
-    if not used.any():
-        return None
-    moments = moments[used] / counts[used, None]
-    mean = moments[:, :3]
-    upper = moments[:, 3:] - np.stack([mean[:, i] * mean[:, j] for i in range(3) for j in range(i, 3)], axis=1)
-    scatter = upper[:, [0, 1, 2, 1, 3, 4, 2, 4, 5]].reshape(-1, 3, 3)  # each cell's scatter, symmetric
     if axes:
         values, vectors = np.linalg.eigh(scatter)
-        return values, vectors, counts[used]
-    return symmetric_eigenvalues(scatter), None, counts[used]
+        return values, vectors, counts
+    return symmetric_eigenvalues(scatter), None, counts
 
 
 def symmetric_eigenvalues(m: np.ndarray) -> np.ndarray:
