@@ -8,6 +8,7 @@ import pytest
 import plane_validation as pv
 from plane_validation.app.report import dumps
 from plane_validation.core import scenes
+from plane_validation.core import verdict as verdict_module
 from plane_validation.core.failures import Failure, FailureKind, Verdict
 from plane_validation.core.verdict import MAX_LACK_OF_FIT, RELIABLE_PS, judge
 
@@ -71,3 +72,36 @@ def test_a_merged_ridge_fails_with_its_numbers_and_its_plane():
     cube = scenes.cube(6000, 2.5, seed=3).points
     tuned = pv.tune_tolerance(cube, seed=0)
     assert tuned.reliable and tuned.verdict.failures == () and tuned.reliable is tuned.verdict.reliable
+
+
+def test_a_shallow_gable_found_as_one_plane_is_a_ridge():
+    """A 2 degree gable (0.14 m drop to the eaves, under 5 x its 3 cm noise) found as one plane: a lack of fit well
+    below the 2 of steep merges, which two planes meeting at the ridge explain: RIDGE, with both numbers. Each side
+    alone is not a ridge."""
+    from plane_validation.core.verdict import FOLD_FIT, FOLD_LACK, MAX_LACK_OF_FIT
+    rng = np.random.default_rng(5)
+    x, y = rng.uniform(-4, 4, 2048), rng.uniform(0, 10, 2048)
+    roof = np.column_stack([x, y, -np.abs(x) * math.tan(math.radians(2)) + rng.normal(0, 0.03, 2048)])
+    seg = pv.detect_planes(roof, 0.15, seed=0, max_planes=1)
+    verdict = judge(roof, seg, pv.validity_indices(roof, seg.labels, seed=0))
+    ridge = [f for f in verdict.failures if f.kind is FailureKind.RIDGE]
+    assert seg.n_planes == 1 and not verdict.reliable and len(ridge) == 1 and ridge[0].plane == 0, verdict
+    assert FOLD_LACK <= ridge[0].value < MAX_LACK_OF_FIT and ridge[0].other <= FOLD_FIT
+    assert 'form a V' in str(ridge[0])
+    for half in (roof[x < 0], roof[x >= 0]):
+        one = pv.detect_planes(half, 0.15, seed=0, max_planes=1)
+        kinds = judge(half, one, pv.validity_indices(half, one.labels, seed=0)).kinds
+        assert FailureKind.RIDGE not in kinds and FailureKind.SURFACES_MERGED not in kinds
+
+
+def test_a_bowed_surface_is_not_a_ridge():
+    """A surface bent smoothly (a bowl, as a depth camera's correlated error bends a wall) fits a quadric better than
+    two planes: it may fit one plane worse than its patches, but it is no ridge."""
+    rng = np.random.default_rng(6)
+    x, y = rng.uniform(-4, 4, 4000), rng.uniform(-4, 4, 4000)
+    bowl = np.column_stack([x, y, 0.006 * (x * x + y * y) + rng.normal(0, 0.02, 4000)])
+    seg = pv.detect_planes(bowl, 0.2, seed=0, max_planes=1)
+    folds = verdict_module.plane_fold(bowl, seg)
+    assert verdict_module.plane_lack_of_fit(bowl, seg)[0] >= verdict_module.FOLD_LACK  # a misfit ...
+    assert folds[0, 0] > folds[0, 1]  # ... that a quadric explains better than a fold
+    assert FailureKind.RIDGE not in judge(bowl, seg, pv.validity_indices(bowl, seg.labels, seed=0)).kinds

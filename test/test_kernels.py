@@ -404,3 +404,38 @@ def test_plane_patches_match_numpy(seed, n, per_patch, min_count, strip):
     want_counts, want_scatter = _plane_patches_numpy(centred, in_plane, per_patch, min_count)
     assert np.array_equal(counts, want_counts)
     np.testing.assert_allclose(scatter, want_scatter, rtol=1e-9, atol=1e-15 * float(np.abs(centred).max()) ** 2)
+
+
+def _fold_fit_numpy(u, v, w, angles, offsets, inner):
+    """fold_fit by np.linalg.lstsq over the same lines."""
+    best = np.inf
+    for k in range(angles):
+        s = u * np.cos(np.pi * k / angles) + v * np.sin(np.pi * k / angles)
+        ordered = np.sort(s)
+        for j in range(offsets):
+            q = (1 - inner) / 2 + inner * j / max(offsets - 1, 1)
+            s0 = ordered[min(len(u) - 1, max(1, int(q * (len(u) - 1) + 0.5)))]
+            design = np.column_stack([np.ones_like(u), u, v, np.abs(s - s0)])
+            coef, *_ = np.linalg.lstsq(design, w, rcond=None)
+            best = min(best, float(np.mean((w - design @ coef) ** 2)))
+    return best
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(5, 300), st.integers(1, 12), st.integers(1, 9), st.booleans())
+def test_fold_fit_matches_least_squares(seed, n, angles, offsets, ridge):
+    rng = np.random.default_rng(seed)
+    u, v = rng.uniform(-5, 5, n), rng.uniform(-3, 3, n)
+    w = rng.normal(0, 0.02, n) + (0.05 * np.abs(u - 1) if ridge else 0.0)
+    got = kernels.fold_fit(u, v, w, angles, offsets, 0.7)
+    want = _fold_fit_numpy(u, v, w, angles, offsets, 0.7)
+    np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-12)
+
+
+def test_fold_fit_finds_a_ridge_and_not_a_plane():
+    rng = np.random.default_rng(0)
+    u, v = rng.uniform(-4, 4, 2000), rng.uniform(0, 8, 2000)
+    noise = rng.normal(0, 0.01, 2000)
+    ridge = -0.05 * np.abs(u) + noise
+    assert kernels.fold_fit(u, v, ridge - ridge.mean(), 18, 15, 0.7) < 1.1 * np.var(noise) < np.var(ridge)
+    assert np.isnan(kernels.fold_fit(u[:4], v[:4], noise[:4], 18, 15, 0.7))

@@ -23,6 +23,8 @@ class FailureKind(enum.Enum):
     CUT_FROM_VOLUME = 'cut_from_volume'      #: points at t..2t per point within t >= limit
     TILTED_PATCHES = 'tilted_patches'        #: share of its patches tilted off it >= limit; ``other``: by degrees
     SURFACES_MERGED = 'surfaces_merged'      #: RMS distance / patches' RMS thickness (lack of fit) >= limit
+    RIDGE = 'ridge'                          #: lack of fit >= limit, which two planes meeting at a line bring
+    #: down to ``other``: the two sides of a ridge or a fold as one plane
     TWO_LAYERS = 'two_layers'                #: share of residual variance the step between two layers >= limit;
     #: ``other``: RMS distance / t
     LOW_SILHOUETTE = 'low_silhouette'        #: plane silhouette PS < limit; ``other``: share of the points in no
@@ -129,6 +131,10 @@ _SENTENCES = {
     FailureKind.SURFACES_MERGED: lambda f: (f'plane {f.plane} fits its points {_up(f.value)} times worse than its '
                                             f'patches fit theirs (>= {f.limit:g}): several surfaces found as one, '
                                             'such as the two sides of a shallow ridge'),
+    FailureKind.RIDGE: lambda f: (f'plane {f.plane}\'s residuals form a V across a line: it fits its points '
+                                  f'{_up(f.value)} times worse than its patches fit theirs (>= {f.limit:g}), two '
+                                  f'planes meeting at that line {_down(f.other)} times: the two sides of a ridge or a '
+                                  'fold found as one plane'),
     FailureKind.TWO_LAYERS: lambda f: (f'plane {f.plane}\'s points lie on two parallel layers near the edges of its '
                                        f'band of +-t ({f.value:.0%} of its residual variance is the step between '
                                        f'them, >= {f.limit:.0%}; RMS distance {_up(f.other)} t): two surfaces '

@@ -20,7 +20,7 @@ import numpy as np
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
            'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
-           'plane_patches', 'warm', 'Warmup']
+           'plane_patches', 'fold_fit', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -983,6 +983,112 @@ def plane_patches(centred: np.ndarray, axes: np.ndarray, per_patch: int, min_cou
     return counts[:p].copy(), scatter[:p].copy()
 
 
+@numba.njit(**_JIT)
+def _solve4(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
+    """x of a x = b for a (4, 4), b (4,) by Gaussian elimination with partial pivoting; False when singular."""
+    a, b = a.copy(), b.copy()
+    scale = max(abs(a[0, 0]), abs(a[1, 1]), abs(a[2, 2]), abs(a[3, 3]))
+    for s in range(4):
+        best = s
+        for t in range(s + 1, 4):
+            if abs(a[t, s]) > abs(a[best, s]):
+                best = t
+        if not abs(a[best, s]) > 1e-12 * scale:
+            return b, False
+        for c in range(4):
+            a[s, c], a[best, c] = a[best, c], a[s, c]
+        b[s], b[best] = b[best], b[s]
+        for t in range(s + 1, 4):
+            f = a[t, s] / a[s, s]
+            for c in range(s, 4):
+                a[t, c] -= f * a[s, c]
+            b[t] -= f * b[s]
+    x = np.empty(4)
+    for s in range(3, -1, -1):
+        acc = b[s]
+        for c in range(s + 1, 4):
+            acc -= a[s, c] * x[c]
+        x[s] = acc / a[s, s]
+    return x, True
+
+
+@numba.njit(**_JIT)
+def fold_fit(u: np.ndarray, v: np.ndarray, w: np.ndarray, angles: int, offsets: int, inner: float) -> float:
+    """The smallest mean squared residual (m^2) of least-squares fits w = a + b u + c v + d |s - s0| to points at
+    in-plane coordinates (u, v) (m,) with residuals ``w`` (m,), all meters: two planes meeting at a line (a ridge or a
+    fold), s = u cos(theta) + v sin(theta) across it, over ``angles`` directions theta in [0, pi) and ``offsets`` lines
+    s0 per direction at evenly spaced quantiles of s within its middle ``inner`` share. NaN for fewer than 5 points."""
+    m = u.shape[0]
+    if m < 5:
+        return np.nan
+    # sums over all points of 1, u, v and their products with w: the plane part of every fit
+    su = sv = sw = suu = suv = svv = suw = svw = sww = 0.0
+    for i in range(m):
+        su += u[i]
+        sv += v[i]
+        sw += w[i]
+        suu += u[i] * u[i]
+        suv += u[i] * v[i]
+        svv += v[i] * v[i]
+        suw += u[i] * w[i]
+        svw += v[i] * w[i]
+        sww += w[i] * w[i]
+    best = np.inf
+    s = np.empty(m)
+    a = np.empty((4, 4))
+    rhs = np.empty(4)
+    for k in range(angles):
+        theta = np.pi * k / angles
+        c, d = np.cos(theta), np.sin(theta)
+        for i in range(m):
+            s[i] = u[i] * c + v[i] * d
+        order = np.argsort(s)
+        # running sums over the points left of the line, in order of s: 1, s, u, v, w and s times each
+        l1 = ls = lu = lv = lw = lss = lsu = lsv = lsw = 0.0
+        ts = tu = tv = tw = tss = tsu = tsv = tsw = 0.0
+        for i in range(m):
+            p = order[i]
+            ts += s[p]
+            tss += s[p] * s[p]
+            tsu += s[p] * u[p]
+            tsv += s[p] * v[p]
+            tsw += s[p] * w[p]
+        tu, tv, tw = su, sv, sw
+        done = 0
+        for j in range(offsets):
+            q = (1.0 - inner) / 2.0 + inner * j / max(offsets - 1, 1)
+            split = min(m - 1, max(1, int(q * (m - 1) + 0.5)))
+            while done < split:
+                p = order[done]
+                l1 += 1.0
+                ls += s[p]
+                lu += u[p]
+                lv += v[p]
+                lw += w[p]
+                lss += s[p] * s[p]
+                lsu += s[p] * u[p]
+                lsv += s[p] * v[p]
+                lsw += s[p] * w[p]
+                done += 1
+            s0 = s[order[split]]
+            # h = |s - s0|: s0 - s on the left, s - s0 on the right
+            h1 = (s0 * l1 - ls) + ((ts - ls) - s0 * (m - l1))
+            hu = (s0 * lu - lsu) + ((tsu - lsu) - s0 * (tu - lu))
+            hv = (s0 * lv - lsv) + ((tsv - lsv) - s0 * (tv - lv))
+            hw = (s0 * lw - lsw) + ((tsw - lsw) - s0 * (tw - lw))
+            hh = tss - 2.0 * s0 * ts + s0 * s0 * m
+            a[0, 0], a[0, 1], a[0, 2], a[0, 3] = m, su, sv, h1
+            a[1, 0], a[1, 1], a[1, 2], a[1, 3] = su, suu, suv, hu
+            a[2, 0], a[2, 1], a[2, 2], a[2, 3] = sv, suv, svv, hv
+            a[3, 0], a[3, 1], a[3, 2], a[3, 3] = h1, hu, hv, hh
+            rhs[0], rhs[1], rhs[2], rhs[3] = sw, suw, svw, hw
+            x, ok = _solve4(a, rhs)
+            if ok:
+                rss = sww - (x[0] * rhs[0] + x[1] * rhs[1] + x[2] * rhs[2] + x[3] * rhs[3])
+                best = min(best, max(rss, 0.0) / m)
+    return best
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -1020,10 +1126,11 @@ def warm() -> Warmup:
     patch_fits(pts, index, np.array([0, 4]))
     pair_graph(4, np.zeros((1, 2), np.int64))
     plane_patches(pts, np.eye(3)[:, :2].copy(), 2, 1)
+    fold_fit(np.arange(6.0), np.ones(6), np.ones(6), 2, 2, 0.5)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
             grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
-            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, plane_patches)
+            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, plane_patches, fold_fit)
