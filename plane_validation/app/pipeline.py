@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..core.blas import limit_blas_threads
-from ..core.geometry import voxel_downsample
+from ..core.geometry import plane_rows, voxel_downsample
 from ..core.indices import ValidityIndices, validity_indices
 from ..core.noise import noise_coefficient
 from ..core.ransac import (
@@ -87,6 +87,8 @@ class FrameResult:
     plane_ids: tuple[int, ...] = ()  # each plane's track id (PlaneTracker), ascending: the planes are in this order
     obstacles: np.ndarray | None = None  # (n,) bool: which points are obstacles (app/obstacles.py)
     image_shape: tuple[int, int] | None = None  # (H, W) of an organized input (``organized`` holds its rows)
+    image_labels: np.ndarray | None = None  # (H * W,) int32 ``labels`` on the rows of ``organized`` (-1: no point)
+    image_obstacles: np.ndarray | None = None  # (H * W,) bool ``obstacles`` on them (True also where no point)
 
     def as_image(self, values: np.ndarray, fill) -> np.ndarray:
         """Per-point ``values`` (n, ...) laid out on the input's H * W rows (``fill`` where a pixel
@@ -394,12 +396,14 @@ class FramePipeline:
                 if inverse is not None:  # each point its voxel's (pixel's) plane, if it lies within t of it
                     labels = within_planes(valid, seg.labels[inverse], seg)
                 else:
-                    labels = seg.labels[finite] if shape else seg.labels
+                    labels = np.compress(finite, seg.labels) if shape else seg.labels
                 # an organized frame's indices from its valid rows: the same values, no second NaN filter
                 scored = (valid, labels) if shape is not None or laid is not None else (work, seg.labels)
                 scores = validity_indices(*scored, sample_size=cfg.index_sample_size, seed=seed,
                                           sampled_separation=not cfg.exact_indices)
-                found = self.tracker.update(valid, labels, seg.coefficients)
+                # the segmentation's own labels (of the rows of work) are grouped by its planes' inliers
+                tracked = (work, seg.labels) if inverse is None else (valid, labels)
+                found = self.tracker.update(*tracked, seg.coefficients, plane_rows(tracked[1], seg))
                 verdict = judge(work, seg, scores, agreement).renumbered(found)  # planes named by their ids
                 seg, labels, ids = _by_id(seg, labels, found)
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
@@ -411,8 +415,12 @@ class FramePipeline:
         if tune_problem:
             used = source.split(' (')[0]
             level, message = WARN, f'{tune_problem}; detected with {used} t={tolerance:.4g} m: {message}'
-        counts = np.bincount(labels[labels >= 0], minlength=seg.n_planes)
-        obstacles = obstacle_mask(valid, labels, seg, counts, cfg.ground_margin)
+        counts = np.array([len(rows) for rows in plane_rows(labels if inverse is not None else seg.labels, seg)],
+                          np.int64)
+        # an organized input's outputs are laid out on its rows: its labels and obstacles there too
+        image_labels = None if not image else seg.labels if shape is not None else _on_rows(labels, finite, -1)
+        obstacles, image_obstacles = _obstacles(valid, labels, seg, counts, cfg.ground_margin, pts, finite,
+                                                image_labels)
         values = _values(cfg, tolerance, source, n_input, len(valid), (no_returns, infinite), int(np.sum(labels < 0)),
                          seg, counts, scores, noise_from_segmentation(seg, work), work, ids)
         values += (('obstacle_points', str(int(obstacles.sum()))), ('reliable', str(verdict.reliable).lower()),
@@ -433,7 +441,29 @@ class FramePipeline:
                            tolerance_source=source, diagnostic=Diagnostic(level, message, values), seconds=seconds,
                            plane_counts=tuple(int(c) for c in counts), organized=pts if image else None, shape=shape,
                            ring_image=(laid[0], laid[1]) if laid else None, clock=stamp, plane_ids=ids,
-                           obstacles=obstacles, image_shape=image)
+                           obstacles=obstacles, image_shape=image, image_labels=image_labels,
+                           image_obstacles=image_obstacles)
+
+
+def _obstacles(valid: np.ndarray, labels: np.ndarray, seg: Segmentation, counts: np.ndarray, margin: float,
+               rows: np.ndarray, finite: np.ndarray, row_labels: np.ndarray | None
+               ) -> tuple[np.ndarray, np.ndarray | None]:
+    """The obstacle mask (n,) of the ``valid`` points (n, 3) (:func:`.obstacles.obstacle_mask`); with
+    ``row_labels`` (N,) of all ``rows`` (N, 3) (an organized input; ``finite`` (N,) its valid rows), found on
+    those rows and also returned for them (True where no point)."""
+    if row_labels is None:
+        return obstacle_mask(valid, labels, seg, counts, margin), None
+    with np.errstate(invalid='ignore'):  # a row without a point is never near the ground
+        on_rows = obstacle_mask(rows, row_labels, seg, counts, margin)
+    return np.compress(finite, on_rows), on_rows
+
+
+def _on_rows(values: np.ndarray, rows: np.ndarray, fill) -> np.ndarray:
+    """Per-point ``values`` (n,) laid out on the N rows of which ``rows`` (N,) bool are the points', ``fill``
+    elsewhere."""
+    out = np.full(len(rows), fill, values.dtype)
+    out[rows] = values
+    return out
 
 
 def _infinite_rows(points: np.ndarray, finite: np.ndarray, n_finite: int) -> int:

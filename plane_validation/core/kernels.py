@@ -20,7 +20,7 @@ import numpy as np
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
            'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
-           'warm', 'Warmup']
+           'frame_pass', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -904,6 +904,84 @@ def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     return edges, indptr, indices
 
 
+# --- frame pass ---
+
+
+@numba.njit(**_JIT)
+def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_ids: np.ndarray, palette: np.ndarray,
+               directions: np.ndarray, segmented: np.ndarray, obstacles: np.ndarray, compact: bool
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool, bool, float]:
+    """One pass over the rows of a processed frame, ``points`` (N, 3) meters (NaN or inf in rows that hold no
+    point) with plane ``labels`` (N,) in -1..k-1. Writes the records of both output clouds: ``segmented``
+    (N * 20,) uint8 as :func:`pack_segmented` (``plane_ids``, ``palette``: (k + 1,) each, the last entry for
+    label -1), NaN x, y, z where a row is not finite; ``obstacles`` as :func:`pack_xyz` of the rows in ``keep``
+    (N,) bool: (N * 12,) with NaN where a row is not kept or not finite, or with ``compact`` only the kept rows,
+    one after another ((kept * 12,); the kept rows are then finite). Returns per label, as
+    :func:`centroids_and_extremes` over its rows in order: the count (k,), the mean point (k, 3) and the
+    position of the point farthest along each of its ``directions`` (k, d, 3) (k, d); whether each cloud is
+    dense (no NaN coordinate written); and the largest magnitude of a finite coordinate (0 without one)."""
+    n = points.shape[0]
+    k, d = directions.shape[0], directions.shape[1]
+    last = palette.shape[0] - 1
+    seg_f = segmented.view(np.float32)
+    seg_i = segmented.view(np.int32)
+    obs_f = obstacles.view(np.float32)
+    count = np.zeros(k, np.int64)
+    sums = np.zeros((k, 3))
+    extreme = np.full((k, d), -1, np.int64)
+    best = np.full((k, d), -np.inf)
+    seg_dense = obs_dense = True
+    largest = 0.0
+    kept = 0
+    nan = np.float32(np.nan)
+    for i in range(n):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        finite = True
+        for v in (x, y, z):
+            if np.isfinite(v):
+                largest = max(largest, abs(v))
+            else:
+                finite = False
+        lab = labels[i]
+        j = lab if 0 <= lab < last else last
+        base = 5 * i
+        if finite:  # a finite coordinate is never NaN as float32 (at most inf)
+            fx, fy, fz = np.float32(x), np.float32(y), np.float32(z)
+        else:
+            fx = fy = fz = nan
+            seg_dense = False
+        seg_f[base], seg_f[base + 1], seg_f[base + 2] = fx, fy, fz
+        seg_i[base + 3] = plane_ids[j]
+        seg_i[base + 4] = np.int32(palette[j])
+        if compact:
+            if keep[i]:
+                obs_f[3 * kept], obs_f[3 * kept + 1], obs_f[3 * kept + 2] = fx, fy, fz
+                obs_dense = obs_dense and finite
+                kept += 1
+        elif keep[i] and finite:
+            obs_f[3 * i], obs_f[3 * i + 1], obs_f[3 * i + 2] = fx, fy, fz
+        else:
+            obs_f[3 * i] = obs_f[3 * i + 1] = obs_f[3 * i + 2] = nan
+            obs_dense = False
+        if 0 <= lab < k:
+            q = count[lab]
+            sums[lab, 0] += x
+            sums[lab, 1] += y
+            sums[lab, 2] += z
+            for e in range(d):
+                v = directions[lab, e, 0] * x + directions[lab, e, 1] * y + directions[lab, e, 2] * z
+                if v > best[lab, e] or extreme[lab, e] < 0:
+                    best[lab, e] = v
+                    extreme[lab, e] = q
+            count[lab] = q + 1
+    centroid = np.full((k, 3), np.nan)
+    for j in range(k):
+        if count[j]:
+            for a in range(3):
+                centroid[j, a] = sums[j, a] / count[j]
+    return count, centroid, extreme, seg_dense, obs_dense, largest
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -940,10 +1018,12 @@ def warm() -> Warmup:
     principal_axes(pts, np.zeros((4, 3), np.int64))
     patch_fits(pts, index, np.array([0, 4]))
     pair_graph(4, np.zeros((1, 2), np.int64))
+    frame_pass(pts, labels, flags, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.zeros((2, 8, 3)),
+               np.empty(80, np.uint8), np.empty(48, np.uint8), False)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
             grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
-            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph)
+            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, frame_pass)
