@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..core import kernels
 from ..core.blas import limit_blas_threads
 from ..core.geometry import plane_rows, voxel_downsample
 from ..core.indices import ValidityIndices, validity_indices
@@ -471,6 +472,11 @@ def _infinite_rows(points: np.ndarray, finite: np.ndarray, n_finite: int) -> int
     (REP 117 marks a return out of range with +inf and one too close with -inf), and counted."""
     if n_finite == len(points):  # the usual frame: no second pass
         return 0
+    return int(kernels.infinite_rows(kernels.c_array(points, np.float64), finite))
+
+
+def _infinite_rows_numpy(points: np.ndarray, finite: np.ndarray) -> int:
+    """:func:`_infinite_rows` in numpy: the reference its kernel is tested against."""
     return int(np.count_nonzero(np.isinf(points[~finite]).any(axis=1)))
 
 

@@ -18,9 +18,9 @@ import numba
 import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
-           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
-           'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
-           'frame_pass', 'warm', 'Warmup']
+           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'finite_mask',
+           'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
+           'infinite_rows', 'frame_pass', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -411,52 +411,6 @@ def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: 
             changed[q] = i
         n_changed = n_touched
     return region
-
-
-@numba.njit(**_JIT)
-def pack_segmented(points: np.ndarray, labels: np.ndarray, plane_ids: np.ndarray, palette: np.ndarray,
-                   out: np.ndarray) -> bool:
-    """Fill ``out`` (N * 20,) uint8 with little-endian records x, y, z (float32), plane_id (int32) and rgb
-    of ``points`` (N, 3) and ``labels`` (N,): a label j in 0..k-1 writes ``plane_ids[j]`` and ``palette[j]``
-    (uint32), any other label their last entries ((k + 1,) each). Returns whether no coordinate is NaN
-    (PointCloud2's is_dense)."""
-    n = points.shape[0]
-    last = palette.shape[0] - 1
-    record = np.empty(5, np.float32)
-    ints = record.view(np.int32)
-    raw = record.view(np.uint8)
-    dense = True
-    for i in range(n):
-        record[0], record[1], record[2] = points[i, 0], points[i, 1], points[i, 2]
-        dense = dense and not (np.isnan(record[0]) or np.isnan(record[1]) or np.isnan(record[2]))
-        lab = labels[i]
-        j = lab if 0 <= lab < last else last
-        ints[3] = plane_ids[j]
-        ints[4] = np.int32(palette[j])
-        base = 20 * i
-        for b in range(20):
-            out[base + b] = raw[b]
-    return dense
-
-
-@numba.njit(**_JIT)
-def pack_xyz(points: np.ndarray, keep: np.ndarray, out: np.ndarray) -> bool:
-    """Fill ``out`` (N * 12,) uint8 with little-endian records x, y, z (float32) of ``points`` (N, 3), NaN where
-    ``keep`` (N,) is False. Returns whether no coordinate is NaN (PointCloud2's is_dense)."""
-    record = np.empty(3, np.float32)
-    raw = record.view(np.uint8)
-    dense = True
-    for i in range(points.shape[0]):
-        if keep[i]:
-            record[0], record[1], record[2] = points[i, 0], points[i, 1], points[i, 2]
-            dense = dense and not (np.isnan(record[0]) or np.isnan(record[1]) or np.isnan(record[2]))
-        else:
-            record[0] = record[1] = record[2] = np.nan
-            dense = False
-        base = 12 * i
-        for b in range(12):
-            out[base + b] = raw[b]
-    return dense
 
 
 @numba.njit(**_JIT)
@@ -908,18 +862,31 @@ def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
 
 
 @numba.njit(**_JIT)
+def infinite_rows(points: np.ndarray, finite: np.ndarray) -> int:
+    """How many rows of ``points`` (N, 3) that are not ``finite`` (N,) bool have an infinite coordinate."""
+    count = 0
+    for i in range(points.shape[0]):
+        if not finite[i] and (np.isinf(points[i, 0]) or np.isinf(points[i, 1]) or np.isinf(points[i, 2])):
+            count += 1
+    return count
+
+
+@numba.njit(**_JIT)
 def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_ids: np.ndarray, palette: np.ndarray,
                directions: np.ndarray, segmented: np.ndarray, obstacles: np.ndarray, compact: bool
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool, bool, float]:
     """One pass over the rows of a processed frame, ``points`` (N, 3) meters (NaN or inf in rows that hold no
-    point) with plane ``labels`` (N,) in -1..k-1. Writes the records of both output clouds: ``segmented``
-    (N * 20,) uint8 as :func:`pack_segmented` (``plane_ids``, ``palette``: (k + 1,) each, the last entry for
-    label -1), NaN x, y, z where a row is not finite; ``obstacles`` as :func:`pack_xyz` of the rows in ``keep``
-    (N,) bool: (N * 12,) with NaN where a row is not kept or not finite, or with ``compact`` only the kept rows,
-    one after another ((kept * 12,); the kept rows are then finite). Returns per label, as
-    :func:`centroids_and_extremes` over its rows in order: the count (k,), the mean point (k, 3) and the
-    position of the point farthest along each of its ``directions`` (k, d, 3) (k, d); whether each cloud is
-    dense (no NaN coordinate written); and the largest magnitude of a finite coordinate (0 without one)."""
+    point) with plane ``labels`` (N,) in -1..k-1: the records of both output clouds and each plane's statistics.
+
+    ``segmented`` (N * 20,) uint8 gets little-endian records x, y, z (float32; NaN where a row is not finite),
+    plane_id (int32) and rgb: a label j in 0..k-1 writes ``plane_ids[j]`` and ``palette[j]`` (uint32), any other
+    the last entries ((k + 1,) each). ``obstacles`` gets records x, y, z (float32) of the rows in ``keep`` (N,)
+    bool: (N * 12,) with NaN where a row is not kept or not finite, or with ``compact`` only the kept rows, one
+    after another ((kept * 12,)). Returns per label, as :func:`centroids_and_extremes` over its rows in order:
+    the count (k,), the mean point (k, 3) (NaN without rows) and the position among its rows of the point
+    farthest along each of its ``directions`` (k, d, 3) (k, d) (the first of equals; -1 without rows); whether
+    each cloud is dense (no NaN coordinate written); and the largest magnitude of a finite coordinate (0
+    without one)."""
     n = points.shape[0]
     k, d = directions.shape[0], directions.shape[1]
     last = palette.shape[0] - 1
@@ -1001,8 +968,6 @@ def warm() -> Warmup:
                 np.zeros((1, 4)), np.ones(1), EIGHT)
     rows, bounds = group_by_label(labels, 2)
     centroids_and_extremes(pts, rows, bounds, np.zeros((2, 8, 3)))
-    pack_segmented(pts, labels, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.empty(80, np.uint8))
-    pack_xyz(pts, np.ones(4, np.bool_), np.empty(48, np.uint8))
     flags = np.ones(4, np.bool_)
     index = np.arange(4, dtype=np.int64)
     grid_components(index, index, flags, 2, np.zeros((1, 3), np.int64), flags)
@@ -1018,6 +983,7 @@ def warm() -> Warmup:
     principal_axes(pts, np.zeros((4, 3), np.int64))
     patch_fits(pts, index, np.array([0, 4]))
     pair_graph(4, np.zeros((1, 2), np.int64))
+    infinite_rows(pts, flags)
     frame_pass(pts, labels, flags, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.zeros((2, 8, 3)),
                np.empty(80, np.uint8), np.empty(48, np.uint8), False)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
@@ -1025,5 +991,6 @@ def warm() -> Warmup:
 
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
-            grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
-            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, frame_pass)
+            grid_region, grid_compete, graph_components, graph_region, coordinate_bounds,
+            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, infinite_rows,
+            frame_pass)

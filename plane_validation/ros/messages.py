@@ -193,9 +193,11 @@ def plane_markers(header, result: FrameResult, ns: str = 'planes',
         plane, pid = result.segmentation.planes[k], int(result.plane_ids[k])
         centroid, corners, extent = outline.centroid, outline.corners, outline.extent
         color = ColorRGBA(r=float(colors[k, 0]), g=float(colors[k, 1]), b=float(colors[k, 2]), a=0.6)
-        # Triangle fan around the centroid (the centroid is inside the convex hull).
-        tri = [_point(p) for i in range(len(corners) if len(corners) >= 3 else 0)
-               for p in (centroid, corners[i], corners[(i + 1) % len(corners)])]
+        # Triangle fan around the centroid (the centroid is inside the convex hull); each vertex is one Point
+        # that every triangle through it lists (the message holds values: the Points are not shared beyond it)
+        hull = [Point(x=x, y=y, z=z) for x, y, z in corners.tolist()] if len(corners) >= 3 else []
+        middle = _point(centroid)
+        tri = [p for i in range(len(hull)) for p in (middle, hull[i], hull[(i + 1) % len(hull)])]
         markers.append(Marker(header=header, ns=f'{ns}/hull', id=pid, type=Marker.TRIANGLE_LIST, action=Marker.ADD,
                               pose=Pose(orientation=Quaternion(w=1.0)), scale=Vector3(x=1.0, y=1.0, z=1.0),
                               color=color, points=tri))
