@@ -97,3 +97,13 @@ def test_infinite_rows_matches_numpy(seed, n):
     pts = _frame(seed, n, 0)[0]
     finite = np.isfinite(pts).all(axis=1)
     assert kernels.infinite_rows(pts, finite) == _infinite_rows_numpy(pts, finite)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 200), st.integers(3, 9))
+def test_widen_xyz_matches_numpy(seed, n, width):
+    rng = np.random.default_rng(seed)
+    words = rng.normal(scale=100, size=(n, width)).astype(np.float32)
+    words[rng.random((n, width)) < 0.1] = np.nan
+    columns = rng.permutation(width)[:3].astype(np.int64)
+    np.testing.assert_array_equal(kernels.widen_xyz(words, columns), words[:, columns].astype(np.float64))

@@ -20,7 +20,7 @@ import numpy as np
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'finite_mask',
            'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
-           'infinite_rows', 'frame_pass', 'warm', 'Warmup']
+           'widen_xyz', 'infinite_rows', 'frame_pass', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -862,6 +862,17 @@ def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
 
 
 @numba.njit(**_JIT)
+def widen_xyz(words: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """(N, 3) float64: the float32 ``words`` (N, w) at ``columns`` (3,) of each row (the x, y, z of N records of w
+    four-byte words: a PointCloud2's points)."""
+    out = np.empty((words.shape[0], 3))
+    a, b, c = columns[0], columns[1], columns[2]
+    for i in range(words.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2] = words[i, a], words[i, b], words[i, c]
+    return out
+
+
+@numba.njit(**_JIT)
 def infinite_rows(points: np.ndarray, finite: np.ndarray) -> int:
     """How many rows of ``points`` (N, 3) that are not ``finite`` (N,) bool have an infinite coordinate."""
     count = 0
@@ -983,6 +994,7 @@ def warm() -> Warmup:
     principal_axes(pts, np.zeros((4, 3), np.int64))
     patch_fits(pts, index, np.array([0, 4]))
     pair_graph(4, np.zeros((1, 2), np.int64))
+    widen_xyz(np.zeros((4, 5), np.float32), np.arange(3))
     infinite_rows(pts, flags)
     frame_pass(pts, labels, flags, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.zeros((2, 8, 3)),
                np.empty(80, np.uint8), np.empty(48, np.uint8), False)
@@ -992,5 +1004,5 @@ def warm() -> Warmup:
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
             grid_region, grid_compete, graph_components, graph_region, coordinate_bounds,
-            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, infinite_rows,
-            frame_pass)
+            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, widen_xyz,
+            infinite_rows, frame_pass)
