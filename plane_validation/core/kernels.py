@@ -908,6 +908,12 @@ def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_i
     sums = np.zeros((k, 3))
     extreme = np.full((k, d), -1, np.int64)
     best = np.full((k, d), -np.inf)
+    along = np.empty((k, 3, d))  # the directions' components side by side: the d projections then vectorize
+    for j in range(k):
+        for e in range(d):
+            for a in range(3):
+                along[j, a, e] = directions[j, e, a]
+    value = np.empty(d)
     seg_dense = obs_dense = True
     largest = 0.0
     kept = 0
@@ -946,11 +952,16 @@ def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_i
             sums[lab, 0] += x
             sums[lab, 1] += y
             sums[lab, 2] += z
+            ax, ay, az, top = along[lab, 0], along[lab, 1], along[lab, 2], best[lab]
+            beyond = q == 0  # a label's first point is its first extreme in every direction
             for e in range(d):
-                v = directions[lab, e, 0] * x + directions[lab, e, 1] * y + directions[lab, e, 2] * z
-                if v > best[lab, e] or extreme[lab, e] < 0:
-                    best[lab, e] = v
-                    extreme[lab, e] = q
+                value[e] = ax[e] * x + ay[e] * y + az[e] * z
+                beyond |= value[e] > top[e]
+            if beyond:  # rare after a label's first points
+                for e in range(d):
+                    if value[e] > top[e] or q == 0:
+                        top[e] = value[e]
+                        extreme[lab, e] = q
             count[lab] = q + 1
     centroid = np.full((k, 3), np.nan)
     for j in range(k):

@@ -89,6 +89,7 @@ def _frame_pass(header, result: FrameResult) -> _FramePass:
     else:
         rows, labels, shape = result.points, result.labels, (1, len(result.labels))
         keep = np.zeros(len(rows), bool) if result.obstacles is None else result.obstacles
+    members = None if seg is None else plane_rows(labels, seg)  # (labels itself: its segmentation's own?)
     rows, labels, keep = c_array(rows, np.float64), c_array(labels, np.int32), c_array(keep, bool)
     ids = np.array([*result.plane_ids, -1], np.int32)  # label -1 indexes the last entry: -1
     palette = np.vstack([_colors(result), np.array([UNASSIGNED_RGB], np.uint8)])
@@ -103,8 +104,7 @@ def _frame_pass(header, result: FrameResult) -> _FramePass:
     _, centroids, extremes, seg_dense, obs_dense, largest = frame_pass(
         rows, labels, keep, ids, packed.view(np.uint32), outline_directions(rotations),
         np.frombuffer(seg_data, np.uint8), np.frombuffer(obs_data, np.uint8), not image)
-    outlines = () if seg is None else outlines_from(rows, plane_rows(labels, seg), centroids, extremes, seg,
-                                                    rotations)
+    outlines = () if seg is None else outlines_from(rows, members, centroids, extremes, seg, rotations)
     if largest > FLOAT32_FINE:  # float32 may lose precision: each cloud's coordinates as coordinate_dtype says
         return _FramePass(_wide_segmented(header, result, ids, packed), _wide_obstacles(header, result), outlines)
     return _FramePass(cloud_message(header, seg_layout, seg_data, shape, types=sensor_msgs.msg, dense=seg_dense),
