@@ -89,7 +89,7 @@ def _frame_pass(header, result: FrameResult) -> _FramePass:
     else:
         rows, labels, shape = result.points, result.labels, (1, len(result.labels))
         keep = np.zeros(len(rows), bool) if result.obstacles is None else result.obstacles
-    members = None if seg is None else plane_rows(labels, seg)  # (labels itself: its segmentation's own?)
+    members = None if seg is None else plane_rows(labels, seg)  # before c_array: it knows seg's own labels
     rows, labels, keep = c_array(rows, np.float64), c_array(labels, np.int32), c_array(keep, bool)
     ids = np.array([*result.plane_ids, -1], np.int32)  # label -1 indexes the last entry: -1
     palette = np.vstack([_colors(result), np.array([UNASSIGNED_RGB], np.uint8)])
@@ -193,8 +193,8 @@ def plane_markers(header, result: FrameResult, ns: str = 'planes',
         plane, pid = result.segmentation.planes[k], int(result.plane_ids[k])
         centroid, corners, extent = outline.centroid, outline.corners, outline.extent
         color = ColorRGBA(r=float(colors[k, 0]), g=float(colors[k, 1]), b=float(colors[k, 2]), a=0.6)
-        # Triangle fan around the centroid (the centroid is inside the convex hull); each vertex is one Point
-        # that every triangle through it lists (the message holds values: the Points are not shared beyond it)
+        # Triangle fan around the centroid (the centroid is inside the convex hull); one Point per vertex, listed
+        # by each triangle through it (a message holds their values: building them is what costs)
         hull = [Point(x=x, y=y, z=z) for x, y, z in corners.tolist()] if len(corners) >= 3 else []
         middle = _point(centroid)
         tri = [p for i in range(len(hull)) for p in (middle, hull[i], hull[(i + 1) % len(hull)])]
