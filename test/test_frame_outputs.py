@@ -65,11 +65,10 @@ def test_the_clouds_and_outlines_of_one_pass_match_their_references(case):
         np.testing.assert_array_equal(got.rotation, ref.rotation)
         np.testing.assert_allclose(got.corners, ref.corners, rtol=0, atol=1e-12)
         assert got.extent == pytest.approx(ref.extent, abs=1e-12)
-    if result.image_shape is not None:  # the organized rows' labels and obstacles are the valid points'
+    if result.image_shape is not None:  # the organized rows' labels are the valid points'
         finite = np.isfinite(result.organized).all(axis=1)
         np.testing.assert_array_equal(result.image_labels[finite], result.labels)
         np.testing.assert_array_equal(result.image_labels[~finite], -1)
-        np.testing.assert_array_equal(result.image_obstacles[finite], result.obstacles)
 
 
 def test_far_coordinates_fall_back_to_float64_for_both_clouds():

@@ -47,7 +47,8 @@ def test_frame_pass_matches_numpy(seed, n, k, compact):
     kept = int(keep.sum()) if compact else len(pts)
     segmented, obstacles = np.zeros(20 * len(pts), np.uint8), np.zeros(12 * kept, np.uint8)
     count, centroid, extreme, seg_dense, obs_dense, largest = kernels.frame_pass(
-        pts, labels, keep, ids, palette, directions, segmented, obstacles, compact)
+        pts, labels, keep[finite], ids, palette, directions, segmented, obstacles, compact)  # keep: per finite row
+    keep = keep & finite
 
     xyz = np.where(finite[:, None], pts, np.nan)
     ref = np.zeros(len(pts), SEGMENTED)
@@ -55,7 +56,7 @@ def test_frame_pass_matches_numpy(seed, n, k, compact):
     ref['plane_id'], ref['rgb'] = ids[labels], palette[labels]  # -1: the last entries
     assert segmented.tobytes() == ref.tobytes()
     assert seg_dense == bool(finite.all())
-    obs = xyz[keep] if compact else np.where((keep & finite)[:, None], pts, np.nan)
+    obs = xyz[keep] if compact else np.where(keep[:, None], pts, np.nan)
     assert obstacles.tobytes() == obs.astype('<f4').tobytes()
     assert obs_dense == (not np.isnan(obs).any())
     with np.errstate(invalid='ignore'):

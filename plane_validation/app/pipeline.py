@@ -89,7 +89,6 @@ class FrameResult:
     obstacles: np.ndarray | None = None  # (n,) bool: which points are obstacles (app/obstacles.py)
     image_shape: tuple[int, int] | None = None  # (H, W) of an organized input (``organized`` holds its rows)
     image_labels: np.ndarray | None = None  # (H * W,) int32 ``labels`` on the rows of ``organized`` (-1: no point)
-    image_obstacles: np.ndarray | None = None  # (H * W,) bool ``obstacles`` on them (True also where no point)
 
     def as_image(self, values: np.ndarray, fill) -> np.ndarray:
         """Per-point ``values`` (n, ...) laid out on the input's H * W rows (``fill`` where a pixel
@@ -418,10 +417,9 @@ class FramePipeline:
             level, message = WARN, f'{tune_problem}; detected with {used} t={tolerance:.4g} m: {message}'
         counts = np.array([len(rows) for rows in plane_rows(labels if inverse is not None else seg.labels, seg)],
                           np.int64)
-        # an organized input's outputs are laid out on its rows: its labels and obstacles there too
+        obstacles = obstacle_mask(valid, labels, seg, counts, cfg.ground_margin)
+        # an organized input's outputs are laid out on its rows: its labels there too
         image_labels = None if not image else seg.labels if shape is not None else _on_rows(labels, finite, -1)
-        obstacles, image_obstacles = _obstacles(valid, labels, seg, counts, cfg.ground_margin, pts, finite,
-                                                image_labels)
         values = _values(cfg, tolerance, source, n_input, len(valid), (no_returns, infinite), int(np.sum(labels < 0)),
                          seg, counts, scores, noise_from_segmentation(seg, work), work, ids)
         values += (('obstacle_points', str(int(obstacles.sum()))), ('reliable', str(verdict.reliable).lower()),
@@ -442,21 +440,7 @@ class FramePipeline:
                            tolerance_source=source, diagnostic=Diagnostic(level, message, values), seconds=seconds,
                            plane_counts=tuple(int(c) for c in counts), organized=pts if image else None, shape=shape,
                            ring_image=(laid[0], laid[1]) if laid else None, clock=stamp, plane_ids=ids,
-                           obstacles=obstacles, image_shape=image, image_labels=image_labels,
-                           image_obstacles=image_obstacles)
-
-
-def _obstacles(valid: np.ndarray, labels: np.ndarray, seg: Segmentation, counts: np.ndarray, margin: float,
-               rows: np.ndarray, finite: np.ndarray, row_labels: np.ndarray | None
-               ) -> tuple[np.ndarray, np.ndarray | None]:
-    """The obstacle mask (n,) of the ``valid`` points (n, 3) (:func:`.obstacles.obstacle_mask`); with
-    ``row_labels`` (N,) of all ``rows`` (N, 3) (an organized input; ``finite`` (N,) its valid rows), found on
-    those rows and also returned for them (True where no point)."""
-    if row_labels is None:
-        return obstacle_mask(valid, labels, seg, counts, margin), None
-    with np.errstate(invalid='ignore'):  # a row without a point is never near the ground
-        on_rows = obstacle_mask(rows, row_labels, seg, counts, margin)
-    return np.compress(finite, on_rows), on_rows
+                           obstacles=obstacles, image_shape=image, image_labels=image_labels)
 
 
 def _on_rows(values: np.ndarray, rows: np.ndarray, fill) -> np.ndarray:

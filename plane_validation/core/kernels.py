@@ -891,13 +891,13 @@ def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_i
 
     ``segmented`` (N * 20,) uint8 gets little-endian records x, y, z (float32; NaN where a row is not finite),
     plane_id (int32) and rgb: a label j in 0..k-1 writes ``plane_ids[j]`` and ``palette[j]`` (uint32), any other
-    the last entries ((k + 1,) each). ``obstacles`` gets records x, y, z (float32) of the rows in ``keep`` (N,)
-    bool: (N * 12,) with NaN where a row is not kept or not finite, or with ``compact`` only the kept rows, one
-    after another ((kept * 12,)). Returns per label, as :func:`centroids_and_extremes` over its rows in order:
-    the count (k,), the mean point (k, 3) (NaN without rows) and the position among its rows of the point
-    farthest along each of its ``directions`` (k, d, 3) (k, d) (the first of equals; -1 without rows); whether
-    each cloud is dense (no NaN coordinate written); and the largest magnitude of a finite coordinate (0
-    without one)."""
+    the last entries ((k + 1,) each). ``obstacles`` gets records x, y, z (float32) of the finite rows that
+    ``keep`` (n,) bool, one per finite row in order, marks: (N * 12,) with NaN where a row is not kept or not
+    finite, or with ``compact`` only the kept rows, one after another ((kept * 12,)). Returns per label, as
+    :func:`centroids_and_extremes` over its rows in order: the count (k,), the mean point (k, 3) (NaN without
+    rows) and the position among its rows of the point farthest along each of its ``directions`` (k, d, 3)
+    (k, d) (the first of equals; -1 without rows); whether each cloud is dense (no NaN coordinate written); and
+    the largest magnitude of a finite coordinate (0 without one)."""
     n = points.shape[0]
     k, d = directions.shape[0], directions.shape[1]
     last = palette.shape[0] - 1
@@ -916,7 +916,7 @@ def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_i
     value = np.empty(d)
     seg_dense = obs_dense = True
     largest = 0.0
-    kept = 0
+    kept = valid = 0  # obstacle records written, finite rows passed
     nan = np.float32(np.nan)
     for i in range(n):
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
@@ -937,12 +937,15 @@ def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_i
         seg_f[base], seg_f[base + 1], seg_f[base + 2] = fx, fy, fz
         seg_i[base + 3] = plane_ids[j]
         seg_i[base + 4] = np.int32(palette[j])
+        kept_here = False
+        if finite:
+            kept_here = valid < keep.shape[0] and keep[valid]
+            valid += 1
         if compact:
-            if keep[i]:
+            if kept_here:
                 obs_f[3 * kept], obs_f[3 * kept + 1], obs_f[3 * kept + 2] = fx, fy, fz
-                obs_dense = obs_dense and finite
                 kept += 1
-        elif keep[i] and finite:
+        elif kept_here:
             obs_f[3 * i], obs_f[3 * i + 1], obs_f[3 * i + 2] = fx, fy, fz
         else:
             obs_f[3 * i] = obs_f[3 * i + 1] = obs_f[3 * i + 2] = nan

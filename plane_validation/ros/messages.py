@@ -85,10 +85,10 @@ def _frame_pass(header, result: FrameResult) -> _FramePass:
     organized input's H x W rows, else the valid points."""
     seg, image = result.segmentation, result.image_labels is not None
     if image:
-        rows, labels, keep, shape = result.organized, result.image_labels, result.image_obstacles, result.image_shape
+        rows, labels, shape = result.organized, result.image_labels, result.image_shape
     else:
         rows, labels, shape = result.points, result.labels, (1, len(result.labels))
-        keep = np.zeros(len(rows), bool) if result.obstacles is None else result.obstacles
+    keep = np.zeros(len(result.points), bool) if result.obstacles is None else result.obstacles  # per valid point
     members = None if seg is None else plane_rows(labels, seg)  # before c_array: it knows seg's own labels
     rows, labels, keep = c_array(rows, np.float64), c_array(labels, np.int32), c_array(keep, bool)
     ids = np.array([*result.plane_ids, -1], np.int32)  # label -1 indexes the last entry: -1
