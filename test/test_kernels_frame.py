@@ -1,12 +1,13 @@
 """The frame pass's kernels (core/kernels.py, ``# --- frame pass ---``) against plain-numpy references, on random
-inputs: the records of both output clouds, each plane's count, centroid and extremes, and the infinite rows."""
+inputs: the records of both output clouds, each plane's count, centroid and extremes, the valid rows and the
+widened x, y, z."""
 from __future__ import annotations
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from plane_validation.app.pipeline import _infinite_rows_numpy
+from plane_validation.app.pipeline import _valid_rows_numpy
 from plane_validation.core import kernels
 from plane_validation.core.geometry import _DIRECTIONS, outline_directions, plane_basis
 
@@ -94,10 +95,13 @@ def test_frame_pass_agrees_with_centroids_and_extremes_on_ties():
 
 @SETTINGS
 @given(st.integers(0, 2**32 - 1), st.integers(0, 300))
-def test_infinite_rows_matches_numpy(seed, n):
+def test_valid_rows_matches_numpy(seed, n):
     pts = _frame(seed, n, 0)[0]
-    finite = np.isfinite(pts).all(axis=1)
-    assert kernels.infinite_rows(pts, finite) == _infinite_rows_numpy(pts, finite)
+    finite, valid, infinite = kernels.valid_rows(pts)
+    ref_finite, ref_valid, ref_infinite = _valid_rows_numpy(pts)
+    np.testing.assert_array_equal(finite, ref_finite)
+    np.testing.assert_array_equal(valid, ref_valid)
+    assert valid.flags.c_contiguous and infinite == ref_infinite == np.isinf(pts[~finite]).any(axis=1).sum()
 
 
 @SETTINGS

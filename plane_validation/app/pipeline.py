@@ -350,10 +350,8 @@ class FramePipeline:
             return _failed(ERROR, f'bad input: {exc}', start, self.current_tolerance())
         cfg = self.config
         pts, no_returns = no_returns_as_nan(given, cfg.viewpoint) if cfg.zero_is_no_return else (given, 0)
-        finite = finite_rows(pts)
-        valid = np.compress(finite, pts, axis=0)  # much faster than a boolean index
+        finite, valid, infinite = _valid_rows(pts)
         n_input = len(pts)
-        infinite = _infinite_rows(pts, finite, len(valid))
         image = shape if shape is not None and shape[0] * shape[1] == n_input else None  # kept in the outputs
         if shape is not None and (cfg.voxel_size > 0 or not cfg.connectivity or shape[0] * shape[1] != n_input):
             shape = None  # only regions use the image; the voxel grid does not keep it; a wrong shape is ignored
@@ -451,17 +449,23 @@ def _on_rows(values: np.ndarray, rows: np.ndarray, fill) -> np.ndarray:
     return out
 
 
-def _infinite_rows(points: np.ndarray, finite: np.ndarray, n_finite: int) -> int:
-    """How many rows of ``points`` (N, 3) have an infinite coordinate: left out as no points, as NaN rows are
-    (REP 117 marks a return out of range with +inf and one too close with -inf), and counted."""
-    if n_finite == len(points):  # the usual frame: no second pass
-        return 0
-    return int(kernels.infinite_rows(kernels.c_array(points, np.float64), finite))
+def _valid_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """The rows of ``points`` (N, 3) with three finite coordinates: (which (N,) bool, they themselves (n, 3)), and
+    how many other rows have an infinite coordinate: left out as no points, as NaN rows are (REP 117 marks a return
+    out of range with +inf and one too close with -inf), and counted. One compiled pass over a C-ordered float64
+    array."""
+    if points.dtype == np.float64 and points.flags.c_contiguous and points.flags.writeable:
+        return kernels.valid_rows(points)
+    return _valid_rows_numpy(points)
 
 
-def _infinite_rows_numpy(points: np.ndarray, finite: np.ndarray) -> int:
-    """:func:`_infinite_rows` in numpy: the reference its kernel is tested against."""
-    return int(np.count_nonzero(np.isinf(points[~finite]).any(axis=1)))
+def _valid_rows_numpy(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """:func:`_valid_rows` in numpy: for other arrays, and the reference its kernel is tested against."""
+    finite = finite_rows(points)
+    valid = np.compress(finite, points, axis=0)  # much faster than a boolean index
+    if len(valid) == len(points):
+        return finite, valid, 0
+    return finite, valid, int(np.count_nonzero(np.isinf(np.compress(~finite, points, axis=0)).any(axis=1)))
 
 
 def _by_id(seg: Segmentation, labels: np.ndarray, ids: tuple[int, ...]) -> tuple[Segmentation, np.ndarray, tuple]:

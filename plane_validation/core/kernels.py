@@ -20,7 +20,7 @@ import numpy as np
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'finite_mask',
            'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
-           'widen_xyz', 'infinite_rows', 'frame_pass', 'warm', 'Warmup']
+           'widen_xyz', 'valid_rows', 'frame_pass', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -873,13 +873,23 @@ def widen_xyz(words: np.ndarray, columns: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(**_JIT)
-def infinite_rows(points: np.ndarray, finite: np.ndarray) -> int:
-    """How many rows of ``points`` (N, 3) that are not ``finite`` (N,) bool have an infinite coordinate."""
-    count = 0
-    for i in range(points.shape[0]):
-        if not finite[i] and (np.isinf(points[i, 0]) or np.isinf(points[i, 1]) or np.isinf(points[i, 2])):
-            count += 1
-    return count
+def valid_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """The rows of ``points`` (N, 3) with three finite coordinates: which (N,) bool and they themselves, in order
+    ((n, 3), the start of an (N, 3) buffer); and how many other rows have an infinite coordinate."""
+    n = points.shape[0]
+    finite = np.empty(n, np.bool_)
+    valid = np.empty((n, 3))
+    m = infinite = 0
+    for i in range(n):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        ok = np.isfinite(x) and np.isfinite(y) and np.isfinite(z)
+        finite[i] = ok
+        if ok:
+            valid[m, 0], valid[m, 1], valid[m, 2] = x, y, z
+            m += 1
+        elif np.isinf(x) or np.isinf(y) or np.isinf(z):
+            infinite += 1
+    return finite, valid[:m], infinite
 
 
 @numba.njit(**_JIT)
@@ -1009,7 +1019,7 @@ def warm() -> Warmup:
     patch_fits(pts, index, np.array([0, 4]))
     pair_graph(4, np.zeros((1, 2), np.int64))
     widen_xyz(np.zeros((4, 5), np.float32), np.arange(3))
-    infinite_rows(pts, flags)
+    valid_rows(pts)
     frame_pass(pts, labels, flags, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.zeros((2, 8, 3)),
                np.empty(80, np.uint8), np.empty(48, np.uint8), False)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
@@ -1019,4 +1029,4 @@ def warm() -> Warmup:
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
             grid_region, grid_compete, graph_components, graph_region, coordinate_bounds,
             voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, widen_xyz,
-            infinite_rows, frame_pass)
+            valid_rows, frame_pass)
