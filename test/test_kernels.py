@@ -79,41 +79,6 @@ def test_finite_mask_matches_numpy(seed, n):
     np.testing.assert_array_equal(finite_rows(pts[:, ::-1]), ref)  # not C-ordered: the numpy path
 
 
-@SETTINGS
-@given(st.integers(0, 2**32 - 1), st.integers(0, 300), st.integers(0, 6))
-def test_pack_segmented_matches_structured_records(seed, n, k):
-    rng = np.random.default_rng(seed)
-    pts = rng.normal(scale=100, size=(n, 3))
-    pts[rng.random(n) < 0.1] = np.nan
-    labels = rng.integers(-1, k, n).astype(np.int32) if k else np.full(n, -1, np.int32)
-    palette = rng.integers(0, 2**24, k + 1).astype(np.uint32)
-    ids = np.append(rng.permutation(10)[:k], -1).astype(np.int32)
-    out = np.zeros(20 * n, np.uint8)
-    dense = kernels.pack_segmented(pts, labels, ids, palette, out)
-    ref = np.zeros(n, dtype=np.dtype({'names': ['x', 'y', 'z', 'plane_id', 'rgb'],
-                                      'formats': ['<f4', '<f4', '<f4', '<i4', '<u4'],
-                                      'offsets': [0, 4, 8, 12, 16], 'itemsize': 20}))
-    ref['x'], ref['y'], ref['z'], ref['plane_id'] = pts[:, 0], pts[:, 1], pts[:, 2], ids[labels]
-    ref['rgb'] = palette[labels]  # -1: the last entry
-    assert out.tobytes() == ref.tobytes()
-    assert dense == (not np.isnan(pts).any())
-
-
-@SETTINGS
-@given(st.integers(0, 2**32 - 1), st.integers(0, 300))
-def test_pack_xyz_matches_structured_records(seed, n):
-    rng = np.random.default_rng(seed)
-    pts = rng.normal(scale=100, size=(n, 3))
-    pts[rng.random(n) < 0.1] = np.nan
-    keep = rng.random(n) < 0.7
-    out = np.zeros(12 * n, np.uint8)
-    dense = kernels.pack_xyz(pts, keep, out)
-    ref = np.zeros((n, 3), '<f4')
-    ref[:] = np.where(keep[:, None], pts, np.nan)
-    assert out.tobytes() == ref.tobytes()
-    assert dense == (not np.isnan(ref).any())
-
-
 def test_read_only_input_is_copied_not_recompiled():
     pts = np.zeros((5, 3))
     pts.flags.writeable = False

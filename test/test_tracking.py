@@ -95,3 +95,22 @@ def test_the_pipeline_keeps_ids_through_an_empty_frame_a_malformed_frame_and_a_p
     for result in later:
         assert result.plane_ids == tuple(sorted(result.plane_ids))  # the planes come in id order
         assert big(result) == big(first)
+
+
+def test_samples_from_the_planes_rows_are_those_grouped_from_the_labels():
+    """The pipeline hands the tracker each plane's rows (a segmentation's inliers) instead of its labels: the
+    samples, and so the ids, are the same."""
+    from plane_validation.app.tracking import plane_samples
+    rng = np.random.default_rng(3)
+    points = rng.normal(size=(3000, 3))
+    labels = rng.integers(-1, 4, len(points)).astype(np.int32)
+    members = [np.flatnonzero(labels == k) for k in range(4)]
+    for count in (5, 256, 2000):
+        grouped = plane_samples(points, labels, 4, count)
+        given = plane_samples(points, None, 4, count, members)
+        assert all(np.array_equal(a, b) for a, b in zip(grouped, given))
+    floor, wall = patch((0, 0, 0), X, Y), patch((0, 0, 0), X, Z, seed=1)
+    tracker = PlaneTracker()
+    for planes, ids in (((floor, wall), (0, 1)), ((wall, floor), (1, 0))):
+        pts, labs, coeffs = frame(*planes)
+        assert tracker.update(pts, None, coeffs, [np.flatnonzero(labs == k) for k in range(2)]) == ids

@@ -15,8 +15,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..core import kernels
 from ..core.blas import limit_blas_threads
-from ..core.geometry import voxel_downsample
+from ..core.geometry import plane_rows, voxel_downsample
 from ..core.indices import ValidityIndices, validity_indices
 from ..core.noise import noise_coefficient
 from ..core.ransac import (
@@ -87,6 +88,7 @@ class FrameResult:
     plane_ids: tuple[int, ...] = ()  # each plane's track id (PlaneTracker), ascending: the planes are in this order
     obstacles: np.ndarray | None = None  # (n,) bool: which points are obstacles (app/obstacles.py)
     image_shape: tuple[int, int] | None = None  # (H, W) of an organized input (``organized`` holds its rows)
+    image_labels: np.ndarray | None = None  # (H * W,) int32 ``labels`` on the rows of ``organized`` (-1: no point)
 
     def as_image(self, values: np.ndarray, fill) -> np.ndarray:
         """Per-point ``values`` (n, ...) laid out on the input's H * W rows (``fill`` where a pixel
@@ -348,10 +350,8 @@ class FramePipeline:
             return _failed(ERROR, f'bad input: {exc}', start, self.current_tolerance())
         cfg = self.config
         pts, no_returns = no_returns_as_nan(given, cfg.viewpoint) if cfg.zero_is_no_return else (given, 0)
-        finite = finite_rows(pts)
-        valid = np.compress(finite, pts, axis=0)  # much faster than a boolean index
+        finite, valid, infinite = _valid_rows(pts)
         n_input = len(pts)
-        infinite = _infinite_rows(pts, finite, len(valid))
         image = shape if shape is not None and shape[0] * shape[1] == n_input else None  # kept in the outputs
         if shape is not None and (cfg.voxel_size > 0 or not cfg.connectivity or shape[0] * shape[1] != n_input):
             shape = None  # only regions use the image; the voxel grid does not keep it; a wrong shape is ignored
@@ -394,12 +394,14 @@ class FramePipeline:
                 if inverse is not None:  # each point its voxel's (pixel's) plane, if it lies within t of it
                     labels = within_planes(valid, seg.labels[inverse], seg)
                 else:
-                    labels = seg.labels[finite] if shape else seg.labels
+                    labels = np.compress(finite, seg.labels) if shape else seg.labels
                 # an organized frame's indices from its valid rows: the same values, no second NaN filter
                 scored = (valid, labels) if shape is not None or laid is not None else (work, seg.labels)
                 scores = validity_indices(*scored, sample_size=cfg.index_sample_size, seed=seed,
                                           sampled_separation=not cfg.exact_indices)
-                found = self.tracker.update(valid, labels, seg.coefficients)
+                # the segmentation's own labels (of the rows of work) are grouped by its planes' inliers
+                tracked = (work, seg.labels) if inverse is None else (valid, labels)
+                found = self.tracker.update(*tracked, seg.coefficients, plane_rows(tracked[1], seg))
                 verdict = judge(work, seg, scores, agreement).renumbered(found)  # planes named by their ids
                 seg, labels, ids = _by_id(seg, labels, found)
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
@@ -411,8 +413,11 @@ class FramePipeline:
         if tune_problem:
             used = source.split(' (')[0]
             level, message = WARN, f'{tune_problem}; detected with {used} t={tolerance:.4g} m: {message}'
-        counts = np.bincount(labels[labels >= 0], minlength=seg.n_planes)
+        counts = np.array([len(rows) for rows in plane_rows(labels if inverse is not None else seg.labels, seg)],
+                          np.int64)
         obstacles = obstacle_mask(valid, labels, seg, counts, cfg.ground_margin)
+        # an organized input's outputs are laid out on its rows: its labels there too
+        image_labels = None if not image else seg.labels if shape is not None else _on_rows(labels, finite, -1)
         values = _values(cfg, tolerance, source, n_input, len(valid), (no_returns, infinite), int(np.sum(labels < 0)),
                          seg, counts, scores, noise_from_segmentation(seg, work), work, ids)
         values += (('obstacle_points', str(int(obstacles.sum()))), ('reliable', str(verdict.reliable).lower()),
@@ -433,15 +438,34 @@ class FramePipeline:
                            tolerance_source=source, diagnostic=Diagnostic(level, message, values), seconds=seconds,
                            plane_counts=tuple(int(c) for c in counts), organized=pts if image else None, shape=shape,
                            ring_image=(laid[0], laid[1]) if laid else None, clock=stamp, plane_ids=ids,
-                           obstacles=obstacles, image_shape=image)
+                           obstacles=obstacles, image_shape=image, image_labels=image_labels)
 
 
-def _infinite_rows(points: np.ndarray, finite: np.ndarray, n_finite: int) -> int:
-    """How many rows of ``points`` (N, 3) have an infinite coordinate: left out as no points, as NaN rows are
-    (REP 117 marks a return out of range with +inf and one too close with -inf), and counted."""
-    if n_finite == len(points):  # the usual frame: no second pass
-        return 0
-    return int(np.count_nonzero(np.isinf(points[~finite]).any(axis=1)))
+def _on_rows(values: np.ndarray, rows: np.ndarray, fill) -> np.ndarray:
+    """Per-point ``values`` (n,) laid out on the N rows of which ``rows`` (N,) bool are the points', ``fill``
+    elsewhere."""
+    out = np.full(len(rows), fill, values.dtype)
+    out[rows] = values
+    return out
+
+
+def _valid_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """The rows of ``points`` (N, 3) with three finite coordinates: (which (N,) bool, they themselves (n, 3)), and
+    how many other rows have an infinite coordinate: left out as no points, as NaN rows are (REP 117 marks a return
+    out of range with +inf and one too close with -inf), and counted. One compiled pass over a C-ordered float64
+    array."""
+    if points.dtype == np.float64 and points.flags.c_contiguous and points.flags.writeable:
+        return kernels.valid_rows(points)
+    return _valid_rows_numpy(points)
+
+
+def _valid_rows_numpy(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """:func:`_valid_rows` in numpy: for other arrays, and the reference its kernel is tested against."""
+    finite = finite_rows(points)
+    valid = np.compress(finite, points, axis=0)  # much faster than a boolean index
+    if len(valid) == len(points):
+        return finite, valid, 0
+    return finite, valid, int(np.count_nonzero(np.isinf(np.compress(~finite, points, axis=0)).any(axis=1)))
 
 
 def _by_id(seg: Segmentation, labels: np.ndarray, ids: tuple[int, ...]) -> tuple[Segmentation, np.ndarray, tuple]:

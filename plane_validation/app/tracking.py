@@ -50,13 +50,16 @@ class _Track:
     missed: int = 0
 
 
-def plane_samples(points: np.ndarray, labels: np.ndarray, n_planes: int, count: int) -> list[np.ndarray]:
+def plane_samples(points: np.ndarray, labels: np.ndarray, n_planes: int, count: int,
+                  members: list[np.ndarray] | None = None) -> list[np.ndarray]:
     """Per plane k up to ``count`` of its points (labels == k), evenly spaced in their order
-    (deterministic): (m_k, 3) each."""
-    order, bounds = group_by_label(c_array(labels, np.int32), n_planes)  # a stable counting sort, compiled
+    (deterministic): (m_k, 3) each. ``members``: the rows of each plane, ascending, when known (a
+    segmentation's inliers), else grouped from ``labels``."""
+    if members is None:
+        rows, bounds = group_by_label(c_array(labels, np.int32), n_planes)  # a stable counting sort, compiled
+        members = [rows[bounds[k]:bounds[k + 1]] for k in range(n_planes)]
     out = []
-    for k in range(n_planes):
-        rows = order[bounds[k]:bounds[k + 1]]
+    for rows in members:
         if len(rows) > count:
             rows = rows[np.linspace(0, len(rows) - 1, count).round().astype(np.int64)]
         out.append(np.asarray(points[rows], dtype=float))
@@ -80,13 +83,14 @@ class PlaneTracker:
         """The ids of the tracks kept (seen lately), ascending."""
         return tuple(sorted(t.id for t in self._tracks))
 
-    def update(self, points: np.ndarray, labels: np.ndarray, coefficients: np.ndarray) -> tuple[int, ...]:
+    def update(self, points: np.ndarray, labels: np.ndarray, coefficients: np.ndarray,
+               members: list[np.ndarray] | None = None) -> tuple[int, ...]:
         """The id of each of this frame's planes. points: (n, 3) m; labels: (n,) plane index, -1 none;
-        coefficients: (k, 4) rows a b c d of the planes (unit normals). A frame without planes only ages
-        the tracks."""
+        coefficients: (k, 4) rows a b c d of the planes (unit normals); members: each plane's rows of
+        ``points`` (labels == k), ascending, when known. A frame without planes only ages the tracks."""
         cfg = self.config
         coefficients = np.asarray(coefficients, dtype=float).reshape(-1, 4)
-        samples = plane_samples(np.asarray(points), np.asarray(labels), len(coefficients), cfg.samples)
+        samples = plane_samples(np.asarray(points), labels, len(coefficients), cfg.samples, members)
         cost = np.full((len(self._tracks), len(coefficients)), _REFUSED)
         trees = [cKDTree(sample) if len(sample) else None for sample in samples] if self._tracks else []
         for i, track in enumerate(self._tracks):

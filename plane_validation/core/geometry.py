@@ -14,8 +14,9 @@ from scipy.spatial import ConvexHull, QhullError
 from . import kernels
 from .ransac import Segmentation
 
-__all__ = ['PlaneOutline', 'plane_basis', 'plane_outlines', 'hull_polygon', 'plane_colors', 'UNASSIGNED_RGB',
-           'voxel_downsample', 'ring_image', 'beam_numbers']
+__all__ = ['PlaneOutline', 'plane_basis', 'plane_bases', 'plane_outlines', 'outline_directions', 'outlines_from',
+           'plane_rows', 'hull_polygon', 'plane_colors', 'UNASSIGNED_RGB', 'voxel_downsample', 'ring_image',
+           'beam_numbers']
 
 #: Largest point set whose hull is computed exactly (see hull_polygon).
 HULL_POINTS = 2048
@@ -82,20 +83,48 @@ def plane_outlines(points: np.ndarray, labels: np.ndarray, seg: Segmentation) ->
     points in 8 in-plane directions (:func:`.kernels.centroids_and_extremes`)."""
     pts = kernels.c_array(points, np.float64)
     rows, bounds = kernels.group_by_label(kernels.c_array(labels, np.int32), seg.n_planes)
-    rotations = [plane_basis(plane.normal) for plane in seg.planes]
-    directions = np.array([_DIRECTIONS @ rotation[:, :2].T for rotation in rotations]).reshape(-1, 8, 3)
-    centroids, extremes = kernels.centroids_and_extremes(pts, rows, bounds, directions)
+    rotations = plane_bases(seg)
+    centroids, extremes = kernels.centroids_and_extremes(pts, rows, bounds, outline_directions(rotations))
+    members = [rows[bounds[k]:bounds[k + 1]] for k in range(seg.n_planes)]
+    return outlines_from(pts, members, centroids, extremes, seg, rotations)
+
+
+def plane_rows(labels: np.ndarray, seg: Segmentation) -> list[np.ndarray]:
+    """The rows labelled with each plane of ``seg`` in ``labels`` (n,), ascending: the planes' inliers when
+    ``labels`` are the segmentation's own (its contract), else grouped from ``labels`` in one pass."""
+    if labels is seg.labels:
+        return [plane.inliers for plane in seg.planes]
+    rows, bounds = kernels.group_by_label(kernels.c_array(labels, np.int32), seg.n_planes)
+    return [rows[bounds[k]:bounds[k + 1]] for k in range(seg.n_planes)]
+
+
+def plane_bases(seg: Segmentation) -> list[np.ndarray]:
+    """:func:`plane_basis` of each plane of ``seg``: (3, 3) each."""
+    return [plane_basis(plane.normal) for plane in seg.planes]
+
+
+def outline_directions(rotations: list[np.ndarray]) -> np.ndarray:
+    """(k, 8, 3): the 8 in-plane directions (meters along them are what the outlines compare) of each of the
+    planes whose bases are ``rotations`` (:func:`plane_bases`)."""
+    return np.array([_DIRECTIONS @ rotation[:, :2].T for rotation in rotations]).reshape(-1, 8, 3)
+
+
+def outlines_from(points: np.ndarray, members: list[np.ndarray], centroids: np.ndarray, extremes: np.ndarray,
+                  seg: Segmentation, rotations: list[np.ndarray]) -> tuple[PlaneOutline, ...]:
+    """The :func:`plane_outlines` of the planes of ``seg`` from what a pass over their points gave: ``members``
+    (the rows of ``points`` (N, 3) of each plane, ascending), ``centroids`` (k, 3) and the positions among its
+    members of each plane's extreme points along :func:`outline_directions` (k, 8)."""
     out = []
     for k, plane in enumerate(seg.planes):
-        rotation, members = rotations[k], rows[bounds[k]:bounds[k + 1]]
+        rotation, rows = rotations[k], members[k]
         axes = rotation[:, :2]  # (3, 2): in-plane x, y
-        if len(members) == 0:
+        if len(rows) == 0:
             out.append(PlaneOutline(-plane.offset * plane.normal, rotation, np.empty((0, 3)), 1.0))
             continue
         centroid = centroids[k]
-        if len(members) > HULL_POINTS:  # in-plane coordinates of the hull's candidates only
-            members = members[_hull_candidates(extremes[k], len(members), HULL_POINTS)]
-        local = axes.T @ (pts[members] - centroid).T  # (2, c)
+        if len(rows) > HULL_POINTS:  # in-plane coordinates of the hull's candidates only
+            rows = rows[_hull_candidates(extremes[k], len(rows), HULL_POINTS)]
+        local = axes.T @ (points[rows] - centroid).T  # (2, c)
         polygon = local[:, _hull(local)]
         extent = float(np.ptp(polygon, axis=1).max())
         out.append(PlaneOutline(centroid, rotation, centroid + (axes @ polygon).T, extent))

@@ -18,9 +18,9 @@ import numba
 import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
-           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
-           'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
-           'plane_patches', 'fold_fit', 'warm', 'Warmup']
+           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'finite_mask',
+           'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
+           'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_fit', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -411,52 +411,6 @@ def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: 
             changed[q] = i
         n_changed = n_touched
     return region
-
-
-@numba.njit(**_JIT)
-def pack_segmented(points: np.ndarray, labels: np.ndarray, plane_ids: np.ndarray, palette: np.ndarray,
-                   out: np.ndarray) -> bool:
-    """Fill ``out`` (N * 20,) uint8 with little-endian records x, y, z (float32), plane_id (int32) and rgb
-    of ``points`` (N, 3) and ``labels`` (N,): a label j in 0..k-1 writes ``plane_ids[j]`` and ``palette[j]``
-    (uint32), any other label their last entries ((k + 1,) each). Returns whether no coordinate is NaN
-    (PointCloud2's is_dense)."""
-    n = points.shape[0]
-    last = palette.shape[0] - 1
-    record = np.empty(5, np.float32)
-    ints = record.view(np.int32)
-    raw = record.view(np.uint8)
-    dense = True
-    for i in range(n):
-        record[0], record[1], record[2] = points[i, 0], points[i, 1], points[i, 2]
-        dense = dense and not (np.isnan(record[0]) or np.isnan(record[1]) or np.isnan(record[2]))
-        lab = labels[i]
-        j = lab if 0 <= lab < last else last
-        ints[3] = plane_ids[j]
-        ints[4] = np.int32(palette[j])
-        base = 20 * i
-        for b in range(20):
-            out[base + b] = raw[b]
-    return dense
-
-
-@numba.njit(**_JIT)
-def pack_xyz(points: np.ndarray, keep: np.ndarray, out: np.ndarray) -> bool:
-    """Fill ``out`` (N * 12,) uint8 with little-endian records x, y, z (float32) of ``points`` (N, 3), NaN where
-    ``keep`` (N,) is False. Returns whether no coordinate is NaN (PointCloud2's is_dense)."""
-    record = np.empty(3, np.float32)
-    raw = record.view(np.uint8)
-    dense = True
-    for i in range(points.shape[0]):
-        if keep[i]:
-            record[0], record[1], record[2] = points[i, 0], points[i, 1], points[i, 2]
-            dense = dense and not (np.isnan(record[0]) or np.isnan(record[1]) or np.isnan(record[2]))
-        else:
-            record[0] = record[1] = record[2] = np.nan
-            dense = False
-        base = 12 * i
-        for b in range(12):
-            out[base + b] = raw[b]
-    return dense
 
 
 @numba.njit(**_JIT)
@@ -904,6 +858,132 @@ def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     return edges, indptr, indices
 
 
+# --- frame pass ---
+
+
+@numba.njit(**_JIT)
+def widen_xyz(words: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """(N, 3) float64: the float32 ``words`` (N, w) at ``columns`` (3,) of each row (the x, y, z of N records of w
+    four-byte words: a PointCloud2's points)."""
+    out = np.empty((words.shape[0], 3))
+    a, b, c = columns[0], columns[1], columns[2]
+    for i in range(words.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2] = words[i, a], words[i, b], words[i, c]
+    return out
+
+
+@numba.njit(**_JIT)
+def valid_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """The rows of ``points`` (N, 3) with three finite coordinates: which (N,) bool and they themselves, in order
+    ((n, 3), the start of an (N, 3) buffer); and how many other rows have an infinite coordinate."""
+    n = points.shape[0]
+    finite = np.empty(n, np.bool_)
+    valid = np.empty((n, 3))
+    m = infinite = 0
+    for i in range(n):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        ok = np.isfinite(x) and np.isfinite(y) and np.isfinite(z)
+        finite[i] = ok
+        if ok:
+            valid[m, 0], valid[m, 1], valid[m, 2] = x, y, z
+            m += 1
+        elif np.isinf(x) or np.isinf(y) or np.isinf(z):
+            infinite += 1
+    return finite, valid[:m], infinite
+
+
+@numba.njit(**_JIT)
+def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_ids: np.ndarray, palette: np.ndarray,
+               directions: np.ndarray, segmented: np.ndarray, obstacles: np.ndarray, compact: bool
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool, bool, float]:
+    """One pass over the rows of a processed frame, ``points`` (N, 3) meters (NaN or inf in rows that hold no
+    point) with plane ``labels`` (N,) in -1..k-1: the records of both output clouds and each plane's statistics.
+
+    ``segmented`` (N * 20,) uint8 gets little-endian records x, y, z (float32; NaN where a row is not finite),
+    plane_id (int32) and rgb: a label j in 0..k-1 writes ``plane_ids[j]`` and ``palette[j]`` (uint32), any other
+    the last entries ((k + 1,) each). ``obstacles`` gets records x, y, z (float32) of the finite rows that
+    ``keep`` (n,) bool, one per finite row in order, marks: (N * 12,) with NaN where a row is not kept or not
+    finite, or with ``compact`` only the kept rows, one after another ((kept * 12,)). Returns per label, as
+    :func:`centroids_and_extremes` over its rows in order: the count (k,), the mean point (k, 3) (NaN without
+    rows) and the position among its rows of the point farthest along each of its ``directions`` (k, d, 3)
+    (k, d) (the first of equals; -1 without rows); whether each cloud is dense (no NaN coordinate written); and
+    the largest magnitude of a finite coordinate (0 without one)."""
+    n = points.shape[0]
+    k, d = directions.shape[0], directions.shape[1]
+    last = palette.shape[0] - 1
+    seg_f = segmented.view(np.float32)
+    seg_i = segmented.view(np.int32)
+    obs_f = obstacles.view(np.float32)
+    count = np.zeros(k, np.int64)
+    sums = np.zeros((k, 3))
+    extreme = np.full((k, d), -1, np.int64)
+    best = np.full((k, d), -np.inf)
+    along = np.empty((k, 3, d))  # the directions' components side by side: the d projections then vectorize
+    for j in range(k):
+        for e in range(d):
+            for a in range(3):
+                along[j, a, e] = directions[j, e, a]
+    value = np.empty(d)
+    seg_dense = obs_dense = True
+    largest = 0.0
+    kept = valid = 0  # obstacle records written, finite rows passed
+    nan = np.float32(np.nan)
+    for i in range(n):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        finite = True
+        for v in (x, y, z):
+            if np.isfinite(v):
+                largest = max(largest, abs(v))
+            else:
+                finite = False
+        lab = labels[i]
+        j = lab if 0 <= lab < last else last
+        base = 5 * i
+        if finite:  # a finite coordinate is never NaN as float32 (at most inf)
+            fx, fy, fz = np.float32(x), np.float32(y), np.float32(z)
+        else:
+            fx = fy = fz = nan
+            seg_dense = False
+        seg_f[base], seg_f[base + 1], seg_f[base + 2] = fx, fy, fz
+        seg_i[base + 3] = plane_ids[j]
+        seg_i[base + 4] = np.int32(palette[j])
+        kept_here = False
+        if finite:
+            kept_here = valid < keep.shape[0] and keep[valid]
+            valid += 1
+        if compact:
+            if kept_here:
+                obs_f[3 * kept], obs_f[3 * kept + 1], obs_f[3 * kept + 2] = fx, fy, fz
+                kept += 1
+        elif kept_here:
+            obs_f[3 * i], obs_f[3 * i + 1], obs_f[3 * i + 2] = fx, fy, fz
+        else:
+            obs_f[3 * i] = obs_f[3 * i + 1] = obs_f[3 * i + 2] = nan
+            obs_dense = False
+        if 0 <= lab < k:
+            q = count[lab]
+            sums[lab, 0] += x
+            sums[lab, 1] += y
+            sums[lab, 2] += z
+            ax, ay, az, top = along[lab, 0], along[lab, 1], along[lab, 2], best[lab]
+            beyond = q == 0  # a label's first point is its first extreme in every direction
+            for e in range(d):
+                value[e] = ax[e] * x + ay[e] * y + az[e] * z
+                beyond |= value[e] > top[e]
+            if beyond:  # rare after a label's first points
+                for e in range(d):
+                    if value[e] > top[e] or q == 0:
+                        top[e] = value[e]
+                        extreme[lab, e] = q
+            count[lab] = q + 1
+    centroid = np.full((k, 3), np.nan)
+    for j in range(k):
+        if count[j]:
+            for a in range(3):
+                centroid[j, a] = sums[j, a] / count[j]
+    return count, centroid, extreme, seg_dense, obs_dense, largest
+
+
 # --- verdict ---
 
 
@@ -1108,8 +1188,6 @@ def warm() -> Warmup:
                 np.zeros((1, 4)), np.ones(1), EIGHT)
     rows, bounds = group_by_label(labels, 2)
     centroids_and_extremes(pts, rows, bounds, np.zeros((2, 8, 3)))
-    pack_segmented(pts, labels, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.empty(80, np.uint8))
-    pack_xyz(pts, np.ones(4, np.bool_), np.empty(48, np.uint8))
     flags = np.ones(4, np.bool_)
     index = np.arange(4, dtype=np.int64)
     grid_components(index, index, flags, 2, np.zeros((1, 3), np.int64), flags)
@@ -1125,6 +1203,10 @@ def warm() -> Warmup:
     principal_axes(pts, np.zeros((4, 3), np.int64))
     patch_fits(pts, index, np.array([0, 4]))
     pair_graph(4, np.zeros((1, 2), np.int64))
+    widen_xyz(np.zeros((4, 5), np.float32), np.arange(3))
+    valid_rows(pts)
+    frame_pass(pts, labels, flags, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.zeros((2, 8, 3)),
+               np.empty(80, np.uint8), np.empty(48, np.uint8), False)
     plane_patches(pts, np.eye(3)[:, :2].copy(), 2, 1)
     fold_fit(np.arange(6.0), np.ones(6), np.ones(6), 2, 2, 0.5)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
@@ -1132,5 +1214,6 @@ def warm() -> Warmup:
 
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
-            grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
-            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, plane_patches, fold_fit)
+            grid_region, grid_compete, graph_components, graph_region, coordinate_bounds,
+            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, widen_xyz,
+            valid_rows, frame_pass, plane_patches, fold_fit)

@@ -693,12 +693,13 @@ def _lzf_problem(data: bytes, unpacked: int) -> str | None:
 #: Written coordinates are float32 unless float32 would round one by more than this (meters): then
 #: float64 (georeferenced clouds, UTM coordinates in the millions of meters, need it).
 COORDINATE_PRECISION = 1e-4
+#: The magnitude (838.9 m) up to which float32's spacing is finer than COORDINATE_PRECISION.
+FLOAT32_FINE = COORDINATE_PRECISION * 2.0 ** 23
 
 
 def _float32_fine(points: np.ndarray) -> bool:
-    """Whether every finite coordinate is within the magnitude (838.9 m) up to which float32's spacing
-    is finer than COORDINATE_PRECISION."""
-    bound = COORDINATE_PRECISION * 2.0 ** 23
+    """Whether every finite coordinate is within FLOAT32_FINE."""
+    bound = FLOAT32_FINE
     if not points.size or (-bound <= np.fmin.reduce(points, axis=None) and np.fmax.reduce(points, axis=None) <= bound):
         return True  # the usual case, without copying the finite values (fmin/fmax skip NaN)
     finite = np.abs(points[np.isfinite(points)])

@@ -5,6 +5,8 @@ both publish the same messages for the same frame. Needs the ROS message package
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import sensor_msgs.msg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -14,9 +16,18 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from ..app.diagnostics import Diagnostic, Level
 from ..app.pipeline import FrameResult
-from ..core.geometry import UNASSIGNED_RGB, PlaneOutline, plane_colors, plane_outlines
-from ..core.kernels import c_array, pack_segmented, pack_xyz
-from ..formats.files import coordinate_dtype
+from ..core.geometry import (
+    UNASSIGNED_RGB,
+    PlaneOutline,
+    outline_directions,
+    outlines_from,
+    plane_bases,
+    plane_colors,
+    plane_outlines,
+    plane_rows,
+)
+from ..core.kernels import c_array, frame_pass
+from ..formats.files import FLOAT32_FINE, coordinate_dtype
 from ..formats.pointcloud2 import cloud_buffer, cloud_message, create_cloud, pack_rgb, record_layout
 
 __all__ = ['OUTPUTS', 'msgtype', 'status_name', 'node_values', 'segmented_cloud', 'obstacle_cloud', 'plane_markers',
@@ -51,40 +62,66 @@ def segmented_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
     """x, y, z (float32; float64 where float32 would lose precision: :func:`coordinate_dtype`), plane_id
     (int32: the plane's track id, -1 unassigned) and packed rgb of the valid points; of an organized input,
     its H x W pixels with NaN x, y, z and plane_id -1 where a pixel had no valid point."""
-    labels = c_array(result.labels, np.int32)
-    ids = np.array([*result.plane_ids, -1], np.int32)  # label -1 indexes the last entry: -1
-    palette = np.vstack([_colors(result), np.array([UNASSIGNED_RGB], np.uint8)])
-    packed = pack_rgb(palette[:, 0], palette[:, 1], palette[:, 2])
-    pts, shape = result.points, (1, len(labels))
-    if result.image_shape is not None:
-        pts, labels, shape = result.as_image(pts, np.nan), result.as_image(labels, -1), result.image_shape
-    dtype = coordinate_dtype(pts)
-    if dtype == np.float32:  # the usual case: one compiled pass writes the records
-        layout = record_layout({'x': dtype, 'y': dtype, 'z': dtype, 'plane_id': np.int32, 'rgb': np.float32})
-        data = cloud_buffer(len(labels) * layout.itemsize, sensor_msgs.msg)
-        dense = pack_segmented(c_array(pts, np.float64), labels, ids, packed.view(np.uint32),
-                               np.frombuffer(data, np.uint8))
-        return cloud_message(header, layout, data, shape, types=sensor_msgs.msg, dense=dense)
-    # label -1 indexes the last palette entry, the unassigned grey
-    return _cloud(header, result, {'plane_id': ids[c_array(result.labels, np.int32)],
-                                   'rgb': packed[c_array(result.labels, np.int32)]},
-                  {'plane_id': -1, 'rgb': packed[-1]})
+    return _frame_pass(header, result).segmented
 
 
 def obstacle_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
     """x, y, z of the valid points on no plane (without those near the ground with ``ground_margin``); of an
     organized input, its H x W pixels with NaN where a pixel is not an obstacle."""
-    mask = np.zeros(len(result.points), bool) if result.obstacles is None else result.obstacles
-    if result.image_shape is None:
-        pts, keep, shape = result.points[mask], np.ones(np.count_nonzero(mask), bool), (1, int(np.count_nonzero(mask)))
+    return _frame_pass(header, result).obstacles
+
+
+@dataclass(frozen=True, eq=False)
+class _FramePass:
+    """What the one compiled pass over a frame's rows gives: both output clouds and the planes' outlines."""
+
+    segmented: sensor_msgs.msg.PointCloud2
+    obstacles: sensor_msgs.msg.PointCloud2
+    outlines: tuple[PlaneOutline, ...]
+
+
+def _frame_pass(header, result: FrameResult) -> _FramePass:
+    """The output clouds and outlines of a frame from one pass over its rows (:func:`.kernels.frame_pass`): the
+    organized input's H x W rows, else the valid points."""
+    seg, image = result.segmentation, result.image_labels is not None
+    if image:
+        rows, labels, shape = result.organized, result.image_labels, result.image_shape
     else:
-        # the input's rows themselves: those not kept (invalid ones included) are written as NaN
-        pts, keep, shape = result.organized, result.as_image(mask, False), result.image_shape
-    if coordinate_dtype(pts) == np.float32:  # the usual case: one compiled pass writes the records
-        layout = record_layout({'x': np.float32, 'y': np.float32, 'z': np.float32})
-        data = cloud_buffer(len(keep) * layout.itemsize, sensor_msgs.msg)
-        dense = pack_xyz(c_array(pts, np.float64), c_array(keep, bool), np.frombuffer(data, np.uint8))
-        return cloud_message(header, layout, data, shape, types=sensor_msgs.msg, dense=dense)
+        rows, labels, shape = result.points, result.labels, (1, len(result.labels))
+    keep = np.zeros(len(result.points), bool) if result.obstacles is None else result.obstacles  # per valid point
+    members = None if seg is None else plane_rows(labels, seg)  # before c_array: it knows seg's own labels
+    rows, labels, keep = c_array(rows, np.float64), c_array(labels, np.int32), c_array(keep, bool)
+    ids = np.array([*result.plane_ids, -1], np.int32)  # label -1 indexes the last entry: -1
+    palette = np.vstack([_colors(result), np.array([UNASSIGNED_RGB], np.uint8)])
+    packed = pack_rgb(palette[:, 0], palette[:, 1], palette[:, 2])
+    rotations = [] if seg is None else plane_bases(seg)
+    kept = len(rows) if image else int(np.count_nonzero(keep))
+    seg_layout = record_layout({'x': np.float32, 'y': np.float32, 'z': np.float32, 'plane_id': np.int32,
+                                'rgb': np.float32})
+    obs_layout = record_layout({'x': np.float32, 'y': np.float32, 'z': np.float32})
+    seg_data = cloud_buffer(len(rows) * seg_layout.itemsize, sensor_msgs.msg)
+    obs_data = cloud_buffer(kept * obs_layout.itemsize, sensor_msgs.msg)
+    _, centroids, extremes, seg_dense, obs_dense, largest = frame_pass(
+        rows, labels, keep, ids, packed.view(np.uint32), outline_directions(rotations),
+        np.frombuffer(seg_data, np.uint8), np.frombuffer(obs_data, np.uint8), not image)
+    outlines = () if seg is None else outlines_from(rows, members, centroids, extremes, seg, rotations)
+    if largest > FLOAT32_FINE:  # float32 may lose precision: each cloud's coordinates as coordinate_dtype says
+        return _FramePass(_wide_segmented(header, result, ids, packed), _wide_obstacles(header, result), outlines)
+    return _FramePass(cloud_message(header, seg_layout, seg_data, shape, types=sensor_msgs.msg, dense=seg_dense),
+                      cloud_message(header, obs_layout, obs_data, shape if image else (1, kept),
+                                    types=sensor_msgs.msg, dense=obs_dense),
+                      outlines)
+
+
+def _wide_segmented(header, result: FrameResult, ids: np.ndarray, packed: np.ndarray) -> sensor_msgs.msg.PointCloud2:
+    """:func:`segmented_cloud` with coordinates far from the origin (see :func:`coordinate_dtype`)."""
+    labels = c_array(result.labels, np.int32)  # label -1 indexes the last entry, the unassigned grey
+    return _cloud(header, result, {'plane_id': ids[labels], 'rgb': packed[labels]}, {'plane_id': -1, 'rgb': packed[-1]})
+
+
+def _wide_obstacles(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
+    """:func:`obstacle_cloud` with coordinates far from the origin (see :func:`coordinate_dtype`)."""
+    mask = np.zeros(len(result.points), bool) if result.obstacles is None else result.obstacles
     if result.image_shape is None:
         return _cloud(header, result, {}, {}, rows=mask)
     return _cloud(header, result, {}, {}, hide=~mask)
@@ -127,6 +164,8 @@ def _quaternion(rot: np.ndarray) -> Quaternion:
 def _outlines(result: FrameResult) -> tuple[PlaneOutline, ...]:
     if result.segmentation is None:
         return ()
+    if result.image_labels is not None:
+        return plane_outlines(result.organized, result.image_labels, result.segmentation)
     return plane_outlines(result.points, result.labels, result.segmentation)
 
 
@@ -154,9 +193,11 @@ def plane_markers(header, result: FrameResult, ns: str = 'planes',
         plane, pid = result.segmentation.planes[k], int(result.plane_ids[k])
         centroid, corners, extent = outline.centroid, outline.corners, outline.extent
         color = ColorRGBA(r=float(colors[k, 0]), g=float(colors[k, 1]), b=float(colors[k, 2]), a=0.6)
-        # Triangle fan around the centroid (the centroid is inside the convex hull).
-        tri = [_point(p) for i in range(len(corners) if len(corners) >= 3 else 0)
-               for p in (centroid, corners[i], corners[(i + 1) % len(corners)])]
+        # Triangle fan around the centroid (the centroid is inside the convex hull); one Point per vertex, listed
+        # by each triangle through it (a message holds their values: building them is what costs)
+        hull = [Point(x=x, y=y, z=z) for x, y, z in corners.tolist()] if len(corners) >= 3 else []
+        middle = _point(centroid)
+        tri = [p for i in range(len(hull)) for p in (middle, hull[i], hull[(i + 1) % len(hull)])]
         markers.append(Marker(header=header, ns=f'{ns}/hull', id=pid, type=Marker.TRIANGLE_LIST, action=Marker.ADD,
                               pose=Pose(orientation=Quaternion(w=1.0)), scale=Vector3(x=1.0, y=1.0, z=1.0),
                               color=color, points=tri))
@@ -204,10 +245,11 @@ def frame_messages(header, result: FrameResult, name: str,
                    extra: tuple[tuple[str, str], ...] = ()) -> dict[str, object]:
     """Every output of one frame keyed by its topic suffix; ``extra`` key-values are added to
     its diagnostics."""
-    outlines = _outlines(result)  # shared by the markers and the poses
-    return {'segmented': segmented_cloud(header, result), 'obstacles': obstacle_cloud(header, result),
-            'planes': plane_markers(header, result, outlines=outlines),
-            'plane_poses': plane_poses(header, result, outlines), 'plane_coefficients': plane_coefficients(result),
+    frame = _frame_pass(header, result)  # the outlines shared by the markers and the poses
+    return {'segmented': frame.segmented, 'obstacles': frame.obstacles,
+            'planes': plane_markers(header, result, outlines=frame.outlines),
+            'plane_poses': plane_poses(header, result, frame.outlines),
+            'plane_coefficients': plane_coefficients(result),
             'diagnostics': diagnostics(header, result.diagnostic.with_values(*extra), name)}
 
 

@@ -1,0 +1,76 @@
+"""The steady-state frame's work outside the search, the indices and the verdict, on real 640x480 frames.
+
+Per frame (PointCloud2 in -> the five output messages built, t = 1 cm, up to 5 planes, indices on the 2,000-point
+sample), the CPU medians of the whole frame and of what is left once ``detect_planes``, ``validity_indices`` and
+``judge`` are taken out (reading the message, the tracker, the one pass over the rows, outlines and messages),
+with the target of that rest (<= 12 ms). CPU time (process_time): other work on the machine slows it less than
+the wall clock.
+
+Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_frame_io.py [PCD ...] [--repeat 15]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_frame import DATA, SETTINGS  # noqa: E402
+from pvbench.node_e2e import cloud_message  # noqa: E402
+
+from plane_validation.app import pipeline  # noqa: E402
+from plane_validation.core.blas import limit_blas_threads  # noqa: E402
+from plane_validation.core.kernels import warm  # noqa: E402
+from plane_validation.formats.files import load_cloud  # noqa: E402
+from plane_validation.ros.messages import frame_messages  # noqa: E402
+
+REST_MS = 12.0
+TAKEN_OUT = ('detect_planes', 'validity_indices', 'judge')
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('clouds', nargs='*', default=[str(p) for p in sorted(DATA.glob('*.pcd'))])
+    parser.add_argument('--repeat', type=int, default=15)
+    args = parser.parse_args()
+    limit_blas_threads()
+    warm()
+    spent = [0.0]
+    for name in TAKEN_OUT:  # CPU time inside each of them, summed per frame
+        setattr(pipeline, name, _timed(getattr(pipeline, name), spent))
+    print('| frame | whole frame, CPU (ms) | without search, indices, verdict (ms) |')
+    print('|---|--:|--:|')
+    for path in args.clouds:
+        points, shape = load_cloud(path)
+        if shape != (480, 640):
+            continue
+        msg = cloud_message(points, *shape)
+        frames = pipeline.FramePipeline(pipeline.PipelineConfig(**SETTINGS))
+        whole, rest = [], []
+        for i in range(args.repeat + 1):
+            msg.header.stamp.sec = i + 1
+            spent[0] = 0.0
+            start = time.process_time()
+            frame_messages(msg.header, frames.process_cloud(msg), 'pv')
+            took = time.process_time() - start
+            if i:  # the first is a warm-up
+                whole.append(1000 * took)
+                rest.append(1000 * (took - spent[0]))
+        print(f'| {Path(path).name} | {statistics.median(whole):.1f} | {statistics.median(rest):.1f} |', flush=True)
+    print(f'target: without search, indices and verdict <= {REST_MS:g} ms')
+
+
+def _timed(function, spent: list[float]):
+    def timed(*args, **kwargs):
+        start = time.process_time()
+        try:
+            return function(*args, **kwargs)
+        finally:
+            spent[0] += time.process_time() - start
+    return timed
+
+
+if __name__ == '__main__':
+    main()
