@@ -247,34 +247,66 @@ def _fragmented(sizes: np.ndarray, largest_share: float, piece_share: float) -> 
 
 
 @numba.njit(**_JIT)
+def _rest_components(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
+                     rest: np.ndarray, position: np.ndarray, member: np.ndarray) -> tuple[np.ndarray, int]:
+    """:func:`grid_components` of the points ``member`` (r,) bool among the points ``rest`` (r,) ascending of a
+    sub-grid (``position`` (n,): each point's place in ``rest``, -1 for none), in that place's numbering: the same
+    components, numbered alike, without a pass over the whole grid."""
+    r = rest.shape[0]
+    parent = np.arange(r)
+    inside = np.zeros(r, np.bool_)
+    for q in range(r):
+        inside[q] = member[q] and usable[pixel[rest[q]]]
+    for q in range(r):
+        if not inside[q]:
+            continue
+        p = pixel[rest[q]]
+        if p % width > 0:
+            j = node[p - 1]
+            if j >= 0 and position[j] >= 0 and inside[position[j]]:
+                _join(parent, q, position[j])
+        if p >= width:
+            j = node[p - width]
+            if j >= 0 and position[j] >= 0 and inside[position[j]]:
+                _join(parent, q, position[j])
+    for b in range(bridges.shape[0]):
+        if bridges[b, 2] != 0:
+            continue
+        i, j = node[bridges[b, 0]], node[bridges[b, 1]]
+        if i >= 0 and j >= 0 and position[i] >= 0 and position[j] >= 0 and inside[position[i]] and \
+                inside[position[j]]:
+            _join(parent, position[i], position[j])
+    return _numbered(parent, inside)
+
+
+@numba.njit(**_JIT)
 def grid_region(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
-                normals: np.ndarray, normal: np.ndarray, min_cos: float, rest: np.ndarray, mask: np.ndarray,
-                support: np.ndarray, above: np.ndarray, rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                normals: np.ndarray, normal: np.ndarray, min_cos: float, rest: np.ndarray, position: np.ndarray,
+                mask: np.ndarray, support: np.ndarray, above: np.ndarray, rules: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
     """The region a plane of unit ``normal`` (3,) keeps among the points ``rest`` (r,) of a sub-grid (see
-    :func:`grid_components`), as :meth:`.search.neighbours.Neighbours.region` gives it: its inliers ``mask`` (r,) and
-    the points within the support band ``support`` (r,), both cut to the points whose ``normals`` (n, 3)
-    lie within ``min_cos`` of it (NaN: unknown, kept); ``above`` (r,): on the side its normal points to.
-    ``rules``: (FRAGMENTED, FRAGMENT_PIECE, SUPPORT_BALANCE). Returns (kept (r,), taken (r,)) bool."""
-    n = pixel.shape[0]
-    wide = np.zeros(n, np.bool_)
-    full = np.zeros(n, np.bool_)
-    up = np.zeros(n, np.bool_)
-    for q in range(rest.shape[0]):
+    :func:`grid_components`; ``position`` (n,): each point's place in ``rest``, -1 for none), as
+    :meth:`.search.neighbours.Neighbours.region` gives it: its inliers ``mask`` (r,) and the points within the
+    support band ``support`` (r,), both cut to the points whose ``normals`` (n, 3) lie within ``min_cos`` of it (NaN:
+    unknown, kept); ``above`` (r,): on the side its normal points to. ``rules``: (FRAGMENTED, FRAGMENT_PIECE,
+    SUPPORT_BALANCE). Returns (kept (r,), taken (r,)) bool."""
+    r = rest.shape[0]
+    wide = np.zeros(r, np.bool_)
+    full = np.zeros(r, np.bool_)
+    up = np.zeros(r, np.bool_)
+    for q in range(r):
         i = rest[q]
         if support[q]:
             cos = abs(normals[i, 0] * normal[0] + normals[i, 1] * normal[1] + normals[i, 2] * normal[2])
-            wide[i] = not cos < min_cos
-            up[i] = above[q]
-        full[i] = mask[q]
-    for i in range(n):
-        full[i] = full[i] and wide[i]
-    component, count = grid_components(pixel, node, usable, width, bridges, full)
+            wide[q] = not cos < min_cos
+            up[q] = above[q]
+        full[q] = mask[q] and wide[q]
+    component, count = _rest_components(pixel, node, usable, width, bridges, rest, position, full)
     out, sizes = _largest(component, count, full)
-    kept, taken = out, out
     if _fragmented(sizes, rules[0], rules[1]):
-        component, count = grid_components(pixel, node, usable, width, bridges, wide)
-        kept, taken = _surface(_largest(component, count, full)[0], full, up, out, rules[2])
-    return kept[rest], taken[rest]
+        component, count = _rest_components(pixel, node, usable, width, bridges, rest, position, wide)
+        return _surface(_largest(component, count, full)[0], full, up, out, rules[2])
+    return out, out
 
 
 @numba.njit(**_JIT)
@@ -928,8 +960,8 @@ def warm() -> Warmup:
     flags = np.ones(4, np.bool_)
     index = np.arange(4, dtype=np.int64)
     grid_components(index, index, flags, 2, np.zeros((1, 3), np.int64), flags)
-    grid_region(index, index, flags, 2, np.zeros((1, 3), np.int64), pts, np.ones(3), 0.5, index, flags, flags, flags,
-                np.ones(3))
+    grid_region(index, index, flags, 2, np.zeros((1, 3), np.int64), pts, np.ones(3), 0.5, index, index, flags, flags,
+                flags, np.ones(3))
     grid_compete(np.zeros((2, 4)), np.zeros(4, np.int64), index, index, 2, EIGHT, 2)
     graph_components(4, np.zeros((1, 2), np.int64), flags)
     graph_region(np.zeros((1, 2), np.int64), pts, np.ones(3), 0.5, flags, flags, flags, np.ones(3))

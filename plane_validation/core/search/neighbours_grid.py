@@ -8,6 +8,7 @@ from the regions around them). Components come from ``scipy.ndimage.label``.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,8 +25,8 @@ from .neighbours import (
     joined_components,
 )
 
-__all__ = ['GridNeighbours', 'grid_neighbours', 'grid_region', 'grid_region_numpy', 'EIGHT', 'JUMP', 'HOLE_BRIDGE',
-           'LIDAR_BEND']
+__all__ = ['GridNeighbours', 'grid_neighbours', 'grid_region', 'grid_region_numpy', 'rest_positions', 'EIGHT', 'JUMP',
+           'HOLE_BRIDGE', 'LIDAR_BEND']
 
 #: A gap between grid neighbours this many times the gaps next to it along the image line (and
 #: this many typical pixel spacings at its range) is a depth jump.
@@ -167,29 +168,45 @@ class _GridRemaining(Remaining):
     neighbours: GridNeighbours
     rest_idx: np.ndarray
 
+    @functools.cached_property
+    def position(self) -> np.ndarray:
+        """(n,) each point's place in ``rest_idx``, -1 for none (shared by the calls for one plane)."""
+        return rest_positions(self.neighbours.n, self.rest_idx)
+
     def keep(self, mask: np.ndarray, normal: np.ndarray, support: np.ndarray, above: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray]:
         rule = grid_region if self.neighbours.normals is not None else grid_region_numpy
-        return rule(self.neighbours, self.rest_idx, mask, normal, support, above)
+        return rule(self.neighbours, self.rest_idx, mask, normal, support, above, self.position)
 
     def without(self, left: np.ndarray) -> Remaining:
         return _GridRemaining(self.neighbours, self.rest_idx[left])
 
 
+def rest_positions(n: int, rest_idx: np.ndarray) -> np.ndarray:
+    """(n,) int64: the place of each of n points in ``rest_idx`` (ascending), -1 for the others."""
+    position = np.full(n, -1, dtype=np.int64)
+    position[rest_idx] = np.arange(len(rest_idx))
+    return position
+
+
 def grid_region(neighbours: GridNeighbours, rest_idx: np.ndarray, mask: np.ndarray, normal: np.ndarray,
-                support: np.ndarray, above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                support: np.ndarray, above: np.ndarray, position: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
     """(kept, taken) (r,) of the points ``rest_idx`` (r,) of a sub-grid for a plane of ``normal`` with inliers
-    ``mask`` (r,), support band ``support`` (r,) and side ``above`` (r,): one compiled call
-    (:func:`.kernels.grid_region`; :func:`grid_region_numpy` is its reference)."""
+    ``mask`` (r,), support band ``support`` (r,) and side ``above`` (r,) (``position``: :func:`rest_positions`, when
+    already known): one compiled call (:func:`.kernels.grid_region`; :func:`grid_region_numpy` is its reference)."""
     bridges = _NO_BRIDGES if neighbours.bridges is None else kernels.c_array(neighbours.bridges, np.int64)
+    if position is None:
+        position = rest_positions(neighbours.n, rest_idx)
     return kernels.grid_region(neighbours.pixel, neighbours.node, neighbours.usable, neighbours.shape[1], bridges,
                                neighbours.normals, kernels.c_array(normal, np.float64), NORMAL_MIN_COS, rest_idx,
-                               mask, support, above, REGION_RULES)
+                               position, mask, support, above, REGION_RULES)
 
 
 def grid_region_numpy(neighbours: GridNeighbours, rest_idx: np.ndarray, mask: np.ndarray, normal: np.ndarray,
-                      support: np.ndarray, above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`grid_region` in numpy (:meth:`.neighbours.Neighbours.region`)."""
+                      support: np.ndarray, above: np.ndarray, position: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`grid_region` in numpy (:meth:`.neighbours.Neighbours.region`; ``position`` unused)."""
     n = neighbours.n
     wide = np.zeros(n, bool)
     wide[rest_idx[support]] = True
