@@ -20,7 +20,7 @@ import numpy as np
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
            'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
-           'warm', 'Warmup']
+           'grid_sample', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -936,6 +936,36 @@ def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     return edges, indptr, indices
 
 
+# --- search ---
+
+
+@numba.njit(**_JIT)
+def grid_sample(points: np.ndarray, finite: np.ndarray, width: int, step: int, offsets: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The regular sub-grid of step ``step`` of an image of ``points`` (h * w, 3) meters, ``width`` w, whose finite
+    rows are ``finite`` (h * w,): for each step x step block, from pixel (step // 2, step // 2) on, the first of the
+    block's pixels at ``offsets`` (s, 2) (row, column within the block, in the order tried) that is valid. Returns
+    (image (gh, gw, 3) of those pixels' points, NaN for a block without one, or (0, 0, 3) when ``points`` has no
+    rows (the pixels only); pixels (gh, gw) int64, -1 for none)."""
+    h = finite.shape[0] // width
+    copy = points.shape[0] > 0
+    c = step // 2
+    gh, gw = (h - c + step - 1) // step if h > c else 0, (width - c + step - 1) // step if width > c else 0
+    image = np.full((gh, gw, 3) if copy else (0, 0, 3), np.nan)
+    pixels = np.full((gh, gw), -1, np.int64)
+    for br in range(gh):
+        for bc in range(gw):
+            for o in range(offsets.shape[0]):
+                r, col = br * step + offsets[o, 0], bc * step + offsets[o, 1]
+                if r < h and col < width and finite[r * width + col]:
+                    p = r * width + col
+                    pixels[br, bc] = p
+                    if copy:
+                        image[br, bc, 0], image[br, bc, 1], image[br, bc, 2] = points[p, 0], points[p, 1], points[p, 2]
+                    break
+    return image, pixels
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -972,10 +1002,11 @@ def warm() -> Warmup:
     principal_axes(pts, np.zeros((4, 3), np.int64))
     patch_fits(pts, index, np.array([0, 4]))
     pair_graph(4, np.zeros((1, 2), np.int64))
+    grid_sample(pts, flags, 2, 1, np.zeros((1, 2), np.int64))
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
             grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
-            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph)
+            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, grid_sample)
