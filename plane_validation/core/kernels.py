@@ -20,7 +20,7 @@ import numpy as np
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
            'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
-           'grid_sample', 'warm', 'Warmup']
+           'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -938,8 +938,11 @@ def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
 
 # --- search ---
 
+#: The search kernels divide as numpy does (inf or NaN, no exception), as their numpy references do.
+_NUMPY_JIT = dict(_JIT, error_model='numpy')
 
-@numba.njit(**_JIT)
+
+@numba.njit(**_NUMPY_JIT)
 def grid_sample(points: np.ndarray, finite: np.ndarray, width: int, step: int, offsets: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
     """The regular sub-grid of step ``step`` of an image of ``points`` (h * w, 3) meters, ``width`` w, whose finite
@@ -964,6 +967,185 @@ def grid_sample(points: np.ndarray, finite: np.ndarray, width: int, step: int, o
                         image[br, bc, 0], image[br, bc, 1], image[br, bc, 2] = points[p, 0], points[p, 1], points[p, 2]
                     break
     return image, pixels
+
+
+@numba.njit(**_NUMPY_JIT)
+def _length(x: float, y: float, z: float) -> float:
+    """The Euclidean length of (x, y, z) as np.linalg.norm sums a length-3 axis (in order)."""
+    return np.sqrt(x * x + y * y + z * z)
+
+
+@numba.njit(**_NUMPY_JIT)
+def _dot(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
+    """a . b as np.einsum('...i,...i->...') sums a length-3 axis (its two-lane loop: the first and last products
+    first), so that the results stay bit-identical to the numpy references."""
+    return (a0 * b0 + a2 * b2) + a1 * b1
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_edges(points: np.ndarray, valid: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Of an image of ``points`` (h, w, 3) meters with valid pixels ``valid`` (h, w): each pixel's range (h, w)
+    (NaN where a coordinate is), the 3-D gap to its right neighbour (h, w - 1) and the nearer of the two ranges
+    (NaN gap unless both pixels are valid), the same down (h - 1, w) twice, and the finite gaps over their range
+    (right ones first, row by row, then down ones)."""
+    h, w = valid.shape
+    ranges = np.empty((h, w))
+    for r in range(h):
+        for c in range(w):
+            x, y, z = points[r, c, 0], points[r, c, 1], points[r, c, 2]
+            ranges[r, c] = np.sqrt(_dot(x, y, z, x, y, z))
+    right = np.full((h, max(w - 1, 0)), np.nan)
+    right_reach = np.empty((h, max(w - 1, 0)))
+    down = np.full((max(h - 1, 0), w), np.nan)
+    down_reach = np.empty((max(h - 1, 0), w))
+    angular = np.empty(right.size + down.size)
+    count = 0
+    for r in range(h):
+        for c in range(w - 1):
+            right_reach[r, c] = _nan_min(ranges[r, c], ranges[r, c + 1])
+            if valid[r, c] and valid[r, c + 1]:
+                x, y, z = (points[r, c, 0] - points[r, c + 1, 0], points[r, c, 1] - points[r, c + 1, 1],
+                           points[r, c, 2] - points[r, c + 1, 2])
+                right[r, c] = np.sqrt(_dot(x, y, z, x, y, z))
+                if np.isfinite(right[r, c]):
+                    angular[count] = right[r, c] / right_reach[r, c]
+                    count += 1
+    for r in range(h - 1):
+        for c in range(w):
+            down_reach[r, c] = _nan_min(ranges[r, c], ranges[r + 1, c])
+            if valid[r, c] and valid[r + 1, c]:
+                x, y, z = (points[r, c, 0] - points[r + 1, c, 0], points[r, c, 1] - points[r + 1, c, 1],
+                           points[r, c, 2] - points[r + 1, c, 2])
+                down[r, c] = np.sqrt(_dot(x, y, z, x, y, z))
+                if np.isfinite(down[r, c]):
+                    angular[count] = down[r, c] / down_reach[r, c]
+                    count += 1
+    return ranges, right, right_reach, down, down_reach, angular[:count]
+
+
+@numba.njit(**_NUMPY_JIT)
+def _nan_min(a: float, b: float) -> float:
+    """np.minimum of two numbers: NaN when either is."""
+    if np.isnan(a) or np.isnan(b):
+        return np.nan
+    return min(a, b)
+
+
+@numba.njit(**_NUMPY_JIT)
+def _jump(gap: float, before: float, after: float, reach: float, typical: float, jump: float) -> bool:
+    """Whether an edge's ``gap`` is a depth jump: more than ``jump`` times the larger of the gaps ``before`` and
+    ``after`` it along its line (NaN: none; the gap itself when neither is) and than ``jump`` typical spacings at
+    its ``reach``."""
+    if not np.isfinite(gap):
+        return False
+    local = after if np.isnan(before) else (before if np.isnan(after) else max(before, after))
+    if np.isnan(local):
+        local = gap
+    floor = typical * reach
+    if np.isnan(floor):
+        return False
+    return gap > jump * max(local, floor)
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_usable(valid: np.ndarray, ranges: np.ndarray, right: np.ndarray, right_reach: np.ndarray, down: np.ndarray,
+                down_reach: np.ndarray, typical: float, jump: float) -> np.ndarray:
+    """(h, w) the valid pixels (``valid`` (h, w)) of :func:`grid_edges`' image that are not the far pixel of a depth
+    jump (an edge whose gap exceeds ``jump`` times the gaps beside it along its line and ``jump`` times ``typical``
+    spacings per meter of range): they may join a region."""
+    h, w = valid.shape
+    usable = valid.copy()
+    for r in range(h):
+        for c in range(w - 1):
+            before = right[r, c - 1] if c > 0 else np.nan
+            after = right[r, c + 1] if c + 1 < w - 1 else np.nan
+            if _jump(right[r, c], before, after, right_reach[r, c], typical, jump):
+                near = ranges[r, c] if valid[r, c] else 0.0
+                far = ranges[r, c + 1] if valid[r, c + 1] else 0.0
+                if far > near:
+                    usable[r, c + 1] = False
+                else:
+                    usable[r, c] = False
+    for r in range(h - 1):
+        for c in range(w):
+            before = down[r - 1, c] if r > 0 else np.nan
+            after = down[r + 1, c] if r + 1 < h - 1 else np.nan
+            if _jump(down[r, c], before, after, down_reach[r, c], typical, jump):
+                near = ranges[r, c] if valid[r, c] else 0.0
+                far = ranges[r + 1, c] if valid[r + 1, c] else 0.0
+                if far > near:
+                    usable[r + 1, c] = False
+                else:
+                    usable[r, c] = False
+    return usable
+
+
+@numba.njit(**_NUMPY_JIT)
+def _pixel(points: np.ndarray, valid: np.ndarray, r: int, c: int, out: np.ndarray) -> None:
+    """``out`` (3,): the point at pixel (r, c), NaN off the image or at an invalid pixel."""
+    h, w = valid.shape
+    if 0 <= r < h and 0 <= c < w and valid[r, c]:
+        out[0], out[1], out[2] = points[r, c, 0], points[r, c, 1], points[r, c, 2]
+    else:
+        out[0] = out[1] = out[2] = np.nan
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_normals(points: np.ndarray, valid: np.ndarray, down_reach: int, across_reach: int, bend: float
+                 ) -> np.ndarray:
+    """(h, w, 3) unit normals of an image of ``points`` (h, w, 3) meters with valid pixels ``valid`` (h, w): the
+    cross product of (right - left) and (down - up), the pixels ``across_reach`` and ``down_reach`` away (NaN where
+    one is off the image or invalid); with ``bend`` > 0 also NaN where the pixel lies off the middle of those two
+    pairs, along the normal, by more than ``bend`` times their distance."""
+    h, w = valid.shape
+    out = np.empty((h, w, 3))
+    a, b, cc, d, e = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    du, dv = np.empty(3), np.empty(3)
+    for r in range(h):
+        for c in range(w):
+            _pixel(points, valid, r, c + across_reach, a)
+            _pixel(points, valid, r, c - across_reach, b)
+            _pixel(points, valid, r + down_reach, c, d)
+            _pixel(points, valid, r - down_reach, c, e)
+            for k in range(3):
+                du[k] = a[k] - b[k]
+                dv[k] = d[k] - e[k]
+            n0 = du[1] * dv[2] - du[2] * dv[1]
+            n1 = du[2] * dv[0] - du[0] * dv[2]
+            n2 = du[0] * dv[1] - du[1] * dv[0]
+            size = np.sqrt(_dot(n0, n1, n2, n0, n1, n2))
+            n0, n1, n2 = n0 / size, n1 / size, n2 / size
+            if bend > 0:
+                _pixel(points, valid, r, c, cc)
+                bend_u = abs(_dot(a[0] + b[0] - 2 * cc[0], a[1] + b[1] - 2 * cc[1], a[2] + b[2] - 2 * cc[2],
+                                  n0, n1, n2)) / _length(du[0], du[1], du[2])
+                bend_v = abs(_dot(d[0] + e[0] - 2 * cc[0], d[1] + e[1] - 2 * cc[1], d[2] + e[2] - 2 * cc[2],
+                                  n0, n1, n2)) / _length(dv[0], dv[1], dv[2])
+                if bend_u > bend or bend_v > bend:
+                    n0 = n1 = n2 = np.nan
+            out[r, c, 0], out[r, c, 1], out[r, c, 2] = n0, n1, n2
+    return out
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_chords(points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, across: bool, every: int) -> np.ndarray:
+    """The distances between the unit rays (``points`` (h, w, 3) over ``ranges`` (h, w)) of neighbouring valid
+    pixels (``valid`` (h, w)): along every ``every``-th row (``across``), else down every ``every``-th column; row by
+    row."""
+    h, w = valid.shape
+    out = np.empty(h * w)
+    count = 0
+    for r in range(0, h, every if across else 1):
+        for c in range(0, w, 1 if across else every):
+            r2, c2 = (r, c + 1) if across else (r + 1, c)
+            if r2 >= h or c2 >= w or not (valid[r, c] and valid[r2, c2]):
+                continue
+            out[count] = _length(points[r2, c2, 0] / ranges[r2, c2] - points[r, c, 0] / ranges[r, c],
+                                 points[r2, c2, 1] / ranges[r2, c2] - points[r, c, 1] / ranges[r, c],
+                                 points[r2, c2, 2] / ranges[r2, c2] - points[r, c, 2] / ranges[r, c])
+            count += 1
+    return out[:count]
 
 
 @dataclass(frozen=True)
@@ -1003,10 +1185,16 @@ def warm() -> Warmup:
     patch_fits(pts, index, np.array([0, 4]))
     pair_graph(4, np.zeros((1, 2), np.int64))
     grid_sample(pts, flags, 2, 1, np.zeros((1, 2), np.int64))
+    image, valid = np.zeros((2, 2, 3)), np.ones((2, 2), np.bool_)
+    ranges, right, right_reach, down, down_reach, _ = grid_edges(image, valid)
+    grid_usable(valid, ranges, right, right_reach, down, down_reach, 1.0, 4.0)
+    grid_normals(image, valid, 1, 1, 0.0)
+    grid_chords(image, valid, ranges, True, 1)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
             grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
-            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, grid_sample)
+            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, grid_sample, grid_edges, grid_usable,
+            grid_normals, grid_chords)

@@ -25,8 +25,8 @@ from .neighbours import (
     joined_components,
 )
 
-__all__ = ['GridNeighbours', 'grid_neighbours', 'grid_region', 'grid_region_numpy', 'rest_positions', 'EIGHT', 'JUMP',
-           'HOLE_BRIDGE', 'LIDAR_BEND']
+__all__ = ['GridNeighbours', 'grid_neighbours', 'grid_neighbours_numpy', 'grid_region', 'grid_region_numpy',
+           'rest_positions', 'EIGHT', 'JUMP', 'HOLE_BRIDGE', 'LIDAR_BEND']
 
 #: A gap between grid neighbours this many times the gaps next to it along the image line (and
 #: this many typical pixel spacings at its range) is a depth jump.
@@ -252,8 +252,23 @@ def _jumps(gap: np.ndarray, reach: np.ndarray, axis: int, typical: float) -> np.
 
 def grid_neighbours(image_points: np.ndarray, valid: np.ndarray) -> GridNeighbours:
     """Neighbours of the valid pixels of an (h, w, 3) image of points (meters; the sensor at the
-    origin). Points are numbered in row-major order of the valid pixels ``valid`` (h, w)."""
-    h, w = valid.shape
+    origin). Points are numbered in row-major order of the valid pixels ``valid`` (h, w). The passes over the
+    image are compiled (:func:`.kernels.grid_edges`, :func:`.kernels.grid_usable`, :func:`.kernels.grid_chords`,
+    :func:`.kernels.grid_normals`); :func:`grid_neighbours_numpy` is their reference."""
+    points = kernels.c_array(image_points, np.float64)
+    flags = kernels.c_array(valid, bool)
+    ranges, right, right_reach, down, down_reach, angular = kernels.grid_edges(points, flags)
+    typical = float(np.median(angular)) if len(angular) else 0.0  # pixel spacing per meter of range
+    usable = kernels.grid_usable(flags, ranges, right, right_reach, down, down_reach, typical, JUMP)
+    pitch = [kernels.grid_chords(points, flags, ranges, axis == 1, REACH_SAMPLE) for axis in (1, 0)]
+    reach = _reach_of([float(np.median(chord)) if len(chord) else np.nan for chord in pitch])
+    lidar = reach != (NORMAL_REACH, NORMAL_REACH)  # pixels coarser one way: a lidar's rings
+    normals = kernels.grid_normals(points, flags, reach[0], reach[1], LIDAR_BEND if lidar else 0.0)
+    return _assembled(image_points, valid, ranges, typical, usable, lidar, normals)
+
+
+def grid_neighbours_numpy(image_points: np.ndarray, valid: np.ndarray) -> GridNeighbours:
+    """:func:`grid_neighbours` in numpy: the reference its kernels are tested against."""
     with np.errstate(invalid='ignore'):
         ranges = np.sqrt(np.einsum('...i,...i->...', image_points, image_points))  # from the sensor
     right, right_reach = _gaps(image_points, valid, ranges, 1)
@@ -273,17 +288,25 @@ def grid_neighbours(image_points: np.ndarray, valid: np.ndarray) -> GridNeighbou
     usable[:, 1:] &= ~(jump_r & far_right)
     usable[:-1] &= ~(jump_d & ~far_down)
     usable[1:] &= ~(jump_d & far_down)
-    pixel = np.flatnonzero(valid.reshape(-1))
     reach = _reach(image_points, valid, ranges)
-    lidar = reach != (NORMAL_REACH, NORMAL_REACH)  # pixels coarser one way: a lidar's rings
-    normals = _grid_normals(image_points, valid, reach, LIDAR_BEND if lidar else None).reshape(-1, 3)[pixel]
+    lidar = reach != (NORMAL_REACH, NORMAL_REACH)
+    normals = _grid_normals(image_points, valid, reach, LIDAR_BEND if lidar else None)
+    return _assembled(image_points, valid, ranges, typical, usable, lidar, normals)
+
+
+def _assembled(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, typical: float, usable: np.ndarray,
+               lidar: bool, normals: np.ndarray) -> GridNeighbours:
+    """The :class:`GridNeighbours` of an image's valid pixels (``valid`` (h, w)) from its ``ranges`` (h, w), typical
+    pixel spacing per meter, ``usable`` (h, w) pixels and grid ``normals`` (h, w, 3); ``lidar``: its pixels are
+    coarser one way (bridges over missing returns)."""
+    h, w = valid.shape
+    pixel = np.flatnonzero(valid.reshape(-1))
     node = np.full(h * w, -1, dtype=np.int64)
     node[pixel] = np.arange(len(pixel))
     wraps = _wraps(image_points, valid, ranges, typical)
     return GridNeighbours(n=len(pixel), shape=(h, w), pixel=pixel, node=node, usable=usable.reshape(-1),
-                      normals=normals, wraps=wraps,
-                      bridges=_bridges(image_points, valid, ranges, typical, wraps) if lidar else None)
-
+                          normals=normals.reshape(-1, 3)[pixel], wraps=wraps,
+                          bridges=_bridges(image_points, valid, ranges, typical, wraps) if lidar else None)
 
 
 def _bridges(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, typical: float, wraps: bool
@@ -367,6 +390,11 @@ def _reach(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray) -> t
         both = (ok[:, 1:] & ok[:, :-1]) if axis == 1 else (ok[1:] & ok[:-1])
         chord = np.linalg.norm(a[both] - b[both], axis=-1)
         pitch.append(float(np.median(chord)) if len(chord) else np.nan)
+    return _reach_of(pitch)
+
+
+def _reach_of(pitch: list[float]) -> tuple[int, int]:
+    """:func:`_reach` from the image's pitch (across, down): the median angle between neighbouring rays."""
     if not (np.isfinite(pitch).all() and min(pitch) > 0):
         return NORMAL_REACH, NORMAL_REACH
     angle = max(NORMAL_REACH * min(pitch), max(pitch))  # the same angle both ways, at least one coarse pixel
