@@ -1082,16 +1082,6 @@ def grid_usable(valid: np.ndarray, ranges: np.ndarray, right: np.ndarray, right_
 
 
 @numba.njit(**_NUMPY_JIT)
-def _pixel(points: np.ndarray, valid: np.ndarray, r: int, c: int, out: np.ndarray) -> None:
-    """``out`` (3,): the point at pixel (r, c), NaN off the image or at an invalid pixel."""
-    h, w = valid.shape
-    if 0 <= r < h and 0 <= c < w and valid[r, c]:
-        out[0], out[1], out[2] = points[r, c, 0], points[r, c, 1], points[r, c, 2]
-    else:
-        out[0] = out[1] = out[2] = np.nan
-
-
-@numba.njit(**_NUMPY_JIT)
 def grid_normals(points: np.ndarray, valid: np.ndarray, down_reach: int, across_reach: int, bend: float
                  ) -> np.ndarray:
     """(h, w, 3) unit normals of an image of ``points`` (h, w, 3) meters with valid pixels ``valid`` (h, w): the
@@ -1099,29 +1089,36 @@ def grid_normals(points: np.ndarray, valid: np.ndarray, down_reach: int, across_
     one is off the image or invalid); with ``bend`` > 0 also NaN where the pixel lies off the middle of those two
     pairs, along the normal, by more than ``bend`` times their distance."""
     h, w = valid.shape
-    out = np.empty((h, w, 3))
-    a, b, cc, d, e = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3)
-    du, dv = np.empty(3), np.empty(3)
+    dr, ar = down_reach, across_reach
+    pad = np.full((h + 2 * dr, w + 2 * ar, 3), np.nan)  # NaN off the image and at invalid pixels: no branches
     for r in range(h):
         for c in range(w):
-            _pixel(points, valid, r, c + across_reach, a)
-            _pixel(points, valid, r, c - across_reach, b)
-            _pixel(points, valid, r + down_reach, c, d)
-            _pixel(points, valid, r - down_reach, c, e)
-            for k in range(3):
-                du[k] = a[k] - b[k]
-                dv[k] = d[k] - e[k]
-            n0 = du[1] * dv[2] - du[2] * dv[1]
-            n1 = du[2] * dv[0] - du[0] * dv[2]
-            n2 = du[0] * dv[1] - du[1] * dv[0]
+            if valid[r, c]:
+                pad[r + dr, c + ar, 0] = points[r, c, 0]
+                pad[r + dr, c + ar, 1] = points[r, c, 1]
+                pad[r + dr, c + ar, 2] = points[r, c, 2]
+    out = np.empty((h, w, 3))
+    for r in range(h):
+        pr = r + dr
+        for c in range(w):
+            pc = c + ar
+            ax, ay, az = pad[pr, pc + ar, 0], pad[pr, pc + ar, 1], pad[pr, pc + ar, 2]
+            bx, by, bz = pad[pr, pc - ar, 0], pad[pr, pc - ar, 1], pad[pr, pc - ar, 2]
+            dx, dy, dz = pad[pr + dr, pc, 0], pad[pr + dr, pc, 1], pad[pr + dr, pc, 2]
+            ex, ey, ez = pad[pr - dr, pc, 0], pad[pr - dr, pc, 1], pad[pr - dr, pc, 2]
+            ux, uy, uz = ax - bx, ay - by, az - bz
+            vx, vy, vz = dx - ex, dy - ey, dz - ez
+            n0 = uy * vz - uz * vy
+            n1 = uz * vx - ux * vz
+            n2 = ux * vy - uy * vx
             size = np.sqrt(_dot(n0, n1, n2, n0, n1, n2))
             n0, n1, n2 = n0 / size, n1 / size, n2 / size
             if bend > 0:
-                _pixel(points, valid, r, c, cc)
-                bend_u = abs(_dot(a[0] + b[0] - 2 * cc[0], a[1] + b[1] - 2 * cc[1], a[2] + b[2] - 2 * cc[2],
-                                  n0, n1, n2)) / _length(du[0], du[1], du[2])
-                bend_v = abs(_dot(d[0] + e[0] - 2 * cc[0], d[1] + e[1] - 2 * cc[1], d[2] + e[2] - 2 * cc[2],
-                                  n0, n1, n2)) / _length(dv[0], dv[1], dv[2])
+                cx, cy, cz = pad[pr, pc, 0], pad[pr, pc, 1], pad[pr, pc, 2]
+                bend_u = abs(_dot(ax + bx - 2 * cx, ay + by - 2 * cy, az + bz - 2 * cz, n0, n1, n2)) / \
+                    _length(ux, uy, uz)
+                bend_v = abs(_dot(dx + ex - 2 * cx, dy + ey - 2 * cy, dz + ez - 2 * cz, n0, n1, n2)) / \
+                    _length(vx, vy, vz)
                 if bend_u > bend or bend_v > bend:
                     n0 = n1 = n2 = np.nan
             out[r, c, 0], out[r, c, 1], out[r, c, 2] = n0, n1, n2
