@@ -63,3 +63,64 @@ def test_grid_neighbours_match_numpy(seed, kind):
             np.testing.assert_array_equal(got[name], ref[name], err_msg=name)
         else:
             assert got[name] == ref[name], name
+
+
+def _stripes_case(seed: int):
+    """A small organized image of vertical stripes on 2-3 planes (some stripes coplanar), with noise and holes; its
+    searched points (3, m), grid neighbours, regions (a stripe each, some points none) and their fitted planes."""
+    from plane_validation.core.search.fit import fit_columns
+    from plane_validation.core.search.neighbours_grid import grid_neighbours
+    rng = np.random.default_rng(seed)
+    h, w = (int(v) for v in rng.integers(8, 30, 2))
+    stripes = int(rng.integers(2, 5))
+    edges = np.sort(rng.choice(np.arange(1, w), stripes - 1, replace=False)) if w > stripes else np.arange(1, stripes)
+    stripe = np.searchsorted(edges, np.arange(w), side='right')
+    surfaces = rng.normal(scale=0.3, size=(int(rng.integers(1, stripes + 1)), 2))
+    surface = rng.integers(0, len(surfaces), stripes)
+    rows, cols = np.mgrid[0:h, 0:w]
+    x, y = (cols - w / 2) * 0.02, (rows - h / 2) * 0.02
+    slope = surfaces[surface[stripe]]
+    z = 2.0 + slope[..., 0] * x + slope[..., 1] * y + rng.normal(scale=rng.uniform(0, 0.01), size=(h, w))
+    image = np.stack([x * z, y * z, z], -1)
+    valid = rng.random((h, w)) < 0.95
+    image[~valid] = np.nan
+    neighbours = grid_neighbours(image, valid)
+    search = np.ascontiguousarray(image[valid].T)
+    region = np.broadcast_to(stripe, (h, w))[valid].astype(np.int64)
+    region[rng.random(len(region)) < 0.05] = -1
+    found = [fit_columns(np.compress(region == j, search, axis=1)) for j in range(stripes)]
+    tolerance = float(rng.uniform(0.003, 0.03)) if rng.random() < 0.5 else rng.uniform(0.003, 0.03, search.shape[1])
+    return search, region, found, tolerance, neighbours
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1))
+def test_merge_test_keeps_the_numpy_merges(seed):
+    """The coplanar merge with its per-pair tests compiled (kernels.merge_test) merges the same regions into the same
+    planes as the numpy tests."""
+    from plane_validation.core.search.connected import _merge_coplanar, _merge_coplanar_numpy
+    search, region, found, tolerance, neighbours = _stripes_case(seed)
+    got_region, got_found = _merge_coplanar(search, region.copy(), found, tolerance, neighbours)
+    ref_region, ref_found = _merge_coplanar_numpy(search, region.copy(), found, tolerance, neighbours)
+    np.testing.assert_array_equal(got_region, ref_region)
+    assert len(got_found) == len(ref_found)
+    for (normal, offset), (ref_normal, ref_offset) in zip(got_found, ref_found):
+        np.testing.assert_array_equal(normal, ref_normal)
+        assert offset == ref_offset
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1))
+def test_compete_distances_match_numpy(seed):
+    """The distances along each point's ray for border settling: as numpy's (its BLAS products may round the last
+    bit otherwise), inf beyond the tolerance and in the last row alike."""
+    from plane_validation.core import kernels
+    from plane_validation.core.search.connected import GRAZING_DEG, _compete_distances_numpy
+    search, region, found, tolerance, neighbours = _stripes_case(seed)
+    viewpoint = np.random.default_rng(seed).normal(scale=0.1, size=3)
+    planes = np.array([np.append(n, d) for n, d in found])
+    got = kernels.compete_distances(search, planes, np.reshape(tolerance, -1).astype(float), viewpoint,
+                                    float(np.cos(np.radians(GRAZING_DEG))))
+    ref = _compete_distances_numpy(search, found, tolerance, viewpoint)
+    np.testing.assert_array_equal(np.isinf(got), np.isinf(ref))
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-13)  # meters: a dot product near 0 cancels

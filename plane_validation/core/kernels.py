@@ -20,7 +20,8 @@ import numpy as np
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
            'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
-           'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'warm', 'Warmup']
+           'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
+           'compete_distances', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -1145,6 +1146,77 @@ def grid_chords(points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, acros
     return out[:count]
 
 
+@numba.njit(**_NUMPY_JIT)
+def _coherent(normals: np.ndarray, p: int, nx: float, ny: float, nz: float, min_cos: float) -> bool:
+    """Whether point ``p``'s local normal (``normals`` (m, 3), NaN: unknown; (0, 3): none known) lies within
+    ``min_cos`` of (nx, ny, nz)."""
+    if normals.shape[0] == 0:
+        return True
+    return not abs(normals[p, 0] * nx + normals[p, 1] * ny + normals[p, 2] * nz) < min_cos
+
+
+@numba.njit(**_NUMPY_JIT)
+def merge_test(search: np.ndarray, members: np.ndarray, region: np.ndarray, i: int, j: int, plane: np.ndarray,
+               own: np.ndarray, tolerance: np.ndarray, src: np.ndarray, dst: np.ndarray, region_src: np.ndarray,
+               region_dst: np.ndarray, root: np.ndarray, normals: np.ndarray, min_cos: float, keep: float,
+               spread: float) -> bool:
+    """Whether the touching regions ``i`` < ``j`` are one surface with the joint ``plane`` (4,) (a, b, c, d) of their
+    points ``members`` (c,) of ``search`` (3, m) meters: they touch (a pair ``src``, ``dst`` (e,) of points first in
+    regions ``region_src``, ``region_dst`` (e,), now in ``root`` of those) where both points' ``normals`` (m, 3) agree
+    with it (within ``min_cos``; (0, 3): none known); at least ``keep`` of the points lie within ``tolerance``
+    ((1,) or (m,) meters) of it; and their mean squared distance to it is at most ``spread`` squared times that to
+    their own region's plane (``own`` (2, 4): i's, j's; ``region`` (m,): each point's region)."""
+    nx, ny, nz, d = plane[0], plane[1], plane[2], plane[3]
+    touch = False
+    for q in range(src.shape[0]):
+        a, b = root[region_src[q]], root[region_dst[q]]
+        if ((a == i and b == j) or (a == j and b == i)) and _coherent(normals, src[q], nx, ny, nz, min_cos) and \
+                _coherent(normals, dst[q], nx, ny, nz, min_cos):
+            touch = True
+            break
+    if not touch:
+        return False
+    per_point = tolerance.shape[0] > 1
+    near = 0
+    joint = mine = 0.0
+    for q in range(members.shape[0]):
+        p = members[q]
+        x, y, z = search[0, p], search[1, p], search[2, p]
+        e = abs(nx * x + ny * y + nz * z + d)
+        near += e <= (tolerance[p] if per_point else tolerance[0])
+        joint += e * e
+        o = 0 if region[p] == i else 1
+        e = own[o, 0] * x + own[o, 1] * y + own[o, 2] * z + own[o, 3]
+        mine += e * e
+    c = members.shape[0]
+    return near >= keep * c and joint / c <= spread * spread * (mine / c)
+
+
+@numba.njit(**_NUMPY_JIT)
+def compete_distances(search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, viewpoint: np.ndarray,
+                      min_cos: float) -> np.ndarray:
+    """(k + 1, m) the distance of each point of ``search`` (3, m) meters to each of the ``planes`` (k, 4) along its
+    ray from ``viewpoint`` (3,): the distance over the ray's |cos| with the normal, at least ``min_cos``; inf beyond
+    ``tolerance`` ((1,) or (m,) meters) and in row k (no region); NaN for a point at the viewpoint."""
+    k, m = planes.shape[0], search.shape[1]
+    per_point = tolerance.shape[0] > 1
+    dist = np.empty((k + 1, m))
+    for p in range(m):
+        x, y, z = search[0, p], search[1, p], search[2, p]
+        rx, ry, rz = x - viewpoint[0], y - viewpoint[1], z - viewpoint[2]
+        size = _length(rx, ry, rz)
+        rx, ry, rz = rx / size, ry / size, rz / size
+        tol = tolerance[p] if per_point else tolerance[0]
+        for j in range(k):
+            e = abs(planes[j, 0] * x + planes[j, 1] * y + planes[j, 2] * z + planes[j, 3])
+            if e > tol:
+                e = np.inf
+            facing = abs(planes[j, 0] * rx + planes[j, 1] * ry + planes[j, 2] * rz)
+            dist[j, p] = e / (facing if np.isnan(facing) or facing > min_cos else min_cos)
+        dist[k, p] = np.inf
+    return dist
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -1187,6 +1259,10 @@ def warm() -> Warmup:
     grid_usable(valid, ranges, right, right_reach, down, down_reach, 1.0, 4.0)
     grid_normals(image, valid, 1, 1, 0.0)
     grid_chords(image, valid, ranges, True, 1)
+    cols, plane, edges = np.zeros((3, 4)), np.zeros(4), np.zeros(1, np.int64)
+    merge_test(cols, index, index, 0, 1, plane, np.zeros((2, 4)), np.ones(1), edges, edges, edges, edges, index, pts,
+               0.5, 0.95, 1.5)
+    compete_distances(cols, np.zeros((1, 4)), np.ones(1), np.zeros(3), 0.25)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
@@ -1194,4 +1270,4 @@ def warm() -> Warmup:
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
             grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
             voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, grid_sample, grid_edges, grid_usable,
-            grid_normals, grid_chords)
+            grid_normals, grid_chords, merge_test, compete_distances)
