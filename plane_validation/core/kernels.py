@@ -258,11 +258,14 @@ def _rest_components(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, wi
     inside = np.zeros(r, np.bool_)
     for q in range(r):
         inside[q] = member[q] and usable[pixel[rest[q]]]
+    row = 0  # the first pixel of the row of the point at hand (ascending: no division per point)
     for q in range(r):
         if not inside[q]:
             continue
         p = pixel[rest[q]]
-        if p % width > 0:
+        if p >= row + width:
+            row = p - p % width
+        if p > row:
             j = node[p - 1]
             if j >= 0 and position[j] >= 0 and inside[position[j]]:
                 _join(parent, q, position[j])
@@ -404,11 +407,14 @@ def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: 
     touched = np.empty(m, np.int64)
     changed = np.empty(m, np.int64)
     n_changed = -1  # the first round: the bordering points receive offers
+    r = 0
     for _ in range(rounds):
         n_touched = 0
-        if n_changed < 0:
+        if n_changed < 0:  # pixel by pixel (no division per point), i ascending as pixel is
             for i in range(m):
-                r, c = pixel[i] // width, pixel[i] % width
+                if i == 0 or pixel[i] >= (r + 1) * width:
+                    r = pixel[i] // width
+                c = pixel[i] - r * width
                 for e in range(eight.shape[0]):
                     rr, cc = r + eight[e, 0], c + eight[e, 1]
                     if 0 <= rr < height and 0 <= cc < width:
