@@ -57,7 +57,8 @@ def test_grid_neighbours_match_numpy(seed, kind):
         image = rng.normal(size=(h, w, 3))
     valid = rng.random((h, w)) < rng.uniform(0.5, 1.0)
     image[~valid] = np.nan
-    got, ref = _neighbours_fields(grid_neighbours(image, valid)), _neighbours_fields(grid_neighbours_numpy(image, valid))
+    got = _neighbours_fields(grid_neighbours(image, valid))
+    ref = _neighbours_fields(grid_neighbours_numpy(image, valid))
     for name in got:
         if isinstance(ref[name], np.ndarray):
             np.testing.assert_array_equal(got[name], ref[name], err_msg=name)

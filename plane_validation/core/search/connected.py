@@ -218,7 +218,8 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
     changed: only they are looked at (:meth:`.neighbours.Neighbours.settle`). The distances come from one compiled
     pass (:func:`.kernels.compete_distances`; :func:`_compete_distances_numpy` is its reference)."""
     planes = np.array([np.append(normal, offset) for normal, offset in found], dtype=np.float64).reshape(-1, 4)
-    dist = kernels.compete_distances(kernels.c_array(search, np.float64), planes, kernels.c_array(np.reshape(tolerance, -1), np.float64),
+    tol = kernels.c_array(np.reshape(tolerance, -1), np.float64)  # (1,) or (m,)
+    dist = kernels.compete_distances(kernels.c_array(search, np.float64), planes, tol,
                                      kernels.c_array(viewpoint, np.float64), float(np.cos(np.radians(GRAZING_DEG))))
     return neighbours.settle(dist, np.where(region >= 0, region, len(found)))
 
