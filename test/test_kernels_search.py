@@ -125,3 +125,33 @@ def test_compete_distances_match_numpy(seed):
     ref = _compete_distances_numpy(search, found, tolerance, viewpoint)
     np.testing.assert_array_equal(np.isinf(got), np.isinf(ref))
     np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-13)  # meters: a dot product near 0 cancels
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.booleans())
+def test_plane_bands_and_band_counts_match_numpy(seed, per_point):
+    """The confirmation's distances, sides, inlier and support bands, counts and MSAC costs as numpy computes them
+    (its BLAS product may round the last bit otherwise), far-out rows (inf, NaN distances) included."""
+    from plane_validation.core import kernels
+    from plane_validation.core.search.fit import signed_distances
+    from plane_validation.core.search.hypotheses import SUPPORT
+    rng = np.random.default_rng(seed)
+    m, h = int(rng.integers(1, 300)), int(rng.integers(1, 6))
+    cols = np.ascontiguousarray(rng.normal(size=(3, m)))
+    cols[:, rng.random(m) < 0.05] = 1.5e308  # far-out rows: inf or NaN distances
+    normals = rng.normal(size=(h, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    offsets = rng.normal(scale=0.2, size=h)
+    tolerance = rng.uniform(0.05, 0.5, m) if per_point else float(rng.uniform(0.05, 0.5))
+    dist, above = kernels.plane_bands(cols, normals, offsets)
+    inliers, support, counts, cost = kernels.band_counts(dist, np.reshape(tolerance, -1).astype(float), SUPPORT)
+    with np.errstate(over='ignore', invalid='ignore'):
+        signed = signed_distances(cols, normals, offsets)
+        ref = np.abs(signed)
+        np.testing.assert_allclose(dist, ref, rtol=1e-12, atol=1e-13)
+        np.testing.assert_array_equal(above, signed > 0)
+        np.testing.assert_array_equal(inliers, ref <= tolerance)
+        np.testing.assert_array_equal(support, ref <= SUPPORT * tolerance)
+        np.testing.assert_array_equal(counts, np.count_nonzero(ref <= tolerance, axis=1))
+        clipped = np.minimum(ref, tolerance)
+        np.testing.assert_allclose(cost, np.einsum('ij,ij->i', clipped, clipped), rtol=1e-12)

@@ -21,7 +21,7 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
            'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
-           'compete_distances', 'warm', 'Warmup']
+           'compete_distances', 'plane_bands', 'band_counts', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -1223,6 +1223,47 @@ def compete_distances(search: np.ndarray, planes: np.ndarray, tolerance: np.ndar
     return dist
 
 
+@numba.njit(**_NUMPY_JIT)
+def plane_bands(cols: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Of the points ``cols`` (3, m) meters and h planes (``normals`` (h, 3), ``offsets`` (h,)): the distances
+    (h, m) meters (inf or NaN for a far-out point) and whether each point lies on the side the normal points to."""
+    h, m = normals.shape[0], cols.shape[1]
+    dist = np.empty((h, m))
+    above = np.empty((h, m), np.bool_)
+    for j in range(h):
+        nx, ny, nz, d = normals[j, 0], normals[j, 1], normals[j, 2], offsets[j]
+        for p in range(m):
+            e = nx * cols[0, p] + ny * cols[1, p] + nz * cols[2, p] + d
+            dist[j, p] = abs(e)
+            above[j, p] = e > 0
+    return dist, above
+
+
+@numba.njit(**_NUMPY_JIT)
+def band_counts(dist: np.ndarray, tolerance: np.ndarray, support: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Of the distances ``dist`` (h, m) meters of m points to h planes: the inliers (h, m) (within ``tolerance``,
+    (1,) or (m,) meters), the support band (h, m) (within ``support`` times it), the inliers per plane (h,) and the
+    MSAC cost (h,): the sum of the squared distances, each at most the tolerance (NaN with a NaN distance)."""
+    h, m = dist.shape
+    per_point = tolerance.shape[0] > 1
+    inliers = np.empty((h, m), np.bool_)
+    band = np.empty((h, m), np.bool_)
+    counts = np.zeros(h, np.int64)
+    cost = np.zeros(h)
+    for j in range(h):
+        for p in range(m):
+            t = tolerance[p] if per_point else tolerance[0]
+            e = dist[j, p]
+            inliers[j, p] = e <= t
+            band[j, p] = e <= support * t
+            counts[j] += e <= t
+            if e > t:
+                e = t
+            cost[j] += e * e
+    return inliers, band, counts, cost
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -1241,6 +1282,7 @@ def warm() -> Warmup:
     spread_grid(pts, np.ones(4, np.bool_), np.zeros((1, 1), np.int64), np.zeros(2, np.int64), np.zeros(2, np.int64),
                 np.zeros((1, 4)), np.ones(1), EIGHT)
     rows, bounds = group_by_label(labels, 2)
+    group_by_label(labels.astype(np.int64), 2)  # a search's regions
     centroids_and_extremes(pts, rows, bounds, np.zeros((2, 8, 3)))
     pack_segmented(pts, labels, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.empty(80, np.uint8))
     pack_xyz(pts, np.ones(4, np.bool_), np.empty(48, np.uint8))
@@ -1269,6 +1311,7 @@ def warm() -> Warmup:
     merge_test(cols, index, index, 0, 1, plane, np.zeros((2, 4)), np.ones(1), edges, edges, edges, edges, index, pts,
                0.5, 0.95, 1.5)
     compete_distances(cols, np.zeros((1, 4)), np.ones(1), np.zeros(3), 0.25)
+    band_counts(plane_bands(cols, np.ones((2, 3)), np.zeros(2))[0], np.ones(1), 2.0)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
@@ -1276,4 +1319,4 @@ def warm() -> Warmup:
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
             grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
             voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, grid_sample, grid_edges, grid_usable,
-            grid_normals, grid_chords, merge_test, compete_distances)
+            grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts)

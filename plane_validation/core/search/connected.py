@@ -61,7 +61,8 @@ def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_i
     else:
         labels[valid_idx] = spread_nearest(pts[valid_idx] - center, graph.nearest, region, found,
                                            tolerance_at(tolerance, valid_idx))
-    counts = np.bincount(labels[labels >= 0], minlength=len(found))
+    rows, bounds = kernels.group_by_label(labels, len(found))
+    counts = np.diff(bounds)
     small = np.flatnonzero(counts < min_count)
     if len(small):
         keep = np.flatnonzero(counts >= min_count)
@@ -71,7 +72,7 @@ def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_i
         found = [found[j] for j in keep]
         reason += (f'; dropped {len(small)} region(s) left with fewer than min_inliers={min_count} points '
                    'once every point was labelled')
-    rows, bounds = kernels.group_by_label(labels, len(found))
+        rows, bounds = kernels.group_by_label(labels, len(found))
     planes = []
     for j, (normal, offset) in enumerate(found):
         members = rows[bounds[j]:bounds[j + 1]]
@@ -115,9 +116,8 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
     a, b = kernels.c_array(a, np.int64), kernels.c_array(b, np.int64)
     cols = kernels.c_array(search, np.float64)
     # the points of each region, ascending, kept up to date as regions merge
-    order = np.argsort(region, kind='stable')
-    bounds = np.searchsorted(region[order], np.arange(k + 1))
-    points_of = [order[bounds[r]:bounds[r + 1]] for r in range(k)]
+    rows, bounds = kernels.group_by_label(kernels.c_array(region, np.int64), k)
+    points_of = [rows[bounds[r]:bounds[r + 1]] for r in range(k)]
     for i, j in zip(*np.divmod(pairs, k)):
         i, j = root[i], root[j]
         if i == j:

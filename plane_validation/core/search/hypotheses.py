@@ -7,7 +7,8 @@ import functools
 
 import numpy as np
 
-from .fit import MIN_SINE, allows_normal, fit_columns, plane_distances, signed_distances, tolerance_at, within_plane
+from .. import kernels
+from .fit import MIN_SINE, allows_normal, fit_columns, plane_distances, tolerance_at, within_plane
 from .neighbours import NORMAL_MIN_COS
 from .types import Allows, Keep, Sampler, Tolerance
 
@@ -212,9 +213,10 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
     # its inliers hug (a plane tilted across a small face and its neighbours' edges loses).
     with np.errstate(over='ignore', invalid='ignore'):  # a far-out row (a driver's FLT_MAX): inf, no inlier
         if region_of is not None:
-            signed = signed_distances(cols, best_normals, best_offsets)
-            return best_region(cols, tolerance, best_normals, best_offsets, np.abs(signed), signed > 0, region_of,
-                               point_normals, allows=allows)
+            cols = kernels.c_array(cols, np.float64)
+            dist, above = kernels.plane_bands(cols, best_normals, best_offsets)
+            return best_region(cols, tolerance, best_normals, best_offsets, dist, above, region_of, point_normals,
+                               allows=allows)
         dist = plane_distances(cols, best_normals, best_offsets)
     np.minimum(dist, tolerance, out=dist)
     winner = int(np.argmin(np.einsum('ij,ij->i', dist, dist)))
@@ -238,6 +240,11 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
     return normal, offset, inliers, inliers
 
 
+def _tolerances(tolerance: Tolerance) -> np.ndarray:
+    """A tolerance as the kernels take it: (1,) or (m,) float64, meters."""
+    return kernels.c_array(np.reshape(tolerance, -1), np.float64)
+
+
 def best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, offsets: np.ndarray, dist: np.ndarray,
                 above: np.ndarray, keep: Keep, point_normals: np.ndarray | None = None, *, allows: Allows = None
                 ) -> tuple[np.ndarray, float, np.ndarray]:
@@ -246,11 +253,7 @@ def best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, off
     largest connected one, see :data:`Keep` and SUPPORT) is largest (ties: MSAC); then refit on the region
     and take the region again, at most 3 times. ``point_normals`` (3, m), NaN where unknown: a region keeps
     only points whose normal agrees. Returns (normal, offset, region (m,), taken (m,): see :data:`Keep`)."""
-    inliers = dist <= tolerance
-    support = dist <= SUPPORT * tolerance
-    counts = np.count_nonzero(inliers, axis=1)
-    np.minimum(dist, tolerance, out=dist)
-    cost = np.einsum('ij,ij->i', dist, dist)
+    inliers, support, counts, cost = kernels.band_counts(dist, _tolerances(tolerance), SUPPORT)
     winner, region, taken, size = -1, None, None, -1
     for h in np.lexsort((cost, -counts)):  # a hypothesis cannot keep more than its inliers: skip
         if counts[h] <= size:
@@ -264,6 +267,7 @@ def best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, off
         if found > size or (found == size and cost[h] < cost[winner]):
             winner, region, taken, size = int(h), candidate, took, found
     normal, offset = normals[winner], offsets[winner]
+    cols, tolerances = kernels.c_array(cols, np.float64), _tolerances(tolerance)
     for _ in range(3):
         count = int(np.count_nonzero(region))
         if count < 3:
@@ -271,9 +275,9 @@ def best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, off
         new_normal, new_offset = fit_columns(np.compress(region, cols, axis=1))
         if not allows_normal(allows, new_normal):
             break
-        signed = signed_distances(cols, new_normal[None, :], np.array([new_offset]))[0]
-        near = np.abs(signed)
-        new_region, new_taken = keep(near <= tolerance, new_normal, near <= SUPPORT * tolerance, signed > 0)
+        near, above = kernels.plane_bands(cols, new_normal[None, :], np.array([new_offset]))
+        inliers, support = kernels.band_counts(near, tolerances, SUPPORT)[:2]
+        new_region, new_taken = keep(inliers[0], new_normal, support[0], above[0])
         if np.count_nonzero(new_region) < count:
             break
         normal, offset = new_normal, new_offset
