@@ -155,3 +155,23 @@ def test_plane_bands_and_band_counts_match_numpy(seed, per_point):
         np.testing.assert_array_equal(counts, np.count_nonzero(ref <= tolerance, axis=1))
         clipped = np.minimum(ref, tolerance)
         np.testing.assert_allclose(cost, np.einsum('ij,ij->i', clipped, clipped), rtol=1e-12)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1))
+def test_triple_planes_match_numpy(seed):
+    """Hypotheses through random triples, degenerate ones (repeated, collinear points) dropped: bit for bit numpy's."""
+    from plane_validation.core import kernels
+    from plane_validation.core.search.fit import MIN_SINE
+    from plane_validation.core.search.hypotheses import _triple_planes_numpy
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(3, 200))
+    cols = np.ascontiguousarray(rng.normal(size=(3, n)))
+    cols[:, rng.random(n) < 0.2] = cols[:, :1]  # repeated points
+    line = rng.random(n) < 0.2
+    cols[:, line] = np.outer([1.0, 2.0, 3.0], rng.normal(size=int(line.sum())))  # collinear ones
+    idx = rng.integers(0, n, size=(int(rng.integers(0, 300)), 3))
+    normals, offsets = kernels.triple_planes(cols, idx, MIN_SINE)
+    ref_normals, ref_offsets = _triple_planes_numpy(cols, idx)
+    np.testing.assert_array_equal(normals, ref_normals)
+    np.testing.assert_array_equal(offsets, ref_offsets)

@@ -21,7 +21,8 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
            'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
-           'compete_distances', 'plane_bands', 'band_counts', 'warm', 'Warmup']
+           'compete_distances', 'plane_bands', 'band_counts', 'triple_planes', 'warm',
+           'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -1264,6 +1265,32 @@ def band_counts(dist: np.ndarray, tolerance: np.ndarray, support: float
     return inliers, band, counts, cost
 
 
+@numba.njit(**_NUMPY_JIT)
+def triple_planes(cols: np.ndarray, idx: np.ndarray, min_sine: float) -> tuple[np.ndarray, np.ndarray]:
+    """The planes through the triples ``idx`` (h, 3) of the points ``cols`` (3, n) meters, in order, without the
+    degenerate ones (the cross product of the two edges from the first point at most ``min_sine`` times the product
+    of their lengths: nearly collinear or repeated points): (unit normals (g, 3), offsets (g,) meters). Rounded as
+    numpy's np.cross, norms and einsum round them."""
+    h = idx.shape[0]
+    normals = np.empty((h, 3))
+    offsets = np.empty(h)
+    g = 0
+    for q in range(h):
+        a, b, c = idx[q, 0], idx[q, 1], idx[q, 2]
+        x0, y0, z0 = cols[0, a], cols[1, a], cols[2, a]
+        ux, uy, uz = cols[0, b] - x0, cols[1, b] - y0, cols[2, b] - z0
+        vx, vy, vz = cols[0, c] - x0, cols[1, c] - y0, cols[2, c] - z0
+        nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+        size = _length(nx, ny, nz)
+        if not size > min_sine * (_length(ux, uy, uz) * _length(vx, vy, vz)):
+            continue
+        nx, ny, nz = nx / size, ny / size, nz / size
+        normals[g, 0], normals[g, 1], normals[g, 2] = nx, ny, nz
+        offsets[g] = -_dot(nx, ny, nz, x0, y0, z0)
+        g += 1
+    return normals[:g], offsets[:g]
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -1312,6 +1339,7 @@ def warm() -> Warmup:
                0.5, 0.95, 1.5)
     compete_distances(cols, np.zeros((1, 4)), np.ones(1), np.zeros(3), 0.25)
     band_counts(plane_bands(cols, np.ones((2, 3)), np.zeros(2))[0], np.ones(1), 2.0)
+    triple_planes(cols, np.zeros((2, 3), np.int64), 1e-6)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
@@ -1319,4 +1347,5 @@ def warm() -> Warmup:
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
             grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
             voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, grid_sample, grid_edges, grid_usable,
-            grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts)
+            grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
+            triple_planes)

@@ -76,13 +76,23 @@ def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 def _hypotheses(cols: np.ndarray, rng: np.random.Generator, count: int,
                 sampler: Sampler | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Planes through ``count`` random triples of the columns of ``cols`` (3, n), LOCAL_SHARE of
-    them from ``sampler`` when given; degenerate triples dropped. Returns (normals (h, 3), offsets (h,))."""
+    them from ``sampler`` when given; degenerate triples dropped. Returns (normals (h, 3), offsets (h,)). The planes
+    come from one compiled pass (:func:`.kernels.triple_planes`; :func:`_triple_planes_numpy` is its reference)."""
+    return kernels.triple_planes(kernels.c_array(cols, np.float64), _triples(cols, rng, count, sampler), MIN_SINE)
+
+
+def _triples(cols: np.ndarray, rng: np.random.Generator, count: int, sampler: Sampler | None) -> np.ndarray:
+    """(h, 3) int64 column indices of ``count`` random triples of ``cols`` (3, n), LOCAL_SHARE of them from
+    ``sampler`` (those with a point it did not find, -1, dropped)."""
     if sampler is None:
-        idx = rng.integers(0, cols.shape[1], size=(count, 3))
-    else:
-        local = int(round(LOCAL_SHARE * count))
-        idx = np.concatenate([rng.integers(0, cols.shape[1], size=(count - local, 3)), sampler(rng, local)])
-        idx = idx[(idx >= 0).all(axis=1)]
+        return rng.integers(0, cols.shape[1], size=(count, 3))
+    local = int(round(LOCAL_SHARE * count))
+    idx = np.concatenate([rng.integers(0, cols.shape[1], size=(count - local, 3)), sampler(rng, local)])
+    return idx[(idx >= 0).all(axis=1)]
+
+
+def _triple_planes_numpy(cols: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`.kernels.triple_planes` in numpy: the planes through the triples ``idx`` (h, 3) of ``cols`` (3, n)."""
     p0, p1, p2 = cols[:, idx[:, 0]].T, cols[:, idx[:, 1]].T, cols[:, idx[:, 2]].T
     u, v = p1 - p0, p2 - p0
     normals = _cross(u, v)
@@ -144,6 +154,9 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
     agrees with theirs. ``sampler``: draws triples of nearby points for part of the hypotheses. ``allows``: the
     normals a plane may have; other hypotheses are dropped and a refit that leaves them is not taken."""
     m = cols.shape[1]
+    # C-ordered for the kernels (a copy of a sample's columns at most once per plane); the scoring keeps ``cols`` as
+    # given: BLAS rounds its products by the layout
+    ordered = kernels.c_array(cols, np.float64)
     # the scored subset in random order (when it is all the points, a fixed shuffle of them), so
     # that its first PRESCORE points are a random sample of it
     pick = _shuffled(m) if m <= SUBSET else rng.choice(m, SUBSET, replace=False)
@@ -181,7 +194,7 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
     needed = float(max_iterations)
     while iterations < min(needed, max_iterations):
         batch = int(min(BATCH, max_iterations - iterations))
-        normals, offsets = _hypotheses(cols, rng, batch, sampler)
+        normals, offsets = _hypotheses(ordered, rng, batch, sampler)
         iterations += batch
         if allows is not None:
             ok = allows(normals)
@@ -213,9 +226,8 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
     # its inliers hug (a plane tilted across a small face and its neighbours' edges loses).
     with np.errstate(over='ignore', invalid='ignore'):  # a far-out row (a driver's FLT_MAX): inf, no inlier
         if region_of is not None:
-            cols = kernels.c_array(cols, np.float64)
-            dist, above = kernels.plane_bands(cols, best_normals, best_offsets)
-            return best_region(cols, tolerance, best_normals, best_offsets, dist, above, region_of, point_normals,
+            dist, above = kernels.plane_bands(ordered, best_normals, best_offsets)
+            return best_region(ordered, tolerance, best_normals, best_offsets, dist, above, region_of, point_normals,
                                allows=allows)
         dist = plane_distances(cols, best_normals, best_offsets)
     np.minimum(dist, tolerance, out=dist)
