@@ -175,3 +175,22 @@ def test_triple_planes_match_numpy(seed):
     ref_normals, ref_offsets = _triple_planes_numpy(cols, idx)
     np.testing.assert_array_equal(normals, ref_normals)
     np.testing.assert_array_equal(offsets, ref_offsets)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1))
+def test_coherent_inliers_match_numpy(seed):
+    """The count of inliers whose local normal agrees with a plane's (unknown ones counted) that lets the
+    confirmation skip a hypothesis: numpy's count."""
+    from plane_validation.core import kernels
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(0, 300))
+    normals = rng.normal(size=(3, m))
+    normals /= np.linalg.norm(normals, axis=0)
+    normals[:, rng.random(m) < 0.2] = np.nan
+    normal = rng.normal(size=3)
+    normal /= np.linalg.norm(normal)
+    inliers = rng.random(m) < 0.5
+    bound = float(rng.uniform(0, 1))
+    ref = np.count_nonzero(inliers & ~(np.abs(normal @ normals) < bound))
+    assert kernels.coherent_inliers(inliers, normal, np.ascontiguousarray(normals), bound) == ref

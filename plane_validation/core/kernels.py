@@ -21,8 +21,8 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'pack_segmented', 'finite_mask',
            'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
-           'compete_distances', 'plane_bands', 'band_counts', 'triple_planes', 'warm',
-           'Warmup']
+           'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
+           'coherent_inliers', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -399,6 +399,19 @@ def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: 
     m = region.shape[0]
     height = node.shape[0] // width
     region = region.copy()
+    # the points on an image with a one-pixel margin of no point: neighbours without bounds checks
+    padded = width + 2
+    at = np.full((height + 2) * padded, -1, np.int64)
+    place = np.empty(m, np.int64)
+    r = 0
+    for i in range(m):
+        if i == 0 or pixel[i] >= (r + 1) * width:
+            r = pixel[i] // width
+        place[i] = (r + 1) * padded + pixel[i] - r * width + 1
+        at[place[i]] = i
+    step = np.empty(eight.shape[0], np.int64)
+    for e in range(eight.shape[0]):
+        step[e] = eight[e, 0] * padded + eight[e, 1]
     best = np.empty(m)
     for i in range(m):
         best[i] = dist[region[i], i]
@@ -408,40 +421,31 @@ def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: 
     touched = np.empty(m, np.int64)
     changed = np.empty(m, np.int64)
     n_changed = -1  # the first round: the bordering points receive offers
-    r = 0
     for _ in range(rounds):
         n_touched = 0
-        if n_changed < 0:  # pixel by pixel (no division per point), i ascending as pixel is
+        if n_changed < 0:
             for i in range(m):
-                if i == 0 or pixel[i] >= (r + 1) * width:
-                    r = pixel[i] // width
-                c = pixel[i] - r * width
-                for e in range(eight.shape[0]):
-                    rr, cc = r + eight[e, 0], c + eight[e, 1]
-                    if 0 <= rr < height and 0 <= cc < width:
-                        j = node[rr * width + cc]
-                        if j >= 0 and region[j] != region[i]:
-                            break
-                else:
+                bordering = False
+                for e in range(step.shape[0]):
+                    j = at[place[i] + step[e]]
+                    if j >= 0 and region[j] != region[i]:
+                        bordering = True
+                        break
+                if not bordering:
                     continue
-                for e in range(eight.shape[0]):  # a bordering point: every neighbour offers
-                    rr, cc = r + eight[e, 0], c + eight[e, 1]
-                    if 0 <= rr < height and 0 <= cc < width:
-                        j = node[rr * width + cc]
-                        if j >= 0:
-                            n_touched = _offer(dist, region, best, i, j, offer_d, offer_src, offer_region,
-                                               touched, n_touched)
+                for e in range(step.shape[0]):  # a bordering point: every neighbour offers
+                    j = at[place[i] + step[e]]
+                    if j >= 0:
+                        n_touched = _offer(dist, region, best, i, j, offer_d, offer_src, offer_region, touched,
+                                           n_touched)
         else:
             for q in range(n_changed):  # a changed point offers its new region to every neighbour
                 j = changed[q]
-                r, c = pixel[j] // width, pixel[j] % width
-                for e in range(eight.shape[0]):
-                    rr, cc = r + eight[e, 0], c + eight[e, 1]
-                    if 0 <= rr < height and 0 <= cc < width:
-                        i = node[rr * width + cc]
-                        if i >= 0:
-                            n_touched = _offer(dist, region, best, i, j, offer_d, offer_src, offer_region,
-                                               touched, n_touched)
+                for e in range(step.shape[0]):
+                    i = at[place[j] + step[e]]
+                    if i >= 0:
+                        n_touched = _offer(dist, region, best, i, j, offer_d, offer_src, offer_region, touched,
+                                           n_touched)
         if n_touched == 0:
             break
         for q in range(n_touched):
@@ -1291,6 +1295,18 @@ def triple_planes(cols: np.ndarray, idx: np.ndarray, min_sine: float) -> tuple[n
     return normals[:g], offsets[:g]
 
 
+@numba.njit(**_NUMPY_JIT)
+def coherent_inliers(inliers: np.ndarray, normal: np.ndarray, normals: np.ndarray, min_cos: float) -> int:
+    """How many of the points ``inliers`` (m,) bool have a local normal (``normals`` (3, m), NaN: unknown) within
+    ``min_cos`` of the plane's ``normal`` (3,), or an unknown one."""
+    count = 0
+    for p in range(inliers.shape[0]):
+        if inliers[p] and not abs(normal[0] * normals[0, p] + normal[1] * normals[1, p]
+                                   + normal[2] * normals[2, p]) < min_cos:
+            count += 1
+    return count
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -1340,6 +1356,7 @@ def warm() -> Warmup:
     compete_distances(cols, np.zeros((1, 4)), np.ones(1), np.zeros(3), 0.25)
     band_counts(plane_bands(cols, np.ones((2, 3)), np.zeros(2))[0], np.ones(1), 2.0)
     triple_planes(cols, np.zeros((2, 3), np.int64), 1e-6)
+    coherent_inliers(np.ones(4, np.bool_), np.ones(3), cols, 0.5)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
@@ -1348,4 +1365,4 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
             voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, grid_sample, grid_edges, grid_usable,
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
-            triple_planes)
+            triple_planes, coherent_inliers)

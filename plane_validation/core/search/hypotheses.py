@@ -271,7 +271,7 @@ def best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, off
         if counts[h] <= size:
             break
         if size > 0 and point_normals is not None:  # nor more than its coherent inliers: skip without labelling
-            bound = np.count_nonzero(inliers[h] & ~(np.abs(normals[h] @ point_normals) < _COHERENT_BOUND))
+            bound = kernels.coherent_inliers(inliers[h], normals[h], point_normals, _COHERENT_BOUND)
             if bound < size or (bound == size and cost[h] >= cost[winner]):
                 continue
         candidate, took = keep(inliers[h], normals[h], support[h], above[h])
