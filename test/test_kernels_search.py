@@ -194,3 +194,17 @@ def test_coherent_inliers_match_numpy(seed):
     bound = float(rng.uniform(0, 1))
     ref = np.count_nonzero(inliers & ~(np.abs(normal @ normals) < bound))
     assert kernels.coherent_inliers(inliers, normal, np.ascontiguousarray(normals), bound) == ref
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(1, 200))
+def test_largest_magnitude_matches_numpy(seed, n):
+    """The cloud check's largest |coordinate| (NaN skipped, inf counted, NaN when every value is): numpy's."""
+    from plane_validation.core import kernels
+    from plane_validation.core.search.checks import largest_magnitude_numpy
+    rng = np.random.default_rng(seed)
+    values = rng.normal(scale=10.0 ** rng.integers(-3, 30), size=n)
+    values[rng.random(n) < rng.uniform(0, 1)] = np.nan
+    values[rng.random(n) < 0.05] = np.inf * rng.choice([-1, 1])
+    got, ref = kernels.largest_magnitude(values), largest_magnitude_numpy(values)
+    assert got == ref or (np.isnan(got) and np.isnan(ref))

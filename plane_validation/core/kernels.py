@@ -22,7 +22,7 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'pack_xyz', 'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
-           'coherent_inliers', 'warm', 'Warmup']
+           'coherent_inliers', 'largest_magnitude', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -1307,6 +1307,17 @@ def coherent_inliers(inliers: np.ndarray, normal: np.ndarray, normals: np.ndarra
     return count
 
 
+@numba.njit(**_NUMPY_JIT)
+def largest_magnitude(values: np.ndarray) -> float:
+    """The largest |v| of the ``values`` (n,) that are not NaN (inf counts); NaN when none is."""
+    largest = np.nan
+    for i in range(values.shape[0]):
+        v = abs(values[i])
+        if v > largest or (np.isnan(largest) and not np.isnan(v)):
+            largest = v
+    return largest
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -1357,6 +1368,7 @@ def warm() -> Warmup:
     band_counts(plane_bands(cols, np.ones((2, 3)), np.zeros(2))[0], np.ones(1), 2.0)
     triple_planes(cols, np.zeros((2, 3), np.int64), 1e-6)
     coherent_inliers(np.ones(4, np.bool_), np.ones(3), cols, 0.5)
+    largest_magnitude(pts.reshape(-1))
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
@@ -1365,4 +1377,4 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             grid_region, grid_compete, graph_components, graph_region, pack_segmented, pack_xyz, coordinate_bounds,
             voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, grid_sample, grid_edges, grid_usable,
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
-            triple_planes, coherent_inliers)
+            triple_planes, coherent_inliers, largest_magnitude)
