@@ -369,7 +369,7 @@ def graph_region(edges: np.ndarray, normals: np.ndarray, normal: np.ndarray, min
     return out, out
 
 
-@numba.njit(**_JIT)
+@numba.njit(inline='always', **_JIT)  # called per neighbour: inlined, not passed ten arrays a call
 def _offer(dist: np.ndarray, region: np.ndarray, best: np.ndarray, dst: int, src: int, offer_d: np.ndarray,
            offer_src: np.ndarray, offer_region: np.ndarray, touched: np.ndarray, n_touched: int) -> int:
     """Point ``src`` offers its region to ``dst`` when its plane is nearer than dst's own (the nearest offer wins,
