@@ -26,8 +26,7 @@ def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_i
                    allows: Allows = None) -> Segmentation:
     """detect_planes with connected regions (see its docstring)."""
     finite = finite_rows(pts)
-    valid_idx = np.flatnonzero(finite)
-    n_valid = len(valid_idx)
+    n_valid = int(np.count_nonzero(finite))
     min_count = resolve_min_inliers(min_inliers, n_valid)
     graph = checked_search_graph(graph, pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
     search_idx, step, center, neighbours = graph.search_idx, graph.step, graph.center, graph.neighbours
@@ -59,6 +58,7 @@ def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_i
         near = np.abs(np.einsum('ji,ij->j', normals[own], search) + offsets[own]) <= search_tolerance
         labels[search_idx] = np.where((region >= 0) & near, region, -1)  # within t of the refitted plane
     else:
+        valid_idx = np.flatnonzero(finite)
         labels[valid_idx] = spread_nearest(pts[valid_idx] - center, graph.nearest, region, found,
                                            tolerance_at(tolerance, valid_idx))
     rows, bounds = kernels.group_by_label(labels, len(found))
