@@ -249,42 +249,6 @@ def _fragmented(sizes: np.ndarray, largest_share: float, piece_share: float) -> 
 
 
 @numba.njit(**_JIT)
-def _rest_components(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
-                     rest: np.ndarray, position: np.ndarray, member: np.ndarray) -> tuple[np.ndarray, int]:
-    """:func:`grid_components` of the points ``member`` (r,) bool among the points ``rest`` (r,) ascending of a
-    sub-grid (``position`` (n,): each point's place in ``rest``, -1 for none), in that place's numbering: the same
-    components, numbered alike, without a pass over the whole grid."""
-    r = rest.shape[0]
-    parent = np.arange(r)
-    inside = np.zeros(r, np.bool_)
-    for q in range(r):
-        inside[q] = member[q] and usable[pixel[rest[q]]]
-    row = 0  # the first pixel of the row of the point at hand (ascending: no division per point)
-    for q in range(r):
-        if not inside[q]:
-            continue
-        p = pixel[rest[q]]
-        if p >= row + width:
-            row = p - p % width
-        if p > row:
-            j = node[p - 1]
-            if j >= 0 and position[j] >= 0 and inside[position[j]]:
-                _join(parent, q, position[j])
-        if p >= width:
-            j = node[p - width]
-            if j >= 0 and position[j] >= 0 and inside[position[j]]:
-                _join(parent, q, position[j])
-    for b in range(bridges.shape[0]):
-        if bridges[b, 2] != 0:
-            continue
-        i, j = node[bridges[b, 0]], node[bridges[b, 1]]
-        if i >= 0 and j >= 0 and position[i] >= 0 and position[j] >= 0 and inside[position[i]] and \
-                inside[position[j]]:
-            _join(parent, position[i], position[j])
-    return _numbered(parent, inside)
-
-
-@numba.njit(**_JIT)
 def grid_region(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
                 normals: np.ndarray, normal: np.ndarray, min_cos: float, rest: np.ndarray, position: np.ndarray,
                 mask: np.ndarray, support: np.ndarray, above: np.ndarray, rules: np.ndarray
@@ -952,6 +916,42 @@ def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
 
 #: The search kernels divide as numpy does (inf or NaN, no exception), as their numpy references do.
 _NUMPY_JIT = dict(_JIT, error_model='numpy')
+
+
+@numba.njit(**_JIT)
+def _rest_components(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
+                     rest: np.ndarray, position: np.ndarray, member: np.ndarray) -> tuple[np.ndarray, int]:
+    """:func:`grid_components` of the points ``member`` (r,) bool among the points ``rest`` (r,) ascending of a
+    sub-grid (``position`` (n,): each point's place in ``rest``, -1 for none), in that place's numbering: the same
+    components, numbered alike, without a pass over the whole grid."""
+    r = rest.shape[0]
+    parent = np.arange(r)
+    inside = np.zeros(r, np.bool_)
+    for q in range(r):
+        inside[q] = member[q] and usable[pixel[rest[q]]]
+    row = 0  # the first pixel of the row of the point at hand (ascending: no division per point)
+    for q in range(r):
+        if not inside[q]:
+            continue
+        p = pixel[rest[q]]
+        if p >= row + width:
+            row = p - p % width
+        if p > row:
+            j = node[p - 1]
+            if j >= 0 and position[j] >= 0 and inside[position[j]]:
+                _join(parent, q, position[j])
+        if p >= width:
+            j = node[p - width]
+            if j >= 0 and position[j] >= 0 and inside[position[j]]:
+                _join(parent, q, position[j])
+    for b in range(bridges.shape[0]):
+        if bridges[b, 2] != 0:
+            continue
+        i, j = node[bridges[b, 0]], node[bridges[b, 1]]
+        if i >= 0 and j >= 0 and position[i] >= 0 and position[j] >= 0 and inside[position[i]] and \
+                inside[position[j]]:
+            _join(parent, position[i], position[j])
+    return _numbered(parent, inside)
 
 
 @numba.njit(**_NUMPY_JIT)
