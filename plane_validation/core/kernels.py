@@ -20,7 +20,10 @@ import numpy as np
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'finite_mask',
            'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
-           'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_fit', 'warm', 'Warmup']
+           'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_fit',
+           'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
+           'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
+           'coherent_inliers', 'largest_magnitude', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -248,33 +251,32 @@ def _fragmented(sizes: np.ndarray, largest_share: float, piece_share: float) -> 
 
 @numba.njit(**_JIT)
 def grid_region(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
-                normals: np.ndarray, normal: np.ndarray, min_cos: float, rest: np.ndarray, mask: np.ndarray,
-                support: np.ndarray, above: np.ndarray, rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                normals: np.ndarray, normal: np.ndarray, min_cos: float, rest: np.ndarray, position: np.ndarray,
+                mask: np.ndarray, support: np.ndarray, above: np.ndarray, rules: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
     """The region a plane of unit ``normal`` (3,) keeps among the points ``rest`` (r,) of a sub-grid (see
-    :func:`grid_components`), as :meth:`.search.neighbours.Neighbours.region` gives it: its inliers ``mask`` (r,) and
-    the points within the support band ``support`` (r,), both cut to the points whose ``normals`` (n, 3)
-    lie within ``min_cos`` of it (NaN: unknown, kept); ``above`` (r,): on the side its normal points to.
-    ``rules``: (FRAGMENTED, FRAGMENT_PIECE, SUPPORT_BALANCE). Returns (kept (r,), taken (r,)) bool."""
-    n = pixel.shape[0]
-    wide = np.zeros(n, np.bool_)
-    full = np.zeros(n, np.bool_)
-    up = np.zeros(n, np.bool_)
-    for q in range(rest.shape[0]):
+    :func:`grid_components`; ``position`` (n,): each point's place in ``rest``, -1 for none), as
+    :meth:`.search.neighbours.Neighbours.region` gives it: its inliers ``mask`` (r,) and the points within the
+    support band ``support`` (r,), both cut to the points whose ``normals`` (n, 3) lie within ``min_cos`` of it (NaN:
+    unknown, kept); ``above`` (r,): on the side its normal points to. ``rules``: (FRAGMENTED, FRAGMENT_PIECE,
+    SUPPORT_BALANCE). Returns (kept (r,), taken (r,)) bool."""
+    r = rest.shape[0]
+    wide = np.zeros(r, np.bool_)
+    full = np.zeros(r, np.bool_)
+    up = np.zeros(r, np.bool_)
+    for q in range(r):
         i = rest[q]
         if support[q]:
             cos = abs(normals[i, 0] * normal[0] + normals[i, 1] * normal[1] + normals[i, 2] * normal[2])
-            wide[i] = not cos < min_cos
-            up[i] = above[q]
-        full[i] = mask[q]
-    for i in range(n):
-        full[i] = full[i] and wide[i]
-    component, count = grid_components(pixel, node, usable, width, bridges, full)
+            wide[q] = not cos < min_cos
+            up[q] = above[q]
+        full[q] = mask[q] and wide[q]
+    component, count = _rest_components(pixel, node, usable, width, bridges, rest, position, full)
     out, sizes = _largest(component, count, full)
-    kept, taken = out, out
     if _fragmented(sizes, rules[0], rules[1]):
-        component, count = grid_components(pixel, node, usable, width, bridges, wide)
-        kept, taken = _surface(_largest(component, count, full)[0], full, up, out, rules[2])
-    return kept[rest], taken[rest]
+        component, count = _rest_components(pixel, node, usable, width, bridges, rest, position, wide)
+        return _surface(_largest(component, count, full)[0], full, up, out, rules[2])
+    return out, out
 
 
 @numba.njit(**_JIT)
@@ -332,7 +334,7 @@ def graph_region(edges: np.ndarray, normals: np.ndarray, normal: np.ndarray, min
     return out, out
 
 
-@numba.njit(**_JIT)
+@numba.njit(inline='always', **_JIT)  # called per neighbour: inlined, not passed ten arrays a call
 def _offer(dist: np.ndarray, region: np.ndarray, best: np.ndarray, dst: int, src: int, offer_d: np.ndarray,
            offer_src: np.ndarray, offer_region: np.ndarray, touched: np.ndarray, n_touched: int) -> int:
     """Point ``src`` offers its region to ``dst`` when its plane is nearer than dst's own (the nearest offer wins,
@@ -362,6 +364,19 @@ def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: 
     m = region.shape[0]
     height = node.shape[0] // width
     region = region.copy()
+    # the points on an image with a one-pixel margin of no point: neighbours without bounds checks
+    padded = width + 2
+    at = np.full((height + 2) * padded, -1, np.int64)
+    place = np.empty(m, np.int64)
+    r = 0
+    for i in range(m):
+        if i == 0 or pixel[i] >= (r + 1) * width:
+            r = pixel[i] // width
+        place[i] = (r + 1) * padded + pixel[i] - r * width + 1
+        at[place[i]] = i
+    step = np.empty(eight.shape[0], np.int64)
+    for e in range(eight.shape[0]):
+        step[e] = eight[e, 0] * padded + eight[e, 1]
     best = np.empty(m)
     for i in range(m):
         best[i] = dist[region[i], i]
@@ -375,33 +390,27 @@ def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: 
         n_touched = 0
         if n_changed < 0:
             for i in range(m):
-                r, c = pixel[i] // width, pixel[i] % width
-                for e in range(eight.shape[0]):
-                    rr, cc = r + eight[e, 0], c + eight[e, 1]
-                    if 0 <= rr < height and 0 <= cc < width:
-                        j = node[rr * width + cc]
-                        if j >= 0 and region[j] != region[i]:
-                            break
-                else:
+                bordering = False
+                for e in range(step.shape[0]):
+                    j = at[place[i] + step[e]]
+                    if j >= 0 and region[j] != region[i]:
+                        bordering = True
+                        break
+                if not bordering:
                     continue
-                for e in range(eight.shape[0]):  # a bordering point: every neighbour offers
-                    rr, cc = r + eight[e, 0], c + eight[e, 1]
-                    if 0 <= rr < height and 0 <= cc < width:
-                        j = node[rr * width + cc]
-                        if j >= 0:
-                            n_touched = _offer(dist, region, best, i, j, offer_d, offer_src, offer_region,
-                                               touched, n_touched)
+                for e in range(step.shape[0]):  # a bordering point: every neighbour offers
+                    j = at[place[i] + step[e]]
+                    if j >= 0:
+                        n_touched = _offer(dist, region, best, i, j, offer_d, offer_src, offer_region, touched,
+                                           n_touched)
         else:
             for q in range(n_changed):  # a changed point offers its new region to every neighbour
                 j = changed[q]
-                r, c = pixel[j] // width, pixel[j] % width
-                for e in range(eight.shape[0]):
-                    rr, cc = r + eight[e, 0], c + eight[e, 1]
-                    if 0 <= rr < height and 0 <= cc < width:
-                        i = node[rr * width + cc]
-                        if i >= 0:
-                            n_touched = _offer(dist, region, best, i, j, offer_d, offer_src, offer_region,
-                                               touched, n_touched)
+                for e in range(step.shape[0]):
+                    i = at[place[j] + step[e]]
+                    if i >= 0:
+                        n_touched = _offer(dist, region, best, i, j, offer_d, offer_src, offer_region, touched,
+                                           n_touched)
         if n_touched == 0:
             break
         for q in range(n_touched):
@@ -1169,6 +1178,412 @@ def fold_fit(u: np.ndarray, v: np.ndarray, w: np.ndarray, angles: int, offsets: 
     return best
 
 
+# --- search ---
+
+#: The search kernels divide as numpy does (inf or NaN, no exception), as their numpy references do.
+_NUMPY_JIT = dict(_JIT, error_model='numpy')
+
+
+@numba.njit(**_JIT)
+def _rest_components(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
+                     rest: np.ndarray, position: np.ndarray, member: np.ndarray) -> tuple[np.ndarray, int]:
+    """:func:`grid_components` of the points ``member`` (r,) bool among the points ``rest`` (r,) ascending of a
+    sub-grid (``position`` (n,): each point's place in ``rest``, -1 for none), in that place's numbering: the same
+    components, numbered alike, without a pass over the whole grid."""
+    r = rest.shape[0]
+    parent = np.arange(r)
+    inside = np.zeros(r, np.bool_)
+    for q in range(r):
+        inside[q] = member[q] and usable[pixel[rest[q]]]
+    row = 0  # the first pixel of the row of the point at hand (ascending: no division per point)
+    for q in range(r):
+        if not inside[q]:
+            continue
+        p = pixel[rest[q]]
+        if p >= row + width:
+            row = p - p % width
+        if p > row:
+            j = node[p - 1]
+            if j >= 0 and position[j] >= 0 and inside[position[j]]:
+                _join(parent, q, position[j])
+        if p >= width:
+            j = node[p - width]
+            if j >= 0 and position[j] >= 0 and inside[position[j]]:
+                _join(parent, q, position[j])
+    for b in range(bridges.shape[0]):
+        if bridges[b, 2] != 0:
+            continue
+        i, j = node[bridges[b, 0]], node[bridges[b, 1]]
+        if i >= 0 and j >= 0 and position[i] >= 0 and position[j] >= 0 and inside[position[i]] and \
+                inside[position[j]]:
+            _join(parent, position[i], position[j])
+    return _numbered(parent, inside)
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_sample(points: np.ndarray, finite: np.ndarray, width: int, step: int, offsets: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The regular sub-grid of step ``step`` of an image of ``points`` (h * w, 3) meters, ``width`` w, whose finite
+    rows are ``finite`` (h * w,): for each step x step block, from pixel (step // 2, step // 2) on, the first of the
+    block's pixels at ``offsets`` (s, 2) (row, column within the block, in the order tried) that is valid. Returns
+    (image (gh, gw, 3) of those pixels' points, NaN for a block without one, or (0, 0, 3) when ``points`` has no
+    rows (the pixels only); pixels (gh, gw) int64, -1 for none)."""
+    h = finite.shape[0] // width
+    copy = points.shape[0] > 0
+    c = step // 2
+    gh, gw = (h - c + step - 1) // step if h > c else 0, (width - c + step - 1) // step if width > c else 0
+    image = np.full((gh, gw, 3) if copy else (0, 0, 3), np.nan)
+    pixels = np.full((gh, gw), -1, np.int64)
+    for br in range(gh):
+        for bc in range(gw):
+            for o in range(offsets.shape[0]):
+                r, col = br * step + offsets[o, 0], bc * step + offsets[o, 1]
+                if r < h and col < width and finite[r * width + col]:
+                    p = r * width + col
+                    pixels[br, bc] = p
+                    if copy:
+                        image[br, bc, 0], image[br, bc, 1], image[br, bc, 2] = points[p, 0], points[p, 1], points[p, 2]
+                    break
+    return image, pixels
+
+
+@numba.njit(**_NUMPY_JIT)
+def _length(x: float, y: float, z: float) -> float:
+    """The Euclidean length of (x, y, z) as np.linalg.norm sums a length-3 axis (in order)."""
+    return np.sqrt(x * x + y * y + z * z)
+
+
+@numba.njit(**_NUMPY_JIT)
+def _dot(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
+    """a . b as np.einsum('...i,...i->...') sums a length-3 axis (its two-lane loop: the first and last products
+    first), so that the results stay bit-identical to the numpy references."""
+    return (a0 * b0 + a2 * b2) + a1 * b1
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_edges(points: np.ndarray, valid: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Of an image of ``points`` (h, w, 3) meters with valid pixels ``valid`` (h, w): each pixel's range (h, w)
+    (NaN where a coordinate is), the 3-D gap to its right neighbour (h, w - 1) and the nearer of the two ranges
+    (NaN gap unless both pixels are valid), the same down (h - 1, w) twice, and the finite gaps over their range
+    (right ones first, row by row, then down ones)."""
+    h, w = valid.shape
+    ranges = np.empty((h, w))
+    for r in range(h):
+        for c in range(w):
+            x, y, z = points[r, c, 0], points[r, c, 1], points[r, c, 2]
+            ranges[r, c] = np.sqrt(_dot(x, y, z, x, y, z))
+    right = np.full((h, max(w - 1, 0)), np.nan)
+    right_reach = np.empty((h, max(w - 1, 0)))
+    down = np.full((max(h - 1, 0), w), np.nan)
+    down_reach = np.empty((max(h - 1, 0), w))
+    angular = np.empty(right.size + down.size)
+    count = 0
+    for r in range(h):
+        for c in range(w - 1):
+            right_reach[r, c] = _nan_min(ranges[r, c], ranges[r, c + 1])
+            if valid[r, c] and valid[r, c + 1]:
+                x, y, z = (points[r, c, 0] - points[r, c + 1, 0], points[r, c, 1] - points[r, c + 1, 1],
+                           points[r, c, 2] - points[r, c + 1, 2])
+                right[r, c] = np.sqrt(_dot(x, y, z, x, y, z))
+                if np.isfinite(right[r, c]):
+                    angular[count] = right[r, c] / right_reach[r, c]
+                    count += 1
+    for r in range(h - 1):
+        for c in range(w):
+            down_reach[r, c] = _nan_min(ranges[r, c], ranges[r + 1, c])
+            if valid[r, c] and valid[r + 1, c]:
+                x, y, z = (points[r, c, 0] - points[r + 1, c, 0], points[r, c, 1] - points[r + 1, c, 1],
+                           points[r, c, 2] - points[r + 1, c, 2])
+                down[r, c] = np.sqrt(_dot(x, y, z, x, y, z))
+                if np.isfinite(down[r, c]):
+                    angular[count] = down[r, c] / down_reach[r, c]
+                    count += 1
+    return ranges, right, right_reach, down, down_reach, angular[:count]
+
+
+@numba.njit(**_NUMPY_JIT)
+def _nan_min(a: float, b: float) -> float:
+    """np.minimum of two numbers: NaN when either is."""
+    if np.isnan(a) or np.isnan(b):
+        return np.nan
+    return min(a, b)
+
+
+@numba.njit(**_NUMPY_JIT)
+def _jump(gap: float, before: float, after: float, reach: float, typical: float, jump: float) -> bool:
+    """Whether an edge's ``gap`` is a depth jump: more than ``jump`` times the larger of the gaps ``before`` and
+    ``after`` it along its line (NaN: none; the gap itself when neither is) and than ``jump`` typical spacings at
+    its ``reach``."""
+    if not np.isfinite(gap):
+        return False
+    local = after if np.isnan(before) else (before if np.isnan(after) else max(before, after))
+    if np.isnan(local):
+        local = gap
+    floor = typical * reach
+    if np.isnan(floor):
+        return False
+    return gap > jump * max(local, floor)
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_usable(valid: np.ndarray, ranges: np.ndarray, right: np.ndarray, right_reach: np.ndarray, down: np.ndarray,
+                down_reach: np.ndarray, typical: float, jump: float) -> np.ndarray:
+    """(h, w) the valid pixels (``valid`` (h, w)) of :func:`grid_edges`' image that are not the far pixel of a depth
+    jump (an edge whose gap exceeds ``jump`` times the gaps beside it along its line and ``jump`` times ``typical``
+    spacings per meter of range): they may join a region."""
+    h, w = valid.shape
+    usable = valid.copy()
+    for r in range(h):
+        for c in range(w - 1):
+            before = right[r, c - 1] if c > 0 else np.nan
+            after = right[r, c + 1] if c + 1 < w - 1 else np.nan
+            if _jump(right[r, c], before, after, right_reach[r, c], typical, jump):
+                near = ranges[r, c] if valid[r, c] else 0.0
+                far = ranges[r, c + 1] if valid[r, c + 1] else 0.0
+                if far > near:
+                    usable[r, c + 1] = False
+                else:
+                    usable[r, c] = False
+    for r in range(h - 1):
+        for c in range(w):
+            before = down[r - 1, c] if r > 0 else np.nan
+            after = down[r + 1, c] if r + 1 < h - 1 else np.nan
+            if _jump(down[r, c], before, after, down_reach[r, c], typical, jump):
+                near = ranges[r, c] if valid[r, c] else 0.0
+                far = ranges[r + 1, c] if valid[r + 1, c] else 0.0
+                if far > near:
+                    usable[r + 1, c] = False
+                else:
+                    usable[r, c] = False
+    return usable
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_normals(points: np.ndarray, valid: np.ndarray, down_reach: int, across_reach: int, bend: float
+                 ) -> np.ndarray:
+    """(h, w, 3) unit normals of an image of ``points`` (h, w, 3) meters with valid pixels ``valid`` (h, w): the
+    cross product of (right - left) and (down - up), the pixels ``across_reach`` and ``down_reach`` away (NaN where
+    one is off the image or invalid); with ``bend`` > 0 also NaN where the pixel lies off the middle of those two
+    pairs, along the normal, by more than ``bend`` times their distance."""
+    h, w = valid.shape
+    dr, ar = down_reach, across_reach
+    pad = np.full((h + 2 * dr, w + 2 * ar, 3), np.nan)  # NaN off the image and at invalid pixels: no branches
+    for r in range(h):
+        for c in range(w):
+            if valid[r, c]:
+                pad[r + dr, c + ar, 0] = points[r, c, 0]
+                pad[r + dr, c + ar, 1] = points[r, c, 1]
+                pad[r + dr, c + ar, 2] = points[r, c, 2]
+    out = np.empty((h, w, 3))
+    for r in range(h):
+        pr = r + dr
+        for c in range(w):
+            pc = c + ar
+            ax, ay, az = pad[pr, pc + ar, 0], pad[pr, pc + ar, 1], pad[pr, pc + ar, 2]
+            bx, by, bz = pad[pr, pc - ar, 0], pad[pr, pc - ar, 1], pad[pr, pc - ar, 2]
+            dx, dy, dz = pad[pr + dr, pc, 0], pad[pr + dr, pc, 1], pad[pr + dr, pc, 2]
+            ex, ey, ez = pad[pr - dr, pc, 0], pad[pr - dr, pc, 1], pad[pr - dr, pc, 2]
+            ux, uy, uz = ax - bx, ay - by, az - bz
+            vx, vy, vz = dx - ex, dy - ey, dz - ez
+            n0 = uy * vz - uz * vy
+            n1 = uz * vx - ux * vz
+            n2 = ux * vy - uy * vx
+            size = np.sqrt(_dot(n0, n1, n2, n0, n1, n2))
+            n0, n1, n2 = n0 / size, n1 / size, n2 / size
+            if bend > 0:
+                cx, cy, cz = pad[pr, pc, 0], pad[pr, pc, 1], pad[pr, pc, 2]
+                bend_u = abs(_dot(ax + bx - 2 * cx, ay + by - 2 * cy, az + bz - 2 * cz, n0, n1, n2)) / \
+                    _length(ux, uy, uz)
+                bend_v = abs(_dot(dx + ex - 2 * cx, dy + ey - 2 * cy, dz + ez - 2 * cz, n0, n1, n2)) / \
+                    _length(vx, vy, vz)
+                if bend_u > bend or bend_v > bend:
+                    n0 = n1 = n2 = np.nan
+            out[r, c, 0], out[r, c, 1], out[r, c, 2] = n0, n1, n2
+    return out
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_chords(points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, across: bool, every: int) -> np.ndarray:
+    """The distances between the unit rays (``points`` (h, w, 3) over ``ranges`` (h, w)) of neighbouring valid
+    pixels (``valid`` (h, w)): along every ``every``-th row (``across``), else down every ``every``-th column; row by
+    row."""
+    h, w = valid.shape
+    out = np.empty(h * w)
+    count = 0
+    for r in range(0, h, every if across else 1):
+        for c in range(0, w, 1 if across else every):
+            r2, c2 = (r, c + 1) if across else (r + 1, c)
+            if r2 >= h or c2 >= w or not (valid[r, c] and valid[r2, c2]):
+                continue
+            out[count] = _length(points[r2, c2, 0] / ranges[r2, c2] - points[r, c, 0] / ranges[r, c],
+                                 points[r2, c2, 1] / ranges[r2, c2] - points[r, c, 1] / ranges[r, c],
+                                 points[r2, c2, 2] / ranges[r2, c2] - points[r, c, 2] / ranges[r, c])
+            count += 1
+    return out[:count]
+
+
+@numba.njit(**_NUMPY_JIT)
+def _coherent(normals: np.ndarray, p: int, nx: float, ny: float, nz: float, min_cos: float) -> bool:
+    """Whether point ``p``'s local normal (``normals`` (m, 3), NaN: unknown; (0, 3): none known) lies within
+    ``min_cos`` of (nx, ny, nz)."""
+    if normals.shape[0] == 0:
+        return True
+    return not abs(normals[p, 0] * nx + normals[p, 1] * ny + normals[p, 2] * nz) < min_cos
+
+
+@numba.njit(**_NUMPY_JIT)
+def merge_test(search: np.ndarray, members: np.ndarray, region: np.ndarray, i: int, j: int, plane: np.ndarray,
+               own: np.ndarray, tolerance: np.ndarray, src: np.ndarray, dst: np.ndarray, region_src: np.ndarray,
+               region_dst: np.ndarray, root: np.ndarray, normals: np.ndarray, min_cos: float, keep: float,
+               spread: float) -> bool:
+    """Whether the touching regions ``i`` < ``j`` are one surface with the joint ``plane`` (4,) (a, b, c, d) of their
+    points ``members`` (c,) of ``search`` (3, m) meters: they touch (a pair ``src``, ``dst`` (e,) of points first in
+    regions ``region_src``, ``region_dst`` (e,), now in ``root`` of those) where both points' ``normals`` (m, 3) agree
+    with it (within ``min_cos``; (0, 3): none known); at least ``keep`` of the points lie within ``tolerance``
+    ((1,) or (m,) meters) of it; and their mean squared distance to it is at most ``spread`` squared times that to
+    their own region's plane (``own`` (2, 4): i's, j's; ``region`` (m,): each point's region)."""
+    nx, ny, nz, d = plane[0], plane[1], plane[2], plane[3]
+    touch = False
+    for q in range(src.shape[0]):
+        a, b = root[region_src[q]], root[region_dst[q]]
+        if ((a == i and b == j) or (a == j and b == i)) and _coherent(normals, src[q], nx, ny, nz, min_cos) and \
+                _coherent(normals, dst[q], nx, ny, nz, min_cos):
+            touch = True
+            break
+    if not touch:
+        return False
+    per_point = tolerance.shape[0] > 1
+    near = 0
+    joint = mine = 0.0
+    for q in range(members.shape[0]):
+        p = members[q]
+        x, y, z = search[0, p], search[1, p], search[2, p]
+        e = abs(nx * x + ny * y + nz * z + d)
+        near += e <= (tolerance[p] if per_point else tolerance[0])
+        joint += e * e
+        o = 0 if region[p] == i else 1
+        e = own[o, 0] * x + own[o, 1] * y + own[o, 2] * z + own[o, 3]
+        mine += e * e
+    c = members.shape[0]
+    return near >= keep * c and joint / c <= spread * spread * (mine / c)
+
+
+@numba.njit(**_NUMPY_JIT)
+def compete_distances(search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, viewpoint: np.ndarray,
+                      min_cos: float) -> np.ndarray:
+    """(k + 1, m) the distance of each point of ``search`` (3, m) meters to each of the ``planes`` (k, 4) along its
+    ray from ``viewpoint`` (3,): the distance over the ray's |cos| with the normal, at least ``min_cos``; inf beyond
+    ``tolerance`` ((1,) or (m,) meters) and in row k (no region); NaN for a point at the viewpoint."""
+    k, m = planes.shape[0], search.shape[1]
+    per_point = tolerance.shape[0] > 1
+    dist = np.empty((k + 1, m))
+    for p in range(m):
+        x, y, z = search[0, p], search[1, p], search[2, p]
+        rx, ry, rz = x - viewpoint[0], y - viewpoint[1], z - viewpoint[2]
+        size = _length(rx, ry, rz)
+        rx, ry, rz = rx / size, ry / size, rz / size
+        tol = tolerance[p] if per_point else tolerance[0]
+        for j in range(k):
+            e = abs(planes[j, 0] * x + planes[j, 1] * y + planes[j, 2] * z + planes[j, 3])
+            if e > tol:
+                e = np.inf
+            facing = abs(planes[j, 0] * rx + planes[j, 1] * ry + planes[j, 2] * rz)
+            dist[j, p] = e / (facing if np.isnan(facing) or facing > min_cos else min_cos)
+        dist[k, p] = np.inf
+    return dist
+
+
+@numba.njit(**_NUMPY_JIT)
+def plane_bands(cols: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Of the points ``cols`` (3, m) meters and h planes (``normals`` (h, 3), ``offsets`` (h,)): the distances
+    (h, m) meters (inf or NaN for a far-out point) and whether each point lies on the side the normal points to."""
+    h, m = normals.shape[0], cols.shape[1]
+    dist = np.empty((h, m))
+    above = np.empty((h, m), np.bool_)
+    for j in range(h):
+        nx, ny, nz, d = normals[j, 0], normals[j, 1], normals[j, 2], offsets[j]
+        for p in range(m):
+            e = nx * cols[0, p] + ny * cols[1, p] + nz * cols[2, p] + d
+            dist[j, p] = abs(e)
+            above[j, p] = e > 0
+    return dist, above
+
+
+@numba.njit(**_NUMPY_JIT)
+def band_counts(dist: np.ndarray, tolerance: np.ndarray, support: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Of the distances ``dist`` (h, m) meters of m points to h planes: the inliers (h, m) (within ``tolerance``,
+    (1,) or (m,) meters), the support band (h, m) (within ``support`` times it), the inliers per plane (h,) and the
+    MSAC cost (h,): the sum of the squared distances, each at most the tolerance (NaN with a NaN distance)."""
+    h, m = dist.shape
+    per_point = tolerance.shape[0] > 1
+    inliers = np.empty((h, m), np.bool_)
+    band = np.empty((h, m), np.bool_)
+    counts = np.zeros(h, np.int64)
+    cost = np.zeros(h)
+    for j in range(h):
+        for p in range(m):
+            t = tolerance[p] if per_point else tolerance[0]
+            e = dist[j, p]
+            inliers[j, p] = e <= t
+            band[j, p] = e <= support * t
+            counts[j] += e <= t
+            if e > t:
+                e = t
+            cost[j] += e * e
+    return inliers, band, counts, cost
+
+
+@numba.njit(**_NUMPY_JIT)
+def triple_planes(cols: np.ndarray, idx: np.ndarray, min_sine: float) -> tuple[np.ndarray, np.ndarray]:
+    """The planes through the triples ``idx`` (h, 3) of the points ``cols`` (3, n) meters, in order, without the
+    degenerate ones (the cross product of the two edges from the first point at most ``min_sine`` times the product
+    of their lengths: nearly collinear or repeated points): (unit normals (g, 3), offsets (g,) meters). Rounded as
+    numpy's np.cross, norms and einsum round them."""
+    h = idx.shape[0]
+    normals = np.empty((h, 3))
+    offsets = np.empty(h)
+    g = 0
+    for q in range(h):
+        a, b, c = idx[q, 0], idx[q, 1], idx[q, 2]
+        x0, y0, z0 = cols[0, a], cols[1, a], cols[2, a]
+        ux, uy, uz = cols[0, b] - x0, cols[1, b] - y0, cols[2, b] - z0
+        vx, vy, vz = cols[0, c] - x0, cols[1, c] - y0, cols[2, c] - z0
+        nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+        size = _length(nx, ny, nz)
+        if not size > min_sine * (_length(ux, uy, uz) * _length(vx, vy, vz)):
+            continue
+        nx, ny, nz = nx / size, ny / size, nz / size
+        normals[g, 0], normals[g, 1], normals[g, 2] = nx, ny, nz
+        offsets[g] = -_dot(nx, ny, nz, x0, y0, z0)
+        g += 1
+    return normals[:g], offsets[:g]
+
+
+@numba.njit(**_NUMPY_JIT)
+def coherent_inliers(inliers: np.ndarray, normal: np.ndarray, normals: np.ndarray, min_cos: float) -> int:
+    """How many of the points ``inliers`` (m,) bool have a local normal (``normals`` (3, m), NaN: unknown) within
+    ``min_cos`` of the plane's ``normal`` (3,), or an unknown one."""
+    count = 0
+    for p in range(inliers.shape[0]):
+        if inliers[p] and not abs(normal[0] * normals[0, p] + normal[1] * normals[1, p]
+                                   + normal[2] * normals[2, p]) < min_cos:
+            count += 1
+    return count
+
+
+@numba.njit(**_NUMPY_JIT)
+def largest_magnitude(values: np.ndarray) -> float:
+    """The largest |v| of the ``values`` (n,) that are not NaN (inf counts); NaN when none is."""
+    largest = np.nan
+    for i in range(values.shape[0]):
+        v = abs(values[i])
+        if v > largest or (np.isnan(largest) and not np.isnan(v)):
+            largest = v
+    return largest
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -1187,12 +1602,13 @@ def warm() -> Warmup:
     spread_grid(pts, np.ones(4, np.bool_), np.zeros((1, 1), np.int64), np.zeros(2, np.int64), np.zeros(2, np.int64),
                 np.zeros((1, 4)), np.ones(1), EIGHT)
     rows, bounds = group_by_label(labels, 2)
+    group_by_label(labels.astype(np.int64), 2)  # a search's regions
     centroids_and_extremes(pts, rows, bounds, np.zeros((2, 8, 3)))
     flags = np.ones(4, np.bool_)
     index = np.arange(4, dtype=np.int64)
     grid_components(index, index, flags, 2, np.zeros((1, 3), np.int64), flags)
-    grid_region(index, index, flags, 2, np.zeros((1, 3), np.int64), pts, np.ones(3), 0.5, index, flags, flags, flags,
-                np.ones(3))
+    grid_region(index, index, flags, 2, np.zeros((1, 3), np.int64), pts, np.ones(3), 0.5, index, index, flags, flags,
+                flags, np.ones(3))
     grid_compete(np.zeros((2, 4)), np.zeros(4, np.int64), index, index, 2, EIGHT, 2)
     graph_components(4, np.zeros((1, 2), np.int64), flags)
     graph_region(np.zeros((1, 2), np.int64), pts, np.ones(3), 0.5, flags, flags, flags, np.ones(3))
@@ -1209,6 +1625,20 @@ def warm() -> Warmup:
                np.empty(80, np.uint8), np.empty(48, np.uint8), False)
     plane_patches(pts, np.eye(3)[:, :2].copy(), 2, 1)
     fold_fit(np.arange(6.0), np.ones(6), np.ones(6), 2, 2, 0.5)
+    grid_sample(pts, flags, 2, 1, np.zeros((1, 2), np.int64))
+    image, valid = np.zeros((2, 2, 3)), np.ones((2, 2), np.bool_)
+    ranges, right, right_reach, down, down_reach, _ = grid_edges(image, valid)
+    grid_usable(valid, ranges, right, right_reach, down, down_reach, 1.0, 4.0)
+    grid_normals(image, valid, 1, 1, 0.0)
+    grid_chords(image, valid, ranges, True, 1)
+    cols, plane, edges = np.zeros((3, 4)), np.zeros(4), np.zeros(1, np.int64)
+    merge_test(cols, index, index, 0, 1, plane, np.zeros((2, 4)), np.ones(1), edges, edges, edges, edges, index, pts,
+               0.5, 0.95, 1.5)
+    compete_distances(cols, np.zeros((1, 4)), np.ones(1), np.zeros(3), 0.25)
+    band_counts(plane_bands(cols, np.ones((2, 3)), np.zeros(2))[0], np.ones(1), 2.0)
+    triple_planes(cols, np.zeros((2, 3), np.int64), 1e-6)
+    coherent_inliers(np.ones(4, np.bool_), np.ones(3), cols, 0.5)
+    largest_magnitude(pts.reshape(-1))
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
@@ -1216,4 +1646,6 @@ def warm() -> Warmup:
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
             grid_region, grid_compete, graph_components, graph_region, coordinate_bounds,
             voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, widen_xyz,
-            valid_rows, frame_pass, plane_patches, fold_fit)
+            valid_rows, frame_pass, plane_patches, fold_fit, grid_sample, grid_edges, grid_usable,
+            grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
+            triple_planes, coherent_inliers, largest_magnitude)

@@ -140,13 +140,26 @@ SPREAD_PERCENTILE = 90
 SPREAD_ROWS = 1024
 
 
+def _largest_magnitude(flat: np.ndarray) -> float:
+    """The largest |coordinate| of ``flat`` (n,) that is not NaN (inf counts), NaN when none: one compiled pass over
+    float64 (:func:`.kernels.largest_magnitude`), numpy's fmax and fmin otherwise (and as the reference)."""
+    if flat.dtype == np.float64:
+        return float(kernels.largest_magnitude(flat))
+    return largest_magnitude_numpy(flat)
+
+
+def largest_magnitude_numpy(flat: np.ndarray) -> float:
+    """:func:`_largest_magnitude` by numpy."""
+    return max(np.fmax.reduce(flat), -np.fmin.reduce(flat))
+
+
 def check_magnitude(points: np.ndarray) -> None:
     """ValueError when a finite coordinate of ``points`` (N, 3) exceeds MAX_COORDINATE in magnitude
     (NaN and inf rows are ignored: they are no points), or when the points spread over more than MAX_SPREAD."""
     flat = points.reshape(-1)
     if len(flat) == 0:
         return
-    largest = max(np.fmax.reduce(flat), -np.fmin.reduce(flat))  # NaN when every coordinate is NaN
+    largest = _largest_magnitude(flat)  # NaN when every coordinate is NaN
     if largest > MAX_COORDINATE:
         big = np.abs(flat[np.abs(flat) > MAX_COORDINATE])
         worst = float(big[np.isfinite(big)].max(initial=0.0))

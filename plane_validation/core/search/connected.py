@@ -10,11 +10,13 @@ from .checks import finite_rows, resolve_min_inliers
 from .fit import allows_normal, canonical, fit_columns, plane_distances, refit_regions, tolerance_at
 from .graph import SearchGraph, checked_search_graph, spread_nearest
 from .grid import spread_grid
-from .neighbours import Neighbours
+from .neighbours import NORMAL_MIN_COS, Neighbours
 from .sequential import sequential_search
 from .types import Allows, Plane, Segmentation, Tolerance
 
 __all__ = ['detect_regions', 'MERGE_KEEP', 'MERGE_SPREAD', 'GRAZING_DEG']
+
+_NO_NORMALS = np.empty((0, 3))
 
 
 def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
@@ -24,8 +26,7 @@ def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_i
                    allows: Allows = None) -> Segmentation:
     """detect_planes with connected regions (see its docstring)."""
     finite = finite_rows(pts)
-    valid_idx = np.flatnonzero(finite)
-    n_valid = len(valid_idx)
+    n_valid = int(np.count_nonzero(finite))
     min_count = resolve_min_inliers(min_inliers, n_valid)
     graph = checked_search_graph(graph, pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
     search_idx, step, center, neighbours = graph.search_idx, graph.step, graph.center, graph.neighbours
@@ -57,9 +58,11 @@ def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_i
         near = np.abs(np.einsum('ji,ij->j', normals[own], search) + offsets[own]) <= search_tolerance
         labels[search_idx] = np.where((region >= 0) & near, region, -1)  # within t of the refitted plane
     else:
+        valid_idx = np.flatnonzero(finite)
         labels[valid_idx] = spread_nearest(pts[valid_idx] - center, graph.nearest, region, found,
                                            tolerance_at(tolerance, valid_idx))
-    counts = np.bincount(labels[labels >= 0], minlength=len(found))
+    rows, bounds = kernels.group_by_label(labels, len(found))
+    counts = np.diff(bounds)
     small = np.flatnonzero(counts < min_count)
     if len(small):
         keep = np.flatnonzero(counts >= min_count)
@@ -69,7 +72,7 @@ def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_i
         found = [found[j] for j in keep]
         reason += (f'; dropped {len(small)} region(s) left with fewer than min_inliers={min_count} points '
                    'once every point was labelled')
-    rows, bounds = kernels.group_by_label(labels, len(found))
+        rows, bounds = kernels.group_by_label(labels, len(found))
     planes = []
     for j, (normal, offset) in enumerate(found):
         members = rows[bounds[j]:bounds[j + 1]]
@@ -95,7 +98,63 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
                     neighbours: Neighbours, allows: Allows = None) -> tuple[np.ndarray, list]:
     """Merge touching regions of one surface: a pair of regions joined by a neighbour pair whose
     joint least-squares plane has MERGE_KEEP of their points (3, m) within ``tolerance`` becomes one
-    region (the earlier one's number), with that plane. Regions renumbered in order."""
+    region (the earlier one's number), with that plane. Regions renumbered in order. The fits are numpy's; each
+    pair's tests run compiled (:func:`.kernels.merge_test`; :func:`_merge_coplanar_numpy` is the reference)."""
+    src, dst = neighbours.touching()
+    a, b = region[src], region[dst]
+    touch = (a >= 0) & (b >= 0) & (a != b)
+    if not touch.any():
+        return region, found
+    src, dst, a, b = src[touch], dst[touch], a[touch], b[touch]
+    k = len(found)
+    pairs = np.unique(np.minimum(a, b) * k + np.maximum(a, b))  # each touching pair of regions once, sorted
+    root = np.arange(k)  # the region each region is now part of (a, b: the regions at src, dst before any merge)
+    found = list(found)
+    normals = _NO_NORMALS if neighbours.normals is None else kernels.c_array(neighbours.normals, np.float64)
+    tol = kernels.c_array(np.reshape(tolerance, -1), np.float64)  # (1,) or (m,)
+    src, dst = kernels.c_array(src, np.int64), kernels.c_array(dst, np.int64)
+    a, b = kernels.c_array(a, np.int64), kernels.c_array(b, np.int64)
+    cols = kernels.c_array(search, np.float64)
+    # the points of each region, ascending, kept up to date as regions merge
+    rows, bounds = kernels.group_by_label(kernels.c_array(region, np.int64), k)
+    points_of = [rows[bounds[r]:bounds[r + 1]] for r in range(k)]
+    for i, j in zip(*np.divmod(pairs, k)):
+        i, j = root[i], root[j]
+        if i == j:
+            continue
+        i, j = min(i, j), max(i, j)
+        members = np.sort(np.concatenate([points_of[i], points_of[j]]), kind='stable')  # two sorted runs: merged
+        normal, offset = fit_columns(search[:, members].copy())  # C-ordered, as BLAS's rounding depends on the layout
+        if not allows_normal(allows, normal):
+            continue  # their joint plane leaves the orientation constraint
+        own = np.array([np.append(*found[i]), np.append(*found[j])])
+        if not kernels.merge_test(cols, members, region, int(i), int(j), np.append(normal, offset), own, tol, src, dst,
+                                  a, b, root, normals, NORMAL_MIN_COS, MERGE_KEEP, MERGE_SPREAD):
+            continue
+        region[points_of[j]] = i
+        points_of[i], points_of[j] = members, members[:0]
+        root[root == j] = i
+        found[i] = (normal, offset)
+    return _renumbered(region, found, root)
+
+
+def _renumbered(region: np.ndarray, found: list, root: np.ndarray) -> tuple[np.ndarray, list]:
+    """The regions (m,) and planes after merges (``root`` (k,): the region each is now part of), numbered 0.. in
+    order."""
+    keep = np.unique(root)
+    if len(keep) == len(found):
+        return region, found
+    renumber = np.full(len(found) + 1, -1, dtype=np.int64)
+    renumber[keep] = np.arange(len(keep))
+    return renumber[region], [found[j] for j in keep]
+
+
+def _merge_coplanar_numpy(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance,
+                          neighbours: Neighbours, allows: Allows = None) -> tuple[np.ndarray, list]:
+    """Merge touching regions of one surface: a pair of regions joined by a neighbour pair whose
+    joint least-squares plane has MERGE_KEEP of their points (3, m) within ``tolerance`` becomes one
+    region (the earlier one's number), with that plane. Regions renumbered in order. The reference of
+    :func:`_merge_coplanar` (its tests in numpy)."""
     src, dst = neighbours.touching()
     a, b = region[src], region[dst]
     touch = (a >= 0) & (b >= 0) & (a != b)
@@ -156,7 +215,19 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
     an earlier plane took along an edge goes back to the surface it lies on, and unassigned points
     next to a region join it when they fit its plane; repeated COMPETE_ROUNDS times. Only points next
     to another region can change, and after the first round only the neighbours of points that
-    changed: only they are looked at (:meth:`.neighbours.Neighbours.settle`)."""
+    changed: only they are looked at (:meth:`.neighbours.Neighbours.settle`). The distances come from one compiled
+    pass (:func:`.kernels.compete_distances`; :func:`_compete_distances_numpy` is its reference)."""
+    planes = np.array([np.append(normal, offset) for normal, offset in found], dtype=np.float64).reshape(-1, 4)
+    tol = kernels.c_array(np.reshape(tolerance, -1), np.float64)  # (1,) or (m,)
+    dist = kernels.compete_distances(kernels.c_array(search, np.float64), planes, tol,
+                                     kernels.c_array(viewpoint, np.float64), float(np.cos(np.radians(GRAZING_DEG))))
+    return neighbours.settle(dist, np.where(region >= 0, region, len(found)))
+
+
+def _compete_distances_numpy(search: np.ndarray, found: list, tolerance: Tolerance, viewpoint: np.ndarray
+                             ) -> np.ndarray:
+    """:func:`.kernels.compete_distances` in numpy: (k + 1, m) each point's distance to each region's plane along
+    its ray, inf beyond ``tolerance`` and in row k (no region)."""
     k, m = len(found), search.shape[1]
     normals = np.array([n for n, _ in found])
     dist = np.empty((k + 1, m))
@@ -167,4 +238,4 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
     with np.errstate(invalid='ignore', divide='ignore'):  # a point at the viewpoint: NaN, never nearer
         rays /= np.linalg.norm(rays, axis=0)
         dist[:k] /= np.maximum(np.abs(normals @ rays), np.cos(np.radians(GRAZING_DEG)))
-    return neighbours.settle(dist, np.where(region >= 0, region, k))
+    return dist

@@ -2,6 +2,8 @@
 afterwards from the regions found on it."""
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from .. import kernels
@@ -9,7 +11,8 @@ from .fit import tolerance_at
 from .neighbours_grid import EIGHT, GridNeighbours
 from .types import Tolerance
 
-__all__ = ['grid_step', 'grid_pixels', 'grid_image', 'spread_grid', 'spread_grid_numpy', 'MIN_GRID_SIDE']
+__all__ = ['grid_step', 'grid_pixels', 'grid_image', 'grid_image_numpy', 'spread_grid', 'spread_grid_numpy',
+           'MIN_GRID_SIDE']
 
 
 #: An image whose (sub-)grid would have fewer rows or columns than this is searched as an unorganized
@@ -32,31 +35,49 @@ def grid_pixels(finite: np.ndarray, shape: tuple[int, int], step: int) -> np.nda
     step // 2) when valid (``finite`` (H * W,) bool), else its valid pixel nearest to the centre;
     -1 for a block without one. A depth camera's scattered lost pixels then leave no holes in the
     sub-grid, which would cut its 4-connected regions apart (from about 40 % lost on)."""
-    h, w = shape
+    return grid_image(np.empty((0, 3)), finite, shape, step)[1]
+
+
+@functools.lru_cache(maxsize=16)
+def _block_offsets(step: int) -> np.ndarray:
+    """(step * step, 2) the (row, column) offsets within a block in the order :func:`grid_pixels` tries them: nearest
+    to the centre first (ties by offset). Read-only."""
     c = step // 2
-    gh, gw = len(range(c, h, step)), len(range(c, w, step))
-    valid = finite.reshape(h, w)
-    out = np.full(gh * gw, -1, dtype=np.int64)
-    block_r, block_c = np.divmod(np.arange(gh * gw), gw)
-    offsets = sorted(((dr, dc) for dr in range(step) for dc in range(step)),
-                     key=lambda o: ((o[0] - c) ** 2 + (o[1] - c) ** 2, o))
-    missing = np.arange(gh * gw)
-    for dr, dc in offsets:  # the centre first, then ever farther pixels, for the blocks still without one
-        r, col = block_r[missing] * step + dr, block_c[missing] * step + dc
-        ok = (r < h) & (col < w)
-        ok[ok] = valid[r[ok], col[ok]]
-        out[missing[ok]] = r[ok] * w + col[ok]
-        missing = missing[~ok]
-        if len(missing) == 0:
-            break
-    return out.reshape(gh, gw)
+    offsets = np.array(sorted(((dr, dc) for dr in range(step) for dc in range(step)),
+                              key=lambda o: ((o[0] - c) ** 2 + (o[1] - c) ** 2, o)), dtype=np.int64)
+    offsets.flags.writeable = False
+    return offsets
 
 
 def grid_image(points: np.ndarray, finite: np.ndarray, shape: tuple[int, int], step: int
                ) -> tuple[np.ndarray, np.ndarray]:
     """The sub-grid image of ``points`` (H * W, 3): (its (gh, gw, 3) points, NaN for blocks without a
-    valid pixel, and their :func:`grid_pixels`)."""
-    pixels = grid_pixels(finite, shape, step)
+    valid pixel, and their :func:`grid_pixels`). One compiled pass (:func:`.kernels.grid_sample`;
+    :func:`grid_image_numpy` is its reference)."""
+    image, pixels = kernels.grid_sample(kernels.c_array(points, np.float64), kernels.c_array(finite, bool), shape[1],
+                                        step, kernels.c_array(_block_offsets(step), np.int64))
+    return image.astype(points.dtype, copy=False), pixels
+
+
+def grid_image_numpy(points: np.ndarray, finite: np.ndarray, shape: tuple[int, int], step: int
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`grid_image` in numpy: the reference its kernel is tested against."""
+    h, w = shape
+    c = step // 2
+    gh, gw = len(range(c, h, step)), len(range(c, w, step))
+    valid = finite.reshape(h, w)
+    pixels = np.full(gh * gw, -1, dtype=np.int64)
+    block_r, block_c = np.divmod(np.arange(gh * gw), gw)
+    missing = np.arange(gh * gw)
+    for dr, dc in _block_offsets(step):  # the centre first, then ever farther pixels, for the blocks still without one
+        r, col = block_r[missing] * step + dr, block_c[missing] * step + dc
+        ok = (r < h) & (col < w)
+        ok[ok] = valid[r[ok], col[ok]]
+        pixels[missing[ok]] = r[ok] * w + col[ok]
+        missing = missing[~ok]
+        if len(missing) == 0:
+            break
+    pixels = pixels.reshape(gh, gw)
     image = np.full(pixels.shape + (3,), np.nan, dtype=points.dtype)
     image[pixels >= 0] = points[pixels[pixels >= 0]]
     return image, pixels

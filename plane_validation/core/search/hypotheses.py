@@ -7,7 +7,8 @@ import functools
 
 import numpy as np
 
-from .fit import MIN_SINE, allows_normal, fit_columns, plane_distances, signed_distances, tolerance_at, within_plane
+from .. import kernels
+from .fit import MIN_SINE, allows_normal, fit_columns, plane_distances, tolerance_at, within_plane
 from .neighbours import NORMAL_MIN_COS
 from .types import Allows, Keep, Sampler, Tolerance
 
@@ -75,13 +76,23 @@ def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 def _hypotheses(cols: np.ndarray, rng: np.random.Generator, count: int,
                 sampler: Sampler | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Planes through ``count`` random triples of the columns of ``cols`` (3, n), LOCAL_SHARE of
-    them from ``sampler`` when given; degenerate triples dropped. Returns (normals (h, 3), offsets (h,))."""
+    them from ``sampler`` when given; degenerate triples dropped. Returns (normals (h, 3), offsets (h,)). The planes
+    come from one compiled pass (:func:`.kernels.triple_planes`; :func:`_triple_planes_numpy` is its reference)."""
+    return kernels.triple_planes(kernels.c_array(cols, np.float64), _triples(cols, rng, count, sampler), MIN_SINE)
+
+
+def _triples(cols: np.ndarray, rng: np.random.Generator, count: int, sampler: Sampler | None) -> np.ndarray:
+    """(h, 3) int64 column indices of ``count`` random triples of ``cols`` (3, n), LOCAL_SHARE of them from
+    ``sampler`` (those with a point it did not find, -1, dropped)."""
     if sampler is None:
-        idx = rng.integers(0, cols.shape[1], size=(count, 3))
-    else:
-        local = int(round(LOCAL_SHARE * count))
-        idx = np.concatenate([rng.integers(0, cols.shape[1], size=(count - local, 3)), sampler(rng, local)])
-        idx = idx[(idx >= 0).all(axis=1)]
+        return rng.integers(0, cols.shape[1], size=(count, 3))
+    local = int(round(LOCAL_SHARE * count))
+    idx = np.concatenate([rng.integers(0, cols.shape[1], size=(count - local, 3)), sampler(rng, local)])
+    return idx[(idx >= 0).all(axis=1)]
+
+
+def _triple_planes_numpy(cols: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`.kernels.triple_planes` in numpy: the planes through the triples ``idx`` (h, 3) of ``cols`` (3, n)."""
     p0, p1, p2 = cols[:, idx[:, 0]].T, cols[:, idx[:, 1]].T, cols[:, idx[:, 2]].T
     u, v = p1 - p0, p2 - p0
     normals = _cross(u, v)
@@ -143,6 +154,9 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
     agrees with theirs. ``sampler``: draws triples of nearby points for part of the hypotheses. ``allows``: the
     normals a plane may have; other hypotheses are dropped and a refit that leaves them is not taken."""
     m = cols.shape[1]
+    # C-ordered for the kernels (a copy of a sample's columns at most once per plane); the scoring keeps ``cols`` as
+    # given: BLAS rounds its products by the layout
+    ordered = kernels.c_array(cols, np.float64)
     # the scored subset in random order (when it is all the points, a fixed shuffle of them), so
     # that its first PRESCORE points are a random sample of it
     pick = _shuffled(m) if m <= SUBSET else rng.choice(m, SUBSET, replace=False)
@@ -180,7 +194,7 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
     needed = float(max_iterations)
     while iterations < min(needed, max_iterations):
         batch = int(min(BATCH, max_iterations - iterations))
-        normals, offsets = _hypotheses(cols, rng, batch, sampler)
+        normals, offsets = _hypotheses(ordered, rng, batch, sampler)
         iterations += batch
         if allows is not None:
             ok = allows(normals)
@@ -212,9 +226,9 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
     # its inliers hug (a plane tilted across a small face and its neighbours' edges loses).
     with np.errstate(over='ignore', invalid='ignore'):  # a far-out row (a driver's FLT_MAX): inf, no inlier
         if region_of is not None:
-            signed = signed_distances(cols, best_normals, best_offsets)
-            return best_region(cols, tolerance, best_normals, best_offsets, np.abs(signed), signed > 0, region_of,
-                               point_normals, allows=allows)
+            dist, above = kernels.plane_bands(ordered, best_normals, best_offsets)
+            return best_region(ordered, tolerance, best_normals, best_offsets, dist, above, region_of, point_normals,
+                               allows=allows)
         dist = plane_distances(cols, best_normals, best_offsets)
     np.minimum(dist, tolerance, out=dist)
     winner = int(np.argmin(np.einsum('ij,ij->i', dist, dist)))
@@ -238,6 +252,11 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
     return normal, offset, inliers, inliers
 
 
+def _tolerances(tolerance: Tolerance) -> np.ndarray:
+    """A tolerance as the kernels take it: (1,) or (m,) float64, meters."""
+    return kernels.c_array(np.reshape(tolerance, -1), np.float64)
+
+
 def best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, offsets: np.ndarray, dist: np.ndarray,
                 above: np.ndarray, keep: Keep, point_normals: np.ndarray | None = None, *, allows: Allows = None
                 ) -> tuple[np.ndarray, float, np.ndarray]:
@@ -246,17 +265,13 @@ def best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, off
     largest connected one, see :data:`Keep` and SUPPORT) is largest (ties: MSAC); then refit on the region
     and take the region again, at most 3 times. ``point_normals`` (3, m), NaN where unknown: a region keeps
     only points whose normal agrees. Returns (normal, offset, region (m,), taken (m,): see :data:`Keep`)."""
-    inliers = dist <= tolerance
-    support = dist <= SUPPORT * tolerance
-    counts = np.count_nonzero(inliers, axis=1)
-    np.minimum(dist, tolerance, out=dist)
-    cost = np.einsum('ij,ij->i', dist, dist)
+    inliers, support, counts, cost = kernels.band_counts(dist, _tolerances(tolerance), SUPPORT)
     winner, region, taken, size = -1, None, None, -1
     for h in np.lexsort((cost, -counts)):  # a hypothesis cannot keep more than its inliers: skip
         if counts[h] <= size:
             break
         if size > 0 and point_normals is not None:  # nor more than its coherent inliers: skip without labelling
-            bound = np.count_nonzero(inliers[h] & ~(np.abs(normals[h] @ point_normals) < _COHERENT_BOUND))
+            bound = kernels.coherent_inliers(inliers[h], normals[h], point_normals, _COHERENT_BOUND)
             if bound < size or (bound == size and cost[h] >= cost[winner]):
                 continue
         candidate, took = keep(inliers[h], normals[h], support[h], above[h])
@@ -264,6 +279,7 @@ def best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, off
         if found > size or (found == size and cost[h] < cost[winner]):
             winner, region, taken, size = int(h), candidate, took, found
     normal, offset = normals[winner], offsets[winner]
+    cols, tolerances = kernels.c_array(cols, np.float64), _tolerances(tolerance)
     for _ in range(3):
         count = int(np.count_nonzero(region))
         if count < 3:
@@ -271,9 +287,9 @@ def best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, off
         new_normal, new_offset = fit_columns(np.compress(region, cols, axis=1))
         if not allows_normal(allows, new_normal):
             break
-        signed = signed_distances(cols, new_normal[None, :], np.array([new_offset]))[0]
-        near = np.abs(signed)
-        new_region, new_taken = keep(near <= tolerance, new_normal, near <= SUPPORT * tolerance, signed > 0)
+        near, above = kernels.plane_bands(cols, new_normal[None, :], np.array([new_offset]))
+        inliers, support = kernels.band_counts(near, tolerances, SUPPORT)[:2]
+        new_region, new_taken = keep(inliers[0], new_normal, support[0], above[0])
         if np.count_nonzero(new_region) < count:
             break
         normal, offset = new_normal, new_offset

@@ -8,6 +8,7 @@ from the regions around them). Components come from ``scipy.ndimage.label``.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,8 +25,8 @@ from .neighbours import (
     joined_components,
 )
 
-__all__ = ['GridNeighbours', 'grid_neighbours', 'grid_region', 'grid_region_numpy', 'EIGHT', 'JUMP', 'HOLE_BRIDGE',
-           'LIDAR_BEND']
+__all__ = ['GridNeighbours', 'grid_neighbours', 'grid_neighbours_numpy', 'grid_region', 'grid_region_numpy',
+           'rest_positions', 'EIGHT', 'JUMP', 'HOLE_BRIDGE', 'LIDAR_BEND']
 
 #: A gap between grid neighbours this many times the gaps next to it along the image line (and
 #: this many typical pixel spacings at its range) is a depth jump.
@@ -167,29 +168,45 @@ class _GridRemaining(Remaining):
     neighbours: GridNeighbours
     rest_idx: np.ndarray
 
+    @functools.cached_property
+    def position(self) -> np.ndarray:
+        """(n,) each point's place in ``rest_idx``, -1 for none (shared by the calls for one plane)."""
+        return rest_positions(self.neighbours.n, self.rest_idx)
+
     def keep(self, mask: np.ndarray, normal: np.ndarray, support: np.ndarray, above: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray]:
         rule = grid_region if self.neighbours.normals is not None else grid_region_numpy
-        return rule(self.neighbours, self.rest_idx, mask, normal, support, above)
+        return rule(self.neighbours, self.rest_idx, mask, normal, support, above, self.position)
 
     def without(self, left: np.ndarray) -> Remaining:
         return _GridRemaining(self.neighbours, self.rest_idx[left])
 
 
+def rest_positions(n: int, rest_idx: np.ndarray) -> np.ndarray:
+    """(n,) int64: the place of each of n points in ``rest_idx`` (ascending), -1 for the others."""
+    position = np.full(n, -1, dtype=np.int64)
+    position[rest_idx] = np.arange(len(rest_idx))
+    return position
+
+
 def grid_region(neighbours: GridNeighbours, rest_idx: np.ndarray, mask: np.ndarray, normal: np.ndarray,
-                support: np.ndarray, above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                support: np.ndarray, above: np.ndarray, position: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
     """(kept, taken) (r,) of the points ``rest_idx`` (r,) of a sub-grid for a plane of ``normal`` with inliers
-    ``mask`` (r,), support band ``support`` (r,) and side ``above`` (r,): one compiled call
-    (:func:`.kernels.grid_region`; :func:`grid_region_numpy` is its reference)."""
+    ``mask`` (r,), support band ``support`` (r,) and side ``above`` (r,) (``position``: :func:`rest_positions`, when
+    already known): one compiled call (:func:`.kernels.grid_region`; :func:`grid_region_numpy` is its reference)."""
     bridges = _NO_BRIDGES if neighbours.bridges is None else kernels.c_array(neighbours.bridges, np.int64)
+    if position is None:
+        position = rest_positions(neighbours.n, rest_idx)
     return kernels.grid_region(neighbours.pixel, neighbours.node, neighbours.usable, neighbours.shape[1], bridges,
                                neighbours.normals, kernels.c_array(normal, np.float64), NORMAL_MIN_COS, rest_idx,
-                               mask, support, above, REGION_RULES)
+                               position, mask, support, above, REGION_RULES)
 
 
 def grid_region_numpy(neighbours: GridNeighbours, rest_idx: np.ndarray, mask: np.ndarray, normal: np.ndarray,
-                      support: np.ndarray, above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`grid_region` in numpy (:meth:`.neighbours.Neighbours.region`)."""
+                      support: np.ndarray, above: np.ndarray, position: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`grid_region` in numpy (:meth:`.neighbours.Neighbours.region`; ``position`` unused)."""
     n = neighbours.n
     wide = np.zeros(n, bool)
     wide[rest_idx[support]] = True
@@ -235,8 +252,23 @@ def _jumps(gap: np.ndarray, reach: np.ndarray, axis: int, typical: float) -> np.
 
 def grid_neighbours(image_points: np.ndarray, valid: np.ndarray) -> GridNeighbours:
     """Neighbours of the valid pixels of an (h, w, 3) image of points (meters; the sensor at the
-    origin). Points are numbered in row-major order of the valid pixels ``valid`` (h, w)."""
-    h, w = valid.shape
+    origin). Points are numbered in row-major order of the valid pixels ``valid`` (h, w). The passes over the
+    image are compiled (:func:`.kernels.grid_edges`, :func:`.kernels.grid_usable`, :func:`.kernels.grid_chords`,
+    :func:`.kernels.grid_normals`); :func:`grid_neighbours_numpy` is their reference."""
+    points = kernels.c_array(image_points, np.float64)
+    flags = kernels.c_array(valid, bool)
+    ranges, right, right_reach, down, down_reach, angular = kernels.grid_edges(points, flags)
+    typical = float(np.median(angular)) if len(angular) else 0.0  # pixel spacing per meter of range
+    usable = kernels.grid_usable(flags, ranges, right, right_reach, down, down_reach, typical, JUMP)
+    pitch = [kernels.grid_chords(points, flags, ranges, axis == 1, REACH_SAMPLE) for axis in (1, 0)]
+    reach = _reach_of([float(np.median(chord)) if len(chord) else np.nan for chord in pitch])
+    lidar = reach != (NORMAL_REACH, NORMAL_REACH)  # pixels coarser one way: a lidar's rings
+    normals = kernels.grid_normals(points, flags, reach[0], reach[1], LIDAR_BEND if lidar else 0.0)
+    return _assembled(image_points, valid, ranges, typical, usable, lidar, normals)
+
+
+def grid_neighbours_numpy(image_points: np.ndarray, valid: np.ndarray) -> GridNeighbours:
+    """:func:`grid_neighbours` in numpy: the reference its kernels are tested against."""
     with np.errstate(invalid='ignore'):
         ranges = np.sqrt(np.einsum('...i,...i->...', image_points, image_points))  # from the sensor
     right, right_reach = _gaps(image_points, valid, ranges, 1)
@@ -256,17 +288,25 @@ def grid_neighbours(image_points: np.ndarray, valid: np.ndarray) -> GridNeighbou
     usable[:, 1:] &= ~(jump_r & far_right)
     usable[:-1] &= ~(jump_d & ~far_down)
     usable[1:] &= ~(jump_d & far_down)
-    pixel = np.flatnonzero(valid.reshape(-1))
     reach = _reach(image_points, valid, ranges)
-    lidar = reach != (NORMAL_REACH, NORMAL_REACH)  # pixels coarser one way: a lidar's rings
-    normals = _grid_normals(image_points, valid, reach, LIDAR_BEND if lidar else None).reshape(-1, 3)[pixel]
+    lidar = reach != (NORMAL_REACH, NORMAL_REACH)
+    normals = _grid_normals(image_points, valid, reach, LIDAR_BEND if lidar else None)
+    return _assembled(image_points, valid, ranges, typical, usable, lidar, normals)
+
+
+def _assembled(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, typical: float, usable: np.ndarray,
+               lidar: bool, normals: np.ndarray) -> GridNeighbours:
+    """The :class:`GridNeighbours` of an image's valid pixels (``valid`` (h, w)) from its ``ranges`` (h, w), typical
+    pixel spacing per meter, ``usable`` (h, w) pixels and grid ``normals`` (h, w, 3); ``lidar``: its pixels are
+    coarser one way (bridges over missing returns)."""
+    h, w = valid.shape
+    pixel = np.flatnonzero(valid.reshape(-1))
     node = np.full(h * w, -1, dtype=np.int64)
     node[pixel] = np.arange(len(pixel))
     wraps = _wraps(image_points, valid, ranges, typical)
     return GridNeighbours(n=len(pixel), shape=(h, w), pixel=pixel, node=node, usable=usable.reshape(-1),
-                      normals=normals, wraps=wraps,
-                      bridges=_bridges(image_points, valid, ranges, typical, wraps) if lidar else None)
-
+                          normals=normals.reshape(-1, 3)[pixel], wraps=wraps,
+                          bridges=_bridges(image_points, valid, ranges, typical, wraps) if lidar else None)
 
 
 def _bridges(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, typical: float, wraps: bool
@@ -350,6 +390,11 @@ def _reach(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray) -> t
         both = (ok[:, 1:] & ok[:, :-1]) if axis == 1 else (ok[1:] & ok[:-1])
         chord = np.linalg.norm(a[both] - b[both], axis=-1)
         pitch.append(float(np.median(chord)) if len(chord) else np.nan)
+    return _reach_of(pitch)
+
+
+def _reach_of(pitch: list[float]) -> tuple[int, int]:
+    """:func:`_reach` from the image's pitch (across, down): the median angle between neighbouring rays."""
     if not (np.isfinite(pitch).all() and min(pitch) > 0):
         return NORMAL_REACH, NORMAL_REACH
     angle = max(NORMAL_REACH * min(pitch), max(pitch))  # the same angle both ways, at least one coarse pixel

@@ -26,6 +26,8 @@ def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, m
         tolerance = tolerance_at(tolerance, rest_idx)
     region = None if neighbours is None else np.full(n, -1, dtype=np.int64)
     remaining = None if neighbours is None else neighbours.remaining(rest_idx)
+    rest_normals = None if neighbours is None or neighbours.normals is None else \
+        np.ascontiguousarray(neighbours.normals[rest_idx].T)  # (3, r), kept in step with rest
     found: list[tuple[np.ndarray, float]] = []
     reason = f'reached max_planes={max_planes}'
     while len(found) < max_planes:
@@ -34,8 +36,6 @@ def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, m
             reason = why if rest.shape[1] < n or n_total < 3 else f'no plane: {why}'
             break
         region_of = None if remaining is None else remaining.keep
-        rest_normals = None if neighbours is None or neighbours.normals is None else \
-            np.ascontiguousarray(neighbours.normals[rest_idx].T)
         sampler = None if neighbours is None else neighbours.sampler(rest_idx)
         best = best_plane(rest, tolerance, probability, max_iterations, rng, region_of, rest_normals, sampler,
                           allows)
@@ -56,5 +56,7 @@ def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, m
             remaining = remaining.without(left)
         found.append((normal, offset))
         rest = np.compress(left, rest, axis=1)
+        if rest_normals is not None:
+            rest_normals = np.compress(left, rest_normals, axis=1)
         tolerance = tolerance_at(tolerance, left)
     return found, reason, region, len(found) == max_planes > 0 and rest.shape[1] >= min_count
