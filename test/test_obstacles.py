@@ -46,9 +46,9 @@ def test_the_pipeline_finds_the_obstacles_of_a_room_in_a_z_up_frame_and_removes_
 
 
 def test_the_obstacle_cloud_packed_in_one_pass_matches_the_generic_writer():
-    """ros/messages.obstacle_cloud writes the records in the frame pass (kernels.frame_pass); the generic writer (create_cloud, used
-    for float64 coordinates) is its reference, for an organized frame (NaN off the obstacles, an inf row included)
-    and for the same points unorganized."""
+    """ros/messages.obstacle_cloud writes the records in the frame pass (kernels.frame_pass); the generic writer
+    (create_cloud, used for float64 coordinates) is its reference, for an organized frame (NaN off the obstacles, an
+    inf row included) and for the same points unorganized."""
     import pytest
     sensor_msgs = pytest.importorskip('sensor_msgs.msg')
     import std_msgs.msg
