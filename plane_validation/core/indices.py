@@ -99,8 +99,9 @@ class _Clusters:
         return _Clusters(self.points[rows], codes, starts, sizes, self.ids, self.order[rows])
 
 
-def _check(points: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Validate shapes: points (N, 3) real, labels (N,) integer-valued."""
+def _check(points: np.ndarray, labels: np.ndarray, convert: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Validate shapes: points (N, 3) real, labels (N,) integer-valued. Returns them as float64 and
+    int64 (``convert`` False: signed integer labels as they are)."""
     pts = np.asarray(points)
     if pts.dtype.kind not in 'fiu' or pts.ndim != 2 or pts.shape[1] != 3:  # as detect_planes takes them
         raise ValueError(f'points must be a real array of shape (N, 3), got {pts.dtype} {pts.shape}')
@@ -116,7 +117,7 @@ def _check(points: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarr
         raise ValueError(f'labels must be integers, got dtype {lab.dtype}')
     if lab.dtype.kind in 'uf' and len(lab) and lab.max() > np.iinfo(np.int64).max:  # would wrap to negative
         raise ValueError(f'labels must fit in 64-bit signed integers, got {lab.max()}')
-    return pts.astype(np.float64, copy=False), lab.astype(np.int64)
+    return pts.astype(np.float64, copy=False), lab if lab.dtype.kind == 'i' and not convert else lab.astype(np.int64)
 
 
 @dataclass(frozen=True, eq=False)
@@ -154,14 +155,16 @@ def _code(pts: np.ndarray, lab: np.ndarray) -> _Coded:
 
 @dataclass(frozen=True, eq=False)
 class _Census:
-    """Checked input and its clusters, counted in streaming passes without an (N,) array: pts (N, 3)
-    C-ordered float64; lab (N,) int64; n finite rows, n_assigned of them labelled >= 0; ids (K,)
+    """Checked input and its clusters, counted in one streaming pass: pts (N, 3) C-ordered float64; lab
+    (N,) integers; compact (N,) int32 each row's label (see kernels.label_census), to be used only with
+    a table; n finite rows, n_assigned of them labelled >= 0; ids (K,)
     ascending cluster labels (negative ones merged into -1); sizes (K,) finite rows per cluster;
     table (span,) the cluster of each label from ``low`` on, -1 for none (empty when the labels
     lie too far apart for a table)."""
 
     pts: np.ndarray
     lab: np.ndarray
+    compact: np.ndarray
     n: int
     n_assigned: int
     ids: np.ndarray
@@ -172,14 +175,16 @@ class _Census:
 
 def _census(points: np.ndarray, labels: np.ndarray) -> _Census:
     """Check the input and count its clusters (see _Census)."""
-    pts, lab = _check(points, labels)
-    pts, lab = kernels.c_array(pts, np.float64), kernels.c_array(lab, np.int64)
-    n, n_assigned, low, count = kernels.label_census(pts, lab)
+    pts, lab = _check(points, labels, convert=False)
+    pts = kernels.c_array(pts, np.float64)
+    lab = kernels.c_array(lab, lab.dtype if lab.dtype in (np.int32, np.int64) else np.int64)
+    compact = np.empty(len(lab), np.int32)
+    n, n_assigned, low, count = kernels.label_census(pts, lab, compact)
     present = count > 0
     if n and not len(count):  # labels too far apart for a table: numbered by a sort
-        ids, codes = dense_codes(np.maximum(lab[finite_rows(pts)], -1))
-        return _Census(pts, lab, n, n_assigned, ids, np.bincount(codes, minlength=len(ids)), low, count)
-    return _Census(pts, lab, n, n_assigned, np.flatnonzero(present) + low, count[present], low,
+        ids, codes = dense_codes(np.maximum(lab[finite_rows(pts)], -1).astype(np.int64))
+        return _Census(pts, lab, compact, n, n_assigned, ids, np.bincount(codes, minlength=len(ids)), low, count)
+    return _Census(pts, lab, compact, n, n_assigned, np.flatnonzero(present) + low, count[present], low,
                    np.where(present, np.cumsum(present) - 1, -1))
 
 
@@ -191,7 +196,7 @@ def _stratified_census(census: _Census, total: int, rng: np.random.Generator) ->
                             for size, take in zip(census.sizes, alloc)])
     bounds = np.zeros(len(alloc) + 1, np.int64)
     bounds[1:] = np.cumsum(alloc)
-    rows = kernels.rows_at_ranks(census.pts, census.lab, census.low, census.table, ranks, bounds)
+    rows = kernels.rows_at_ranks(census.compact, census.low, census.table, ranks, bounds)
     return _Clusters(census.pts[rows], np.repeat(np.arange(len(alloc)), alloc), bounds[:-1], alloc,
                      census.ids, rows)
 
@@ -778,13 +783,13 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     sampled = sample_size is not None and n > int(sample_size) and k >= 2
     if sampled and sampled_separation:
         sub = _stratified_census(census, int(sample_size), rng) if len(census.table) else \
-            _stratified_coded(_code(census.pts, census.lab), int(sample_size), rng)
+            _stratified_coded(_code(census.pts, census.lab.astype(np.int64)), int(sample_size), rng)
         sep = sub
     else:
-        cl = _sorted_by_cluster(_code(census.pts, census.lab))
+        cl = _sorted_by_cluster(_code(census.pts, census.lab.astype(np.int64, copy=False)))
         sub = _stratified(cl, int(sample_size), rng) if sampled else cl
         sep = cl
-    ps = functools.partial(plane_silhouette_of, census.pts, census.lab,
+    ps = functools.partial(plane_silhouette_of, census.pts, census.lab, census.compact,
                            (n, census.n_assigned, census.low, len(census.table)), sample_size=sample_size, rng=rng)
     with ThreadPoolExecutor(1) if n >= THREADED_PS_POINTS else contextlib.nullcontext() as pool:
         if pool is not None:

@@ -910,77 +910,79 @@ def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
 
 #: Labels from -1 to this bound are counted in one pass; a cloud with others takes a second pass.
 _TABLE_LABELS = 4096
+#: The mark of a row with a non-finite coordinate in :func:`label_census`'s compact labels.
+NOT_FINITE = -2
 
 
 @numba.njit(**_JIT)
-def label_census(points: np.ndarray, labels: np.ndarray) -> tuple[int, int, int, np.ndarray]:
-    """Of the rows of ``points`` (N, 3) with three finite coordinates and their ``labels`` (N,) int64 (every
-    negative one counting as -1): (n such rows, m of them labelled >= 0, the smallest label, count (span,) rows per
-    label from it on). No (N,) array; an empty count when n = 0 or the labels span more than 4 n + 1024 values (a
-    table that large is the caller's to avoid)."""
+def label_census(points: np.ndarray, labels: np.ndarray, compact: np.ndarray) -> tuple[int, int, int, np.ndarray]:
+    """Of the rows of ``points`` (N, 3) with three finite coordinates and their ``labels`` (N,) (every negative one
+    counting as -1): (n such rows, m of them labelled >= 0, the smallest label, count (span,) rows per label from
+    it on). Fills ``compact`` (N,) int32 with each row's label, NOT_FINITE where a coordinate is not finite, for
+    :func:`rows_at_ranks` to read instead of the points and labels (a sixteenth of the memory). The count is
+    empty when n = 0, when the labels span more than 4 n + 1024 values (a table that large is the caller's to
+    avoid) or when a label does not fit in int32 (then ``compact`` is not to be used)."""
     count = np.zeros(_TABLE_LABELS + 1, np.int64)  # labels -1 .. _TABLE_LABELS - 1
-    n = m = 0
+    n = 0
     low = high = np.int64(0)
     current, run, outside = np.int64(-2), 0, False
     for i in range(points.shape[0]):
         if not (np.isfinite(points[i, 0]) & np.isfinite(points[i, 1]) & np.isfinite(points[i, 2])):
+            compact[i] = NOT_FINITE
             continue
         lab = np.int64(max(labels[i], -1))
+        compact[i] = lab
         if n == 0 or lab < low:
             low = lab
         if n == 0 or lab > high:
             high = lab
         n += 1
         if lab != current:  # runs of one label are the rule: a count kept in a register, not one in memory per row
-            if 0 <= current + 1 <= _TABLE_LABELS:
+            if -1 <= current < _TABLE_LABELS:
                 count[current + 1] += run
             current, run = lab, 0
             outside |= lab >= _TABLE_LABELS
         run += 1
-    if 0 <= current + 1 <= _TABLE_LABELS:
+    if -1 <= current < _TABLE_LABELS:
         count[current + 1] += run
-    if n == 0 or high - low >= 4 * n + 1024:
-        return n, n - count[0], low, np.zeros(0, np.int64)
+    m = n - count[0]
+    if n == 0 or high - low >= 4 * n + 1024 or high > np.iinfo(np.int32).max:
+        return n, m, low, np.zeros(0, np.int64)
     if not outside:
-        return n, n - count[0], low, count[low + 1:high + 2].copy()
+        return n, m, low, count[low + 1:high + 2].copy()
     count = np.zeros(high - low + 1, np.int64)
     for i in range(points.shape[0]):
-        if np.isfinite(points[i, 0]) & np.isfinite(points[i, 1]) & np.isfinite(points[i, 2]):
-            count[np.int64(max(labels[i], -1)) - low] += 1
-    m = n - count[0] if low == -1 else n
+        if compact[i] != NOT_FINITE:
+            count[compact[i] - low] += 1
     return n, m, low, count
 
 
 @numba.njit(**_JIT)
-def rows_at_ranks(points: np.ndarray, labels: np.ndarray, low: int, cluster: np.ndarray, ranks: np.ndarray,
-                  bounds: np.ndarray) -> np.ndarray:
-    """Input rows of chosen members of clusters, in one streaming pass: the finite rows of ``points`` (N, 3) with
-    label l (``labels`` (N,) int64, negative ones as -1) belong to cluster ``cluster[l - low]`` (-1: none); cluster
-    c's members in row order are numbered from 0, and ``ranks[bounds[c]:bounds[c + 1]]`` (ascending, repeats
-    allowed) are the ones wanted. Returns (len(ranks),) int64: the row of each wanted rank, in the order of
-    ``ranks``."""
+def rows_at_ranks(compact: np.ndarray, low: int, cluster: np.ndarray, ranks: np.ndarray, bounds: np.ndarray
+                  ) -> np.ndarray:
+    """Input rows of chosen members of clusters, in one streaming pass over the ``compact`` labels (N,) of
+    :func:`label_census`: a row labelled l belongs to cluster ``cluster[l - low]`` (-1: none); cluster c's members
+    in row order are numbered from 0, and ``ranks[bounds[c]:bounds[c + 1]]`` (ascending, repeats allowed) are the
+    ones wanted. Returns (len(ranks),) int64: the row of each wanted rank, in the order of ``ranks``."""
     k = bounds.shape[0] - 1
     out = np.empty(ranks.shape[0], np.int64)
     seen = np.zeros(k, np.int64)
     at = bounds[:-1].copy()
     left = ranks.shape[0]
-    current = np.int64(-2)
+    current = NOT_FINITE
     c, r, want = -1, 0, -1  # the current run's cluster, its count so far and its next wanted rank, in registers
-    for i in range(points.shape[0]):
+    for i in range(compact.shape[0]):
         if left == 0:
             break
-        if not (np.isfinite(points[i, 0]) & np.isfinite(points[i, 1]) & np.isfinite(points[i, 2])):
-            continue
-        lab = np.int64(max(labels[i], -1))
+        lab = compact[i]
         if lab != current:
             if c >= 0:
                 seen[c] = r
             current = lab
-            c = cluster[lab - low]
-            if c < 0:
-                continue
-            r = seen[c]
-            want = ranks[at[c]] if at[c] < bounds[c + 1] else -1
+            c = cluster[lab - low] if lab != NOT_FINITE else -1
+            if c >= 0:
+                r = seen[c]
+                want = ranks[at[c]] if at[c] < bounds[c + 1] else -1
         if c < 0:
             continue
         while r == want:
@@ -1229,8 +1231,10 @@ def warm() -> Warmup:
     pair_graph(4, np.zeros((1, 2), np.int64))
     codes = np.array([0, -1, 0, 1], np.int64)
     group_by_label(codes, 2)
-    n, m, low, count = label_census(pts, codes)
-    rows_at_ranks(pts, codes, low, np.arange(len(count)) - 1, np.zeros(2, np.int64), np.array([0, 1, 2]))
+    compact = np.empty(4, np.int32)
+    for ints in (codes, labels):  # the label types the package passes
+        n, m, low, count = label_census(pts, ints, compact)
+    rows_at_ranks(compact, low, np.arange(len(count)) - 1, np.zeros(2, np.int64), np.array([0, 1, 2]))
     sizes = np.array([2, 2], np.int64)
     cluster_distance_pass(pts, np.array([0, 2], np.int64), sizes)
     centroids, scatter = region_scatter(pts, np.zeros(3), index, np.array([0, 2, 4]))

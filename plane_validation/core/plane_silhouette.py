@@ -92,16 +92,17 @@ def plane_silhouette(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     if len(lab) != len(pts):
         raise ValueError(f'{len(lab)} labels for {len(pts)} points')
     pts, lab = kernels.c_array(pts, np.float64), kernels.c_array(lab, np.int64)
-    n_valid, n_assigned, low, count = kernels.label_census(pts, lab)
-    return plane_silhouette_of(pts, lab, (n_valid, n_assigned, low, len(count)), sample_size=sample_size,
+    compact = np.empty(len(lab), np.int32)
+    n_valid, n_assigned, low, count = kernels.label_census(pts, lab, compact)
+    return plane_silhouette_of(pts, lab, compact, (n_valid, n_assigned, low, len(count)), sample_size=sample_size,
                                rng=generator(seed))
 
 
-def plane_silhouette_of(pts: np.ndarray, lab: np.ndarray, census: tuple[int, int, int, int], *,
-                        sample_size: int | None, rng: np.random.Generator) -> float:
+def plane_silhouette_of(pts: np.ndarray, lab: np.ndarray, compact: np.ndarray, census: tuple[int, int, int, int],
+                        *, sample_size: int | None, rng: np.random.Generator) -> float:
     """:func:`plane_silhouette` from checked input: ``pts`` (N, 3) C-ordered float64 meters, ``lab`` (N,)
-    int64, and ``census``: (finite rows, those labelled >= 0, the smallest label, the span of labels from it, 0
-    when they lie too far apart for a table), as :func:`.kernels.label_census` counts them."""
+    integers, and what :func:`.kernels.label_census` found: ``compact`` (N,) labels and ``census`` (finite rows,
+    those labelled >= 0, the smallest label, the span of labels from it: 0 when there is no table)."""
     n_valid, n_assigned, low, span = census
     if n_assigned == 0:
         return 0.0
@@ -111,11 +112,11 @@ def plane_silhouette_of(pts: np.ndarray, lab: np.ndarray, census: tuple[int, int
     else:
         ranks = np.arange(n_assigned)
     if span:
-        assigned = kernels.rows_at_ranks(pts, lab, low, np.where(np.arange(low, low + span) >= 0, 0, -1), ranks,
+        assigned = kernels.rows_at_ranks(compact, low, np.where(np.arange(low, low + span) >= 0, 0, -1), ranks,
                                          np.array([0, len(ranks)]))
     else:
         assigned = np.flatnonzero(finite_rows(pts) & (lab >= 0))[ranks]
-    ids, dense = dense_codes(lab[assigned])
+    ids, dense = dense_codes(lab[assigned].astype(np.int64, copy=False))
     origin = pts[assigned[0]]  # precision for far-away coordinates
     frames = _region_frames(pts, origin, assigned, dense, len(ids), rng)
     rows = np.arange(len(assigned)) if sample_size is None or len(assigned) <= sample_size else \
