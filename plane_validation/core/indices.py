@@ -1,8 +1,9 @@
 """Cluster validity indices for detected planes (Lipnickas et al. 2014, sections 3.1-3.3).
 
-Pure numpy/scipy: no ROS import. The planes found by sequential RANSAC are treated as clusters:
-``labels`` is an (N,) integer array with 0..k-1 for plane points and -1 for unassigned points
-(any negative label counts as unassigned). Distances are Euclidean, in the unit of ``points``.
+numpy, scipy and the kernels of core/kernels.py; no ROS import. The planes found by sequential
+RANSAC are treated as clusters: ``labels`` is an (N,) integer array with 0..k-1 for plane points
+and -1 for unassigned points (any negative label counts as unassigned). Distances are Euclidean,
+in the unit of ``points``.
 
 Conventions shared by every public function here:
 
@@ -39,8 +40,6 @@ __all__ = [
     'diameter',
 ]
 
-#: Upper bound on the floats in one block of the distance matrix (rows x columns), ~32 MB.
-CHUNK_FLOATS = 4_000_000
 #: Clusters with at most this many points get their diameter by brute force, without a hull.
 BRUTE_DIAMETER = 64
 #: Hull vertex sets up to this size are searched by brute force; larger ones use box pruning.
@@ -722,8 +721,8 @@ class ValidityIndices:
         return out
 
 
-#: From this many points on, the plane silhouette runs in a thread beside the other indices (numpy and
-#: the kd-trees release the GIL; below it the thread's start and the GIL cost more than they save).
+#: From this many points on, the plane silhouette runs in a thread beside the other indices (numpy, the
+#: kd-trees and the kernels release the GIL; below it the thread's start and the GIL cost more than they save).
 THREADED_PS_POINTS = 50_000
 
 
