@@ -502,7 +502,8 @@ def davies_bouldin_classic(points: np.ndarray, labels: np.ndarray) -> float:
 def _pair_pass(cl: _Clusters) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every pair of rows of ``cl`` once (a compiled O(n^2) pass, O(n K) memory): (sums (n, K) summed
     distances from each row to each cluster, diameters (K,), distances (K, K) between clusters)."""
-    return kernels.cluster_distance_pass(cl.points, cl.starts, cl.sizes)
+    return kernels.cluster_distance_pass(kernels.c_array(cl.points, np.float64), kernels.c_array(cl.starts, np.int64),
+                                         kernels.c_array(cl.sizes, np.int64))
 
 
 def _silhouettes(cl: _Clusters, sums: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
