@@ -124,14 +124,6 @@ def test_singleton_cluster_silhouette_is_zero():
     assert s[0] == 0.0 and (labels == labels[0]).sum() == 1
 
 
-def test_silhouettes_are_chunked_exactly(monkeypatch):
-    """Tiny blocks (many chunk boundaries, uneven last chunk) give the same values."""
-    points, labels = blobs(5, n=257)
-    monkeypatch.setattr(pi, 'CHUNK_FLOATS', 257 * 10)
-    assert np.allclose(pi.silhouette_samples(points, labels), metrics.silhouette_samples(points, labels),
-                       rtol=0, atol=TOL)
-
-
 def _spread_unassigned_near_compact_clusters():
     """A 100 m line of unassigned points with two compact clusters 5 cm past its tip."""
     rng = np.random.default_rng(3)
@@ -142,8 +134,8 @@ def _spread_unassigned_near_compact_clusters():
 
 
 @pytest.mark.parametrize('case', ['blobs far from the origin', 'spread unassigned', 'depth camera'])
-def test_float32_sampled_silhouettes_agree_with_float64(case):
-    """The fast path (float32 products centred on each target cluster, BLAS sums) against cdist."""
+def test_silhouettes_of_the_pair_pass_agree_with_cdist(case):
+    """The compiled pass over all pairs against distances from cdist, silhouettes by the formula."""
     if case == 'blobs far from the origin':
         points, labels = blobs(1, n=1800, unassigned=0.3)
         points = points + [300.0, -40.0, 5.0]
@@ -154,10 +146,22 @@ def test_float32_sampled_silhouettes_agree_with_float64(case):
         keep = np.flatnonzero(np.isfinite(scene.points).all(axis=1))[::97][:2000]
         points, labels = scene.points[keep], scene.labels[keep]
     cl = pi._clusters(points, labels)
-    (fast, fast_planes), (exact, exact_planes) = pi._silhouettes(cl, fast=True), pi._silhouettes(cl, fast=False)
-    assert cl.k >= 3 and (case == 'depth camera' or np.isnan(exact_planes).any())  # with unassigned points
-    np.testing.assert_allclose(fast, exact, rtol=0, atol=1e-5)
-    np.testing.assert_allclose(fast_planes, exact_planes, rtol=0, atol=1e-5)  # NaN where NaN
+    s, s_planes = pi._silhouettes(cl)
+    distances = cdist(cl.points, cl.points)
+    sums = np.stack([distances[:, cl.codes == c].sum(axis=1) for c in range(cl.k)], axis=1)
+    own = sums[np.arange(cl.n), cl.codes] / np.maximum(cl.sizes[cl.codes] - 1, 1)
+    means = sums / cl.sizes
+    means[np.arange(cl.n), cl.codes] = np.inf
+    ref = (means.min(axis=1) - own) / np.maximum(own, means.min(axis=1))
+    single = cl.sizes[cl.codes] == 1
+    ref[single] = 0.0
+    assert cl.k >= 3 and (case == 'depth camera' or np.isnan(s_planes).any())  # with unassigned points
+    np.testing.assert_allclose(s, ref, rtol=1e-12, atol=1e-12)
+    planes = cl.ids[cl.codes] >= 0
+    b_planes = means[:, cl.ids >= 0].min(axis=1)
+    ref_planes = np.where(planes, (b_planes - own) / np.maximum(own, b_planes), np.nan)
+    ref_planes[single & planes] = 0.0
+    np.testing.assert_allclose(s_planes, ref_planes, rtol=1e-12, atol=1e-12)  # NaN where NaN
 
 
 @pytest.mark.parametrize('seed', range(3))

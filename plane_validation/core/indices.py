@@ -1,8 +1,9 @@
 """Cluster validity indices for detected planes (Lipnickas et al. 2014, sections 3.1-3.3).
 
-Pure numpy/scipy: no ROS import. The planes found by sequential RANSAC are treated as clusters:
-``labels`` is an (N,) integer array with 0..k-1 for plane points and -1 for unassigned points
-(any negative label counts as unassigned). Distances are Euclidean, in the unit of ``points``.
+numpy, scipy and the kernels of core/kernels.py; no ROS import. The planes found by sequential
+RANSAC are treated as clusters: ``labels`` is an (N,) integer array with 0..k-1 for plane points
+and -1 for unassigned points (any negative label counts as unassigned). Distances are Euclidean,
+in the unit of ``points``.
 
 Conventions shared by every public function here:
 
@@ -28,8 +29,9 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 from scipy.spatial.distance import cdist, pdist
 
+from . import kernels
 from .blas import single_blas_thread
-from .plane_silhouette import dense_codes, plane_silhouette
+from .plane_silhouette import dense_codes, plane_silhouette_of
 from .ransac import as_points, check_flag, check_integer, finite_rows, generator
 
 __all__ = [
@@ -38,8 +40,6 @@ __all__ = [
     'diameter',
 ]
 
-#: Upper bound on the floats in one block of the distance matrix (rows x columns), ~32 MB.
-CHUNK_FLOATS = 4_000_000
 #: Clusters with at most this many points get their diameter by brute force, without a hull.
 BRUTE_DIAMETER = 64
 #: Hull vertex sets up to this size are searched by brute force; larger ones use box pruning.
@@ -98,8 +98,9 @@ class _Clusters:
         return _Clusters(self.points[rows], codes, starts, sizes, self.ids, self.order[rows])
 
 
-def _check(points: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Validate shapes: points (N, 3) real, labels (N,) integer-valued."""
+def _check(points: np.ndarray, labels: np.ndarray, convert: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Validate shapes: points (N, 3) real, labels (N,) integer-valued. Returns them as float64 and
+    int64 (``convert`` False: signed integer labels as they are)."""
     pts = np.asarray(points)
     if pts.dtype.kind not in 'fiu' or pts.ndim != 2 or pts.shape[1] != 3:  # as detect_planes takes them
         raise ValueError(f'points must be a real array of shape (N, 3), got {pts.dtype} {pts.shape}')
@@ -115,41 +116,95 @@ def _check(points: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarr
         raise ValueError(f'labels must be integers, got dtype {lab.dtype}')
     if lab.dtype.kind in 'uf' and len(lab) and lab.max() > np.iinfo(np.int64).max:  # would wrap to negative
         raise ValueError(f'labels must fit in 64-bit signed integers, got {lab.max()}')
-    return pts.astype(np.float64, copy=False), lab.astype(np.int64)
+    return pts.astype(np.float64, copy=False), lab if lab.dtype.kind == 'i' and not convert else lab.astype(np.int64)
 
 
 @dataclass(frozen=True, eq=False)
 class _Coded:
-    """Finite rows in input order with their cluster code: pts (N, 3) all input rows; keep (n,)
-    finite row numbers; codes (n,) cluster 0..K-1 of each; ids (K,) ascending labels; sizes (K,)."""
+    """Finite rows in input order with their cluster code: pts (N, 3) float64 all input rows; keep
+    (n,) finite row numbers; codes (n,) cluster 0..K-1 of each; ids (K,) ascending labels; sizes
+    (K,); grouped (n,) positions in ``keep`` cluster by cluster, ascending within each, cluster c's
+    being ``grouped[bounds[c]:bounds[c + 1]]``; bounds (K + 1,)."""
 
     pts: np.ndarray
     keep: np.ndarray
     codes: np.ndarray
     ids: np.ndarray
     sizes: np.ndarray
+    grouped: np.ndarray
+    bounds: np.ndarray
 
     def members(self, c: int) -> np.ndarray:
         """Positions in ``keep`` of cluster c, ascending."""
-        return np.flatnonzero(self.codes == c)
+        return self.grouped[self.bounds[c]:self.bounds[c + 1]]
 
 
 def _coded(points: np.ndarray, labels: np.ndarray) -> _Coded:
     """Drop non-finite rows, merge negative labels into -1 and number the clusters."""
-    pts, lab = _check(points, labels)
+    return _code(*_check(points, labels))
+
+
+def _code(pts: np.ndarray, lab: np.ndarray) -> _Coded:
+    """_coded of checked input: pts (N, 3) float64, lab (N,) int64."""
     keep = np.flatnonzero(finite_rows(pts))
-    lab = np.maximum(lab[keep], -1)
-    ids, codes = dense_codes(lab) if len(lab) else (np.empty(0, np.int64), np.empty(0, np.int64))
-    return _Coded(pts, keep, codes, ids, np.bincount(codes, minlength=len(ids)))
+    ids, codes = dense_codes(np.maximum(lab[keep], -1)) if len(keep) else (np.empty(0, np.int64),) * 2
+    grouped, bounds = kernels.group_by_label(codes, len(ids))
+    return _Coded(pts, keep, codes, ids, np.diff(bounds), grouped, bounds)
+
+
+@dataclass(frozen=True, eq=False)
+class _Census:
+    """Checked input and its clusters, counted in one streaming pass: pts (N, 3) C-ordered float64; lab
+    (N,) integers; compact (N,) int32 each row's label (see kernels.label_census), to be used only with
+    a table; n finite rows, n_assigned of them labelled >= 0; ids (K,)
+    ascending cluster labels (negative ones merged into -1); sizes (K,) finite rows per cluster;
+    table (span,) the cluster of each label from ``low`` on, -1 for none (empty when the labels
+    lie too far apart for a table)."""
+
+    pts: np.ndarray
+    lab: np.ndarray
+    compact: np.ndarray
+    n: int
+    n_assigned: int
+    ids: np.ndarray
+    sizes: np.ndarray
+    low: int
+    table: np.ndarray
+
+
+def _census(points: np.ndarray, labels: np.ndarray) -> _Census:
+    """Check the input and count its clusters (see _Census)."""
+    pts, lab = _check(points, labels, convert=False)
+    pts = kernels.c_array(pts, np.float64)
+    lab = kernels.c_array(lab, lab.dtype if lab.dtype in (np.int32, np.int64) else np.int64)
+    compact = np.empty(len(lab), np.int32)
+    n, n_assigned, low, count = kernels.label_census(pts, lab, compact)
+    present = count > 0
+    if n and not len(count):  # labels too far apart for a table: numbered by a sort
+        ids, codes = dense_codes(np.maximum(lab[finite_rows(pts)], -1).astype(np.int64))
+        return _Census(pts, lab, compact, n, n_assigned, ids, np.bincount(codes, minlength=len(ids)), low, count)
+    return _Census(pts, lab, compact, n, n_assigned, np.flatnonzero(present) + low, count[present], low,
+                   np.where(present, np.cumsum(present) - 1, -1))
+
+
+def _stratified_census(census: _Census, total: int, rng: np.random.Generator) -> _Clusters:
+    """The same sample as :func:`_stratified_coded` of the same input (same rows for the same generator
+    state), picked in one streaming pass over the rows (needs ``census.table``)."""
+    alloc = _allocate(census.sizes, total)
+    ranks = np.concatenate([np.sort(rng.choice(int(size), int(take), replace=False))
+                            for size, take in zip(census.sizes, alloc)])
+    bounds = np.zeros(len(alloc) + 1, np.int64)
+    bounds[1:] = np.cumsum(alloc)
+    rows = kernels.rows_at_ranks(census.compact, census.low, census.table, ranks, bounds)
+    return _Clusters(census.pts[rows], np.repeat(np.arange(len(alloc)), alloc), bounds[:-1], alloc,
+                     census.ids, rows)
 
 
 def _sorted_by_cluster(coded: _Coded, positions: np.ndarray | None = None) -> _Clusters:
     """_Clusters of the rows ``positions`` (into ``coded.keep``; all when None), which must be
     grouped by cluster and ascending within each."""
     if positions is None:
-        k = len(coded.ids)
-        positions = np.concatenate([coded.members(c) for c in range(k)]) if 0 < k <= 64 else \
-            np.argsort(coded.codes, kind='stable')
+        positions = coded.grouped
     codes = coded.codes[positions]
     sizes = np.bincount(codes, minlength=len(coded.ids))
     starts = (np.cumsum(sizes) - sizes).astype(np.int64)
@@ -444,53 +499,21 @@ def davies_bouldin_classic(points: np.ndarray, labels: np.ndarray) -> float:
 # Silhouettes
 
 
-#: Largest point set whose sampled silhouettes use the float32 distance sums.
-FAST_SILHOUETTE_POINTS = 5000
-#: Coordinates (after centring) beyond this fall back to cdist: float32 squares would overflow.
-FAST_SILHOUETTE_RANGE = 1e15
+def _pair_pass(cl: _Clusters) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every pair of rows of ``cl`` once (a compiled O(n^2) pass, O(n K) memory): (sums (n, K) summed
+    distances from each row to each cluster, diameters (K,), distances (K, K) between clusters)."""
+    return kernels.cluster_distance_pass(kernels.c_array(cl.points, np.float64), kernels.c_array(cl.starts, np.int64),
+                                         kernels.c_array(cl.sizes, np.int64))
 
 
-def _cluster_distance_sums(cl: _Clusters, rows: np.ndarray, onehot: np.ndarray, fast: bool) -> np.ndarray:
-    """(len(rows), K) summed distances from the sorted rows ``rows`` of ``cl`` to each cluster.
-
-    fast (for sampled estimates): float32 through |a|^2 + |b|^2 - 2 a.b, with both sides centred
-    on the target cluster's centroid, so the cancellation error stays ~1e-4 of the distances of
-    interest (within a cluster: its spread; between clusters: their separation), summed by BLAS;
-    faster than cdist on the default sample. cdist when the set is large or has coordinates near
-    the float range (a driver's FLT_MAX rows).
-    """
-    points = cl.points[rows]
-    if fast and cl.n <= FAST_SILHOUETTE_POINTS:
-        sums = np.empty((len(rows), cl.k))
-        for c in range(cl.k):
-            members = cl.members(c)
-            centroid = members.mean(axis=0)
-            a, b = points - centroid, members - centroid
-            if max(np.abs(a).max(), np.abs(b).max()) > FAST_SILHOUETTE_RANGE:
-                break
-            # |a|^2 + |b|^2 - 2 a.b as one product: [a, |a|^2, 1] . [-2 b, 1, |b|^2]
-            left = np.empty((len(a), 5), np.float32)
-            left[:, :3], left[:, 3], left[:, 4] = a, np.einsum('ij,ij->i', a, a), 1.0
-            right = np.empty((5, len(b)), np.float32)
-            right[:3], right[3], right[4] = -2.0 * b.T, 1.0, np.einsum('ij,ij->i', b, b)
-            d = left @ right
-            np.maximum(d, 0.0, out=d)
-            np.sqrt(d, out=d)
-            sums[:, c] = d @ np.ones(len(b), np.float32)  # a BLAS sum: far faster than np.sum to float64
-        else:
-            return sums
-    return cdist(points, cl.points) @ onehot
-
-
-def _silhouettes(cl: _Clusters, fast: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def _silhouettes(cl: _Clusters, sums: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Exact silhouettes of each (sorted) row among the rows of ``cl``: (s (n,), s_planes (n,)).
 
     s_i = (b_i - a_i) / max(a_i, b_i); a_i mean distance to the other members of its cluster,
     b_i the smallest mean distance to another cluster; 0 for singleton clusters and for a = b = 0.
     s_planes is the same for the planes alone (the unassigned cluster is no candidate for b_i;
-    NaN on its own rows): both come from one pass over the distances. Rows are processed in
-    blocks of at most ``CHUNK_FLOATS`` distances; ``fast`` (for sampled estimates) computes them in
-    float32 (see _cluster_distance_sums).
+    NaN on its own rows): both come from the same distance sums, ``sums`` (n, K) of
+    :func:`_pair_pass` (computed when None).
     """
     n, k = cl.n, cl.k
     s, s_planes = np.zeros(n), np.zeros(n)
@@ -499,21 +522,16 @@ def _silhouettes(cl: _Clusters, fast: bool = False) -> tuple[np.ndarray, np.ndar
         s_planes[:cl.sizes[0]] = np.nan
     if k < 2:
         return s, s_planes
-    onehot = np.zeros((n, k))
-    onehot[np.arange(n), cl.codes] = 1.0
-    step = max(1, CHUNK_FLOATS // n)
-    for r0 in range(0, n, step):
-        rows = np.arange(r0, min(n, r0 + step))
-        sums = _cluster_distance_sums(cl, rows, onehot, fast)  # (c, k) summed distances per cluster
-        own = cl.codes[rows]
-        a = sums[np.arange(len(rows)), own] / np.maximum(cl.sizes[own] - 1, 1)
-        means = sums / cl.sizes
-        means[np.arange(len(rows)), own] = np.inf
-        s[rows] = _ratio(a, means.min(axis=1))
-        if has_rest and k >= 3:  # planes only: drop the unassigned column as a candidate
-            plane_rows = own > 0
-            b_planes = means[plane_rows, 1:].min(axis=1)
-            s_planes[rows[plane_rows]] = _ratio(a[plane_rows], b_planes)
+    if sums is None:
+        sums = _pair_pass(cl)[0]
+    rows, own = np.arange(n), cl.codes
+    a = sums[rows, own] / np.maximum(cl.sizes[own] - 1, 1)
+    means = sums / cl.sizes
+    means[rows, own] = np.inf
+    s = _ratio(a, means.min(axis=1))
+    if has_rest and k >= 3:  # planes only: drop the unassigned column as a candidate
+        plane_rows = own > 0
+        s_planes[plane_rows] = _ratio(a[plane_rows], means[plane_rows, 1:].min(axis=1))
     if not has_rest:
         s_planes[:] = s
     elif k < 3:
@@ -535,7 +553,7 @@ def silhouette_samples(points: np.ndarray, labels: np.ndarray) -> np.ndarray:
 
     Label -1 points form one cluster. Rows with non-finite coordinates get NaN. All zeros when
     there are fewer than two clusters; 0 for a singleton cluster (as scikit-learn).
-    Memory is bounded (blocks of ``CHUNK_FLOATS`` distances); time O(N^2).
+    Memory O(N K); time O(N^2).
     """
     pts, _ = _check(points, labels)
     cl = _clusters(points, labels)
@@ -639,12 +657,13 @@ def _summarize(sizes: np.ndarray, sub: _Clusters, s: np.ndarray, exact: bool) ->
                      cluster_means=tuple(map(float, mean_h)))
 
 
-def _estimates(sizes: np.ndarray, ids: np.ndarray, sub: _Clusters, exact: bool) -> tuple[_Estimate, _Estimate]:
+def _estimates(sizes: np.ndarray, ids: np.ndarray, sub: _Clusters, exact: bool,
+               sums: np.ndarray | None) -> tuple[_Estimate, _Estimate]:
     """(all clusters, planes only) silhouette estimates for a population of clusters ``sizes``
-    (K,) with labels ``ids`` from one pass over its rows ``sub`` (all of them when ``exact``, else
-    a stratified sample whose silhouettes are computed against the sample itself; the
-    planes-only estimate uses the sample's plane rows)."""
-    s, s_planes = _silhouettes(sub, fast=not exact)
+    (K,) with labels ``ids`` from the distance sums ``sums`` (n, K) of its rows ``sub`` (all of
+    them when ``exact``, else a stratified sample whose silhouettes are computed against the sample
+    itself; the planes-only estimate uses the sample's plane rows)."""
+    s, s_planes = _silhouettes(sub, sums)
     cut = int(sub.sizes[0]) if sub.k and sub.ids[0] < 0 else 0
     plane_sizes = sizes[1:] if len(ids) and ids[0] < 0 else sizes
     return _summarize(sizes, sub, s, exact), _summarize(plane_sizes, sub.planes_only(), s_planes[cut:], exact)
@@ -703,8 +722,8 @@ class ValidityIndices:
         return out
 
 
-#: From this many points on, the plane silhouette runs in a thread beside the other indices (numpy and
-#: the kd-trees release the GIL; below it the thread's start and the GIL cost more than they save).
+#: From this many points on, the plane silhouette runs in a thread beside the other indices (numpy, the
+#: kd-trees and the kernels release the GIL; below it the thread's start and the GIL cost more than they save).
 THREADED_PS_POINTS = 50_000
 
 
@@ -758,31 +777,36 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     if sample_size is not None:
         sample_size = check_integer('sample_size', sample_size, 2)
     sampled_separation = check_flag('sampled_separation', sampled_separation)
-    coded = _coded(points, labels)
+    census = _census(points, labels)
     rng = generator(seed)
-    n, k = len(coded.keep), len(coded.ids)
+    n, k = census.n, len(census.ids)
     sampled = sample_size is not None and n > int(sample_size) and k >= 2
     if sampled and sampled_separation:
-        sub = _stratified_coded(coded, int(sample_size), rng)
+        sub = _stratified_census(census, int(sample_size), rng) if len(census.table) else \
+            _stratified_coded(_code(census.pts, census.lab.astype(np.int64)), int(sample_size), rng)
         sep = sub
     else:
-        cl = _sorted_by_cluster(coded)
+        cl = _sorted_by_cluster(_code(census.pts, census.lab.astype(np.int64, copy=False)))
         sub = _stratified(cl, int(sample_size), rng) if sampled else cl
         sep = cl
-    ps = functools.partial(plane_silhouette, points, labels, sample_size=sample_size, seed=rng)
+    ps = functools.partial(plane_silhouette_of, census.pts, census.lab, census.compact,
+                           (n, census.n_assigned, census.low, len(census.table)), sample_size=sample_size, rng=rng)
     with ThreadPoolExecutor(1) if n >= THREADED_PS_POINTS else contextlib.nullcontext() as pool:
         if pool is not None:
             ps = _started(pool, ps)
+        sums = None
         if k >= 2:
-            diam, dist = _diameters(sep), _distances(sep)
+            sums, diam, dist = _pair_pass(sub)  # on sep too when it is the same rows
+            if sep is not sub:
+                diam, dist = _diameters(sep), _distances(sep)
             dunn, db = _dunn(diam, dist), _db_paper(diam, dist)
         else:
             dunn, db = 0.0, np.inf
-        full, planes = _estimates(coded.sizes, coded.ids, sub, exact=not sampled)
+        full, planes = _estimates(census.sizes, census.ids, sub, exact=not sampled, sums=sums)
         ps = ps()
     return ValidityIndices(
         dunn=float(dunn), davies_bouldin=float(db), davies_bouldin_classic=_db_classic(sep),
         silhouette=full.silhouette, gs=full.gs, gs_planes=planes.gs,
         silhouette_se=full.silhouette_se, gs_se=full.gs_se, gs_planes_se=planes.gs_se,
-        n_planes=int((coded.ids >= 0).sum()), n_clusters=k, n_points=n, sample_size=full.size,
+        n_planes=int((census.ids >= 0).sum()), n_clusters=k, n_points=n, sample_size=full.size,
         plane_silhouettes=planes.cluster_means, separation_size=sep.n, plane_silhouette=ps)

@@ -23,7 +23,8 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_fit',
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
-           'coherent_inliers', 'largest_magnitude', 'warm', 'Warmup']
+           'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
+           'region_scatter', 'region_extents', 'plane_silhouette_sum', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -1584,6 +1585,294 @@ def largest_magnitude(values: np.ndarray) -> float:
     return largest
 
 
+# --- indices ---
+
+
+#: Labels from -1 to this bound are counted in one pass; a cloud with others takes a second pass.
+_TABLE_LABELS = 4096
+#: The mark of a row with a non-finite coordinate in :func:`label_census`'s compact labels.
+NOT_FINITE = -2
+
+
+@numba.njit(**_JIT)
+def label_census(points: np.ndarray, labels: np.ndarray, compact: np.ndarray) -> tuple[int, int, int, np.ndarray]:
+    """Of the rows of ``points`` (N, 3) with three finite coordinates and their ``labels`` (N,) (every negative one
+    counting as -1): (n such rows, m of them labelled >= 0, the smallest label, count (span,) rows per label from
+    it on). Fills ``compact`` (N,) int32 with each row's label, NOT_FINITE where a coordinate is not finite, for
+    :func:`rows_at_ranks` to read instead of the points and labels (a sixteenth of the memory). The count is
+    empty when n = 0, when the labels span more than 4 n + 1024 values (a table that large is the caller's to
+    avoid) or when a label does not fit in int32 (then ``compact`` is not to be used)."""
+    count = np.zeros(_TABLE_LABELS + 1, np.int64)  # labels -1 .. _TABLE_LABELS - 1
+    n = 0
+    low = high = np.int64(0)
+    current, run, outside = np.int64(-2), 0, False
+    for i in range(points.shape[0]):
+        if not (np.isfinite(points[i, 0]) & np.isfinite(points[i, 1]) & np.isfinite(points[i, 2])):
+            compact[i] = NOT_FINITE
+            continue
+        lab = np.int64(max(labels[i], -1))
+        compact[i] = lab
+        if n == 0 or lab < low:
+            low = lab
+        if n == 0 or lab > high:
+            high = lab
+        n += 1
+        if lab != current:  # runs of one label are the rule: a count kept in a register, not one in memory per row
+            if -1 <= current < _TABLE_LABELS:
+                count[current + 1] += run
+            current, run = lab, 0
+            outside |= lab >= _TABLE_LABELS
+        run += 1
+    if -1 <= current < _TABLE_LABELS:
+        count[current + 1] += run
+    m = n - count[0]
+    if n == 0 or high - low >= 4 * n + 1024 or high > np.iinfo(np.int32).max:
+        return n, m, low, np.zeros(0, np.int64)
+    if not outside:
+        return n, m, low, count[low + 1:high + 2].copy()
+    count = np.zeros(high - low + 1, np.int64)
+    for i in range(points.shape[0]):
+        if compact[i] != NOT_FINITE:
+            count[compact[i] - low] += 1
+    return n, m, low, count
+
+
+@numba.njit(**_JIT)
+def rows_at_ranks(compact: np.ndarray, low: int, cluster: np.ndarray, ranks: np.ndarray, bounds: np.ndarray
+                  ) -> np.ndarray:
+    """Input rows of chosen members of clusters, in one streaming pass over the ``compact`` labels (N,) of
+    :func:`label_census`: a row labelled l belongs to cluster ``cluster[l - low]`` (-1: none); cluster c's members
+    in row order are numbered from 0, and ``ranks[bounds[c]:bounds[c + 1]]`` (ascending, repeats allowed) are the
+    ones wanted. Returns (len(ranks),) int64: the row of each wanted rank, in the order of ``ranks``."""
+    k = bounds.shape[0] - 1
+    out = np.empty(ranks.shape[0], np.int64)
+    seen = np.zeros(k, np.int64)
+    at = bounds[:-1].copy()
+    left = ranks.shape[0]
+    current = NOT_FINITE
+    c, r, want = -1, 0, -1  # the current run's cluster, its count so far and its next wanted rank, in registers
+    for i in range(compact.shape[0]):
+        if left == 0:
+            break
+        lab = compact[i]
+        if lab != current:
+            if c >= 0:
+                seen[c] = r
+            current = lab
+            c = cluster[lab - low] if lab != NOT_FINITE else -1
+            if c >= 0:
+                r = seen[c]
+                want = ranks[at[c]] if at[c] < bounds[c + 1] else -1
+        if c < 0:
+            continue
+        while r == want:
+            out[at[c]] = i
+            at[c] += 1
+            left -= 1
+            want = ranks[at[c]] if at[c] < bounds[c + 1] else -1
+        r += 1
+    return out
+
+
+@numba.njit(**_JIT)
+def _sum_max_min(d: np.ndarray) -> tuple[float, float, float]:
+    """Sum, largest and smallest of ``d`` (m,) (m > 0), in four interleaved lanes: a fixed order, so the same on
+    every machine, and independent lanes keep the pipeline full where one running sum would wait on each add."""
+    m = d.shape[0]
+    s0 = s1 = s2 = s3 = 0.0
+    big = small = d[0]
+    for q in range(m // 4):  # indices counted from 0 (a slice): numba's negative-index wrap needs no check
+        a, b, c, e = d[4 * q], d[4 * q + 1], d[4 * q + 2], d[4 * q + 3]
+        s0 += a
+        s1 += b
+        s2 += c
+        s3 += e
+        big = max(big, max(max(a, b), max(c, e)))
+        small = min(small, min(min(a, b), min(c, e)))
+    for q in range(m - m % 4, m):
+        s0 += d[q]
+        big = max(big, d[q])
+        small = min(small, d[q])
+    return (s0 + s1) + (s2 + s3), big, small
+
+
+@numba.njit(**_JIT)
+def cluster_distance_pass(points: np.ndarray, starts: np.ndarray, sizes: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One pass over every pair of ``points`` (n, 3), grouped by cluster (cluster c is rows ``starts[c]`` to
+    ``starts[c] + sizes[c]``, each non-empty, in order): (sums (n, K): summed Euclidean distances from each row
+    to the rows of each cluster, itself included at 0; diameters (K,): the largest distance within each cluster,
+    0 for one row; gaps (K, K): the smallest distance between two clusters, 0 on the diagonal). Units of points.
+    Each pair's distance is computed once: O(n^2) time, O(n K) memory."""
+    n, k = points.shape[0], starts.shape[0]
+    xs, ys, zs = points[:, 0].copy(), points[:, 1].copy(), points[:, 2].copy()
+    earlier = np.zeros((k, n))  # earlier[c, j]: summed distances from row j to the rows of cluster c before it
+    sums = np.empty((n, k))
+    diameters = np.zeros(k)
+    gaps = np.full((k, k), np.inf)
+    dist = np.empty(n)
+    for c in range(k):
+        gaps[c, c] = 0.0
+        for i in range(starts[c], starts[c] + sizes[c]):
+            x, y, z = xs[i], ys[i], zs[i]
+            # the rows after i through slices indexed from 0, so that the loops vectorize (see _sum_max_min)
+            xr, yr, zr, d, acc = xs[i + 1:], ys[i + 1:], zs[i + 1:], dist[i + 1:], earlier[c, i + 1:]
+            for j in range(d.shape[0]):
+                dx, dy, dz = xr[j] - x, yr[j] - y, zr[j] - z
+                d[j] = np.sqrt(dx * dx + dy * dy + dz * dz)
+                acc[j] += d[j]
+            for e in range(k):
+                if e < c:
+                    sums[i, e] = earlier[e, i]
+                    continue
+                lo, hi = max(i + 1, starts[e]), starts[e] + sizes[e]
+                later, big, small = _sum_max_min(dist[lo:hi]) if lo < hi else (0.0, 0.0, np.inf)
+                if e == c:
+                    sums[i, e] = earlier[e, i] + later
+                    diameters[c] = max(diameters[c], big)
+                else:
+                    sums[i, e] = later
+                    if small < gaps[c, e]:
+                        gaps[c, e] = gaps[e, c] = small
+    return sums, diameters, gaps
+
+
+@numba.njit(**_JIT)
+def region_scatter(points: np.ndarray, origin: np.ndarray, members: np.ndarray, bounds: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Per region j, the points ``points[members[bounds[j]:bounds[j + 1]]] - origin`` ((N, 3), (3,) meters):
+    (centroids (k, 3), scatter matrices (k, 3, 3) about them, m^2); zeros for a region without points."""
+    k = bounds.shape[0] - 1
+    centroids = np.zeros((k, 3))
+    scatter = np.zeros((k, 3, 3))
+    for j in range(k):
+        lo, hi = bounds[j], bounds[j + 1]
+        if hi == lo:
+            continue
+        sx = sy = sz = 0.0
+        for q in range(lo, hi):
+            p = members[q]
+            sx += points[p, 0] - origin[0]
+            sy += points[p, 1] - origin[1]
+            sz += points[p, 2] - origin[2]
+        cx, cy, cz = sx / (hi - lo), sy / (hi - lo), sz / (hi - lo)
+        xx = xy = xz = yy = yz = zz = 0.0
+        for q in range(lo, hi):
+            p = members[q]
+            x, y, z = points[p, 0] - origin[0] - cx, points[p, 1] - origin[1] - cy, points[p, 2] - origin[2] - cz
+            xx += x * x
+            xy += x * y
+            xz += x * z
+            yy += y * y
+            yz += y * z
+            zz += z * z
+        centroids[j, 0], centroids[j, 1], centroids[j, 2] = cx, cy, cz
+        scatter[j, 0, 0], scatter[j, 0, 1], scatter[j, 0, 2] = xx, xy, xz
+        scatter[j, 1, 0], scatter[j, 1, 1], scatter[j, 1, 2] = xy, yy, yz
+        scatter[j, 2, 0], scatter[j, 2, 1], scatter[j, 2, 2] = xz, yz, zz
+    return centroids, scatter
+
+
+@numba.njit(**_JIT)
+def _quantile_at(m: int, q: float) -> tuple[int, int, float]:
+    """Where the ``q`` quantile (0 <= q <= 1) of m > 0 sorted values lies, by linear interpolation in numpy's
+    arithmetic (np.percentile's default method): (the index below, the one above, the weight of the one above)."""
+    virtual = (m - 1) * q
+    if virtual >= m - 1:
+        return m - 1, m - 1, 0.0
+    if virtual < 0.0:
+        return 0, 0, 0.0
+    below = np.floor(virtual)
+    return np.int64(below), np.int64(below) + 1, virtual - below
+
+
+@numba.njit(**_JIT)
+def _lerp(a: float, b: float, gamma: float) -> float:
+    """numpy's interpolation between a and b at weight ``gamma`` of b (the same rounding as np.percentile)."""
+    diff = b - a
+    return b - diff * (1.0 - gamma) if gamma >= 0.5 else a + diff * gamma
+
+
+@numba.njit(**_JIT)
+def region_extents(points: np.ndarray, origin: np.ndarray, members: np.ndarray, bounds: np.ndarray,
+                   centroids: np.ndarray, axes: np.ndarray, low_q: float, high_q: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per region j (its points as in :func:`region_scatter`, ``centroids`` (k, 3) and ``axes`` (k, 3, 3) rows u, v,
+    normal): the ``low_q`` and ``high_q`` quantiles (0..1) of its points along u and v (lo, hi (k, 2) meters) and
+    their RMS distance from the centroid in the plane (k,) meters; zeros for a region without points."""
+    k = bounds.shape[0] - 1
+    lo_out, hi_out, radius = np.zeros((k, 2)), np.zeros((k, 2)), np.zeros(k)
+    for j in range(k):
+        start, stop = bounds[j], bounds[j + 1]
+        m = stop - start
+        if m == 0:
+            continue
+        uv = np.empty((2, m))
+        square = 0.0
+        for q in range(m):
+            p = members[start + q]
+            x = points[p, 0] - origin[0] - centroids[j, 0]
+            y = points[p, 1] - origin[1] - centroids[j, 1]
+            z = points[p, 2] - origin[2] - centroids[j, 2]
+            u = x * axes[j, 0, 0] + y * axes[j, 0, 1] + z * axes[j, 0, 2]
+            v = x * axes[j, 1, 0] + y * axes[j, 1, 1] + z * axes[j, 1, 2]
+            uv[0, q], uv[1, q] = u, v
+            square += u * u + v * v
+        a0, a1, ga = _quantile_at(m, low_q)
+        b0, b1, gb = _quantile_at(m, high_q)
+        kth = np.array([a0, a1, b0, b1])
+        for axis in range(2):
+            values = np.partition(uv[axis], kth)  # only the four order statistics needed, in place of a sort
+            lo_out[j, axis] = _lerp(values[a0], values[a1], ga)
+            hi_out[j, axis] = _lerp(values[b0], values[b1], gb)
+        radius[j] = np.sqrt(square / m)
+    return lo_out, hi_out, radius
+
+
+@numba.njit(**_JIT)
+def _nan_max(a: float, b: float) -> float:
+    """The larger of a and b, NaN when either is (as np.maximum)."""
+    return a if a > b or a != a else b
+
+
+@numba.njit(**_JIT)
+def _nan_min(a: float, b: float) -> float:
+    """The smaller of a and b, NaN when either is (as np.minimum)."""
+    return a if a < b or a != a else b
+
+
+@numba.njit(**_JIT)
+def plane_silhouette_sum(x: np.ndarray, own: np.ndarray, centroids: np.ndarray, axes: np.ndarray, lo: np.ndarray,
+                         hi: np.ndarray, radius: np.ndarray) -> float:
+    """Sum of the plane silhouettes s_i of the points ``x`` (m, 3) meters on the regions ``own`` (m,) (0..k-1),
+    given each region's frame: ``centroids`` (k, 3), ``axes`` (k, 3, 3) rows u, v, normal, in-plane extents ``lo``,
+    ``hi`` (k, 2) and RMS radii ``radius`` (k,). a_i: distance to its own region's infinite plane; b_i: distance to
+    the nearest other region's plane clipped to its extent, at most its own radius; s_i = (b_i - a_i) / max(a_i,
+    b_i), 0 where both are 0 or either is NaN (an overflow)."""
+    m, k = x.shape[0], centroids.shape[0]
+    total = 0.0
+    for i in range(m):
+        j = own[i]
+        a = 0.0
+        nearest = np.inf
+        for r in range(k):
+            rx, ry, rz = x[i, 0] - centroids[r, 0], x[i, 1] - centroids[r, 1], x[i, 2] - centroids[r, 2]
+            perp = abs(rx * axes[r, 2, 0] + ry * axes[r, 2, 1] + rz * axes[r, 2, 2])
+            if r == j:
+                a = perp
+                continue
+            u = rx * axes[r, 0, 0] + ry * axes[r, 0, 1] + rz * axes[r, 0, 2]
+            v = rx * axes[r, 1, 0] + ry * axes[r, 1, 1] + rz * axes[r, 1, 2]
+            ou = _nan_max(_nan_max(lo[r, 0] - u, u - hi[r, 0]), 0.0)
+            ov = _nan_max(_nan_max(lo[r, 1] - v, v - hi[r, 1]), 0.0)
+            nearest = _nan_min(nearest, np.sqrt(perp * perp + (ou * ou + ov * ov)))
+        b = _nan_min(nearest, radius[j])
+        top = _nan_max(a, b)
+        if top > 0.0:
+            total += (b - a) / top
+    return total
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -1639,6 +1928,17 @@ def warm() -> Warmup:
     triple_planes(cols, np.zeros((2, 3), np.int64), 1e-6)
     coherent_inliers(np.ones(4, np.bool_), np.ones(3), cols, 0.5)
     largest_magnitude(pts.reshape(-1))
+    codes = np.array([0, -1, 0, 1], np.int64)
+    group_by_label(codes, 2)
+    compact = np.empty(4, np.int32)
+    for ints in (codes, labels):  # the label types the package passes
+        n, m, low, count = label_census(pts, ints, compact)
+    rows_at_ranks(compact, low, np.arange(len(count)) - 1, np.zeros(2, np.int64), np.array([0, 1, 2]))
+    sizes = np.array([2, 2], np.int64)
+    cluster_distance_pass(pts, np.array([0, 2], np.int64), sizes)
+    centroids, scatter = region_scatter(pts, np.zeros(3), index, np.array([0, 2, 4]))
+    region_extents(pts, np.zeros(3), index, np.array([0, 2, 4]), centroids, scatter, 0.005, 0.995)
+    plane_silhouette_sum(pts, codes[[0, 2, 3, 3]], centroids, scatter, np.zeros((2, 2)), np.zeros((2, 2)), np.ones(2))
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
@@ -1648,4 +1948,5 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, widen_xyz,
             valid_rows, frame_pass, plane_patches, fold_fit, grid_sample, grid_edges, grid_usable,
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
-            triple_planes, coherent_inliers, largest_magnitude)
+            triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
+            cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum)

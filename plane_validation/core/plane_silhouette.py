@@ -8,22 +8,21 @@ too): s_i = (b_i - a_i) / max(a_i, b_i). A point of a thin, well separated
 region has s_i near 1; a strip of one surface claimed by a plane crossing it (it lies on another
 region, b_i ~ 0) has s_i near -1. PS is the mean s_i over all valid points with the unassigned
 points counting 0, so it also rewards coverage: slivers found at a tiny tolerance score low.
-Cost O(n k) on a sample of n points, k regions. Pure numpy.
+Cost O(n k) on a sample of n points, k regions; the loop over the sample is compiled (core/kernels.py).
 """
 from __future__ import annotations
 
 import numpy as np
 
+from . import kernels
 from .ransac import as_points, finite_rows, generator
 
-__all__ = ['plane_silhouette', 'region_frames', 'clipped_plane_distances', 'dense_codes']
+__all__ = ['plane_silhouette', 'plane_silhouette_of', 'region_frames', 'clipped_plane_distances', 'dense_codes']
 
 #: Points per region its frame (plane and extent) is estimated from.
 FRAME_POINTS = 4096
 #: The regions' frames are estimated from a random subset of this many assigned points.
 FRAME_SAMPLE = 16384
-#: Points whose distances to every region are computed at once.
-BLOCK = 65536
 #: In-plane extent of a region: these percentiles of its points along each in-plane axis.
 EXTENT_PERCENTILES = (0.5, 99.5)
 
@@ -44,25 +43,29 @@ def region_frames(points: np.ndarray, labels: np.ndarray, k: int, rng: np.random
     """Per region 0..k-1 of ``labels`` (N,) on ``points`` (N, 3): centroids (k, 3), axes (k, 3, 3)
     with rows u, v in the plane and the normal last, extents lo, hi (k, 2) along u, v and in-plane
     RMS radii (k,), meters."""
-    centroids, axes = np.zeros((k, 3)), np.tile(np.eye(3), (k, 1, 1))
-    lo, hi, radius = np.zeros((k, 2)), np.zeros((k, 2)), np.zeros(k)
-    order = np.argsort(labels, kind='stable')
-    starts = np.searchsorted(labels[order], np.arange(k + 1))
+    pts = kernels.c_array(points, np.float64)
+    return _region_frames(pts, np.zeros(3), np.arange(len(pts)), labels, k, rng)
+
+
+def _region_frames(pts: np.ndarray, origin: np.ndarray, rows: np.ndarray, labels: np.ndarray, k: int,
+                   rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`region_frames` of the points ``pts[rows] - origin`` ((N, 3), (m,), (3,)) with ``labels`` (m,)."""
+    order, starts = kernels.group_by_label(kernels.c_array(labels, np.int64), k)
+    parts = []
     for j in range(k):
-        rows = order[starts[j]:starts[j + 1]]
-        if len(rows) > FRAME_POINTS:
-            rows = rows[rng.choice(len(rows), FRAME_POINTS, replace=False)]
-        if len(rows) == 0:
-            continue
-        p = points[rows]
-        c = p.mean(axis=0)
-        centered = p - c
-        _, vectors = np.linalg.eigh(centered.T @ centered)  # ascending: the normal first
-        frame = vectors[:, [2, 1, 0]].T
-        uv = centered @ frame[:2].T
-        centroids[j], axes[j] = c, frame
-        lo[j], hi[j] = np.percentile(uv, EXTENT_PERCENTILES, axis=0)
-        radius[j] = np.sqrt((uv ** 2).sum(axis=1).mean())
+        part = order[starts[j]:starts[j + 1]]
+        if len(part) > FRAME_POINTS:
+            part = part[rng.choice(len(part), FRAME_POINTS, replace=False)]
+        parts.append(part)
+    bounds = np.zeros(k + 1, np.int64)
+    bounds[1:] = np.cumsum([len(part) for part in parts])
+    members = rows[np.concatenate(parts)] if k else np.zeros(0, np.int64)
+    centroids, scatter = kernels.region_scatter(pts, origin, members, bounds)
+    _, vectors = np.linalg.eigh(scatter)  # ascending: the normal first
+    axes = np.ascontiguousarray(np.swapaxes(vectors[:, :, ::-1], 1, 2))
+    axes[bounds[1:] == bounds[:-1]] = np.eye(3)  # a region without points
+    lo, hi, radius = kernels.region_extents(pts, origin, members, bounds, centroids, axes,
+                                            EXTENT_PERCENTILES[0] / 100, EXTENT_PERCENTILES[1] / 100)
     return centroids, axes, lo, hi, radius
 
 
@@ -88,34 +91,35 @@ def plane_silhouette(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     lab = np.asarray(labels).reshape(-1)
     if len(lab) != len(pts):
         raise ValueError(f'{len(lab)} labels for {len(pts)} points')
-    keep = finite_rows(pts)
-    lab = lab.astype(np.int64, copy=False)
-    assigned = np.flatnonzero(keep & (lab >= 0))
-    if len(assigned) == 0:
+    pts, lab = kernels.c_array(pts, np.float64), kernels.c_array(lab, np.int64)
+    compact = np.empty(len(lab), np.int32)
+    n_valid, n_assigned, low, count = kernels.label_census(pts, lab, compact)
+    return plane_silhouette_of(pts, lab, compact, (n_valid, n_assigned, low, len(count)), sample_size=sample_size,
+                               rng=generator(seed))
+
+
+def plane_silhouette_of(pts: np.ndarray, lab: np.ndarray, compact: np.ndarray, census: tuple[int, int, int, int],
+                        *, sample_size: int | None, rng: np.random.Generator) -> float:
+    """:func:`plane_silhouette` from checked input: ``pts`` (N, 3) C-ordered float64 meters, ``lab`` (N,)
+    integers, and what :func:`.kernels.label_census` found: ``compact`` (N,) labels and ``census`` (finite rows,
+    those labelled >= 0, the smallest label, the span of labels from it: 0 when there is no table)."""
+    n_valid, n_assigned, low, span = census
+    if n_assigned == 0:
         return 0.0
-    rng = generator(seed)
-    coverage = len(assigned) / np.count_nonzero(keep)
-    if sample_size is not None and len(assigned) > FRAME_SAMPLE:  # with replacement: much cheaper on large clouds
-        assigned = np.sort(assigned[rng.integers(0, len(assigned), FRAME_SAMPLE)])
-    ids, dense = dense_codes(lab[assigned])
-    k = len(ids)
+    coverage = n_assigned / n_valid
+    if sample_size is not None and n_assigned > FRAME_SAMPLE:  # with replacement: much cheaper on large clouds
+        ranks = np.sort(rng.integers(0, n_assigned, FRAME_SAMPLE))
+    else:
+        ranks = np.arange(n_assigned)
+    if span:
+        assigned = kernels.rows_at_ranks(compact, low, np.where(np.arange(low, low + span) >= 0, 0, -1), ranks,
+                                         np.array([0, len(ranks)]))
+    else:
+        assigned = np.flatnonzero(finite_rows(pts) & (lab >= 0))[ranks]
+    ids, dense = dense_codes(lab[assigned].astype(np.int64, copy=False))
     origin = pts[assigned[0]]  # precision for far-away coordinates
-    frame_pts = pts[assigned] - origin
-    frames = region_frames(frame_pts, dense, k, rng)
+    frames = _region_frames(pts, origin, assigned, dense, len(ids), rng)
     rows = np.arange(len(assigned)) if sample_size is None or len(assigned) <= sample_size else \
         rng.choice(len(assigned), int(sample_size), replace=False)
-    total = sum(_silhouette_sum(frame_pts[part], dense[part], frames)  # bounded memory: (block, k, 3)
-                for part in np.array_split(rows, -(-len(rows) // BLOCK)))
-    return float(total / len(rows) * coverage)
-
-
-def _silhouette_sum(x: np.ndarray, own: np.ndarray, frames: tuple) -> float:
-    """Sum of s_i over the points ``x`` (m, 3) of regions ``own`` (m,), given the regions' ``frames``."""
-    centroids, axes, lo, hi, radius = frames
-    clipped, perp = clipped_plane_distances(x, centroids, axes, lo, hi)
-    a = perp[np.arange(len(x)), own]
-    clipped[np.arange(len(x)), own] = np.inf
-    b = np.minimum(clipped.min(axis=1), radius[own])
-    top = np.maximum(a, b)
-    with np.errstate(invalid='ignore', divide='ignore'):
-        return float(np.where(top > 0, (b - a) / top, 0.0).sum())
+    return float(kernels.plane_silhouette_sum(pts[assigned[rows]] - origin, dense[rows], *frames) / len(rows)
+                 * coverage)
