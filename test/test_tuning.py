@@ -784,6 +784,19 @@ except KeyboardInterrupt:
 '''
 
 
+def test_a_ctrl_c_inside_a_kernel_load_leaves_the_block_as_a_keyboard_interrupt():
+    """numba turns a KeyboardInterrupt raised while it unpickles a cached kernel into a SystemError caused by it
+    (a Ctrl-C in a sweep's first second); the block that manages Ctrl-C for sweeps raises the interrupt itself.
+    Other SystemErrors pass unchanged."""
+    from plane_validation.core.tuning import workers_ignore_sigint
+    with pytest.raises(KeyboardInterrupt):
+        with workers_ignore_sigint():
+            raise SystemError('returned a result with an exception set') from KeyboardInterrupt()
+    with pytest.raises(SystemError, match='other'):
+        with workers_ignore_sigint():
+            raise SystemError('other')
+
+
 def test_ctrl_c_during_a_parallel_sweep_stops_it_and_its_workers_quietly():
     """A terminal's Ctrl-C reaches the whole process group: the workers ignore it (they inherit that
     from their start) and the sweep stops them; no traceback, no process left."""

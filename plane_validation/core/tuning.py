@@ -816,10 +816,16 @@ def workers_ignore_sigint() -> Iterator[None]:
     """Within this block (in the main thread of a process without rclpy), parallel sweeps start their
     worker processes with SIGINT ignored: Ctrl-C, which a terminal sends to the whole process group,
     then reaches only this process, which stops them, instead of interrupting them mid-import or
-    mid-task with tracebacks of their own. The command line uses it."""
+    mid-task with tracebacks of their own. A Ctrl-C that lands while numba loads a kernel from its cache
+    leaves it as a SystemError caused by the KeyboardInterrupt: it leaves the block as the
+    KeyboardInterrupt it is. The command line uses it."""
     token = _QUIET_WORKERS.set(True)
     try:
         yield
+    except SystemError as exc:
+        if isinstance(exc.__cause__, KeyboardInterrupt):
+            raise exc.__cause__ from None
+        raise
     finally:
         _QUIET_WORKERS.reset(token)
 
