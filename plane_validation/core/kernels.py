@@ -671,12 +671,9 @@ def principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.
 
 
 @numba.njit(**_JIT)
-def _scatter_shape(points: np.ndarray, members: np.ndarray, lo: int, hi: int, cx: float, cy: float, cz: float
-                   ) -> tuple[float, float, float, float]:
-    """Of the points ``points[members[lo:hi]]`` about their mean (cx, cy, cz): (the scatter's smallest eigenvalue,
-    |cos| between its axis and the mean (NaN when undefined), smallest / middle eigenvalue, middle / largest one), in
-    closed form (trigonometric eigenvalues; the axis as the longest cross product of two rows of scatter - smallest I).
-    """
+def _scatter_sums(points: np.ndarray, members: np.ndarray, lo: int, hi: int, cx: float, cy: float, cz: float
+                  ) -> tuple[float, float, float, float, float, float]:
+    """Sums (xx, xy, xz, yy, yz, zz) of the products of ``points[members[lo:hi]]``' offsets from (cx, cy, cz), m^2."""
     xx = xy = xz = yy = yz = zz = 0.0
     for q in range(lo, hi):
         p = members[q]
@@ -687,6 +684,17 @@ def _scatter_shape(points: np.ndarray, members: np.ndarray, lo: int, hi: int, cx
         yy += y * y
         yz += y * z
         zz += z * z
+    return xx, xy, xz, yy, yz, zz
+
+
+@numba.njit(**_JIT)
+def _scatter_shape(points: np.ndarray, members: np.ndarray, lo: int, hi: int, cx: float, cy: float, cz: float
+                   ) -> tuple[float, float, float, float]:
+    """Of the points ``points[members[lo:hi]]`` about their mean (cx, cy, cz): (the scatter's smallest eigenvalue,
+    |cos| between its axis and the mean (NaN when undefined), smallest / middle eigenvalue, middle / largest one), in
+    closed form (trigonometric eigenvalues; the axis as the longest cross product of two rows of scatter - smallest I).
+    """
+    xx, xy, xz, yy, yz, zz = _scatter_sums(points, members, lo, hi, cx, cy, cz)
     mean = (xx + yy + zz) / 3.0
     spread = np.sqrt(((xx - mean) ** 2 + (yy - mean) ** 2 + (zz - mean) ** 2 + 2.0 * (xy * xy + xz * xz + yz * yz))
                      / 6.0)
@@ -1053,16 +1061,7 @@ def plane_patches(centred: np.ndarray, axes: np.ndarray, per_patch: int, min_cou
                 cy += centred[i, 1]
                 cz += centred[i, 2]
             cx, cy, cz = cx / k, cy / k, cz / k
-            xx = xy = xz = yy = yz = zz = 0.0
-            for q in range(lo, hi):
-                i = order[q]
-                x, y, z = centred[i, 0] - cx, centred[i, 1] - cy, centred[i, 2] - cz
-                xx += x * x
-                xy += x * y
-                xz += x * z
-                yy += y * y
-                yz += y * z
-                zz += z * z
+            xx, xy, xz, yy, yz, zz = _scatter_sums(centred, order, lo, hi, cx, cy, cz)
             s = scatter[p]
             s[0, 0], s[0, 1], s[0, 2] = xx / k, xy / k, xz / k
             s[1, 0], s[1, 1], s[1, 2] = xy / k, yy / k, yz / k

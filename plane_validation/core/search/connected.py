@@ -100,14 +100,11 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
     joint least-squares plane has MERGE_KEEP of their points (3, m) within ``tolerance`` becomes one
     region (the earlier one's number), with that plane. Regions renumbered in order. The fits are numpy's; each
     pair's tests run compiled (:func:`.kernels.merge_test`; :func:`_merge_coplanar_numpy` is the reference)."""
-    src, dst = neighbours.touching()
-    a, b = region[src], region[dst]
-    touch = (a >= 0) & (b >= 0) & (a != b)
-    if not touch.any():
+    touching = _touching_pairs(region, neighbours, len(found))
+    if touching is None:
         return region, found
-    src, dst, a, b = src[touch], dst[touch], a[touch], b[touch]
+    src, dst, a, b, pairs = touching
     k = len(found)
-    pairs = np.unique(np.minimum(a, b) * k + np.maximum(a, b))  # each touching pair of regions once, sorted
     root = np.arange(k)  # the region each region is now part of (a, b: the regions at src, dst before any merge)
     found = list(found)
     normals = _NO_NORMALS if neighbours.normals is None else kernels.c_array(neighbours.normals, np.float64)
@@ -155,14 +152,11 @@ def _merge_coplanar_numpy(search: np.ndarray, region: np.ndarray, found: list, t
     joint least-squares plane has MERGE_KEEP of their points (3, m) within ``tolerance`` becomes one
     region (the earlier one's number), with that plane. Regions renumbered in order. The reference of
     :func:`_merge_coplanar` (its tests in numpy)."""
-    src, dst = neighbours.touching()
-    a, b = region[src], region[dst]
-    touch = (a >= 0) & (b >= 0) & (a != b)
-    if not touch.any():
+    touching = _touching_pairs(region, neighbours, len(found))
+    if touching is None:
         return region, found
-    src, dst, a, b = src[touch], dst[touch], a[touch], b[touch]
+    src, dst, a, b, pairs = touching
     k = len(found)
-    pairs = np.unique(np.minimum(a, b) * k + np.maximum(a, b))  # each touching pair of regions once, sorted
     root = np.arange(k)
     found = list(found)
     # the points of each region, ascending, kept up to date as regions merge (as are a, b: the regions at src, dst)
@@ -198,6 +192,19 @@ def _merge_coplanar_numpy(search: np.ndarray, region: np.ndarray, found: list, t
     renumber = np.full(len(found) + 1, -1, dtype=np.int64)
     renumber[keep] = np.arange(len(keep))
     return renumber[region], [found[j] for j in keep]
+
+
+def _touching_pairs(region: np.ndarray, neighbours: Neighbours, k: int
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """The neighbour pairs (src, dst) joining two of the ``k`` regions of ``region``, their regions (a, b), and each
+    touching pair of regions once as i * k + j (i < j), sorted; None when no two regions touch."""
+    src, dst = neighbours.touching()
+    a, b = region[src], region[dst]
+    touch = (a >= 0) & (b >= 0) & (a != b)
+    if not touch.any():
+        return None
+    src, dst, a, b = src[touch], dst[touch], a[touch], b[touch]
+    return src, dst, a, b, np.unique(np.minimum(a, b) * k + np.maximum(a, b))
 
 
 #: Border settling compares planes by the distance along each point's viewing ray (a range sensor's
