@@ -24,7 +24,8 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
            'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
-           'region_scatter', 'region_extents', 'plane_silhouette_sum', 'warm', 'Warmup']
+           'region_scatter', 'region_extents', 'plane_silhouette_sum', 'score_hypotheses', 'spread_test', 'warm',
+           'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -260,24 +261,88 @@ def grid_region(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: 
     :meth:`.search.neighbours.Neighbours.region` gives it: its inliers ``mask`` (r,) and the points within the
     support band ``support`` (r,), both cut to the points whose ``normals`` (n, 3) lie within ``min_cos`` of it (NaN:
     unknown, kept); ``above`` (r,): on the side its normal points to. ``rules``: (FRAGMENTED, FRAGMENT_PIECE,
-    SUPPORT_BALANCE). Returns (kept (r,), taken (r,)) bool."""
+    SUPPORT_BALANCE). Returns (kept (r,), taken (r,)) bool. Only the points of the support band are visited after
+    one pass over ``rest``: a plane's band is mostly a small share of the points left."""
     r = rest.shape[0]
     wide = np.zeros(r, np.bool_)
     full = np.zeros(r, np.bool_)
     up = np.zeros(r, np.bool_)
+    band = np.empty(r, np.int64)  # the points of the support band that may join a region, ascending
+    inliers = np.empty(r, np.int64)  # ... and of those, the inliers
+    n_band = n_in = 0
     for q in range(r):
-        i = rest[q]
         if support[q]:
+            i = rest[q]
             cos = abs(normals[i, 0] * normal[0] + normals[i, 1] * normal[1] + normals[i, 2] * normal[2])
-            wide[q] = not cos < min_cos
             up[q] = above[q]
-        full[q] = mask[q] and wide[q]
-    component, count = _rest_components(pixel, node, usable, width, bridges, rest, position, full)
-    out, sizes = _largest(component, count, full)
+            if not cos < min_cos and usable[pixel[i]]:
+                wide[q] = True
+                band[n_band] = q
+                n_band += 1
+                if mask[q]:
+                    full[q] = True
+                    inliers[n_in] = q
+                    n_in += 1
+    parent = np.empty(r, np.int64)
+    out, sizes = _band_largest(pixel, node, width, bridges, rest, position, full, inliers[:n_in], full, parent)
     if _fragmented(sizes, rules[0], rules[1]):
-        component, count = _rest_components(pixel, node, usable, width, bridges, rest, position, wide)
-        return _surface(_largest(component, count, full)[0], full, up, out, rules[2])
+        whole = _band_largest(pixel, node, width, bridges, rest, position, wide, band[:n_band], full, parent)[0]
+        return _surface(whole, full, up, out, rules[2])
     return out, out
+
+
+@numba.njit(**_JIT)
+def _band_largest(pixel: np.ndarray, node: np.ndarray, width: int, bridges: np.ndarray, rest: np.ndarray,
+                  position: np.ndarray, inside: np.ndarray, members: np.ndarray, counted: np.ndarray,
+                  parent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The component of the points ``members`` (c,) ascending (their places in ``rest``; ``inside`` (r,): the same as
+    a mask) with the most ``counted`` (r,) points (the first of equals, components numbered in the order of their
+    first point, as :func:`grid_components` numbers them), as (r,) bool, and those counts per component; ``parent``
+    (r,): scratch."""
+    r = rest.shape[0]
+    for q in members:
+        parent[q] = q
+    row = 0
+    for q in members:
+        p = pixel[rest[q]]
+        if p >= row + width:
+            row = p - p % width
+        if p > row:
+            j = node[p - 1]
+            if j >= 0 and position[j] >= 0 and inside[position[j]]:
+                _join(parent, q, position[j])
+        if p >= width:
+            j = node[p - width]
+            if j >= 0 and position[j] >= 0 and inside[position[j]]:
+                _join(parent, q, position[j])
+    for b in range(bridges.shape[0]):
+        if bridges[b, 2] != 0:
+            continue
+        i, j = node[bridges[b, 0]], node[bridges[b, 1]]
+        if i >= 0 and j >= 0 and position[i] >= 0 and position[j] >= 0 and inside[position[i]] and \
+                inside[position[j]]:
+            _join(parent, position[i], position[j])
+    number = np.empty(r, np.int64)  # read only at roots, each written when its first point is met
+    component = np.empty(members.shape[0], np.int64)
+    count = 0
+    for c in range(members.shape[0]):
+        root = _root(parent, members[c])
+        if root == members[c]:  # a root is its component's smallest point: met first
+            number[root] = count
+            count += 1
+        component[c] = number[root]
+    sizes = np.zeros(count, np.int64)
+    for c in range(members.shape[0]):
+        if counted[members[c]]:
+            sizes[component[c]] += 1
+    out = np.zeros(r, np.bool_)
+    if count == 0:
+        return out, sizes
+    best = np.argmax(sizes)
+    for c in range(members.shape[0]):
+        if component[c] == best:
+            out[members[c]] = True
+    return out, sizes
 
 
 @numba.njit(**_JIT)
@@ -1184,42 +1249,6 @@ def fold_fit(u: np.ndarray, v: np.ndarray, w: np.ndarray, angles: int, offsets: 
 _NUMPY_JIT = dict(_JIT, error_model='numpy')
 
 
-@numba.njit(**_JIT)
-def _rest_components(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
-                     rest: np.ndarray, position: np.ndarray, member: np.ndarray) -> tuple[np.ndarray, int]:
-    """:func:`grid_components` of the points ``member`` (r,) bool among the points ``rest`` (r,) ascending of a
-    sub-grid (``position`` (n,): each point's place in ``rest``, -1 for none), in that place's numbering: the same
-    components, numbered alike, without a pass over the whole grid."""
-    r = rest.shape[0]
-    parent = np.arange(r)
-    inside = np.zeros(r, np.bool_)
-    for q in range(r):
-        inside[q] = member[q] and usable[pixel[rest[q]]]
-    row = 0  # the first pixel of the row of the point at hand (ascending: no division per point)
-    for q in range(r):
-        if not inside[q]:
-            continue
-        p = pixel[rest[q]]
-        if p >= row + width:
-            row = p - p % width
-        if p > row:
-            j = node[p - 1]
-            if j >= 0 and position[j] >= 0 and inside[position[j]]:
-                _join(parent, q, position[j])
-        if p >= width:
-            j = node[p - width]
-            if j >= 0 and position[j] >= 0 and inside[position[j]]:
-                _join(parent, q, position[j])
-    for b in range(bridges.shape[0]):
-        if bridges[b, 2] != 0:
-            continue
-        i, j = node[bridges[b, 0]], node[bridges[b, 1]]
-        if i >= 0 and j >= 0 and position[i] >= 0 and position[j] >= 0 and inside[position[i]] and \
-                inside[position[j]]:
-            _join(parent, position[i], position[j])
-    return _numbered(parent, inside)
-
-
 @numba.njit(**_NUMPY_JIT)
 def grid_sample(points: np.ndarray, finite: np.ndarray, width: int, step: int, offsets: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
@@ -1872,6 +1901,141 @@ def plane_silhouette_sum(x: np.ndarray, own: np.ndarray, centroids: np.ndarray, 
     return total
 
 
+# --- search loop ---
+
+
+@numba.njit(**_NUMPY_JIT)
+def _inliers_on(subset: np.ndarray, tolerance: np.ndarray, point_normals: np.ndarray, nx: float, ny: float, nz: float,
+                d: float, lo: int, hi: int, min_cos: float) -> int:
+    """How many of the points ``lo``..``hi`` of ``subset`` (3, s) meters lie within ``tolerance`` ((1,) or (s,)
+    meters) of the plane (nx, ny, nz, d) with a local normal (``point_normals`` (3, s), NaN: unknown; (3, 0): none
+    known) within ``min_cos`` of its normal."""
+    per_point = tolerance.shape[0] > 1
+    known = point_normals.shape[1] > 0
+    count = 0
+    for p in range(lo, hi):
+        e = abs(nx * subset[0, p] + ny * subset[1, p] + nz * subset[2, p] + d)
+        if not e <= (tolerance[p] if per_point else tolerance[0]):
+            continue
+        if known and abs(nx * point_normals[0, p] + ny * point_normals[1, p] + nz * point_normals[2, p]) < min_cos:
+            continue
+        count += 1
+    return count
+
+
+@numba.njit(**_NUMPY_JIT)
+def _low_count(count: float, n: int, sigmas: float) -> float:
+    """``sigmas`` binomial standard deviations below ``count`` of ``n`` points."""
+    return count - sigmas * np.sqrt(count * (1 - count / n))
+
+
+@numba.njit(**_NUMPY_JIT)
+def score_hypotheses(subset: np.ndarray, tolerance: np.ndarray, point_normals: np.ndarray, normals: np.ndarray,
+                     offsets: np.ndarray, head: int, min_cos: float, sigmas: float, best_normals: np.ndarray,
+                     best_offsets: np.ndarray, best_counts: np.ndarray, n_best: int) -> int:
+    """One batch of RANSAC hypotheses (``normals`` (h, 3), ``offsets`` (h,)) scored on the points ``subset`` (3, s)
+    meters (see :func:`_inliers_on`) and merged into the best so far: ``best_normals`` (c, 3), ``best_offsets`` (c,),
+    ``best_counts`` (c,), the first ``n_best`` of them held, most inliers first (equals: the earlier), updated in
+    place; returns how many are held now. A hypothesis is first scored on the ``head`` first points; only one whose
+    count there is at least ``sigmas`` binomial standard deviations (less one point) below the share the c-th best
+    holds (before there are c of them: a bound from the c-th best count of this batch on the head) is scored on the
+    rest, the others are dropped."""
+    s, h, confirm = subset.shape[1], normals.shape[0], best_counts.shape[0]
+    counts = np.empty(h, np.int64)
+    for j in range(h):
+        counts[j] = _inliers_on(subset, tolerance, point_normals, normals[j, 0], normals[j, 1], normals[j, 2],
+                                offsets[j], 0, head, min_cos)
+    if head < s:
+        share = 0.0
+        if n_best == confirm:
+            share = best_counts[confirm - 1] / s
+        elif h >= confirm:
+            share = max(0.0, _low_count(float(np.sort(counts)[h - confirm]), head, sigmas)) / head
+        bar = _low_count(head * share, head, sigmas) - 1
+        for j in range(h):
+            if counts[j] >= bar:
+                counts[j] += _inliers_on(subset, tolerance, point_normals, normals[j, 0], normals[j, 1],
+                                         normals[j, 2], offsets[j], head, s, min_cos)
+            else:
+                counts[j] = -1
+    for j in range(h):
+        c = counts[j]
+        place = n_best
+        while place > 0 and best_counts[place - 1] < c:
+            place -= 1
+        if c < 0 or place >= confirm:
+            continue
+        for q in range(min(n_best, confirm - 1), place, -1):
+            best_normals[q, 0], best_normals[q, 1], best_normals[q, 2] = \
+                best_normals[q - 1, 0], best_normals[q - 1, 1], best_normals[q - 1, 2]
+            best_offsets[q], best_counts[q] = best_offsets[q - 1], best_counts[q - 1]
+        best_normals[place, 0], best_normals[place, 1], best_normals[place, 2] = \
+            normals[j, 0], normals[j, 1], normals[j, 2]
+        best_offsets[place], best_counts[place] = offsets[j], c
+        n_best = min(n_best + 1, confirm)
+    return n_best
+
+
+@numba.njit(**_NUMPY_JIT)
+def spread_test(cols: np.ndarray, idx: np.ndarray, trim: bool, min_sine: float) -> int:
+    """Whether the points ``cols`` (3, n) meters span a plane, judged on the points ``idx`` (c,) (a random subset;
+    with ``trim``, without the 2 % farthest from their coordinate-wise median by the largest coordinate
+    difference): 0 they do; 1 all points are identical; 2 almost all (the judged ones, no spread); 3 collinear (the
+    second principal spread at most ``min_sine`` squared times the first)."""
+    c = idx.shape[0]
+    same = True
+    for q in range(c):
+        p = idx[q]
+        if cols[0, p] != cols[0, idx[0]] or cols[1, p] != cols[1, idx[0]] or cols[2, p] != cols[2, idx[0]]:
+            same = False
+            break
+    if same:
+        for p in range(cols.shape[1]):
+            if cols[0, p] != cols[0, 0] or cols[1, p] != cols[1, 0] or cols[2, p] != cols[2, 0]:
+                same = False
+                break
+        if same:
+            return 1
+    keep = np.ones(c, np.bool_)
+    if trim:
+        median = np.empty(3)
+        for a in range(3):
+            ordered = np.sort(cols[a][idx])
+            median[a] = (ordered[(c - 1) // 2] + ordered[c // 2]) / 2
+        dist = np.empty(c)
+        for q in range(c):
+            p = idx[q]
+            dist[q] = max(abs(cols[0, p] - median[0]), abs(cols[1, p] - median[1]), abs(cols[2, p] - median[2]))
+        limit = np.sort(dist)[int(0.98 * (c - 1))]
+        for q in range(c):
+            keep[q] = dist[q] <= limit
+    kept = 0
+    mean = np.zeros(3)
+    for q in range(c):
+        if keep[q]:
+            kept += 1
+            for a in range(3):
+                mean[a] += cols[a, idx[q]]
+    mean /= kept
+    scatter = np.zeros((3, 3))
+    for q in range(c):
+        if keep[q]:
+            x, y, z = cols[0, idx[q]] - mean[0], cols[1, idx[q]] - mean[1], cols[2, idx[q]] - mean[2]
+            scatter[0, 0] += x * x
+            scatter[0, 1] += x * y
+            scatter[0, 2] += x * z
+            scatter[1, 1] += y * y
+            scatter[1, 2] += y * z
+            scatter[2, 2] += z * z
+    scatter[1, 0], scatter[2, 0], scatter[2, 1] = scatter[0, 1], scatter[0, 2], scatter[1, 2]
+    eig = np.linalg.eigvalsh(scatter)  # ascending
+    if eig[2] <= 0:
+        return 2
+    if eig[1] <= min_sine * min_sine * eig[2]:
+        return 3
+    return 0
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -1938,6 +2102,9 @@ def warm() -> Warmup:
     centroids, scatter = region_scatter(pts, np.zeros(3), index, np.array([0, 2, 4]))
     region_extents(pts, np.zeros(3), index, np.array([0, 2, 4]), centroids, scatter, 0.005, 0.995)
     plane_silhouette_sum(pts, codes[[0, 2, 3, 3]], centroids, scatter, np.zeros((2, 2)), np.zeros((2, 2)), np.ones(2))
+    best = np.zeros((2, 3)), np.zeros(2), np.zeros(2, np.int64)
+    score_hypotheses(cols, np.ones(1), np.empty((3, 0)), np.ones((2, 3)), np.zeros(2), 2, 0.5, 3.0, *best, 0)
+    spread_test(cols, index, True, 1e-6)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
@@ -1948,4 +2115,5 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             valid_rows, frame_pass, plane_patches, fold_fit, grid_sample, grid_edges, grid_usable,
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
-            cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum)
+            cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, score_hypotheses,
+            spread_test)

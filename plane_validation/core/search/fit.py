@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import kernels
 from .checks import as_points, check_magnitude, finite_rows
 from .types import Allows, Tolerance
 
-__all__ = ['fit_plane', 'fit_columns', 'canonical', 'degeneracy', 'signed_distances', 'plane_distances',
-           'tolerance_at', 'within_plane', 'allows_normal', 'kept_fit', 'refit_regions', 'MIN_SINE']
+__all__ = ['fit_plane', 'fit_columns', 'canonical', 'degeneracy', 'degeneracy_numpy', 'signed_distances',
+           'plane_distances', 'tolerance_at', 'within_plane', 'allows_normal', 'kept_fit', 'refit_regions', 'MIN_SINE']
 
 
 #: Random points the degeneracy (spread) test looks at.
@@ -61,18 +62,39 @@ def canonical(normal: np.ndarray, offset: float) -> tuple[np.ndarray, float]:
     return normal, offset
 
 
+#: Why no plane fits, by :func:`.kernels.spread_test`'s answer.
+_SPREAD_REASONS = (None, 'all remaining points are identical', 'almost all remaining points are identical',
+                   'all remaining points are collinear')
+
+
 def degeneracy(cols: np.ndarray) -> str | None:
     """Reason why no plane can be fitted to the points ``cols`` (3, n), or None.
 
     The spread is judged on the points nearest the median (98 %), so that one far outlier (a
-    driver's FLT_MAX instead of NaN) cannot make a planar cloud look collinear.
+    driver's FLT_MAX instead of NaN) cannot make a planar cloud look collinear. One compiled pass
+    (:func:`.kernels.spread_test`; :func:`degeneracy_numpy` is its reference).
     """
     n = cols.shape[1]
     if n < 3:
         return f'fewer than 3 points left ({n})'
-    # A random subset is plenty for a spread test (not a strided one: in an organized cloud a
-    # stride can pick one image column, which lies on a line). Seeded by n: deterministic.
-    core = cols.T if n <= SPREAD_POINTS else cols[:, np.random.default_rng(n).integers(0, n, SPREAD_POINTS)].T
+    idx = _spread_points(n)
+    return _SPREAD_REASONS[kernels.spread_test(kernels.c_array(cols, np.float64), idx, len(idx) >= 50, MIN_SINE)]
+
+
+def _spread_points(n: int) -> np.ndarray:
+    """The points of n that the spread test looks at: all, or SPREAD_POINTS drawn at random (not a strided subset:
+    in an organized cloud a stride can pick one image column, which lies on a line), seeded by n: deterministic."""
+    if n <= SPREAD_POINTS:
+        return np.arange(n)
+    return np.random.default_rng(n).integers(0, n, SPREAD_POINTS)
+
+
+def degeneracy_numpy(cols: np.ndarray) -> str | None:
+    """:func:`degeneracy` in numpy: the reference its kernel is tested against."""
+    n = cols.shape[1]
+    if n < 3:
+        return f'fewer than 3 points left ({n})'
+    core = cols[:, _spread_points(n)].T
     if np.all(core == core[0]) and np.all(cols == cols[:, :1]):
         return 'all remaining points are identical'
     if len(core) >= 50:

@@ -141,6 +141,99 @@ def _shuffled(m: int) -> np.ndarray:
     return order
 
 
+class _BlasScores:
+    """The CONFIRM best hypotheses of a RANSAC run, scored on the ``pick`` subset of the points ``cols`` (3, m) with
+    float32 BLAS products (the infinite-plane search: the paper's figures come from it)."""
+
+    def __init__(self, cols: np.ndarray, tolerance: Tolerance, point_normals: np.ndarray | None, pick: np.ndarray,
+                 head: int):
+        # Scoring only ranks hypotheses: float32 halves its memory traffic, and the rounding (~1e-7 of
+        # the centred coordinates) only matters for points within a hair of t. A row beyond float32's
+        # range becomes inf (its distances inf or NaN): never an inlier, as in float64.
+        with np.errstate(over='ignore'):
+            self.subset32 = cols[:, pick].astype(np.float32)
+        self.tolerance = tolerance_at(tolerance, pick)
+        self.normals = self.unknown = None
+        if point_normals is not None:
+            sub_normals = point_normals[:, pick]
+            self.unknown = np.isnan(sub_normals[0])
+            self.normals = np.nan_to_num(sub_normals).astype(np.float32)
+        self.head, self.scored = head, len(pick)
+        self.best_normals, self.best_offsets = np.empty((0, 3)), np.empty(0)
+        self.best_counts = np.empty(0, dtype=np.int64)
+
+    def _score(self, normals32: np.ndarray, offsets32: np.ndarray, part: slice) -> np.ndarray:
+        """(h,) inliers of the hypotheses among the subset's points ``part`` (whose normal agrees)."""
+        with np.errstate(over='ignore', invalid='ignore'):  # far-out rows: inf or NaN, never inliers
+            near = plane_distances(self.subset32[:, part], normals32, offsets32) <= tolerance_at(self.tolerance, part)
+        if self.normals is not None:
+            coherent = np.abs(normals32 @ self.normals[:, part]) >= np.float32(NORMAL_MIN_COS)
+            coherent |= self.unknown[part]
+            near &= coherent
+        # a uint16 row sum is much faster than count_nonzero(axis=1); SUBSET < 65536
+        return np.add.reduce(near.view(np.uint8), axis=1, dtype=np.uint16).astype(np.int64)
+
+    def add(self, normals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        """Score a batch and keep the CONFIRM best so far; returns their counts, most first."""
+        head, scored = self.head, self.scored
+        normals32, offsets32 = normals.astype(np.float32), offsets.astype(np.float32)
+        counts = self._score(normals32, offsets32, slice(0, head))
+        if scored > head:
+            tail = slice(head, scored)
+            share = _reference_share(self.best_counts, scored, counts, head)
+            go_on = counts >= _low_count(head * share, head) - 1
+            if go_on.all():
+                counts += self._score(normals32, offsets32, tail)
+            else:
+                counts[go_on] += self._score(normals32[go_on], offsets32[go_on], tail)
+                counts[~go_on] = -1  # not among the best: never kept
+        best_normals = np.concatenate([self.best_normals, normals])
+        best_offsets = np.concatenate([self.best_offsets, offsets])
+        best_counts = np.concatenate([self.best_counts, counts])
+        keep = np.argsort(-best_counts, kind='stable')[:CONFIRM]
+        keep = keep[best_counts[keep] >= 0]
+        self.best_normals, self.best_offsets, self.best_counts = best_normals[keep], best_offsets[keep], \
+            best_counts[keep]
+        return self.best_counts
+
+    def counts(self) -> np.ndarray:
+        return self.best_counts
+
+    def planes(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.best_normals, self.best_offsets
+
+
+_NO_NORMALS = np.empty((3, 0))
+
+
+class _CompiledScores:
+    """:class:`_BlasScores` in float64, one compiled call per batch (:func:`.kernels.score_hypotheses`): the
+    connected-regions search."""
+
+    def __init__(self, ordered: np.ndarray, tolerance: Tolerance, point_normals: np.ndarray | None, pick: np.ndarray,
+                 head: int):
+        self.subset = ordered[:, pick]  # C-ordered: a gather
+        self.tolerance = _tolerances(tolerance_at(tolerance, pick))
+        self.normals = _NO_NORMALS if point_normals is None else kernels.c_array(point_normals[:, pick], np.float64)
+        self.head = head
+        self.best_normals, self.best_offsets = np.empty((CONFIRM, 3)), np.empty(CONFIRM)
+        self.best_counts = np.empty(CONFIRM, dtype=np.int64)
+        self.held = 0
+
+    def add(self, normals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        self.held = kernels.score_hypotheses(self.subset, self.tolerance, self.normals,
+                                             kernels.c_array(normals, np.float64), kernels.c_array(offsets, np.float64),
+                                             self.head, NORMAL_MIN_COS, PRESCORE_SIGMAS, self.best_normals,
+                                             self.best_offsets, self.best_counts, self.held)
+        return self.best_counts[:self.held]
+
+    def counts(self) -> np.ndarray:
+        return self.best_counts[:self.held]
+
+    def planes(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.best_normals[:self.held], self.best_offsets[:self.held]
+
+
 def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_iterations: int,
                rng: np.random.Generator, region_of: Keep | None = None,
                point_normals: np.ndarray | None = None, sampler: Sampler | None = None, allows: Allows = None
@@ -160,36 +253,11 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
     # the scored subset in random order (when it is all the points, a fixed shuffle of them), so
     # that its first PRESCORE points are a random sample of it
     pick = _shuffled(m) if m <= SUBSET else rng.choice(m, SUBSET, replace=False)
-    subset = cols[:, pick]
-    # Scoring only ranks hypotheses: float32 halves its memory traffic, and the rounding (~1e-7 of
-    # the centred coordinates) only matters for points within a hair of t. A row beyond float32's
-    # range becomes inf (its distances inf or NaN): never an inlier, as in float64.
-    with np.errstate(over='ignore'):
-        subset32 = subset.astype(np.float32)
-    sub_tolerance = tolerance_at(tolerance, pick)
-    sub_normals = None
-    if point_normals is not None:
-        sub_normals = point_normals[:, pick]
-        unknown = np.isnan(sub_normals[0])
-        sub_normals = np.nan_to_num(sub_normals).astype(np.float32)
     scored = len(pick)
-    head = slice(0, PRESCORE) if scored > 2 * PRESCORE else slice(0, scored)
-    tail = slice(head.stop, scored)
-
-    def score(normals32: np.ndarray, offsets32: np.ndarray, part: slice) -> np.ndarray:
-        """(h,) inliers of the hypotheses among the subset's points ``part`` (whose normal agrees)."""
-        with np.errstate(over='ignore', invalid='ignore'):  # far-out rows: inf or NaN, never inliers
-            near = plane_distances(subset32[:, part], normals32, offsets32) <= tolerance_at(sub_tolerance, part)
-        if sub_normals is not None:
-            coherent = np.abs(normals32 @ sub_normals[:, part]) >= np.float32(NORMAL_MIN_COS)
-            coherent |= unknown[part]
-            near &= coherent
-        # a uint16 row sum is much faster than count_nonzero(axis=1); SUBSET < 65536
-        return np.add.reduce(near.view(np.uint8), axis=1, dtype=np.uint16).astype(np.int64)
-
-    best_normals = np.empty((0, 3))
-    best_offsets = np.empty(0)
-    best_counts = np.empty(0, dtype=np.int64)
+    head = PRESCORE if scored > 2 * PRESCORE else scored
+    scorer = _CompiledScores(ordered, tolerance, point_normals, pick, head) if region_of is not None else \
+        _BlasScores(cols, tolerance, point_normals, pick, head)
+    best_counts = scorer.counts()
     iterations = 0
     needed = float(max_iterations)
     while iterations < min(needed, max_iterations):
@@ -201,25 +269,10 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
             normals, offsets = normals[ok], offsets[ok]
         if len(normals) == 0:
             continue
-        normals32, offsets32 = normals.astype(np.float32), offsets.astype(np.float32)
-        counts = score(normals32, offsets32, head)
-        if tail.stop > tail.start:
-            share = _reference_share(best_counts, scored, counts, head.stop)
-            go_on = counts >= _low_count(head.stop * share, head.stop) - 1
-            if go_on.all():
-                counts += score(normals32, offsets32, tail)
-            else:
-                counts[go_on] += score(normals32[go_on], offsets32[go_on], tail)
-                counts[~go_on] = -1  # not among the best: never kept
-        # Keep the CONFIRM best hypotheses seen so far for confirmation on all points.
-        best_normals = np.concatenate([best_normals, normals])
-        best_offsets = np.concatenate([best_offsets, offsets])
-        best_counts = np.concatenate([best_counts, counts])
-        keep = np.argsort(-best_counts, kind='stable')[:CONFIRM]
-        keep = keep[best_counts[keep] >= 0]
-        best_normals, best_offsets, best_counts = best_normals[keep], best_offsets[keep], best_counts[keep]
+        best_counts = scorer.add(normals, offsets)
         if len(best_counts):
             needed = _required_iterations(best_counts[0] / scored, probability, sampler is not None)
+    best_normals, best_offsets = scorer.planes()
     if len(best_counts) == 0:
         return None
     # MSAC: the truncated squared distance prefers, of two planes with similar support, the one
