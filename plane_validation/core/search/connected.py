@@ -121,7 +121,7 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
             continue
         i, j = min(i, j), max(i, j)
         members = np.sort(np.concatenate([points_of[i], points_of[j]]), kind='stable')  # two sorted runs: merged
-        normal, offset = fit_columns(search[:, members].copy())  # C-ordered, as BLAS's rounding depends on the layout
+        normal, offset = kernels.fit_members(cols, members)
         if not allows_normal(allows, normal):
             continue  # their joint plane leaves the orientation constraint
         own = np.array([np.append(*found[i]), np.append(*found[j])])

@@ -13,7 +13,8 @@ from .checks import as_points, check_magnitude, finite_rows
 from .types import Allows, Tolerance
 
 __all__ = ['fit_plane', 'fit_columns', 'canonical', 'degeneracy', 'degeneracy_numpy', 'signed_distances',
-           'plane_distances', 'tolerance_at', 'within_plane', 'allows_normal', 'kept_fit', 'refit_regions', 'MIN_SINE']
+           'plane_distances', 'tolerance_at', 'within_plane', 'allows_normal', 'kept_fit', 'refit_regions',
+           'refit_regions_numpy', 'MIN_SINE']
 
 
 #: Random points the degeneracy (spread) test looks at.
@@ -149,6 +150,15 @@ def kept_fit(fit: tuple[np.ndarray, float], plane: tuple[np.ndarray, float], all
 
 def refit_regions(search: np.ndarray, region: np.ndarray, found: list, allows: Allows = None) -> list:
     """Each region's plane fitted to its points (3, m) ``search`` (kept when it has fewer than 3, or when the fit
-    leaves the normals ``allows`` takes)."""
+    leaves the normals ``allows`` takes). One compiled pass (:func:`.kernels.fit_regions`; :func:`refit_regions_numpy`
+    is its reference)."""
+    normals, offsets, counts = kernels.fit_regions(kernels.c_array(search, np.float64),
+                                                   kernels.c_array(region, np.int64), len(found))
+    return [kept_fit((normals[j].copy(), float(offsets[j])), plane, allows) if counts[j] >= 3 else plane
+            for j, plane in enumerate(found)]
+
+
+def refit_regions_numpy(search: np.ndarray, region: np.ndarray, found: list, allows: Allows = None) -> list:
+    """:func:`refit_regions` in numpy."""
     return [kept_fit(fit_columns(np.compress(region == j, search, axis=1)), plane, allows)
             if np.count_nonzero(region == j) >= 3 else plane for j, plane in enumerate(found)]

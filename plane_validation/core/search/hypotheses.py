@@ -9,8 +9,8 @@ import numpy as np
 
 from .. import kernels
 from .fit import MIN_SINE, allows_normal, fit_columns, plane_distances, tolerance_at, within_plane
-from .neighbours import NORMAL_MIN_COS
-from .types import Allows, Keep, Sampler, Tolerance
+from .neighbours import NORMAL_MIN_COS, Remaining
+from .types import Allows, Sampler, Tolerance
 
 __all__ = ['best_plane', 'best_region', 'BATCH', 'SUBSET', 'CONFIRM', 'PRESCORE', 'LOCAL_SHARE', 'SUPPORT']
 
@@ -235,14 +235,14 @@ class _CompiledScores:
 
 
 def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_iterations: int,
-               rng: np.random.Generator, region_of: Keep | None = None,
+               rng: np.random.Generator, region_of: Remaining | None = None,
                point_normals: np.ndarray | None = None, sampler: Sampler | None = None, allows: Allows = None
                ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
     """One RANSAC run on the points ``cols`` (3, m): (normal, offset, inlier mask, mask of the points it
-    takes out of the search) after refinement, or None when every sampled triple was degenerate. ``region_of``
-    maps an inlier mask (m,) to the part a plane would really keep (its largest connected region, see
-    :data:`Keep`) and the points it takes; the confirmed
-    hypotheses are then compared by that, and the plane is refitted on it. ``point_normals`` (3, m),
+    takes out of the search) after refinement, or None when every sampled triple was degenerate. ``region_of``:
+    the region rule over these points (:class:`.neighbours.Remaining`), which gives the part of its inliers a plane
+    would really keep (its largest connected region) and the points it takes; hypotheses are then scored compiled,
+    the confirmed ones compared by that region, and the plane is refitted on it. ``point_normals`` (3, m),
     local surface normals (NaN: unknown): hypotheses are scored only by the points whose normal
     agrees with theirs. ``sampler``: draws triples of nearby points for part of the hypotheses. ``allows``: the
     normals a plane may have; other hypotheses are dropped and a refit that leaves them is not taken."""
@@ -279,9 +279,7 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
     # its inliers hug (a plane tilted across a small face and its neighbours' edges loses).
     with np.errstate(over='ignore', invalid='ignore'):  # a far-out row (a driver's FLT_MAX): inf, no inlier
         if region_of is not None:
-            dist, above = kernels.plane_bands(ordered, best_normals, best_offsets)
-            return best_region(ordered, tolerance, best_normals, best_offsets, dist, above, region_of, point_normals,
-                               allows=allows)
+            return best_region(ordered, tolerance, best_normals, best_offsets, region_of, point_normals, allows=allows)
         dist = plane_distances(cols, best_normals, best_offsets)
     np.minimum(dist, tolerance, out=dist)
     winner = int(np.argmin(np.einsum('ij,ij->i', dist, dist)))
@@ -310,39 +308,25 @@ def _tolerances(tolerance: Tolerance) -> np.ndarray:
     return kernels.c_array(np.reshape(tolerance, -1), np.float64)
 
 
-def best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, offsets: np.ndarray, dist: np.ndarray,
-                above: np.ndarray, keep: Keep, point_normals: np.ndarray | None = None, *, allows: Allows = None
-                ) -> tuple[np.ndarray, float, np.ndarray]:
-    """Of the confirmed hypotheses (distances ``dist`` (h, m), ``above`` (h, m): the points on the side of each
-    plane its normal points to), the one whose region (``keep``: its
-    largest connected one, see :data:`Keep` and SUPPORT) is largest (ties: MSAC); then refit on the region
-    and take the region again, at most 3 times. ``point_normals`` (3, m), NaN where unknown: a region keeps
-    only points whose normal agrees. Returns (normal, offset, region (m,), taken (m,): see :data:`Keep`)."""
-    inliers, support, counts, cost = kernels.band_counts(dist, _tolerances(tolerance), SUPPORT)
-    winner, region, taken, size = -1, None, None, -1
-    for h in np.lexsort((cost, -counts)):  # a hypothesis cannot keep more than its inliers: skip
-        if counts[h] <= size:
-            break
-        if size > 0 and point_normals is not None:  # nor more than its coherent inliers: skip without labelling
-            bound = kernels.coherent_inliers(inliers[h], normals[h], point_normals, _COHERENT_BOUND)
-            if bound < size or (bound == size and cost[h] >= cost[winner]):
-                continue
-        candidate, took = keep(inliers[h], normals[h], support[h], above[h])
-        found = int(np.count_nonzero(candidate))
-        if found > size or (found == size and cost[h] < cost[winner]):
-            winner, region, taken, size = int(h), candidate, took, found
+def best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, offsets: np.ndarray,
+                remaining: Remaining, point_normals: np.ndarray | None = None, *, allows: Allows = None
+                ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+    """Of the confirmed hypotheses (``normals`` (h, 3), ``offsets`` (h,)) on the points ``cols`` (3, m), C-ordered,
+    the one whose region (``remaining``: its largest connected one, see :meth:`.neighbours.Remaining.keep` and
+    SUPPORT) is largest (ties: MSAC; :meth:`.neighbours.Remaining.best`); then refit on the region and take the
+    region again, at most 3 times. ``point_normals`` (3, m), NaN where unknown: a region keeps only points whose
+    normal agrees. Returns (normal, offset, region (m,), taken (m,): see :data:`Keep`)."""
+    tolerances = _tolerances(tolerance)
+    winner, region, taken = remaining.best(cols, tolerances, normals, offsets, point_normals, SUPPORT,
+                                           _COHERENT_BOUND)
     normal, offset = normals[winner], offsets[winner]
-    cols, tolerances = kernels.c_array(cols, np.float64), _tolerances(tolerance)
     for _ in range(3):
         count = int(np.count_nonzero(region))
         if count < 3:
             break
-        new_normal, new_offset = fit_columns(np.compress(region, cols, axis=1))
+        new_normal, new_offset, new_region, new_taken = remaining.refit(cols, tolerances, region, SUPPORT)
         if not allows_normal(allows, new_normal):
             break
-        near, above = kernels.plane_bands(cols, new_normal[None, :], np.array([new_offset]))
-        inliers, support = kernels.band_counts(near, tolerances, SUPPORT)[:2]
-        new_region, new_taken = keep(inliers[0], new_normal, support[0], above[0])
         if np.count_nonzero(new_region) < count:
             break
         normal, offset = new_normal, new_offset

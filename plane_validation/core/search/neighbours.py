@@ -16,6 +16,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
+from .. import kernels
 from .types import Sampler
 
 try:  # the kernel behind csgraph.connected_components, without its per-call checks and transpose
@@ -69,6 +70,39 @@ class Remaining(ABC):
     @abstractmethod
     def without(self, left: np.ndarray) -> Remaining:
         """The same for the points ``left`` (r,) bool of these."""
+
+    def best(self, cols: np.ndarray, tolerances: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
+             point_normals: np.ndarray | None, support: float, bound_cos: float) -> tuple[int, np.ndarray, np.ndarray]:
+        """Of the h confirmed hypotheses (``normals`` (h, 3), ``offsets`` (h,)) on these points ``cols`` (3, r)
+        meters, the one whose region (:meth:`keep`) is largest (equals: the lower MSAC cost): (its number, region (r,),
+        taken (r,)). ``tolerances`` (1,) or (r,) meters; the support band is ``support`` times it. Hypotheses are tried
+        by inliers, then cost; none can keep more than its inliers, nor, with ``point_normals`` (3, r) (NaN:
+        unknown), more than those whose normal lies within ``bound_cos`` of its own: such hypotheses are not
+        labelled. A form may answer in one compiled call (:func:`.kernels.grid_best_region` is this loop)."""
+        dist, above = kernels.plane_bands(cols, normals, offsets)
+        inliers, band, counts, cost = kernels.band_counts(dist, tolerances, support)
+        winner, region, taken, size = -1, None, None, -1
+        for h in np.lexsort((cost, -counts)):  # a hypothesis cannot keep more than its inliers: skip
+            if counts[h] <= size:
+                break
+            if size > 0 and point_normals is not None:  # nor more than its coherent inliers: skip without labelling
+                bound = kernels.coherent_inliers(inliers[h], normals[h], point_normals, bound_cos)
+                if bound < size or (bound == size and cost[h] >= cost[winner]):
+                    continue
+            candidate, took = self.keep(inliers[h], normals[h], band[h], above[h])
+            found = int(np.count_nonzero(candidate))
+            if found > size or (found == size and cost[h] < cost[winner]):
+                winner, region, taken, size = int(h), candidate, took, found
+        return winner, region, taken
+
+    def refit(self, cols: np.ndarray, tolerances: np.ndarray, region: np.ndarray, support: float
+              ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+        """The least-squares plane of the points ``region`` (r,) bool (at least one) of ``cols`` (3, r) meters and
+        the region it keeps (see :meth:`best`): (normal (3,), offset meters, region (r,), taken (r,))."""
+        normal, offset = kernels.fit_mask(cols, region)
+        near, above = kernels.plane_bands(cols, normal[None, :], np.array([offset]))
+        inliers, band = kernels.band_counts(near, tolerances, support)[:2]
+        return (normal, offset) + self.keep(inliers[0], normal, band[0], above[0])
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)

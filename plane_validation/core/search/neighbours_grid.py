@@ -54,6 +54,7 @@ BRIDGE_SLACK = 1.5
 #: The 8 image neighbours (row, column offsets).
 EIGHT = kernels.EIGHT
 _NO_BRIDGES = np.empty((0, 3), np.int64)
+_NO_POINT_NORMALS = np.empty((3, 0))
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -180,6 +181,28 @@ class _GridRemaining(Remaining):
 
     def without(self, left: np.ndarray) -> Remaining:
         return _GridRemaining(self.neighbours, self.rest_idx[left])
+
+    def _grid(self) -> tuple:
+        """The sub-grid's arguments of the region kernels, from ``pixel`` to ``rules``."""
+        nb = self.neighbours
+        bridges = _NO_BRIDGES if nb.bridges is None else kernels.c_array(nb.bridges, np.int64)
+        return (nb.pixel, nb.node, nb.usable, nb.shape[1], bridges, nb.normals, NORMAL_MIN_COS, self.rest_idx,
+                self.position, REGION_RULES)
+
+    def best(self, cols: np.ndarray, tolerances: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
+             point_normals: np.ndarray | None, support: float, bound_cos: float) -> tuple[int, np.ndarray, np.ndarray]:
+        """One compiled call (:func:`.kernels.grid_best_region`)."""
+        if self.neighbours.normals is None:
+            return super().best(cols, tolerances, normals, offsets, point_normals, support, bound_cos)
+        return kernels.grid_best_region(cols, tolerances, normals, offsets, support, bound_cos,
+                                        _NO_POINT_NORMALS if point_normals is None else point_normals, *self._grid())
+
+    def refit(self, cols: np.ndarray, tolerances: np.ndarray, region: np.ndarray, support: float
+              ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+        """One compiled call (:func:`.kernels.grid_refit_region`)."""
+        if self.neighbours.normals is None:
+            return super().refit(cols, tolerances, region, support)
+        return kernels.grid_refit_region(cols, region, tolerances, support, *self._grid())
 
 
 def rest_positions(n: int, rest_idx: np.ndarray) -> np.ndarray:

@@ -35,9 +35,8 @@ def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, m
         if why is not None:
             reason = why if rest.shape[1] < n or n_total < 3 else f'no plane: {why}'
             break
-        region_of = None if remaining is None else remaining.keep
         sampler = None if neighbours is None else neighbours.sampler(rest_idx)
-        best = best_plane(rest, tolerance, probability, max_iterations, rng, region_of, rest_normals, sampler,
+        best = best_plane(rest, tolerance, probability, max_iterations, rng, remaining, rest_normals, sampler,
                           allows)
         if best is None:
             reason = 'every sampled triple was degenerate (nearly collinear or duplicate points)' if allows is None \
