@@ -283,10 +283,20 @@ def grid_region(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: 
                     full[q] = True
                     inliers[n_in] = q
                     n_in += 1
-    parent = np.empty(r, np.int64)
-    out, sizes = _band_largest(pixel, node, width, bridges, rest, position, full, inliers[:n_in], full, parent)
+    return _band_region(pixel, node, width, bridges, rest, position, wide, full, up, band[:n_band], inliers[:n_in],
+                        rules)
+
+
+@numba.njit(**_JIT)
+def _band_region(pixel: np.ndarray, node: np.ndarray, width: int, bridges: np.ndarray, rest: np.ndarray,
+                 position: np.ndarray, wide: np.ndarray, full: np.ndarray, up: np.ndarray, band: np.ndarray,
+                 inliers: np.ndarray, rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`grid_region` from its support band ``wide`` (r,) (its points ``band``, ascending), inliers ``full``
+    (r,) (``inliers``) and side ``up`` (r,)."""
+    parent = np.empty(rest.shape[0], np.int64)
+    out, sizes = _band_largest(pixel, node, width, bridges, rest, position, full, inliers, full, parent)
     if _fragmented(sizes, rules[0], rules[1]):
-        whole = _band_largest(pixel, node, width, bridges, rest, position, wide, band[:n_band], full, parent)[0]
+        whole = _band_largest(pixel, node, width, bridges, rest, position, wide, band, full, parent)[0]
         return _surface(whole, full, up, out, rules[2])
     return out, out
 
@@ -2144,6 +2154,59 @@ def _ahead(a: int, b: int, counts: np.ndarray, cost: np.ndarray) -> bool:
 
 
 @numba.njit(**_NUMPY_JIT)
+def _plane_region(cols: np.ndarray, tolerance: np.ndarray, support: float, normal: np.ndarray, offset: float,
+                  pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
+                  grid_normals: np.ndarray, min_cos: float, rest: np.ndarray, position: np.ndarray, rules: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`grid_region` of the plane (``normal`` (3,), ``offset``) on the points ``cols`` (3, r) meters: its
+    inliers within ``tolerance`` ((1,) or (r,) meters), its support band within ``support`` times it, its side from
+    the signed distances (as :func:`plane_bands` and :func:`band_counts` give them), in the same pass."""
+    r = rest.shape[0]
+    per_point = tolerance.shape[0] > 1
+    nx, ny, nz = normal[0], normal[1], normal[2]
+    wide = np.zeros(r, np.bool_)
+    full = np.zeros(r, np.bool_)
+    up = np.zeros(r, np.bool_)
+    band = np.empty(r, np.int64)
+    inliers = np.empty(r, np.int64)
+    n_band = n_in = 0
+    for q in range(r):
+        e = nx * cols[0, q] + ny * cols[1, q] + nz * cols[2, q] + offset
+        t = tolerance[q] if per_point else tolerance[0]
+        if not abs(e) <= support * t:
+            continue
+        i = rest[q]
+        up[q] = e > 0
+        cos = abs(grid_normals[i, 0] * nx + grid_normals[i, 1] * ny + grid_normals[i, 2] * nz)
+        if not cos < min_cos and usable[pixel[i]]:
+            wide[q] = True
+            band[n_band] = q
+            n_band += 1
+            if abs(e) <= t:
+                full[q] = True
+                inliers[n_in] = q
+                n_in += 1
+    return _band_region(pixel, node, width, bridges, rest, position, wide, full, up, band[:n_band], inliers[:n_in],
+                        rules)
+
+
+@numba.njit(**_NUMPY_JIT)
+def _coherent_near(cols: np.ndarray, tolerance: np.ndarray, normal: np.ndarray, offset: float,
+                   point_normals: np.ndarray, min_cos: float) -> int:
+    """:func:`coherent_inliers` of the inliers of the plane (``normal`` (3,), ``offset``) among ``cols`` (3, r)
+    meters (within ``tolerance``, (1,) or (r,) meters)."""
+    per_point = tolerance.shape[0] > 1
+    nx, ny, nz = normal[0], normal[1], normal[2]
+    count = 0
+    for q in range(cols.shape[1]):
+        e = abs(nx * cols[0, q] + ny * cols[1, q] + nz * cols[2, q] + offset)
+        if e <= (tolerance[q] if per_point else tolerance[0]) and \
+                not abs(nx * point_normals[0, q] + ny * point_normals[1, q] + nz * point_normals[2, q]) < min_cos:
+            count += 1
+    return count
+
+
+@numba.njit(**_NUMPY_JIT)
 def grid_best_region(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
                      support: float, bound_cos: float, point_normals: np.ndarray, pixel: np.ndarray, node: np.ndarray,
                      usable: np.ndarray, width: int, bridges: np.ndarray, grid_normals: np.ndarray, min_cos: float,
@@ -2155,9 +2218,19 @@ def grid_best_region(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarra
     none can keep more than its inliers (within ``tolerance``; support band: ``support`` times it), nor, with
     ``point_normals`` (3, r) ((3, 0): none known), more than those whose normal lies within ``bound_cos`` of its own:
     such hypotheses are not labelled."""
-    dist, above = plane_bands(cols, normals, offsets)
-    inliers, band, counts, cost = band_counts(dist, tolerance, support)
     h, r = normals.shape[0], cols.shape[1]
+    per_point = tolerance.shape[0] > 1
+    counts = np.zeros(h, np.int64)
+    cost = np.zeros(h)
+    for j in range(h):  # band_counts' counts and MSAC costs, without its masks
+        nx, ny, nz, d = normals[j, 0], normals[j, 1], normals[j, 2], offsets[j]
+        for q in range(r):
+            t = tolerance[q] if per_point else tolerance[0]
+            e = abs(nx * cols[0, q] + ny * cols[1, q] + nz * cols[2, q] + d)
+            counts[j] += e <= t
+            if e > t:
+                e = t
+            cost[j] += e * e
     order = np.arange(h)
     for i in range(1, h):  # an insertion sort: stable, and h is a handful
         x = order[i]
@@ -2173,11 +2246,11 @@ def grid_best_region(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarra
         if counts[j] <= size:
             break
         if size > 0 and point_normals.shape[1] > 0:
-            bound = coherent_inliers(inliers[j], normals[j], point_normals, bound_cos)
+            bound = _coherent_near(cols, tolerance, normals[j], offsets[j], point_normals, bound_cos)
             if bound < size or (bound == size and cost[j] >= cost[winner]):
                 continue
-        kept, took = grid_region(pixel, node, usable, width, bridges, grid_normals, normals[j], min_cos, rest,
-                                 position, inliers[j], band[j], above[j], rules)
+        kept, took = _plane_region(cols, tolerance, support, normals[j], offsets[j], pixel, node, usable, width,
+                                   bridges, grid_normals, min_cos, rest, position, rules)
         found = np.count_nonzero(kept)
         if found > size or (found == size and cost[j] < cost[winner]):
             winner, region, taken, size = j, kept, took, found
@@ -2193,10 +2266,8 @@ def grid_refit_region(cols: np.ndarray, region: np.ndarray, tolerance: np.ndarra
     region it keeps among the points ``rest`` of a sub-grid (see :func:`grid_best_region`): (normal (3,), offset
     meters, region (r,), taken (r,))."""
     normal, offset = fit_mask(cols, region)
-    dist, above = plane_bands(cols, normal.reshape((1, 3)), np.array([offset]))
-    inliers, band = band_counts(dist, tolerance, support)[:2]
-    kept, took = grid_region(pixel, node, usable, width, bridges, grid_normals, normal, min_cos, rest, position,
-                             inliers[0], band[0], above[0], rules)
+    kept, took = _plane_region(cols, tolerance, support, normal, offset, pixel, node, usable, width, bridges,
+                               grid_normals, min_cos, rest, position, rules)
     return normal, offset, kept, took
 
 
