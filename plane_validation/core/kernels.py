@@ -2222,15 +2222,17 @@ def grid_best_region(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarra
     per_point = tolerance.shape[0] > 1
     counts = np.zeros(h, np.int64)
     cost = np.zeros(h)
+    x, y, z = cols[0], cols[1], cols[2]
     for j in range(h):  # band_counts' counts and MSAC costs, without its masks
         nx, ny, nz, d = normals[j, 0], normals[j, 1], normals[j, 2], offsets[j]
+        near, total = 0, 0.0
         for q in range(r):
             t = tolerance[q] if per_point else tolerance[0]
-            e = abs(nx * cols[0, q] + ny * cols[1, q] + nz * cols[2, q] + d)
-            counts[j] += e <= t
-            if e > t:
-                e = t
-            cost[j] += e * e
+            e = abs(nx * x[q] + ny * y[q] + nz * z[q] + d)
+            near += np.int64(e <= t)
+            c = t if e > t else e
+            total += c * c
+        counts[j], cost[j] = near, total
     order = np.arange(h)
     for i in range(1, h):  # an insertion sort: stable, and h is a handful
         x = order[i]

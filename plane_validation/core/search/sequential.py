@@ -22,12 +22,12 @@ def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, m
     rest = cols
     rest_idx = np.arange(n) if neighbours is None else neighbours.searchable()  # the points that can join a region
     if len(rest_idx) < n:
-        rest = cols[:, rest_idx]
+        rest = cols.take(rest_idx, axis=1)
         tolerance = tolerance_at(tolerance, rest_idx)
     region = None if neighbours is None else np.full(n, -1, dtype=np.int64)
     remaining = None if neighbours is None else neighbours.remaining(rest_idx)
     rest_normals = None if neighbours is None or neighbours.normals is None else \
-        np.ascontiguousarray(neighbours.normals[rest_idx].T)  # (3, r), kept in step with rest
+        np.ascontiguousarray(neighbours.normals.take(rest_idx, axis=0).T)  # (3, r), kept in step with rest
     found: list[tuple[np.ndarray, float]] = []
     reason = f'reached max_planes={max_planes}'
     while len(found) < max_planes:
