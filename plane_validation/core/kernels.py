@@ -1615,12 +1615,20 @@ def coherent_inliers(inliers: np.ndarray, normal: np.ndarray, normals: np.ndarra
 @numba.njit(**_NUMPY_JIT)
 def largest_magnitude(values: np.ndarray) -> float:
     """The largest |v| of the ``values`` (n,) that are not NaN (inf counts); NaN when none is."""
-    largest = np.nan
-    for i in range(values.shape[0]):
+    a = b = c = d = -1.0  # four running maxima (NaN never compares greater): no branch in the loop
+    blocks = values.shape[0] // 4
+    for q in range(blocks):
+        i = 4 * q
+        v, w, x, y = abs(values[i]), abs(values[i + 1]), abs(values[i + 2]), abs(values[i + 3])
+        a = v if v > a else a
+        b = w if w > b else b
+        c = x if x > c else c
+        d = y if y > d else d
+    largest = max(max(a, b), max(c, d))
+    for i in range(4 * blocks, values.shape[0]):
         v = abs(values[i])
-        if v > largest or (np.isnan(largest) and not np.isnan(v)):
-            largest = v
-    return largest
+        largest = v if v > largest else largest
+    return largest if largest >= 0 else np.nan
 
 
 # --- indices ---
@@ -2027,13 +2035,15 @@ def spread_test(cols: np.ndarray, idx: np.ndarray, trim: bool, min_sine: float) 
     if trim:
         median = np.empty(3)
         for a in range(3):
-            ordered = np.sort(cols[a][idx])
-            median[a] = (ordered[(c - 1) // 2] + ordered[c // 2]) / 2
+            values = np.partition(cols[a][idx], c // 2)  # order statistics, as a sort gives them
+            upper = values[c // 2]
+            median[a] = (values[:c // 2].max() + upper) / 2 if c % 2 == 0 else (upper + upper) / 2
         dist = np.empty(c)
         for q in range(c):
             p = idx[q]
             dist[q] = max(abs(cols[0, p] - median[0]), abs(cols[1, p] - median[1]), abs(cols[2, p] - median[2]))
-        limit = np.sort(dist)[int(0.98 * (c - 1))]
+        k = int(0.98 * (c - 1))
+        limit = np.partition(dist, k)[k]
         for q in range(c):
             keep[q] = dist[q] <= limit
     kept = 0
