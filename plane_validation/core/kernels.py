@@ -2217,6 +2217,25 @@ def _coherent_near(cols: np.ndarray, tolerance: np.ndarray, normal: np.ndarray, 
 
 
 @numba.njit(**_NUMPY_JIT)
+def _msac_cost(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, j: int,
+               cost: np.ndarray, known: np.ndarray) -> float:
+    """Hypothesis ``j``'s MSAC cost on ``cols`` (3, r) meters (see :func:`band_counts`), summed into ``cost`` (h,)
+    the first time (``known`` (h,))."""
+    if not known[j]:
+        per_point = tolerance.shape[0] > 1
+        nx, ny, nz, d = normals[j, 0], normals[j, 1], normals[j, 2], offsets[j]
+        total = 0.0
+        for q in range(cols.shape[1]):
+            t = tolerance[q] if per_point else tolerance[0]
+            e = abs(nx * cols[0, q] + ny * cols[1, q] + nz * cols[2, q] + d)
+            if e > t:
+                e = t
+            total += e * e
+        cost[j], known[j] = total, True
+    return cost[j]
+
+
+@numba.njit(**_NUMPY_JIT)
 def grid_best_region(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
                      support: float, bound_cos: float, point_normals: np.ndarray, pixel: np.ndarray, node: np.ndarray,
                      usable: np.ndarray, width: int, bridges: np.ndarray, grid_normals: np.ndarray, min_cos: float,
@@ -2231,18 +2250,21 @@ def grid_best_region(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarra
     h, r = normals.shape[0], cols.shape[1]
     per_point = tolerance.shape[0] > 1
     counts = np.zeros(h, np.int64)
-    cost = np.zeros(h)
     x, y, z = cols[0], cols[1], cols[2]
-    for j in range(h):  # band_counts' counts and MSAC costs, without its masks
+    for j in range(h):  # band_counts' counts, without its masks
         nx, ny, nz, d = normals[j, 0], normals[j, 1], normals[j, 2], offsets[j]
-        near, total = 0, 0.0
+        near = 0
         for q in range(r):
-            t = tolerance[q] if per_point else tolerance[0]
-            e = abs(nx * x[q] + ny * y[q] + nz * z[q] + d)
-            near += np.int64(e <= t)
-            c = t if e > t else e
-            total += c * c
-        counts[j], cost[j] = near, total
+            near += np.int64(abs(nx * x[q] + ny * y[q] + nz * z[q] + d) <= (tolerance[q] if per_point else
+                                                                                tolerance[0]))
+        counts[j] = near
+    # the MSAC costs only decide between equal counts: each summed (as band_counts sums it) when first compared
+    cost = np.full(h, np.nan)
+    known = np.zeros(h, np.bool_)
+    for j in range(h):
+        for i in range(h):
+            if i != j and counts[i] == counts[j]:
+                _msac_cost(cols, tolerance, normals, offsets, j, cost, known)
     order = np.arange(h)
     for i in range(1, h):  # an insertion sort: stable, and h is a handful
         x = order[i]
@@ -2259,12 +2281,14 @@ def grid_best_region(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarra
             break
         if size > 0 and point_normals.shape[1] > 0:
             bound = _coherent_near(cols, tolerance, normals[j], offsets[j], point_normals, bound_cos)
-            if bound < size or (bound == size and cost[j] >= cost[winner]):
+            if bound < size or (bound == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) >=
+                                _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
                 continue
         kept, took = _plane_region(cols, tolerance, support, normals[j], offsets[j], pixel, node, usable, width,
                                    bridges, grid_normals, min_cos, rest, position, rules)
         found = np.count_nonzero(kept)
-        if found > size or (found == size and cost[j] < cost[winner]):
+        if found > size or (found == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) <
+                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
             winner, region, taken, size = j, kept, took, found
     return winner, region, taken
 
