@@ -24,7 +24,8 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
            'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
-           'region_scatter', 'region_extents', 'plane_silhouette_sum', 'warm', 'Warmup']
+           'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
+           'distinct_rows', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -1872,6 +1873,84 @@ def plane_silhouette_sum(x: np.ndarray, own: np.ndarray, centroids: np.ndarray, 
     return total
 
 
+
+# --- frame outside the search ---
+
+
+@numba.njit(**_JIT)
+def marked_rows(points: np.ndarray, view: np.ndarray, within: float) -> int:
+    """How many rows of ``points`` (N, 3) lie at a driver's "no return" mark: exactly (0, 0, 0) when ``view`` (3,)
+    is the origin, else within ``within`` (meters, in each coordinate) of ``view``."""
+    count = 0
+    if view[0] == 0.0 and view[1] == 0.0 and view[2] == 0.0:
+        for i in range(points.shape[0]):
+            if points[i, 0] == 0.0 and points[i, 1] == 0.0 and points[i, 2] == 0.0:
+                count += 1
+        return count
+    for i in range(points.shape[0]):
+        if (abs(points[i, 0] - view[0]) <= within and abs(points[i, 1] - view[1]) <= within
+                and abs(points[i, 2] - view[2]) <= within):
+            count += 1
+    return count
+
+
+@numba.njit(**_JIT)
+def near_count(a: np.ndarray, b: np.ndarray, radius: float) -> int:
+    """How many rows of ``a`` (m, 3) have a row of ``b`` (p, 3) closer than ``radius`` (meters; squared distances
+    compared with radius ** 2, as a kd-tree query bounded by it)."""
+    bound = radius * radius
+    count = 0
+    for i in range(a.shape[0]):
+        x, y, z = a[i, 0], a[i, 1], a[i, 2]
+        for j in range(b.shape[0]):
+            dx, dy, dz = x - b[j, 0], y - b[j, 1], z - b[j, 2]
+            if dx * dx + dy * dy + dz * dz < bound:
+                count += 1
+                break
+    return count
+
+
+@numba.njit(**_JIT)
+def beyond_counts(box: np.ndarray, d: np.ndarray, labels: np.ndarray, t: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                  surface: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per plane j, among the m points inside its in-plane box (``box`` (m, 2k): their coordinates along its two
+    in-plane axes, columns 2j and 2j + 1, between ``lo`` and ``hi`` (2k,)): how many lie within ``t`` of it (``d``
+    (m, k): their distances to each plane, meters), and how many at t..2t that are not labelled (``labels`` (m,))
+    with a plane l that ``surface`` (k, k) bool [j, l] excuses. ``t``: (1,) one tolerance, or (m,) one per point."""
+    m, k = d.shape[0], d.shape[1]
+    within = np.zeros(k, np.int64)
+    beyond = np.zeros(k, np.int64)
+    for i in range(m):
+        tol = t[i] if t.shape[0] > 1 else t[0]
+        lab = labels[i]
+        for j in range(k):
+            u, v = box[i, 2 * j], box[i, 2 * j + 1]
+            if not (u >= lo[2 * j] and u <= hi[2 * j] and v >= lo[2 * j + 1] and v <= hi[2 * j + 1]):
+                continue
+            if d[i, j] <= tol:
+                within[j] += 1
+            elif d[i, j] <= 2 * tol and not (lab >= 0 and surface[j, lab]):
+                beyond[j] += 1
+    return within, beyond
+
+
+@numba.njit(**_JIT)
+def distinct_rows(points: np.ndarray, rows: np.ndarray) -> int:
+    """How many distinct points (equal in all three coordinates) the ``rows`` (m,) of ``points`` (N, 3) are: each
+    against the earlier ones, O(m^2)."""
+    count = 0
+    for a in range(rows.shape[0]):
+        i = rows[a]
+        seen = False
+        for b in range(a):
+            j = rows[b]
+            if points[i, 0] == points[j, 0] and points[i, 1] == points[j, 1] and points[i, 2] == points[j, 2]:
+                seen = True
+                break
+        if not seen:
+            count += 1
+    return count
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -1938,6 +2017,11 @@ def warm() -> Warmup:
     centroids, scatter = region_scatter(pts, np.zeros(3), index, np.array([0, 2, 4]))
     region_extents(pts, np.zeros(3), index, np.array([0, 2, 4]), centroids, scatter, 0.005, 0.995)
     plane_silhouette_sum(pts, codes[[0, 2, 3, 3]], centroids, scatter, np.zeros((2, 2)), np.zeros((2, 2)), np.ones(2))
+    marked_rows(pts, np.zeros(3), 1e-6)
+    near_count(pts, pts, 0.3)
+    beyond_counts(np.zeros((4, 4)), np.zeros((4, 2)), labels, np.ones(1), np.zeros(4), np.zeros(4),
+                  np.zeros((2, 2), np.bool_))
+    distinct_rows(pts, index)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
@@ -1948,4 +2032,5 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             valid_rows, frame_pass, plane_patches, fold_fit, grid_sample, grid_edges, grid_usable,
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
-            cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum)
+            cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
+            beyond_counts, distinct_rows)

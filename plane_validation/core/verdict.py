@@ -156,6 +156,10 @@ FOLD_INNER = 0.7
 FOLD_POINTS = 1024
 
 
+#: _distinct compares up to this many points pairwise (compiled); more are sorted (np.unique).
+DISTINCT_PAIRS = 640
+
+
 def seed_agreement(reference: np.ndarray, others) -> float:
     """Mean over ``others`` of the point F1 (core/scoring.py, one-to-one matched planes) between each
     labeling and ``reference`` (labels (N,), -1 unassigned; F1 is symmetric in the two): 1 when every
@@ -354,32 +358,64 @@ def _surface(pts: np.ndarray, seg: Segmentation, samples: list, frames: list
 
 
 def _beyond(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray) -> np.ndarray:
-    """:func:`plane_beyond` from each plane's inlier :func:`_pca` and :func:`plane_fill`; all planes at once."""
-    k = len(seg.planes)
-    if k == 0:
+    """:func:`plane_beyond` from each plane's inlier :func:`_pca` and :func:`plane_fill`; all planes at once (the
+    counts in one compiled pass, :func:`.kernels.beyond_counts`; :func:`_beyond_numpy` is the reference)."""
+    if len(seg.planes) == 0:
         return np.zeros(0)
+    cloud, labels, t, box, d = _beyond_rows(pts, seg, frames)
+    lo, hi, surface = _beyond_frames(seg, frames, fill)
+    t = np.full(1, t) if np.ndim(t) == 0 else np.ascontiguousarray(t[:, 0])
+    within, beyond = kernels.beyond_counts(box, d, kernels.c_array(labels, np.int32), t, lo, hi, surface)
+    return beyond / np.maximum(within, 1)
+
+
+def _beyond_rows(pts: np.ndarray, seg: Segmentation, frames: list
+                 ) -> tuple[np.ndarray, np.ndarray, float | np.ndarray, np.ndarray, np.ndarray]:
+    """The rows :func:`_beyond` counts among (every so many of ``pts``, those with finite coordinates): (them (m, 3),
+    their labels (m,), the tolerance (a number, or (m, 1) by the noise model), their coordinates along each plane's
+    in-plane axes (m, 2k) and their distances to each plane (m, k), meters)."""
     step = max(1, -(-len(pts) // BEYOND_SAMPLE))
     cloud = np.ascontiguousarray(pts[::step])  # every so many rows, read in order
     finite = np.isfinite(cloud @ np.ones(3))  # a NaN or inf coordinate makes the sum one
-    cloud, labels = np.compress(finite, cloud, axis=0), np.compress(finite, np.asarray(seg.labels)[::step])
+    labels = np.asarray(seg.labels)[::step]
+    if not finite.all():
+        cloud, labels = np.compress(finite, cloud, axis=0), np.compress(finite, labels)
     scale = tolerance_scale(cloud, seg.noise_model, seg.noise_reference, seg.viewpoint)
     t = seg.tolerance * (1.0 if scale is None else scale[:, None])
-    axes, lo, hi = np.zeros((3, 2 * k)), np.full(2 * k, np.inf), np.full(2 * k, -np.inf)  # no inliers: nothing inside
+    axes = np.zeros((3, 2 * len(seg.planes)))
+    for j, pca in enumerate(frames):
+        if pca is not None:
+            axes[:, 2 * j:2 * j + 2] = pca[3][:, 1:]  # the in-plane principal axes
+    normals = np.array([p.normal for p in seg.planes])
+    d = np.abs(cloud @ normals.T + np.array([p.offset for p in seg.planes]))
+    return cloud, labels, t, np.ascontiguousarray(cloud @ axes), np.ascontiguousarray(d)
+
+
+def _beyond_frames(seg: Segmentation, frames: list, fill: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each plane's box along its in-plane principal axes (lo, hi (2k,), in the cloud's coordinates; empty without
+    inliers) and which planes' points count as a surface for which (k, k) bool: those of a thin plane nearby,
+    parallel to one (a rug on a floor)."""
+    k = len(seg.planes)
+    lo, hi = np.full(2 * k, np.inf), np.full(2 * k, -np.inf)  # no inliers: nothing inside
     for j, pca in enumerate(frames):
         if pca is not None:
             centre, centred, _, vectors = pca
-            axes[:, 2 * j:2 * j + 2] = vectors[:, 1:]  # the in-plane principal axes
             low, high = _extent(vectors[:, 1:].T @ centred.T)
             shift = centre @ vectors[:, 1:]  # the box in the cloud's coordinates
             lo[2 * j:2 * j + 2], hi[2 * j:2 * j + 2] = low + shift, high + shift
-    box = cloud @ axes  # (m, 2k)
-    box = (box >= lo) & (box <= hi)
     normals = np.array([p.normal for p in seg.planes])
-    d = np.abs(cloud @ normals.T + np.array([p.offset for p in seg.planes]))
+    return lo, hi, (np.abs(normals @ normals.T) >= NORMAL_MIN_COS) & (fill < MAX_FILL)[None, :]
+
+
+def _beyond_numpy(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray) -> np.ndarray:
+    """:func:`_beyond` in numpy: the reference its kernel is tested against."""
+    if len(seg.planes) == 0:
+        return np.zeros(0)
+    _, labels, t, box, d = _beyond_rows(pts, seg, frames)
+    lo, hi, surface = _beyond_frames(seg, frames, fill)
+    box = (box >= lo) & (box <= hi)
     d[~(box[:, 0::2] & box[:, 1::2])] = np.inf  # (m, k): outside a plane's extent counts for neither
     within = np.count_nonzero(d <= t, axis=0)
-    # the points of a thin plane nearby, parallel to this one (a rug on a floor), are a surface, not volume
-    surface = (np.abs(normals @ normals.T) >= NORMAL_MIN_COS) & (fill < MAX_FILL)[None, :]  # (k, k)
     beyond = (d > t) & (d <= 2 * t) & ~np.where(labels[:, None] >= 0, surface.T[np.maximum(labels, 0)], False)
     return np.count_nonzero(beyond, axis=0) / np.maximum(within, 1)
 
@@ -562,8 +598,12 @@ def _distinct(points: np.ndarray, rows: np.ndarray) -> int:
     """How many distinct points the ``rows`` of ``points`` are, counted exactly below
     MIN_PLANE_POINTS (exact copies, as stacked scans have them, are no more evidence than one point)."""
     head = 8 * MIN_PLANE_POINTS  # enough on any cloud without many copies; more where copies sit together
+    pts = kernels.c_array(points, np.float64) if head <= DISTINCT_PAIRS else points
     while True:
-        distinct = len(np.unique(points[rows[:head]], axis=0))
+        if head <= DISTINCT_PAIRS:  # each point against the earlier ones, compiled
+            distinct = kernels.distinct_rows(pts, kernels.c_array(rows[:head], np.int64))
+        else:
+            distinct = len(np.unique(points[rows[:head]], axis=0))
         if distinct >= MIN_PLANE_POINTS or head >= len(rows):
             return distinct
         head *= 8
