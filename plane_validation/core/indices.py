@@ -722,8 +722,11 @@ class ValidityIndices:
         return out
 
 
-#: From this many points on, the plane silhouette runs in a thread beside the other indices (numpy, the
-#: kd-trees and the kernels release the GIL; below it the thread's start and the GIL cost more than they save).
+#: From this many points summed over on, the plane silhouette runs in a thread beside the other indices (numpy, the
+#: kd-trees and the kernels release the GIL; below it the thread's start and the GIL cost more than they save). The
+#: points summed over are the index sample's when there is one: on a sample of 2,000 the PS takes a few ms whatever
+#: the cloud's size, and its thread cost a 640 x 480 frame about 1 ms more CPU time without saving wall time on two
+#: busy cores (benchmarks/README.md).
 THREADED_PS_POINTS = 50_000
 
 
@@ -791,7 +794,8 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
         sep = cl
     ps = functools.partial(plane_silhouette_of, census.pts, census.lab, census.compact,
                            (n, census.n_assigned, census.low, len(census.table)), sample_size=sample_size, rng=rng)
-    with ThreadPoolExecutor(1) if n >= THREADED_PS_POINTS else contextlib.nullcontext() as pool:
+    summed = n if sample_size is None else min(n, int(sample_size))
+    with ThreadPoolExecutor(1) if summed >= THREADED_PS_POINTS else contextlib.nullcontext() as pool:
         if pool is not None:
             ps = _started(pool, ps)
         sums = None
