@@ -105,3 +105,30 @@ def test_distinct_counts_past_the_pairwise_limit_as_before():
     rows = np.arange(len(pts))
     assert V._distinct(pts, rows) == 12  # the head grows past DISTINCT_PAIRS: numpy's sort counts it
     assert V._distinct(pts, rows[:300]) == 2
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(4, 60), st.integers(2, 6), st.booleans())
+def test_silhouettes_match_numpy(seed, n, k, rest):
+    from plane_validation.core import indices
+    rng = np.random.default_rng(seed)
+    labels = rng.integers(-1 if rest else 0, k, n)
+    labels[:2] = [-1 if rest else 0, k - 1]  # at least two clusters
+    labels[2:4] = rng.integers(0, k, 2)  # (singleton clusters are likely too)
+    pts = rng.normal(size=(n, 3))
+    cl = indices._clusters(pts, labels)
+    sums = indices._pair_pass(cl)[0]
+    got = indices._silhouettes(cl, sums)
+    want = indices._silhouettes_numpy(cl, sums)
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(g, w)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 80), st.sampled_from([np.float32, np.float64]), st.booleans())
+def test_coordinate_extent_gives_coordinate_step(seed, m, dtype, far):
+    rng = np.random.default_rng(seed)
+    pts = (rng.normal(scale=4e6 if far else 10.0, size=(100, 3)).astype(dtype)).astype(np.float64)
+    pts[rng.random(100) < 0.2, rng.integers(0, 3)] = rng.choice([np.nan, np.inf, -np.inf])
+    rows = rng.integers(0, 100, m)
+    np.testing.assert_array_equal(V._coordinate_step(pts, rows), V.coordinate_step(pts[rows]))

@@ -507,13 +507,25 @@ def _pair_pass(cl: _Clusters) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _silhouettes(cl: _Clusters, sums: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Exact silhouettes of each (sorted) row among the rows of ``cl``: (s (n,), s_planes (n,)), as
+    :func:`_silhouettes_numpy` gives them, in one compiled pass over the distance sums
+    (:func:`.kernels.silhouettes`)."""
+    if cl.k < 2:
+        return _silhouettes_numpy(cl, sums)
+    if sums is None:
+        sums = _pair_pass(cl)[0]
+    return kernels.silhouettes(kernels.c_array(sums, np.float64), kernels.c_array(cl.codes, np.int64),
+                               kernels.c_array(cl.sizes, np.int64), bool(cl.ids[0] < 0))
+
+
+def _silhouettes_numpy(cl: _Clusters, sums: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Exact silhouettes of each (sorted) row among the rows of ``cl``: (s (n,), s_planes (n,)).
 
     s_i = (b_i - a_i) / max(a_i, b_i); a_i mean distance to the other members of its cluster,
     b_i the smallest mean distance to another cluster; 0 for singleton clusters and for a = b = 0.
     s_planes is the same for the planes alone (the unassigned cluster is no candidate for b_i;
     NaN on its own rows): both come from the same distance sums, ``sums`` (n, K) of
-    :func:`_pair_pass` (computed when None).
+    :func:`_pair_pass` (computed when None). The reference :func:`_silhouettes`' kernel is tested against.
     """
     n, k = cl.n, cl.k
     s, s_planes = np.zeros(n), np.zeros(n)

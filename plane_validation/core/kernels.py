@@ -25,7 +25,7 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
            'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
            'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
-           'distinct_rows', 'warm', 'Warmup']
+           'distinct_rows', 'coordinate_extent', 'silhouettes', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -1951,6 +1951,64 @@ def distinct_rows(points: np.ndarray, rows: np.ndarray) -> int:
             count += 1
     return count
 
+
+@numba.njit(**_JIT)
+def coordinate_extent(points: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, bool, bool]:
+    """Over the ``rows`` of ``points`` (N, 3) with three finite coordinates: the largest magnitude of each coordinate
+    (3,), whether every one of their coordinates is a float32 number, and whether there was such a row."""
+    largest = np.zeros(3)
+    single = True
+    seen = False
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
+            continue
+        seen = True
+        for a, v in enumerate((x, y, z)):
+            largest[a] = max(largest[a], abs(v))
+            single = single and np.float64(np.float32(v)) == v
+    return largest, single, seen
+
+
+@numba.njit(**_JIT)
+def _silhouette(a: float, b: float) -> float:
+    top = max(a, b)
+    return (b - a) / top if top > 0.0 else 0.0
+
+
+@numba.njit(**_JIT)
+def silhouettes(sums: np.ndarray, codes: np.ndarray, sizes: np.ndarray, has_rest: bool
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's silhouette among all K clusters and among the planes alone, (n,) each, from its summed distances
+    to each cluster ``sums`` (n, K) (K >= 2), its cluster ``codes`` (n,) and the clusters' ``sizes`` (K,): a the
+    mean distance to the others of its own, b the smallest mean distance to another (``has_rest``: cluster 0 is the
+    unassigned points, no plane: NaN on its rows, no candidate for b among the planes; with one plane, 0); 0 on a
+    cluster of one row."""
+    n, k = sums.shape
+    s = np.zeros(n)
+    s_planes = np.zeros(n)
+    for i in range(n):
+        c = codes[i]
+        a = sums[i, c] / max(sizes[c] - 1, 1)
+        b = b_planes = np.inf
+        for e in range(k):
+            if e != c:
+                mean = sums[i, e] / sizes[e]
+                b = min(b, mean)
+                if e > 0:
+                    b_planes = min(b_planes, mean)
+        single = sizes[c] == 1
+        s[i] = 0.0 if single else _silhouette(a, b)
+        if not has_rest:
+            s_planes[i] = s[i]
+        elif c == 0:
+            s_planes[i] = np.nan
+        elif k >= 3 and not single:
+            s_planes[i] = _silhouette(a, b_planes)
+    return s, s_planes
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -2022,6 +2080,8 @@ def warm() -> Warmup:
     beyond_counts(np.zeros((4, 4)), np.zeros((4, 2)), labels, np.ones(1), np.zeros(4), np.zeros(4),
                   np.zeros((2, 2), np.bool_))
     distinct_rows(pts, index)
+    coordinate_extent(pts, index)
+    silhouettes(np.ones((4, 2)), codes[[0, 0, 2, 2]] // 2, sizes, True)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
@@ -2033,4 +2093,4 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
             cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
-            beyond_counts, distinct_rows)
+            beyond_counts, distinct_rows, coordinate_extent, silhouettes)

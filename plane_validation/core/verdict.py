@@ -514,6 +514,16 @@ def coordinate_step(points: np.ndarray) -> np.ndarray:
     return np.spacing(largest.astype(np.float32)).astype(np.float64) if single else np.spacing(largest)
 
 
+def _coordinate_step(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """:func:`coordinate_step` of the ``rows`` (m,) of ``points`` (N, 3), read in place in one compiled pass
+    (:func:`.kernels.coordinate_extent`)."""
+    largest, single, seen = kernels.coordinate_extent(kernels.c_array(points, np.float64),
+                                                      kernels.c_array(rows, np.int64))
+    if not seen:
+        return np.zeros(3)
+    return np.spacing(largest.astype(np.float32)).astype(np.float64) if single else np.spacing(largest)
+
+
 def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
           agreement: float | None = None) -> Verdict:
     """Whether the planes of ``seg`` are reliable, with every test they fail (:class:`~.failures.Verdict`).
@@ -577,7 +587,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
                                 other=float(unassigned) if seg.capped else None))
     stride = max(1, int(sizes.sum()) // COORDINATE_STEP_SAMPLE)
     rows = np.concatenate([p.inliers[::stride] for p in seg.planes])
-    along = np.abs(seg.coefficients[:, :3]) @ coordinate_step(pts[rows])  # each plane's step along its normal
+    along = np.abs(seg.coefficients[:, :3]) @ _coordinate_step(pts, rows)  # each plane's step along its normal
     if (along > seg.tolerance).any():
         coarse = int(np.argmax(along))
         failures.append(Failure(FailureKind.COORDINATE_STEPS, float(along[coarse]), float(seg.tolerance), coarse))
