@@ -61,7 +61,7 @@ def plane_samples(points: np.ndarray, labels: np.ndarray, n_planes: int, count: 
     for rows in members:
         if len(rows) > count:
             rows = rows[np.linspace(0, len(rows) - 1, count).round().astype(np.int64)]
-        out.append(np.asarray(points[rows], dtype=float))
+        out.append(np.asarray(np.take(points, rows, axis=0), dtype=float))  # (faster than points[rows])
     return out
 
 

@@ -124,7 +124,7 @@ def outlines_from(points: np.ndarray, members: list[np.ndarray], centroids: np.n
         centroid = centroids[k]
         if len(rows) > HULL_POINTS:  # in-plane coordinates of the hull's candidates only
             rows = rows[_hull_candidates(extremes[k], len(rows), HULL_POINTS)]
-        local = axes.T @ (points[rows] - centroid).T  # (2, c)
+        local = axes.T @ (np.take(points, rows, axis=0) - centroid).T  # (2, c)
         polygon = local[:, _hull(local)]
         extent = float(np.ptp(polygon, axis=1).max())
         out.append(PlaneOutline(centroid, rotation, centroid + (axes @ polygon).T, extent))

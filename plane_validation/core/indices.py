@@ -95,7 +95,7 @@ class _Clusters:
         codes = self.codes[rows]
         sizes = np.bincount(codes, minlength=self.k)
         starts = np.cumsum(sizes) - sizes
-        return _Clusters(self.points[rows], codes, starts, sizes, self.ids, self.order[rows])
+        return _Clusters(np.take(self.points, rows, axis=0), codes, starts, sizes, self.ids, self.order[rows])
 
 
 def _check(points: np.ndarray, labels: np.ndarray, convert: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -196,7 +196,7 @@ def _stratified_census(census: _Census, total: int, rng: np.random.Generator) ->
     bounds = np.zeros(len(alloc) + 1, np.int64)
     bounds[1:] = np.cumsum(alloc)
     rows = kernels.rows_at_ranks(census.compact, census.low, census.table, ranks, bounds)
-    return _Clusters(census.pts[rows], np.repeat(np.arange(len(alloc)), alloc), bounds[:-1], alloc,
+    return _Clusters(np.take(census.pts, rows, axis=0), np.repeat(np.arange(len(alloc)), alloc), bounds[:-1], alloc,
                      census.ids, rows)
 
 
@@ -209,7 +209,7 @@ def _sorted_by_cluster(coded: _Coded, positions: np.ndarray | None = None) -> _C
     sizes = np.bincount(codes, minlength=len(coded.ids))
     starts = (np.cumsum(sizes) - sizes).astype(np.int64)
     rows = coded.keep[positions]
-    return _Clusters(coded.pts[rows], codes, starts, sizes, coded.ids, rows)
+    return _Clusters(np.take(coded.pts, rows, axis=0), codes, starts, sizes, coded.ids, rows)
 
 
 def _clusters(points: np.ndarray, labels: np.ndarray) -> _Clusters:

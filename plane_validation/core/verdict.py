@@ -479,7 +479,7 @@ def _layering(inl: np.ndarray, plane) -> float:
 def _inlier_sample(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     if len(rows) > THICKNESS_POINTS:  # a fixed random subset: the ratios are robust statistics
         rows = rows[np.random.default_rng(len(rows)).integers(0, len(rows), THICKNESS_POINTS)]
-    return points[rows]
+    return np.take(points, rows, axis=0)  # (much faster than points[rows] on rows of 3)
 
 
 def plane_curvature(points: np.ndarray, plane_rows: np.ndarray) -> float:
