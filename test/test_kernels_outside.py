@@ -132,3 +132,15 @@ def test_coordinate_extent_gives_coordinate_step(seed, m, dtype, far):
     pts[rng.random(100) < 0.2, rng.integers(0, 3)] = rng.choice([np.nan, np.inf, -np.inf])
     rows = rng.integers(0, 100, m)
     np.testing.assert_array_equal(V._coordinate_step(pts, rows), V.coordinate_step(pts[rows]))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 60), st.sampled_from([1.0, 1e-3, 1e-6]))
+def test_patch_eigenvalues_match_the_numpy_closed_form(seed, p, flat):
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(p, 20, 3)) * [1.0, rng.uniform(0.1, 1.0), flat]
+    m = np.einsum('pni,pnj->pij', x, x) / 20
+    m[rng.random(p) < 0.2] *= np.eye(3)  # diagonal scatters: their entries, sorted
+    got, want = kernels.patch_eigenvalues(m), V.symmetric_eigenvalues(m)
+    # the same steps; numpy's vectorized arccos and cos may round differently in the last place
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max(initial=0.0))

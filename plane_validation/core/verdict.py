@@ -198,7 +198,7 @@ def _patches(pca, axes: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.
     principal axes, sized to hold TILT_NEIGHBOURS of them on average (cells with half that or more count). Per patch
     the eigenvalues (p, 3) ascending and, with ``axes``, eigenvectors (p, 3, 3) of its scatter (per point, m^2), and
     its points (p,); None for too few inliers. Without ``axes`` the eigenvalues come in closed form
-    (:func:`symmetric_eigenvalues`)."""
+    (:func:`.kernels.patch_eigenvalues`; :func:`symmetric_eigenvalues` is its numpy reference)."""
     if pca is None or len(pca[1]) < 2 * TILT_NEIGHBOURS:
         return None
     _, centred, _, vectors = pca
@@ -209,7 +209,7 @@ def _patches(pca, axes: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.
     if axes:
         values, vectors = np.linalg.eigh(scatter)
         return values, vectors, counts
-    return symmetric_eigenvalues(scatter), None, counts
+    return kernels.patch_eigenvalues(scatter), None, counts
 
 
 def symmetric_eigenvalues(m: np.ndarray) -> np.ndarray:
