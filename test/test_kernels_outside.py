@@ -144,3 +144,17 @@ def test_patch_eigenvalues_match_the_numpy_closed_form(seed, p, flat):
     got, want = kernels.patch_eigenvalues(m), V.symmetric_eigenvalues(m)
     # the same steps; numpy's vectorized arccos and cos may round differently in the last place
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max(initial=0.0))
+
+
+def test_the_verdict_is_the_same_on_any_layout_of_the_points():
+    from plane_validation.core.indices import validity_indices
+    scene = scenes.stairs(4000, 0.01, seed=1)
+    seg = detect_planes(scene.points, 0.03, max_planes=6, seed=0)
+    scores = validity_indices(scene.points, seg.labels, seed=0)
+    want = V.judge(scene.points, seg, scores)
+    frozen = scene.points.copy()
+    frozen.flags.writeable = False
+    strided = np.hstack([scene.points, scene.points])[:, :3]
+    for pts in (np.asfortranarray(scene.points), frozen, strided):
+        assert V.judge(pts, seg, scores) == want
+    assert want.n_planes == seg.n_planes >= 2

@@ -546,7 +546,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     ps = float(scores.plane_silhouette)
     if seg.n_planes == 0:
         return Verdict(False, (Failure(FailureKind.NO_PLANES, 0.0, 1.0, note=seg.reason),), 0, ps)
-    pts = as_points(points)
+    pts = kernels.c_array(as_points(points), np.float64)  # the layout the kernels read (copied once, if at all)
     samples = _samples(pts, seg)
     frames = [_pca(inl) for inl in samples]
     thickness = np.array([_thickness(pca) for pca in frames])
