@@ -24,7 +24,8 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
            'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
-           'region_scatter', 'region_extents', 'plane_silhouette_sum', 'warm', 'Warmup']
+           'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
+           'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -1872,6 +1873,169 @@ def plane_silhouette_sum(x: np.ndarray, own: np.ndarray, centroids: np.ndarray, 
     return total
 
 
+
+# --- frame outside the search ---
+
+
+@numba.njit(**_JIT)
+def marked_rows(points: np.ndarray, view: np.ndarray, within: float) -> int:
+    """How many rows of ``points`` (N, 3) lie at a driver's "no return" mark: exactly (0, 0, 0) when ``view`` (3,)
+    is the origin, else within ``within`` (meters, in each coordinate) of ``view``."""
+    count = 0
+    if view[0] == 0.0 and view[1] == 0.0 and view[2] == 0.0:
+        for i in range(points.shape[0]):
+            if points[i, 0] == 0.0 and points[i, 1] == 0.0 and points[i, 2] == 0.0:
+                count += 1
+        return count
+    for i in range(points.shape[0]):
+        if (abs(points[i, 0] - view[0]) <= within and abs(points[i, 1] - view[1]) <= within
+                and abs(points[i, 2] - view[2]) <= within):
+            count += 1
+    return count
+
+
+@numba.njit(**_JIT)
+def near_count(a: np.ndarray, b: np.ndarray, radius: float) -> int:
+    """How many rows of ``a`` (m, 3) have a row of ``b`` (p, 3) closer than ``radius`` (meters; squared distances
+    compared with radius ** 2, as a kd-tree query bounded by it)."""
+    bound = radius * radius
+    count = 0
+    for i in range(a.shape[0]):
+        x, y, z = a[i, 0], a[i, 1], a[i, 2]
+        for j in range(b.shape[0]):
+            dx, dy, dz = x - b[j, 0], y - b[j, 1], z - b[j, 2]
+            if dx * dx + dy * dy + dz * dz < bound:
+                count += 1
+                break
+    return count
+
+
+@numba.njit(**_JIT)
+def beyond_counts(box: np.ndarray, d: np.ndarray, labels: np.ndarray, t: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                  surface: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per plane j, among the m points inside its in-plane box (``box`` (m, 2k): their coordinates along its two
+    in-plane axes, columns 2j and 2j + 1, between ``lo`` and ``hi`` (2k,)): how many lie within ``t`` of it (``d``
+    (m, k): their distances to each plane, meters), and how many at t..2t that are not labelled (``labels`` (m,))
+    with a plane l that ``surface`` (k, k) bool [j, l] excuses. ``t``: (1,) one tolerance, or (m,) one per point."""
+    m, k = d.shape[0], d.shape[1]
+    within = np.zeros(k, np.int64)
+    beyond = np.zeros(k, np.int64)
+    for i in range(m):
+        tol = t[i] if t.shape[0] > 1 else t[0]
+        lab = labels[i]
+        for j in range(k):
+            u, v = box[i, 2 * j], box[i, 2 * j + 1]
+            if not (u >= lo[2 * j] and u <= hi[2 * j] and v >= lo[2 * j + 1] and v <= hi[2 * j + 1]):
+                continue
+            if d[i, j] <= tol:
+                within[j] += 1
+            elif d[i, j] <= 2 * tol and not (lab >= 0 and surface[j, lab]):
+                beyond[j] += 1
+    return within, beyond
+
+
+@numba.njit(**_JIT)
+def distinct_rows(points: np.ndarray, rows: np.ndarray) -> int:
+    """How many distinct points (equal in all three coordinates) the ``rows`` (m,) of ``points`` (N, 3) are: each
+    against the earlier ones, O(m^2)."""
+    count = 0
+    for a in range(rows.shape[0]):
+        i = rows[a]
+        seen = False
+        for b in range(a):
+            j = rows[b]
+            if points[i, 0] == points[j, 0] and points[i, 1] == points[j, 1] and points[i, 2] == points[j, 2]:
+                seen = True
+                break
+        if not seen:
+            count += 1
+    return count
+
+
+@numba.njit(**_JIT)
+def coordinate_extent(points: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, bool, bool]:
+    """Over the ``rows`` of ``points`` (N, 3) with three finite coordinates: the largest magnitude of each coordinate
+    (3,), whether every one of their coordinates is a float32 number, and whether there was such a row."""
+    largest = np.zeros(3)
+    single = True
+    seen = False
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
+            continue
+        seen = True
+        for a, v in enumerate((x, y, z)):
+            largest[a] = max(largest[a], abs(v))
+            single = single and np.float64(np.float32(v)) == v
+    return largest, single, seen
+
+
+@numba.njit(**_JIT)
+def _silhouette(a: float, b: float) -> float:
+    top = max(a, b)
+    return (b - a) / top if top > 0.0 else 0.0
+
+
+@numba.njit(**_JIT)
+def silhouettes(sums: np.ndarray, codes: np.ndarray, sizes: np.ndarray, has_rest: bool
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's silhouette among all K clusters and among the planes alone, (n,) each, from its summed distances
+    to each cluster ``sums`` (n, K) (K >= 2), its cluster ``codes`` (n,) and the clusters' ``sizes`` (K,): a the
+    mean distance to the others of its own, b the smallest mean distance to another (``has_rest``: cluster 0 is the
+    unassigned points, no plane: NaN on its rows, no candidate for b among the planes; with one plane, 0); 0 on a
+    cluster of one row."""
+    n, k = sums.shape
+    s = np.zeros(n)
+    s_planes = np.zeros(n)
+    for i in range(n):
+        c = codes[i]
+        a = sums[i, c] / max(sizes[c] - 1, 1)
+        b = b_planes = np.inf
+        for e in range(k):
+            if e != c:
+                mean = sums[i, e] / sizes[e]
+                b = min(b, mean)
+                if e > 0:
+                    b_planes = min(b_planes, mean)
+        single = sizes[c] == 1
+        s[i] = 0.0 if single else _silhouette(a, b)
+        if not has_rest:
+            s_planes[i] = s[i]
+        elif c == 0:
+            s_planes[i] = np.nan
+        elif k >= 3 and not single:
+            s_planes[i] = _silhouette(a, b_planes)
+    return s, s_planes
+
+
+@numba.njit(**_JIT)
+def patch_eigenvalues(m: np.ndarray) -> np.ndarray:
+    """The eigenvalues (p, 3), ascending, of symmetric 3 x 3 matrices ``m`` (p, 3, 3), by the trigonometric closed
+    form, the same steps as ``verdict.symmetric_eigenvalues`` (its numpy reference)."""
+    out = np.empty((m.shape[0], 3))
+    for i in range(m.shape[0]):
+        a = m[i]
+        off = a[0, 1] ** 2 + a[0, 2] ** 2 + a[1, 2] ** 2
+        d0, d1, d2 = a[0, 0], a[1, 1], a[2, 2]
+        if off == 0:  # diagonal: its entries, sorted
+            lo, hi = min(d0, d1), max(d0, d1)
+            out[i, 0], out[i, 1], out[i, 2] = min(lo, d2), max(lo, min(hi, d2)), max(hi, d2)
+            continue
+        q = (d0 + d1 + d2) / 3
+        p = np.sqrt((((d0 - q) ** 2 + (d1 - q) ** 2) + (d2 - q) ** 2 + 2 * off) / 6)
+        safe = p if p > 0 else 1.0
+        b00, b11, b22 = (d0 - q) / safe, (d1 - q) / safe, (d2 - q) / safe
+        b01, b02, b12 = a[0, 1] / safe, a[0, 2] / safe, a[1, 2] / safe
+        b10, b20, b21 = a[1, 0] / safe, a[2, 0] / safe, a[2, 1] / safe
+        det = (b00 * (b11 * b22 - b12 * b21) - b01 * (b10 * b22 - b12 * b20) + b02 * (b10 * b21 - b11 * b20))
+        phi = np.arccos(min(max(det / 2, -1.0), 1.0)) / 3
+        big = q + 2 * p * np.cos(phi)
+        small = q + 2 * p * np.cos(phi + 2 * np.pi / 3)
+        out[i, 0], out[i, 1], out[i, 2] = small, 3 * q - big - small, big
+    return out
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -1938,6 +2102,14 @@ def warm() -> Warmup:
     centroids, scatter = region_scatter(pts, np.zeros(3), index, np.array([0, 2, 4]))
     region_extents(pts, np.zeros(3), index, np.array([0, 2, 4]), centroids, scatter, 0.005, 0.995)
     plane_silhouette_sum(pts, codes[[0, 2, 3, 3]], centroids, scatter, np.zeros((2, 2)), np.zeros((2, 2)), np.ones(2))
+    marked_rows(pts, np.zeros(3), 1e-6)
+    near_count(pts, pts, 0.3)
+    beyond_counts(np.zeros((4, 4)), np.zeros((4, 2)), labels, np.ones(1), np.zeros(4), np.zeros(4),
+                  np.zeros((2, 2), np.bool_))
+    distinct_rows(pts, index)
+    coordinate_extent(pts, index)
+    silhouettes(np.ones((4, 2)), codes[[0, 0, 2, 2]] // 2, sizes, True)
+    patch_eigenvalues(np.zeros((1, 3, 3)))
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
@@ -1948,4 +2120,5 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             valid_rows, frame_pass, plane_patches, fold_fit, grid_sample, grid_edges, grid_usable,
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
-            cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum)
+            cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
+            beyond_counts, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues)
