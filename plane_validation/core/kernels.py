@@ -24,7 +24,8 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
            'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
-           'region_scatter', 'region_extents', 'plane_silhouette_sum', 'warm', 'Warmup']
+           'region_scatter', 'region_extents', 'plane_silhouette_sum', 'voxel_query', 'spread_nearest', 'warm',
+           'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -1872,6 +1873,178 @@ def plane_silhouette_sum(x: np.ndarray, own: np.ndarray, centroids: np.ndarray, 
     return total
 
 
+# --- graph ---
+
+
+@numba.njit(inline='always', **_JIT)  # called per point: inlined, not passed two arrays a call
+def _insert(d2: np.ndarray, best: np.ndarray, found: int, k: int, e: float, j: int) -> int:
+    """Insert the point ``j`` at squared distance ``e`` into the ``found`` nearest so far (``d2``, ``best``: ascending
+    by distance, then by j; at most ``k``); returns how many are held after."""
+    if found == k and not (e < d2[k - 1] or (e == d2[k - 1] and j < best[k - 1])):
+        return found
+    p = min(found, k - 1)
+    while p > 0 and (e < d2[p - 1] or (e == d2[p - 1] and j < best[p - 1])):
+        d2[p] = d2[p - 1]
+        best[p] = best[p - 1]
+        p -= 1
+    d2[p] = e
+    best[p] = j
+    return found + 1 if found < k else found
+
+
+@numba.njit(**_JIT)
+def voxel_query(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
+                origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray, k: int, max_ring: int
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`voxel_knn`, the same answer, with the queries taken voxel by voxel: the occupied voxels around each
+    query voxel are looked up once for all its queries, which mostly find their ``k`` nearest within them; the
+    others (in an empty voxel, or with a neighbour farther out) are answered by :func:`voxel_knn`."""
+    nq = queries.shape[0]
+    c = cell_keys.shape[0]
+    total = dims[0] * dims[1] * dims[2]
+    dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * points.shape[0])
+    home = np.empty(nq, np.int64)  # each query's occupied voxel, c where none
+    count = np.zeros(c + 2, np.int64)
+    for q in range(nq):
+        fx = (queries[q, 0] - origin[0]) / cell
+        fy = (queries[q, 1] - origin[1]) / cell
+        fz = (queries[q, 2] - origin[2]) / cell
+        v = c
+        if 0.0 <= fx < dims[0] and 0.0 <= fy < dims[1] and 0.0 <= fz < dims[2]:
+            v = _voxel(cell_keys, table, int(fx) + dims[0] * (int(fy) + dims[1] * int(fz)), dense)
+            if v < 0:
+                v = c
+        home[q] = v
+        count[v + 2] += 1
+    for v in range(c + 1):
+        count[v + 2] += count[v + 1]
+    grouped = np.empty(nq, np.int64)  # the queries voxel by voxel, in their order within one
+    for q in range(nq):
+        grouped[count[home[q] + 1]] = q
+        count[home[q] + 1] += 1
+    dist = np.full((nq, k), np.inf)
+    idx = np.full((nq, k), -1, np.int64)
+    exact = np.zeros(nq, np.bool_)
+    d2 = np.empty(k)
+    best = np.empty(k, np.int64)
+    around = np.empty(26, np.int64)  # the occupied voxels next to one, and their offsets
+    offset = np.empty((26, 3), np.int64)
+    left = 0  # the queries not answered here, moved to the front of grouped
+    lo = 0
+    for v in range(c + 1):
+        hi = count[v + 1]
+        if v == c:
+            for g in range(lo, hi):
+                grouped[left] = grouped[g]
+                left += 1
+            break
+        key = cell_keys[v]
+        vx, vy, vz = key % dims[0], (key // dims[0]) % dims[1], key // (dims[0] * dims[1])
+        m = 0
+        if hi > lo:
+            for dz in range(-1, 2):
+                for dy in range(-1, 2):
+                    for dx in range(-1, 2):
+                        ix, iy, iz = vx + dx, vy + dy, vz + dz
+                        if (dx or dy or dz) and 0 <= ix < dims[0] and 0 <= iy < dims[1] and 0 <= iz < dims[2]:
+                            u = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
+                            if u >= 0:
+                                around[m] = u
+                                offset[m, 0], offset[m, 1], offset[m, 2] = dx, dy, dz
+                                m += 1
+        for g in range(lo, hi):
+            q = grouped[g]
+            x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+            fx, fy, fz = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
+            margin = min(fx - vx, vx + 1 - fx, fy - vy, vy + 1 - fy, fz - vz, vz + 1 - fz) * cell
+            if k == 1:  # the nearest alone: held in two scalars
+                b, bj = np.inf, -1
+                for j in range(starts[v], starts[v + 1]):  # ascending: the first of equal distances stays
+                    ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+                    e = ex * ex + ey * ey + ez * ez
+                    if e < b:
+                        b, bj = e, j
+                done = bj >= 0 and b <= margin * margin
+                if not done:
+                    for a in range(m):
+                        gx = _gap(fx, vx, offset[a, 0]) * cell
+                        gy = _gap(fy, vy, offset[a, 1]) * cell
+                        gz = _gap(fz, vz, offset[a, 2]) * cell
+                        if bj >= 0 and gx * gx + (gy * gy + gz * gz) > b:
+                            continue
+                        u = around[a]
+                        for j in range(starts[u], starts[u + 1]):
+                            ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+                            e = ex * ex + ey * ey + ez * ez
+                            if e < b or (e == b and j < bj):
+                                b, bj = e, j
+                    reach = cell + margin
+                    done = bj >= 0 and b <= reach * reach
+                d2[0], best[0] = b, bj
+            else:
+                found = 0
+                for j in range(starts[v], starts[v + 1]):
+                    ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+                    found = _insert(d2, best, found, k, ex * ex + ey * ey + ez * ez, j)
+                done = found == k and d2[k - 1] <= margin * margin
+                if not done:
+                    for a in range(m):
+                        gx = _gap(fx, vx, offset[a, 0]) * cell
+                        gy = _gap(fy, vy, offset[a, 1]) * cell
+                        gz = _gap(fz, vz, offset[a, 2]) * cell
+                        if found == k and gx * gx + (gy * gy + gz * gz) > d2[k - 1]:
+                            continue
+                        u = around[a]
+                        for j in range(starts[u], starts[u + 1]):
+                            ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+                            found = _insert(d2, best, found, k, ex * ex + ey * ey + ez * ez, j)
+                    reach = cell + margin
+                    done = found == k and d2[k - 1] <= reach * reach
+            if done:
+                exact[q] = True
+                for p in range(k):
+                    dist[q, p] = np.sqrt(d2[p])
+                    idx[q, p] = order[best[p]]
+            else:
+                grouped[left] = q
+                left += 1
+        lo = hi
+    if left:
+        rest = grouped[:left]
+        far_dist, far_idx, far_exact = voxel_knn(points, order, cell_keys, starts, table, origin, cell, dims,
+                                                 queries[rest], k, max_ring)
+        for g in range(left):
+            q = rest[g]
+            exact[q] = far_exact[g]
+            for p in range(k):
+                dist[q, p], idx[q, p] = far_dist[g, p], far_idx[g, p]
+    return dist, idx, exact
+
+
+@numba.njit(**_JIT)
+def spread_nearest(points: np.ndarray, rows: np.ndarray, center: np.ndarray, nearest: np.ndarray, region: np.ndarray,
+                   planes: np.ndarray, tolerance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Labels (N,) int32 of ``points`` (N, 3) meters: each of ``rows`` (n,) takes the region (``region`` (m,), -1: none)
+    of its nearest searched point (``nearest`` (n,): its position among the m) when it lies within ``tolerance`` ((1,)
+    or (n,) meters) of that region's plane (``planes`` (k, 4): normal, offset, about ``center`` (3,)); -1 otherwise and
+    off ``rows``. Also each point's distance (N,) to the plane of its label, inf where none."""
+    labels = np.full(points.shape[0], -1, np.int32)
+    residual = np.full(points.shape[0], np.inf)
+    cx, cy, cz = center[0], center[1], center[2]
+    per_point = tolerance.shape[0] > 1
+    for q in range(rows.shape[0]):
+        lab = region[nearest[q]]
+        if lab < 0:
+            continue
+        i = rows[q]
+        x, y, z = points[i, 0] - cx, points[i, 1] - cy, points[i, 2] - cz
+        d = abs(x * planes[lab, 0] + y * planes[lab, 1] + z * planes[lab, 2] + planes[lab, 3])
+        if d <= tolerance[q if per_point else 0]:
+            labels[i] = lab
+            residual[i] = d
+    return labels, residual
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -1938,6 +2111,9 @@ def warm() -> Warmup:
     centroids, scatter = region_scatter(pts, np.zeros(3), index, np.array([0, 2, 4]))
     region_extents(pts, np.zeros(3), index, np.array([0, 2, 4]), centroids, scatter, 0.005, 0.995)
     plane_silhouette_sum(pts, codes[[0, 2, 3, 3]], centroids, scatter, np.zeros((2, 2)), np.zeros((2, 2)), np.ones(2))
+    grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
+    voxel_query(pts, *grid, np.zeros(3), 1.0, dims, pts, 2, 1)
+    spread_nearest(pts, index, np.zeros(3), index, index, np.zeros((1, 4)), np.ones(1))
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
@@ -1948,4 +2124,5 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             valid_rows, frame_pass, plane_patches, fold_fit, grid_sample, grid_edges, grid_usable,
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
-            cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum)
+            cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum,
+            voxel_query, spread_nearest)
