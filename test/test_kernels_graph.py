@@ -97,3 +97,33 @@ def test_spread_nearest_matches_numpy(seed, per_point):
     np.testing.assert_allclose(residual[on], np.abs(np.einsum('ij,ij->i', pts[on] - center, own[:, :3]) + own[:, 3]),
                                rtol=1e-12, atol=1e-15)
     assert np.isinf(residual[~on]).all()
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1))
+def test_knn_edges_match_numpy(seed):
+    """The pairs within reach, or among the ALWAYS_JOINED nearest at a finite distance, in the numpy order."""
+    from plane_validation.core.regions import _knn_edges, _knn_edges_numpy
+    rng = np.random.default_rng(seed)
+    n, k = int(rng.integers(1, 200)), int(rng.integers(2, 13))
+    dist = np.sort(rng.exponential(size=(n, k)), axis=1)
+    dist[:, 0] = 0.0
+    dist[rng.random((n, k)) < 0.05] = np.inf  # no neighbour found
+    dist = np.sort(dist, axis=1)
+    idx = rng.integers(0, n, (n, k))
+    reach = rng.exponential(size=n)
+    reach[::7] = dist[::7, k // 2]  # exactly at a neighbour's distance: joined
+    pairs = _knn_edges(dist, idx, reach)
+    np.testing.assert_array_equal(pairs, _knn_edges_numpy(dist, idx, reach).reshape(-1, 2))
+    assert pairs.dtype == np.int64
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1))
+def test_spread_among_matches_numpy(seed):
+    rng = np.random.default_rng(seed)
+    m, n, k = int(rng.integers(1, 100)), int(rng.integers(0, 100)), int(rng.integers(1, 12))
+    values = np.round(rng.normal(size=m), int(rng.integers(1, 4)))  # rounded: equal values
+    idx = rng.integers(0, m, (n, k))
+    np.testing.assert_array_equal(kernels.spread_among(values, idx),
+                                  values[idx].max(axis=1, initial=-np.inf) - values[idx].min(axis=1, initial=np.inf))
