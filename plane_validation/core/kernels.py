@@ -24,7 +24,7 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
            'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
-           'region_scatter', 'region_extents', 'plane_silhouette_sum', 'voxel_query', 'spread_nearest', 'knn_edges',
+           'region_scatter', 'region_extents', 'plane_silhouette_sum', 'voxel_nearest', 'spread_nearest', 'knn_edges',
            'spread_among', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -1876,22 +1876,6 @@ def plane_silhouette_sum(x: np.ndarray, own: np.ndarray, centroids: np.ndarray, 
 # --- graph ---
 
 
-@numba.njit(inline='always', **_JIT)  # called per point: inlined, not passed two arrays a call
-def _insert(d2: np.ndarray, best: np.ndarray, found: int, k: int, e: float, j: int) -> int:
-    """Insert the point ``j`` at squared distance ``e`` into the ``found`` nearest so far (``d2``, ``best``: ascending
-    by distance, then by j; at most ``k``); returns how many are held after."""
-    if found == k and not (e < d2[k - 1] or (e == d2[k - 1] and j < best[k - 1])):
-        return found
-    p = min(found, k - 1)
-    while p > 0 and (e < d2[p - 1] or (e == d2[p - 1] and j < best[p - 1])):
-        d2[p] = d2[p - 1]
-        best[p] = best[p - 1]
-        p -= 1
-    d2[p] = e
-    best[p] = j
-    return found + 1 if found < k else found
-
-
 @numba.njit(**_JIT)
 def _by_voxel(queries: np.ndarray, cell_keys: np.ndarray, table: np.ndarray, origin: np.ndarray, cell: float,
               dims: np.ndarray, dense: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -1957,7 +1941,7 @@ def _faces(face: np.ndarray, f: np.ndarray, c: np.ndarray, cell: float) -> float
 def _nearest_in_voxel(points: np.ndarray, starts: np.ndarray, v: int, around: np.ndarray, offset: np.ndarray, m: int,
                       queries: np.ndarray, rows: np.ndarray, origin: np.ndarray, cell: float, c: np.ndarray,
                       found: np.ndarray, d2: np.ndarray) -> None:
-    """:func:`voxel_query` with k = 1 for the queries ``rows`` in the occupied voxel ``v`` (at ``c`` (3,), with the
+    """:func:`voxel_nearest` for the queries ``rows`` in the occupied voxel ``v`` (at ``c`` (3,), with the
     ``m`` occupied voxels ``around`` it at ``offset``): each one's nearest point (position in the hashed order) into
     ``found`` and its squared distance into ``d2``, -1 where it is not certain within them."""
     face = np.zeros((3, 3))
@@ -1989,57 +1973,22 @@ def _nearest_in_voxel(points: np.ndarray, starts: np.ndarray, v: int, around: np
 
 
 @numba.njit(**_JIT)
-def _knn_in_voxel(points: np.ndarray, starts: np.ndarray, v: int, around: np.ndarray, offset: np.ndarray, m: int,
-                  queries: np.ndarray, rows: np.ndarray, origin: np.ndarray, cell: float, c: np.ndarray,
-                  found: np.ndarray, d2: np.ndarray) -> None:
-    """:func:`_nearest_in_voxel` for the k nearest (``found``, ``d2`` (r, k)): rows of -1 where not certain."""
-    k = found.shape[1]
-    face = np.zeros((3, 3))
-    f = np.empty(3)
-    dist = np.empty(k)
-    best = np.empty(k, np.int64)
-    for g in range(rows.shape[0]):
-        q = rows[g]
-        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
-        f[0], f[1], f[2] = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
-        margin = _faces(face, f, c, cell)
-        held = 0
-        for j in range(starts[v], starts[v + 1]):
-            ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
-            held = _insert(dist, best, held, k, ex * ex + ey * ey + ez * ez, j)
-        reach = margin
-        if not (held == k and dist[k - 1] <= margin * margin):
-            for a in range(m):
-                if held == k and face[0, offset[a, 0]] + (face[1, offset[a, 1]] + face[2, offset[a, 2]]) > \
-                        dist[k - 1]:
-                    continue
-                u = around[a]
-                for j in range(starts[u], starts[u + 1]):
-                    ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
-                    held = _insert(dist, best, held, k, ex * ex + ey * ey + ez * ez, j)
-            reach = cell + margin
-        if held == k and dist[k - 1] <= reach * reach:
-            d2[g], found[g] = dist, best
-        else:
-            found[g, 0] = -1
-
-
-@numba.njit(**_JIT)
-def voxel_query(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
-                origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray, k: int, max_ring: int
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`voxel_knn`, the same answer, with the queries taken voxel by voxel: the occupied voxels around each
-    query voxel are looked up once for all its queries, which mostly find their ``k`` nearest within them; the
-    others (in an empty voxel, or with a neighbour farther out) are answered by :func:`voxel_knn`."""
+def voxel_nearest(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
+                  origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray, max_ring: int
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`voxel_knn` with k = 1, the same answer, with the queries taken voxel by voxel: the occupied voxels
+    around each query voxel are looked up once for all its queries, which mostly find their nearest within them; the
+    others (in an empty voxel, or with the nearest farther out) are answered by :func:`voxel_knn`. (For more than
+    the nearest, the k-th often lies beyond the voxels around: query by query is as fast.)"""
     nq, n_voxels = queries.shape[0], cell_keys.shape[0]
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * points.shape[0])
     grouped, bounds = _by_voxel(queries, cell_keys, table, origin, cell, dims, dense)
-    dist = np.full((nq, k), np.inf)
-    idx = np.full((nq, k), -1, np.int64)
+    dist = np.full((nq, 1), np.inf)
+    idx = np.full((nq, 1), -1, np.int64)
     exact = np.zeros(nq, np.bool_)
-    found = np.empty((max(1, int(np.max(np.diff(bounds)))) if nq else 1, k), np.int64)
-    d2 = np.empty(found.shape)
+    found = np.empty(max(1, int(np.max(np.diff(bounds)))) if nq else 1, np.int64)
+    d2 = np.empty(found.shape[0])
     around = np.empty(26, np.int64)
     offset = np.empty((26, 3), np.int64)
     c = np.empty(3, np.int64)
@@ -2052,33 +2001,25 @@ def voxel_query(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, st
         c[0], c[1], c[2] = key % dims[0], (key // dims[0]) % dims[1], key // (dims[0] * dims[1])
         m = _occupied_around(cell_keys, table, dims, dense, c[0], c[1], c[2], around, offset)
         rows = grouped[lo:hi]
-        if k == 1:  # the nearest alone: held in two scalars
-            _nearest_in_voxel(points, starts, v, around, offset, m, queries, rows, origin, cell, c, found[:, 0],
-                              d2[:, 0])
-        else:
-            _knn_in_voxel(points, starts, v, around, offset, m, queries, rows, origin, cell, c, found, d2)
+        _nearest_in_voxel(points, starts, v, around, offset, m, queries, rows, origin, cell, c, found, d2)
         for g in range(hi - lo):
             q = rows[g]
-            if found[g, 0] < 0:
+            if found[g] < 0:
                 grouped[left] = q
                 left += 1
-                continue
-            exact[q] = True
-            for p in range(k):
-                dist[q, p] = np.sqrt(d2[g, p])
-                idx[q, p] = order[found[g, p]]
+            else:
+                exact[q] = True
+                dist[q, 0], idx[q, 0] = np.sqrt(d2[g]), order[found[g]]
     for g in range(bounds[n_voxels], nq):
         grouped[left] = grouped[g]
         left += 1
     if left:
         rest = grouped[:left]
         far_dist, far_idx, far_exact = voxel_knn(points, order, cell_keys, starts, table, origin, cell, dims,
-                                                 queries[rest], k, max_ring)
+                                                 queries[rest], 1, max_ring)
         for g in range(left):
             q = rest[g]
-            exact[q] = far_exact[g]
-            for p in range(k):
-                dist[q, p], idx[q, p] = far_dist[g, p], far_idx[g, p]
+            exact[q], dist[q, 0], idx[q, 0] = far_exact[g], far_dist[g, 0], far_idx[g, 0]
     return dist, idx, exact
 
 
@@ -2211,7 +2152,7 @@ def warm() -> Warmup:
     region_extents(pts, np.zeros(3), index, np.array([0, 2, 4]), centroids, scatter, 0.005, 0.995)
     plane_silhouette_sum(pts, codes[[0, 2, 3, 3]], centroids, scatter, np.zeros((2, 2)), np.zeros((2, 2)), np.ones(2))
     grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
-    voxel_query(pts, *grid, np.zeros(3), 1.0, dims, pts, 2, 1)
+    voxel_nearest(pts, *grid, np.zeros(3), 1.0, dims, pts, 1)
     spread_nearest(pts, index, np.zeros(3), index, index, np.zeros((1, 4)), np.ones(1))
     knn_edges(np.zeros((4, 2)), np.zeros((4, 2), np.int64), np.ones(4), 1)
     spread_among(np.zeros(4), np.zeros((4, 2), np.int64))
@@ -2226,4 +2167,4 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
             cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum,
-            voxel_query, spread_nearest, knn_edges, spread_among)
+            voxel_nearest, spread_nearest, knn_edges, spread_among)
