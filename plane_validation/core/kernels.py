@@ -25,7 +25,8 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
            'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
            'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
-           'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'warm', 'Warmup']
+           'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
+           'spread_nearest', 'knn_edges', 'spread_among', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -2036,6 +2037,218 @@ def patch_eigenvalues(m: np.ndarray) -> np.ndarray:
     return out
 
 
+# --- graph ---
+
+
+@numba.njit(**_JIT)
+def _by_voxel(queries: np.ndarray, cell_keys: np.ndarray, table: np.ndarray, origin: np.ndarray, cell: float,
+              dims: np.ndarray, dense: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The ``queries`` (q, 3) grouped by the occupied voxel of :func:`voxel_grid` they lie in: (rows (q,), voxel by
+    voxel, in their order within one; bounds (c + 2,): voxel v's from bounds[v] to bounds[v + 1], those in no occupied
+    voxel last, from bounds[c])."""
+    nq, c = queries.shape[0], cell_keys.shape[0]
+    home = np.empty(nq, np.int64)  # each query's occupied voxel, c where none
+    count = np.zeros(c + 2, np.int64)
+    for q in range(nq):
+        fx = (queries[q, 0] - origin[0]) / cell
+        fy = (queries[q, 1] - origin[1]) / cell
+        fz = (queries[q, 2] - origin[2]) / cell
+        v = c
+        if 0.0 <= fx < dims[0] and 0.0 <= fy < dims[1] and 0.0 <= fz < dims[2]:
+            v = _voxel(cell_keys, table, int(fx) + dims[0] * (int(fy) + dims[1] * int(fz)), dense)
+            if v < 0:
+                v = c
+        home[q] = v
+        count[v + 2] += 1
+    for v in range(c + 1):
+        count[v + 2] += count[v + 1]
+    grouped = np.empty(nq, np.int64)
+    for q in range(nq):
+        grouped[count[home[q] + 1]] = q
+        count[home[q] + 1] += 1
+    return grouped, count
+
+
+@numba.njit(**_JIT)
+def _occupied_around(cell_keys: np.ndarray, table: np.ndarray, dims: np.ndarray, dense: bool, vx: int, vy: int,
+                     vz: int, around: np.ndarray, offset: np.ndarray) -> int:
+    """How many of the 26 voxels next to (vx, vy, vz) are occupied; those voxels into ``around``, their offsets into
+    ``offset`` (0, 1, 2: below, level with, above it along each axis)."""
+    m = 0
+    for dz in range(-1, 2):
+        for dy in range(-1, 2):
+            for dx in range(-1, 2):
+                ix, iy, iz = vx + dx, vy + dy, vz + dz
+                if (dx or dy or dz) and 0 <= ix < dims[0] and 0 <= iy < dims[1] and 0 <= iz < dims[2]:
+                    u = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
+                    if u >= 0:
+                        around[m] = u
+                        offset[m, 0], offset[m, 1], offset[m, 2] = dx + 1, dy + 1, dz + 1
+                        m += 1
+    return m
+
+
+@numba.njit(**_JIT)
+def _faces(face: np.ndarray, f: np.ndarray, c: np.ndarray, cell: float) -> float:
+    """Into ``face`` (3, 3): the squared gaps (m^2) from a query at voxel coordinates ``f`` (3,) in voxel ``c`` (3,)
+    to the voxels below (column 0) and above (column 2) along each axis, as :func:`_gap` gives them; returns how far
+    (meters) it lies inside its voxel."""
+    margin = np.inf
+    for axis in range(3):
+        below, above = (f[axis] - c[axis]) * cell, (c[axis] + 1 - f[axis]) * cell
+        face[axis, 0], face[axis, 2] = below * below, above * above
+        margin = min(margin, f[axis] - c[axis], c[axis] + 1 - f[axis])
+    return margin * cell
+
+
+@numba.njit(**_JIT)
+def _nearest_in_voxel(points: np.ndarray, starts: np.ndarray, v: int, around: np.ndarray, offset: np.ndarray, m: int,
+                      queries: np.ndarray, rows: np.ndarray, origin: np.ndarray, cell: float, c: np.ndarray,
+                      found: np.ndarray, d2: np.ndarray) -> None:
+    """:func:`voxel_nearest` for the queries ``rows`` in the occupied voxel ``v`` (at ``c`` (3,), with the
+    ``m`` occupied voxels ``around`` it at ``offset``): each one's nearest point (position in the hashed order) into
+    ``found`` and its squared distance into ``d2``, -1 where it is not certain within them."""
+    face = np.zeros((3, 3))
+    f = np.empty(3)
+    for g in range(rows.shape[0]):
+        q = rows[g]
+        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+        f[0], f[1], f[2] = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
+        margin = _faces(face, f, c, cell)
+        b, bj = np.inf, -1
+        for j in range(starts[v], starts[v + 1]):  # ascending: the first of equal distances stays
+            ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+            e = ex * ex + ey * ey + ez * ez
+            if e < b:
+                b, bj = e, j
+        reach = margin
+        if not b <= margin * margin:
+            for a in range(m):
+                if face[0, offset[a, 0]] + (face[1, offset[a, 1]] + face[2, offset[a, 2]]) > b:
+                    continue
+                u = around[a]
+                for j in range(starts[u], starts[u + 1]):
+                    ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+                    e = ex * ex + ey * ey + ez * ez
+                    if e < b or (e == b and j < bj):
+                        b, bj = e, j
+            reach = cell + margin
+        found[g], d2[g] = (bj, b) if b <= reach * reach else (-1, np.inf)
+
+
+@numba.njit(**_JIT)
+def voxel_nearest(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
+                  origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray, max_ring: int
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`voxel_knn` with k = 1, the same answer, with the queries taken voxel by voxel: the occupied voxels
+    around each query voxel are looked up once for all its queries, which mostly find their nearest within them; the
+    others (in an empty voxel, or with the nearest farther out) are answered by :func:`voxel_knn`. (For more than
+    the nearest, the k-th often lies beyond the voxels around: query by query is as fast.)"""
+    nq, n_voxels = queries.shape[0], cell_keys.shape[0]
+    total = dims[0] * dims[1] * dims[2]
+    dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * points.shape[0])
+    grouped, bounds = _by_voxel(queries, cell_keys, table, origin, cell, dims, dense)
+    dist = np.full((nq, 1), np.inf)
+    idx = np.full((nq, 1), -1, np.int64)
+    exact = np.zeros(nq, np.bool_)
+    found = np.empty(max(1, int(np.max(np.diff(bounds)))) if nq else 1, np.int64)
+    d2 = np.empty(found.shape[0])
+    around = np.empty(26, np.int64)
+    offset = np.empty((26, 3), np.int64)
+    c = np.empty(3, np.int64)
+    left = 0  # the queries not answered here, moved to the front of grouped
+    for v in range(n_voxels):
+        lo, hi = bounds[v], bounds[v + 1]
+        if hi == lo:
+            continue
+        key = cell_keys[v]
+        c[0], c[1], c[2] = key % dims[0], (key // dims[0]) % dims[1], key // (dims[0] * dims[1])
+        m = _occupied_around(cell_keys, table, dims, dense, c[0], c[1], c[2], around, offset)
+        rows = grouped[lo:hi]
+        _nearest_in_voxel(points, starts, v, around, offset, m, queries, rows, origin, cell, c, found, d2)
+        for g in range(hi - lo):
+            q = rows[g]
+            if found[g] < 0:
+                grouped[left] = q
+                left += 1
+            else:
+                exact[q] = True
+                dist[q, 0], idx[q, 0] = np.sqrt(d2[g]), order[found[g]]
+    for g in range(bounds[n_voxels], nq):
+        grouped[left] = grouped[g]
+        left += 1
+    if left:
+        rest = grouped[:left]
+        far_dist, far_idx, far_exact = voxel_knn(points, order, cell_keys, starts, table, origin, cell, dims,
+                                                 queries[rest], 1, max_ring)
+        for g in range(left):
+            q = rest[g]
+            exact[q], dist[q, 0], idx[q, 0] = far_exact[g], far_dist[g, 0], far_idx[g, 0]
+    return dist, idx, exact
+
+
+@numba.njit(**_JIT)
+def spread_nearest(points: np.ndarray, rows: np.ndarray, center: np.ndarray, nearest: np.ndarray, region: np.ndarray,
+                   planes: np.ndarray, tolerance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Labels (N,) int32 of ``points`` (N, 3) meters: each of ``rows`` (n,) takes the region (``region`` (m,), -1: none)
+    of its nearest searched point (``nearest`` (n,): its position among the m) when it lies within ``tolerance`` ((1,)
+    or (n,) meters) of that region's plane (``planes`` (k, 4): normal, offset, about ``center`` (3,)); -1 otherwise and
+    off ``rows``. Also each point's distance (N,) to the plane of its label, inf where none."""
+    labels = np.full(points.shape[0], -1, np.int32)
+    residual = np.full(points.shape[0], np.inf)
+    cx, cy, cz = center[0], center[1], center[2]
+    per_point = tolerance.shape[0] > 1
+    for q in range(rows.shape[0]):
+        lab = region[nearest[q]]
+        if lab < 0:
+            continue
+        i = rows[q]
+        x, y, z = points[i, 0] - cx, points[i, 1] - cy, points[i, 2] - cz
+        d = abs(x * planes[lab, 0] + y * planes[lab, 1] + z * planes[lab, 2] + planes[lab, 3])
+        if d <= tolerance[q if per_point else 0]:
+            labels[i] = lab
+            residual[i] = d
+    return labels, residual
+
+
+@numba.njit(**_JIT)
+def knn_edges(dist: np.ndarray, idx: np.ndarray, reach: np.ndarray, always: int) -> np.ndarray:
+    """The pairs (e, 2) joining each point i to its nearest neighbours ``idx[i, 1:]`` (``dist`` (n, k) meters, nearest
+    first; the first column the point itself) that lie within ``reach[i]`` meters, or among its first ``always`` at
+    a finite distance; row by row, nearest first."""
+    n, k = idx.shape
+    e = 0
+    for i in range(n):
+        for j in range(1, k):
+            if dist[i, j] <= reach[i] or (j <= always and np.isfinite(dist[i, j])):
+                e += 1
+    pairs = np.empty((e, 2), np.int64)
+    e = 0
+    for i in range(n):
+        for j in range(1, k):
+            if dist[i, j] <= reach[i] or (j <= always and np.isfinite(dist[i, j])):
+                pairs[e, 0], pairs[e, 1] = i, idx[i, j]
+                e += 1
+    return pairs
+
+
+@numba.njit(**_JIT)
+def spread_among(values: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """(n,) the largest minus the smallest of ``values[idx[i]]`` (``values`` (m,), ``idx`` (n, k), k >= 1)."""
+    n, k = idx.shape
+    out = np.empty(n)
+    for i in range(n):
+        lo = hi = values[idx[i, 0]]
+        for j in range(1, k):
+            v = values[idx[i, j]]
+            if v > hi:
+                hi = v
+            if v < lo:
+                lo = v
+        out[i] = hi - lo
+    return out
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -2110,6 +2323,11 @@ def warm() -> Warmup:
     coordinate_extent(pts, index)
     silhouettes(np.ones((4, 2)), codes[[0, 0, 2, 2]] // 2, sizes, True)
     patch_eigenvalues(np.zeros((1, 3, 3)))
+    grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
+    voxel_nearest(pts, *grid, np.zeros(3), 1.0, dims, pts, 1)
+    spread_nearest(pts, index, np.zeros(3), index, index, np.zeros((1, 4)), np.ones(1))
+    knn_edges(np.zeros((4, 2)), np.zeros((4, 2), np.int64), np.ones(4), 1)
+    spread_among(np.zeros(4), np.zeros((4, 2), np.int64))
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
@@ -2121,4 +2339,5 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
             cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
-            beyond_counts, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues)
+            beyond_counts, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
+            voxel_nearest, spread_nearest, knn_edges, spread_among)
