@@ -139,3 +139,22 @@ def test_points_that_form_no_ring_image_are_refused_with_a_reason():
     # with range near the walls, yet the scan is an image (refused before, though as good as the graph)
     lifted = scan.points + np.where(scan.rings % 2 == 0, 0.20, 0.14)[:, None] * [0.0, 0.0, 1.0]
     assert ring_image(lifted, scan.rings)[1] == (16, 1800)
+
+
+def test_the_cross_product_of_the_plane_basis_equals_numpys():
+    from plane_validation.core.geometry import _cross
+    rng = np.random.default_rng(3)
+    for a, b in zip(rng.normal(size=(2000, 3)) * rng.uniform(1e-6, 1e6, (2000, 1)), rng.normal(size=(2000, 3))):
+        np.testing.assert_array_equal(_cross(a, b), np.cross(a, b))
+    normal = rng.normal(size=3)
+    normal /= np.linalg.norm(normal)
+    rotation = plane_basis(normal)
+    np.testing.assert_allclose(rotation.T @ rotation, np.eye(3), atol=1e-12)
+    assert np.linalg.det(rotation) > 0 and np.array_equal(rotation[:, 2], normal)
+
+
+def test_the_colours_of_some_ids_are_those_of_the_whole_palette():
+    from plane_validation.core.geometry import id_colors, plane_colors
+    ids = np.array([7, 0, 3, 3, 1200])
+    np.testing.assert_array_equal(id_colors(ids), plane_colors(1201)[ids])
+    assert id_colors(np.zeros(0, np.int64)).shape == plane_colors(0).shape == (0, 3)

@@ -21,10 +21,12 @@ from ..core.geometry import plane_rows, voxel_downsample
 from ..core.indices import ValidityIndices, validity_indices
 from ..core.noise import noise_coefficient
 from ..core.ransac import (
+    AT_VIEWPOINT,
     Segmentation,
     as_points,
     check_integer,
     check_shape,
+    check_viewpoint,
     detect_planes,
     finite_rows,
     no_returns_as_nan,
@@ -349,7 +351,7 @@ class FramePipeline:
         except ValueError as exc:
             return _failed(ERROR, f'bad input: {exc}', start, self.current_tolerance())
         cfg = self.config
-        pts, no_returns = no_returns_as_nan(given, cfg.viewpoint) if cfg.zero_is_no_return else (given, 0)
+        pts, no_returns = _no_returns_as_nan(given, cfg.viewpoint) if cfg.zero_is_no_return else (given, 0)
         finite, valid, infinite = _valid_rows(pts)
         n_input = len(pts)
         image = shape if shape is not None and shape[0] * shape[1] == n_input else None  # kept in the outputs
@@ -439,6 +441,15 @@ class FramePipeline:
                            plane_counts=tuple(int(c) for c in counts), organized=pts if image else None, shape=shape,
                            ring_image=(laid[0], laid[1]) if laid else None, clock=stamp, plane_ids=ids,
                            obstacles=obstacles, image_shape=image, image_labels=image_labels)
+
+
+def _no_returns_as_nan(points: np.ndarray, viewpoint) -> tuple[np.ndarray, int]:
+    """:func:`~.ransac.no_returns_as_nan`, with the usual frame's answer (no row at the mark: ``points`` as they are)
+    found in one compiled pass over a C-ordered float64 array."""
+    if points.dtype == np.float64 and points.flags.c_contiguous and points.flags.writeable and \
+            kernels.marked_rows(points, check_viewpoint(viewpoint), AT_VIEWPOINT) == 0:
+        return points, 0
+    return no_returns_as_nan(points, viewpoint)
 
 
 def _on_rows(values: np.ndarray, rows: np.ndarray, fill) -> np.ndarray:

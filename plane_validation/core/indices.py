@@ -95,7 +95,7 @@ class _Clusters:
         codes = self.codes[rows]
         sizes = np.bincount(codes, minlength=self.k)
         starts = np.cumsum(sizes) - sizes
-        return _Clusters(self.points[rows], codes, starts, sizes, self.ids, self.order[rows])
+        return _Clusters(np.take(self.points, rows, axis=0), codes, starts, sizes, self.ids, self.order[rows])
 
 
 def _check(points: np.ndarray, labels: np.ndarray, convert: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -196,7 +196,7 @@ def _stratified_census(census: _Census, total: int, rng: np.random.Generator) ->
     bounds = np.zeros(len(alloc) + 1, np.int64)
     bounds[1:] = np.cumsum(alloc)
     rows = kernels.rows_at_ranks(census.compact, census.low, census.table, ranks, bounds)
-    return _Clusters(census.pts[rows], np.repeat(np.arange(len(alloc)), alloc), bounds[:-1], alloc,
+    return _Clusters(np.take(census.pts, rows, axis=0), np.repeat(np.arange(len(alloc)), alloc), bounds[:-1], alloc,
                      census.ids, rows)
 
 
@@ -209,7 +209,7 @@ def _sorted_by_cluster(coded: _Coded, positions: np.ndarray | None = None) -> _C
     sizes = np.bincount(codes, minlength=len(coded.ids))
     starts = (np.cumsum(sizes) - sizes).astype(np.int64)
     rows = coded.keep[positions]
-    return _Clusters(coded.pts[rows], codes, starts, sizes, coded.ids, rows)
+    return _Clusters(np.take(coded.pts, rows, axis=0), codes, starts, sizes, coded.ids, rows)
 
 
 def _clusters(points: np.ndarray, labels: np.ndarray) -> _Clusters:
@@ -507,13 +507,25 @@ def _pair_pass(cl: _Clusters) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _silhouettes(cl: _Clusters, sums: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Exact silhouettes of each (sorted) row among the rows of ``cl``: (s (n,), s_planes (n,)), as
+    :func:`_silhouettes_numpy` gives them, in one compiled pass over the distance sums
+    (:func:`.kernels.silhouettes`)."""
+    if cl.k < 2:
+        return _silhouettes_numpy(cl, sums)
+    if sums is None:
+        sums = _pair_pass(cl)[0]
+    return kernels.silhouettes(kernels.c_array(sums, np.float64), kernels.c_array(cl.codes, np.int64),
+                               kernels.c_array(cl.sizes, np.int64), bool(cl.ids[0] < 0))
+
+
+def _silhouettes_numpy(cl: _Clusters, sums: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Exact silhouettes of each (sorted) row among the rows of ``cl``: (s (n,), s_planes (n,)).
 
     s_i = (b_i - a_i) / max(a_i, b_i); a_i mean distance to the other members of its cluster,
     b_i the smallest mean distance to another cluster; 0 for singleton clusters and for a = b = 0.
     s_planes is the same for the planes alone (the unassigned cluster is no candidate for b_i;
     NaN on its own rows): both come from the same distance sums, ``sums`` (n, K) of
-    :func:`_pair_pass` (computed when None).
+    :func:`_pair_pass` (computed when None). The reference :func:`_silhouettes`' kernel is tested against.
     """
     n, k = cl.n, cl.k
     s, s_planes = np.zeros(n), np.zeros(n)
@@ -722,8 +734,11 @@ class ValidityIndices:
         return out
 
 
-#: From this many points on, the plane silhouette runs in a thread beside the other indices (numpy, the
-#: kd-trees and the kernels release the GIL; below it the thread's start and the GIL cost more than they save).
+#: From this many points summed over on, the plane silhouette runs in a thread beside the other indices (numpy, the
+#: kd-trees and the kernels release the GIL; below it the thread's start and the GIL cost more than they save). The
+#: points summed over are the index sample's when there is one: on a sample of 2,000 the PS takes a few ms whatever
+#: the cloud's size, and its thread cost a 640 x 480 frame about 1 ms more CPU time without saving wall time on two
+#: busy cores (benchmarks/README.md).
 THREADED_PS_POINTS = 50_000
 
 
@@ -791,7 +806,8 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
         sep = cl
     ps = functools.partial(plane_silhouette_of, census.pts, census.lab, census.compact,
                            (n, census.n_assigned, census.low, len(census.table)), sample_size=sample_size, rng=rng)
-    with ThreadPoolExecutor(1) if n >= THREADED_PS_POINTS else contextlib.nullcontext() as pool:
+    summed = n if sample_size is None else min(n, int(sample_size))
+    with ThreadPoolExecutor(1) if summed >= THREADED_PS_POINTS else contextlib.nullcontext() as pool:
         if pool is not None:
             ps = _started(pool, ps)
         sums = None

@@ -24,8 +24,10 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
            'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
-           'region_scatter', 'region_extents', 'plane_silhouette_sum', 'score_hypotheses', 'spread_test', 'fit_members',
-           'fit_mask', 'fit_regions', 'grid_best_region', 'grid_refit_region', 'warm', 'Warmup']
+           'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
+           'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
+           'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
+           'fit_regions', 'grid_best_region', 'grid_refit_region', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -1919,6 +1921,381 @@ def plane_silhouette_sum(x: np.ndarray, own: np.ndarray, centroids: np.ndarray, 
     return total
 
 
+
+# --- frame outside the search ---
+
+
+@numba.njit(**_JIT)
+def marked_rows(points: np.ndarray, view: np.ndarray, within: float) -> int:
+    """How many rows of ``points`` (N, 3) lie at a driver's "no return" mark: exactly (0, 0, 0) when ``view`` (3,)
+    is the origin, else within ``within`` (meters, in each coordinate) of ``view``."""
+    count = 0
+    if view[0] == 0.0 and view[1] == 0.0 and view[2] == 0.0:
+        for i in range(points.shape[0]):
+            if points[i, 0] == 0.0 and points[i, 1] == 0.0 and points[i, 2] == 0.0:
+                count += 1
+        return count
+    for i in range(points.shape[0]):
+        if (abs(points[i, 0] - view[0]) <= within and abs(points[i, 1] - view[1]) <= within
+                and abs(points[i, 2] - view[2]) <= within):
+            count += 1
+    return count
+
+
+@numba.njit(**_JIT)
+def near_count(a: np.ndarray, b: np.ndarray, radius: float) -> int:
+    """How many rows of ``a`` (m, 3) have a row of ``b`` (p, 3) closer than ``radius`` (meters; squared distances
+    compared with radius ** 2, as a kd-tree query bounded by it)."""
+    bound = radius * radius
+    count = 0
+    for i in range(a.shape[0]):
+        x, y, z = a[i, 0], a[i, 1], a[i, 2]
+        for j in range(b.shape[0]):
+            dx, dy, dz = x - b[j, 0], y - b[j, 1], z - b[j, 2]
+            if dx * dx + dy * dy + dz * dz < bound:
+                count += 1
+                break
+    return count
+
+
+@numba.njit(**_JIT)
+def beyond_counts(box: np.ndarray, d: np.ndarray, labels: np.ndarray, t: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                  surface: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per plane j, among the m points inside its in-plane box (``box`` (m, 2k): their coordinates along its two
+    in-plane axes, columns 2j and 2j + 1, between ``lo`` and ``hi`` (2k,)): how many lie within ``t`` of it (``d``
+    (m, k): their distances to each plane, meters), and how many at t..2t that are not labelled (``labels`` (m,))
+    with a plane l that ``surface`` (k, k) bool [j, l] excuses. ``t``: (1,) one tolerance, or (m,) one per point."""
+    m, k = d.shape[0], d.shape[1]
+    within = np.zeros(k, np.int64)
+    beyond = np.zeros(k, np.int64)
+    for i in range(m):
+        tol = t[i] if t.shape[0] > 1 else t[0]
+        lab = labels[i]
+        for j in range(k):
+            u, v = box[i, 2 * j], box[i, 2 * j + 1]
+            if not (u >= lo[2 * j] and u <= hi[2 * j] and v >= lo[2 * j + 1] and v <= hi[2 * j + 1]):
+                continue
+            if d[i, j] <= tol:
+                within[j] += 1
+            elif d[i, j] <= 2 * tol and not (lab >= 0 and surface[j, lab]):
+                beyond[j] += 1
+    return within, beyond
+
+
+@numba.njit(**_JIT)
+def distinct_rows(points: np.ndarray, rows: np.ndarray) -> int:
+    """How many distinct points (equal in all three coordinates) the ``rows`` (m,) of ``points`` (N, 3) are: each
+    against the earlier ones, O(m^2)."""
+    count = 0
+    for a in range(rows.shape[0]):
+        i = rows[a]
+        seen = False
+        for b in range(a):
+            j = rows[b]
+            if points[i, 0] == points[j, 0] and points[i, 1] == points[j, 1] and points[i, 2] == points[j, 2]:
+                seen = True
+                break
+        if not seen:
+            count += 1
+    return count
+
+
+@numba.njit(**_JIT)
+def coordinate_extent(points: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, bool, bool]:
+    """Over the ``rows`` of ``points`` (N, 3) with three finite coordinates: the largest magnitude of each coordinate
+    (3,), whether every one of their coordinates is a float32 number, and whether there was such a row."""
+    largest = np.zeros(3)
+    single = True
+    seen = False
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
+            continue
+        seen = True
+        for a, v in enumerate((x, y, z)):
+            largest[a] = max(largest[a], abs(v))
+            single = single and np.float64(np.float32(v)) == v
+    return largest, single, seen
+
+
+@numba.njit(**_JIT)
+def _silhouette(a: float, b: float) -> float:
+    top = max(a, b)
+    return (b - a) / top if top > 0.0 else 0.0
+
+
+@numba.njit(**_JIT)
+def silhouettes(sums: np.ndarray, codes: np.ndarray, sizes: np.ndarray, has_rest: bool
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's silhouette among all K clusters and among the planes alone, (n,) each, from its summed distances
+    to each cluster ``sums`` (n, K) (K >= 2), its cluster ``codes`` (n,) and the clusters' ``sizes`` (K,): a the
+    mean distance to the others of its own, b the smallest mean distance to another (``has_rest``: cluster 0 is the
+    unassigned points, no plane: NaN on its rows, no candidate for b among the planes; with one plane, 0); 0 on a
+    cluster of one row."""
+    n, k = sums.shape
+    s = np.zeros(n)
+    s_planes = np.zeros(n)
+    for i in range(n):
+        c = codes[i]
+        a = sums[i, c] / max(sizes[c] - 1, 1)
+        b = b_planes = np.inf
+        for e in range(k):
+            if e != c:
+                mean = sums[i, e] / sizes[e]
+                b = min(b, mean)
+                if e > 0:
+                    b_planes = min(b_planes, mean)
+        single = sizes[c] == 1
+        s[i] = 0.0 if single else _silhouette(a, b)
+        if not has_rest:
+            s_planes[i] = s[i]
+        elif c == 0:
+            s_planes[i] = np.nan
+        elif k >= 3 and not single:
+            s_planes[i] = _silhouette(a, b_planes)
+    return s, s_planes
+
+
+@numba.njit(**_JIT)
+def patch_eigenvalues(m: np.ndarray) -> np.ndarray:
+    """The eigenvalues (p, 3), ascending, of symmetric 3 x 3 matrices ``m`` (p, 3, 3), by the trigonometric closed
+    form, the same steps as ``verdict.symmetric_eigenvalues`` (its numpy reference)."""
+    out = np.empty((m.shape[0], 3))
+    for i in range(m.shape[0]):
+        a = m[i]
+        off = a[0, 1] ** 2 + a[0, 2] ** 2 + a[1, 2] ** 2
+        d0, d1, d2 = a[0, 0], a[1, 1], a[2, 2]
+        if off == 0:  # diagonal: its entries, sorted
+            lo, hi = min(d0, d1), max(d0, d1)
+            out[i, 0], out[i, 1], out[i, 2] = min(lo, d2), max(lo, min(hi, d2)), max(hi, d2)
+            continue
+        q = (d0 + d1 + d2) / 3
+        p = np.sqrt((((d0 - q) ** 2 + (d1 - q) ** 2) + (d2 - q) ** 2 + 2 * off) / 6)
+        safe = p if p > 0 else 1.0
+        b00, b11, b22 = (d0 - q) / safe, (d1 - q) / safe, (d2 - q) / safe
+        b01, b02, b12 = a[0, 1] / safe, a[0, 2] / safe, a[1, 2] / safe
+        b10, b20, b21 = a[1, 0] / safe, a[2, 0] / safe, a[2, 1] / safe
+        det = (b00 * (b11 * b22 - b12 * b21) - b01 * (b10 * b22 - b12 * b20) + b02 * (b10 * b21 - b11 * b20))
+        phi = np.arccos(min(max(det / 2, -1.0), 1.0)) / 3
+        big = q + 2 * p * np.cos(phi)
+        small = q + 2 * p * np.cos(phi + 2 * np.pi / 3)
+        out[i, 0], out[i, 1], out[i, 2] = small, 3 * q - big - small, big
+    return out
+
+
+# --- graph ---
+
+
+@numba.njit(**_JIT)
+def _by_voxel(queries: np.ndarray, cell_keys: np.ndarray, table: np.ndarray, origin: np.ndarray, cell: float,
+              dims: np.ndarray, dense: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The ``queries`` (q, 3) grouped by the occupied voxel of :func:`voxel_grid` they lie in: (rows (q,), voxel by
+    voxel, in their order within one; bounds (c + 2,): voxel v's from bounds[v] to bounds[v + 1], those in no occupied
+    voxel last, from bounds[c])."""
+    nq, c = queries.shape[0], cell_keys.shape[0]
+    home = np.empty(nq, np.int64)  # each query's occupied voxel, c where none
+    count = np.zeros(c + 2, np.int64)
+    for q in range(nq):
+        fx = (queries[q, 0] - origin[0]) / cell
+        fy = (queries[q, 1] - origin[1]) / cell
+        fz = (queries[q, 2] - origin[2]) / cell
+        v = c
+        if 0.0 <= fx < dims[0] and 0.0 <= fy < dims[1] and 0.0 <= fz < dims[2]:
+            v = _voxel(cell_keys, table, int(fx) + dims[0] * (int(fy) + dims[1] * int(fz)), dense)
+            if v < 0:
+                v = c
+        home[q] = v
+        count[v + 2] += 1
+    for v in range(c + 1):
+        count[v + 2] += count[v + 1]
+    grouped = np.empty(nq, np.int64)
+    for q in range(nq):
+        grouped[count[home[q] + 1]] = q
+        count[home[q] + 1] += 1
+    return grouped, count
+
+
+@numba.njit(**_JIT)
+def _occupied_around(cell_keys: np.ndarray, table: np.ndarray, dims: np.ndarray, dense: bool, vx: int, vy: int,
+                     vz: int, around: np.ndarray, offset: np.ndarray) -> int:
+    """How many of the 26 voxels next to (vx, vy, vz) are occupied; those voxels into ``around``, their offsets into
+    ``offset`` (0, 1, 2: below, level with, above it along each axis)."""
+    m = 0
+    for dz in range(-1, 2):
+        for dy in range(-1, 2):
+            for dx in range(-1, 2):
+                ix, iy, iz = vx + dx, vy + dy, vz + dz
+                if (dx or dy or dz) and 0 <= ix < dims[0] and 0 <= iy < dims[1] and 0 <= iz < dims[2]:
+                    u = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
+                    if u >= 0:
+                        around[m] = u
+                        offset[m, 0], offset[m, 1], offset[m, 2] = dx + 1, dy + 1, dz + 1
+                        m += 1
+    return m
+
+
+@numba.njit(**_JIT)
+def _faces(face: np.ndarray, f: np.ndarray, c: np.ndarray, cell: float) -> float:
+    """Into ``face`` (3, 3): the squared gaps (m^2) from a query at voxel coordinates ``f`` (3,) in voxel ``c`` (3,)
+    to the voxels below (column 0) and above (column 2) along each axis, as :func:`_gap` gives them; returns how far
+    (meters) it lies inside its voxel."""
+    margin = np.inf
+    for axis in range(3):
+        below, above = (f[axis] - c[axis]) * cell, (c[axis] + 1 - f[axis]) * cell
+        face[axis, 0], face[axis, 2] = below * below, above * above
+        margin = min(margin, f[axis] - c[axis], c[axis] + 1 - f[axis])
+    return margin * cell
+
+
+@numba.njit(**_JIT)
+def _nearest_in_voxel(points: np.ndarray, starts: np.ndarray, v: int, around: np.ndarray, offset: np.ndarray, m: int,
+                      queries: np.ndarray, rows: np.ndarray, origin: np.ndarray, cell: float, c: np.ndarray,
+                      found: np.ndarray, d2: np.ndarray) -> None:
+    """:func:`voxel_nearest` for the queries ``rows`` in the occupied voxel ``v`` (at ``c`` (3,), with the
+    ``m`` occupied voxels ``around`` it at ``offset``): each one's nearest point (position in the hashed order) into
+    ``found`` and its squared distance into ``d2``, -1 where it is not certain within them."""
+    face = np.zeros((3, 3))
+    f = np.empty(3)
+    for g in range(rows.shape[0]):
+        q = rows[g]
+        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+        f[0], f[1], f[2] = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
+        margin = _faces(face, f, c, cell)
+        b, bj = np.inf, -1
+        for j in range(starts[v], starts[v + 1]):  # ascending: the first of equal distances stays
+            ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+            e = ex * ex + ey * ey + ez * ez
+            if e < b:
+                b, bj = e, j
+        reach = margin
+        if not b <= margin * margin:
+            for a in range(m):
+                if face[0, offset[a, 0]] + (face[1, offset[a, 1]] + face[2, offset[a, 2]]) > b:
+                    continue
+                u = around[a]
+                for j in range(starts[u], starts[u + 1]):
+                    ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+                    e = ex * ex + ey * ey + ez * ez
+                    if e < b or (e == b and j < bj):
+                        b, bj = e, j
+            reach = cell + margin
+        found[g], d2[g] = (bj, b) if b <= reach * reach else (-1, np.inf)
+
+
+@numba.njit(**_JIT)
+def voxel_nearest(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
+                  origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray, max_ring: int
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`voxel_knn` with k = 1, the same answer, with the queries taken voxel by voxel: the occupied voxels
+    around each query voxel are looked up once for all its queries, which mostly find their nearest within them; the
+    others (in an empty voxel, or with the nearest farther out) are answered by :func:`voxel_knn`. (For more than
+    the nearest, the k-th often lies beyond the voxels around: query by query is as fast.)"""
+    nq, n_voxels = queries.shape[0], cell_keys.shape[0]
+    total = dims[0] * dims[1] * dims[2]
+    dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * points.shape[0])
+    grouped, bounds = _by_voxel(queries, cell_keys, table, origin, cell, dims, dense)
+    dist = np.full((nq, 1), np.inf)
+    idx = np.full((nq, 1), -1, np.int64)
+    exact = np.zeros(nq, np.bool_)
+    found = np.empty(max(1, int(np.max(np.diff(bounds)))) if nq else 1, np.int64)
+    d2 = np.empty(found.shape[0])
+    around = np.empty(26, np.int64)
+    offset = np.empty((26, 3), np.int64)
+    c = np.empty(3, np.int64)
+    left = 0  # the queries not answered here, moved to the front of grouped
+    for v in range(n_voxels):
+        lo, hi = bounds[v], bounds[v + 1]
+        if hi == lo:
+            continue
+        key = cell_keys[v]
+        c[0], c[1], c[2] = key % dims[0], (key // dims[0]) % dims[1], key // (dims[0] * dims[1])
+        m = _occupied_around(cell_keys, table, dims, dense, c[0], c[1], c[2], around, offset)
+        rows = grouped[lo:hi]
+        _nearest_in_voxel(points, starts, v, around, offset, m, queries, rows, origin, cell, c, found, d2)
+        for g in range(hi - lo):
+            q = rows[g]
+            if found[g] < 0:
+                grouped[left] = q
+                left += 1
+            else:
+                exact[q] = True
+                dist[q, 0], idx[q, 0] = np.sqrt(d2[g]), order[found[g]]
+    for g in range(bounds[n_voxels], nq):
+        grouped[left] = grouped[g]
+        left += 1
+    if left:
+        rest = grouped[:left]
+        far_dist, far_idx, far_exact = voxel_knn(points, order, cell_keys, starts, table, origin, cell, dims,
+                                                 queries[rest], 1, max_ring)
+        for g in range(left):
+            q = rest[g]
+            exact[q], dist[q, 0], idx[q, 0] = far_exact[g], far_dist[g, 0], far_idx[g, 0]
+    return dist, idx, exact
+
+
+@numba.njit(**_JIT)
+def spread_nearest(points: np.ndarray, rows: np.ndarray, center: np.ndarray, nearest: np.ndarray, region: np.ndarray,
+                   planes: np.ndarray, tolerance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Labels (N,) int32 of ``points`` (N, 3) meters: each of ``rows`` (n,) takes the region (``region`` (m,), -1: none)
+    of its nearest searched point (``nearest`` (n,): its position among the m) when it lies within ``tolerance`` ((1,)
+    or (n,) meters) of that region's plane (``planes`` (k, 4): normal, offset, about ``center`` (3,)); -1 otherwise and
+    off ``rows``. Also each point's distance (N,) to the plane of its label, inf where none."""
+    labels = np.full(points.shape[0], -1, np.int32)
+    residual = np.full(points.shape[0], np.inf)
+    cx, cy, cz = center[0], center[1], center[2]
+    per_point = tolerance.shape[0] > 1
+    for q in range(rows.shape[0]):
+        lab = region[nearest[q]]
+        if lab < 0:
+            continue
+        i = rows[q]
+        x, y, z = points[i, 0] - cx, points[i, 1] - cy, points[i, 2] - cz
+        d = abs(x * planes[lab, 0] + y * planes[lab, 1] + z * planes[lab, 2] + planes[lab, 3])
+        if d <= tolerance[q if per_point else 0]:
+            labels[i] = lab
+            residual[i] = d
+    return labels, residual
+
+
+@numba.njit(**_JIT)
+def knn_edges(dist: np.ndarray, idx: np.ndarray, reach: np.ndarray, always: int) -> np.ndarray:
+    """The pairs (e, 2) joining each point i to its nearest neighbours ``idx[i, 1:]`` (``dist`` (n, k) meters, nearest
+    first; the first column the point itself) that lie within ``reach[i]`` meters, or among its first ``always`` at
+    a finite distance; row by row, nearest first."""
+    n, k = idx.shape
+    e = 0
+    for i in range(n):
+        for j in range(1, k):
+            if dist[i, j] <= reach[i] or (j <= always and np.isfinite(dist[i, j])):
+                e += 1
+    pairs = np.empty((e, 2), np.int64)
+    e = 0
+    for i in range(n):
+        for j in range(1, k):
+            if dist[i, j] <= reach[i] or (j <= always and np.isfinite(dist[i, j])):
+                pairs[e, 0], pairs[e, 1] = i, idx[i, j]
+                e += 1
+    return pairs
+
+
+@numba.njit(**_JIT)
+def spread_among(values: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """(n,) the largest minus the smallest of ``values[idx[i]]`` (``values`` (m,), ``idx`` (n, k), k >= 1)."""
+    n, k = idx.shape
+    out = np.empty(n)
+    for i in range(n):
+        lo = hi = values[idx[i, 0]]
+        for j in range(1, k):
+            v = values[idx[i, j]]
+            if v > hi:
+                hi = v
+            if v < lo:
+                lo = v
+        out[i] = hi - lo
+    return out
+
+
 # --- search loop ---
 
 
@@ -2373,6 +2750,19 @@ def warm() -> Warmup:
     centroids, scatter = region_scatter(pts, np.zeros(3), index, np.array([0, 2, 4]))
     region_extents(pts, np.zeros(3), index, np.array([0, 2, 4]), centroids, scatter, 0.005, 0.995)
     plane_silhouette_sum(pts, codes[[0, 2, 3, 3]], centroids, scatter, np.zeros((2, 2)), np.zeros((2, 2)), np.ones(2))
+    marked_rows(pts, np.zeros(3), 1e-6)
+    near_count(pts, pts, 0.3)
+    beyond_counts(np.zeros((4, 4)), np.zeros((4, 2)), labels, np.ones(1), np.zeros(4), np.zeros(4),
+                  np.zeros((2, 2), np.bool_))
+    distinct_rows(pts, index)
+    coordinate_extent(pts, index)
+    silhouettes(np.ones((4, 2)), codes[[0, 0, 2, 2]] // 2, sizes, True)
+    patch_eigenvalues(np.zeros((1, 3, 3)))
+    grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
+    voxel_nearest(pts, *grid, np.zeros(3), 1.0, dims, pts, 1)
+    spread_nearest(pts, index, np.zeros(3), index, index, np.zeros((1, 4)), np.ones(1))
+    knn_edges(np.zeros((4, 2)), np.zeros((4, 2), np.int64), np.ones(4), 1)
+    spread_among(np.zeros(4), np.zeros((4, 2), np.int64))
     best = np.zeros((2, 3)), np.zeros(2), np.zeros(2, np.int64)
     score_hypotheses(cols, np.ones(1), np.empty((3, 0)), np.ones((2, 3)), np.zeros(2), 2, 0.5, 3.0, *best, 0)
     spread_test(cols, index, True, 1e-6)
@@ -2392,5 +2782,7 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             valid_rows, frame_pass, plane_patches, fold_fit, grid_sample, grid_edges, grid_usable,
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
-            cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, score_hypotheses,
-            spread_test, fit_members, fit_mask, fit_regions, grid_best_region, grid_refit_region)
+            cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
+            beyond_counts, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
+            voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
+            fit_mask, fit_regions, grid_best_region, grid_refit_region)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import nnls
-from scipy.stats import chi2
+from scipy.special import gammaincinv
 
 from . import kernels
 from .noise import NOISE_REFERENCE
@@ -241,7 +241,9 @@ def estimate_noise(points: np.ndarray, shape: tuple[int, int] | None = None, *, 
         return _empty(reference, along_ray)
     variances, ranges = variances[ok], ranges[ok]
     nu = int(np.median(dof[ok])) if ok.any() else 1
-    correction = chi2.ppf(QUANTILE, nu) / nu  # the quantile of a variance over nu dof, over its mean
+    # the quantile of a variance over nu dof, over its mean: the chi-square quantile, 2 P^-1(nu / 2, q) (scipy.special,
+    # not scipy.stats: importing that took a second of a node's start)
+    correction = 2 * gammaincinv(nu / 2, QUANTILE) / nu
     if not along_ray or len(variances) < 2 * MIN_BIN:
         if not len(variances):
             return _empty(reference, along_ray)

@@ -121,5 +121,5 @@ def plane_silhouette_of(pts: np.ndarray, lab: np.ndarray, compact: np.ndarray, c
     frames = _region_frames(pts, origin, assigned, dense, len(ids), rng)
     rows = np.arange(len(assigned)) if sample_size is None or len(assigned) <= sample_size else \
         rng.choice(len(assigned), int(sample_size), replace=False)
-    return float(kernels.plane_silhouette_sum(pts[assigned[rows]] - origin, dense[rows], *frames) / len(rows)
-                 * coverage)
+    sample = np.take(pts, assigned[rows], axis=0) - origin  # (np.take: much faster than pts[...] on rows of 3)
+    return float(kernels.plane_silhouette_sum(sample, dense[rows], *frames) / len(rows) * coverage)

@@ -209,8 +209,9 @@ class VoxelIndex:
         """The ``k`` nearest points to each of ``queries`` (q, 3), inside the voxels, as cKDTree.query gives them
         (distances (q, k) meters, nearest first; indices (q, k), len(points) where fewer than k exist; ties may be
         ordered otherwise)."""
-        dist, idx, exact = kernels.voxel_knn(self.ordered, *self.grid, self.origin, self.cell, self.dims,
-                                             kernels.c_array(queries, np.float64), k, VOXEL_RINGS)
+        grid = (self.ordered, *self.grid, self.origin, self.cell, self.dims, kernels.c_array(queries, np.float64))
+        dist, idx, exact = kernels.voxel_nearest(*grid, VOXEL_RINGS) if k == 1 else \
+            kernels.voxel_knn(*grid, k, VOXEL_RINGS)
         rest = np.flatnonzero(~exact)
         if len(rest):  # far from every point (or fewer than k of them): the kd-tree
             d, i = self._tree.query(queries[rest], k=k)
@@ -287,10 +288,7 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
         around = kth[idx[sparse]]
         local = np.partition(np.where(np.isfinite(around), around, 0.0), k // 2, axis=1)[:, k // 2]
         reach[sparse] = np.maximum(reach[sparse], RADIUS * local)
-    near = dist[:, 1:k] <= reach[:, None]
-    near[:, :ALWAYS_JOINED] |= np.isfinite(dist[:, 1:1 + ALWAYS_JOINED])
-    rows = np.repeat(np.arange(n), k - 1).reshape(n, k - 1)
-    edges = [np.column_stack([rows[near], idx[:, 1:k][near]])]
+    edges = [_knn_edges(dist, idx, reach)]
     normals = None
     if k >= 4:  # local normals: the smallest principal axis of each point's neighbourhood
         values, vectors = _principal_axes(points, idx)
@@ -299,10 +297,9 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
         normals[line] = np.nan
         rays = points - viewpoint
         elevation = np.arctan2(rays[:, 2], np.hypot(rays[:, 0], rays[:, 1]))
-        near_elevation = elevation[idx]
         length = np.linalg.norm(rays, axis=1, keepdims=True)
         unit = rays / np.where(length > 0, length, 1.0)
-        one_ring = near_elevation.max(axis=1) - near_elevation.min(axis=1) <= ONE_RING
+        one_ring = kernels.spread_among(elevation, idx) <= ONE_RING
         flat_rows = np.flatnonzero(one_ring)  # of those, the ones whose widest neighbour is a ring's spacing off
         widest = np.einsum('nkd,nd->nk', unit[idx[flat_rows]], unit[flat_rows]).min(axis=1)
         one_ring[flat_rows] = widest < np.cos(ANOTHER_RING)
@@ -330,6 +327,23 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
         rows_l, target = search(np.flatnonzero(line), _off(points, vectors[:, :, 2], off_plane=False), True)
         edges.append(np.column_stack([rows_l, target]))
     return _neighbours(n, np.concatenate(edges), normals)
+
+
+def _knn_edges(dist: np.ndarray, idx: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """The pairs (e, 2) joining each point to those of its nearest (``dist``, ``idx`` (n, k), the point itself first)
+    within its ``reach`` (n,) meters, and to its ALWAYS_JOINED nearest: :func:`.kernels.knn_edges`
+    (:func:`_knn_edges_numpy` is its reference)."""
+    return kernels.knn_edges(kernels.c_array(dist, np.float64), kernels.c_array(idx, np.int64),
+                             kernels.c_array(reach, np.float64), ALWAYS_JOINED)
+
+
+def _knn_edges_numpy(dist: np.ndarray, idx: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """:func:`_knn_edges` in numpy."""
+    n, k = idx.shape
+    near = dist[:, 1:k] <= reach[:, None]
+    near[:, :ALWAYS_JOINED] |= np.isfinite(dist[:, 1:1 + ALWAYS_JOINED])
+    rows = np.repeat(np.arange(n), k - 1).reshape(n, k - 1)
+    return np.column_stack([rows[near], idx[:, 1:k][near]])
 
 
 def _principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -156,6 +156,10 @@ FOLD_INNER = 0.7
 FOLD_POINTS = 1024
 
 
+#: _distinct compares up to this many points pairwise (compiled); more are sorted (np.unique).
+DISTINCT_PAIRS = 640
+
+
 def seed_agreement(reference: np.ndarray, others) -> float:
     """Mean over ``others`` of the point F1 (core/scoring.py, one-to-one matched planes) between each
     labeling and ``reference`` (labels (N,), -1 unassigned; F1 is symmetric in the two): 1 when every
@@ -194,7 +198,7 @@ def _patches(pca, axes: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.
     principal axes, sized to hold TILT_NEIGHBOURS of them on average (cells with half that or more count). Per patch
     the eigenvalues (p, 3) ascending and, with ``axes``, eigenvectors (p, 3, 3) of its scatter (per point, m^2), and
     its points (p,); None for too few inliers. Without ``axes`` the eigenvalues come in closed form
-    (:func:`symmetric_eigenvalues`)."""
+    (:func:`.kernels.patch_eigenvalues`; :func:`symmetric_eigenvalues` is its numpy reference)."""
     if pca is None or len(pca[1]) < 2 * TILT_NEIGHBOURS:
         return None
     _, centred, _, vectors = pca
@@ -205,7 +209,7 @@ def _patches(pca, axes: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.
     if axes:
         values, vectors = np.linalg.eigh(scatter)
         return values, vectors, counts
-    return symmetric_eigenvalues(scatter), None, counts
+    return kernels.patch_eigenvalues(scatter), None, counts
 
 
 def symmetric_eigenvalues(m: np.ndarray) -> np.ndarray:
@@ -354,32 +358,64 @@ def _surface(pts: np.ndarray, seg: Segmentation, samples: list, frames: list
 
 
 def _beyond(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray) -> np.ndarray:
-    """:func:`plane_beyond` from each plane's inlier :func:`_pca` and :func:`plane_fill`; all planes at once."""
-    k = len(seg.planes)
-    if k == 0:
+    """:func:`plane_beyond` from each plane's inlier :func:`_pca` and :func:`plane_fill`; all planes at once (the
+    counts in one compiled pass, :func:`.kernels.beyond_counts`; :func:`_beyond_numpy` is the reference)."""
+    if len(seg.planes) == 0:
         return np.zeros(0)
+    cloud, labels, t, box, d = _beyond_rows(pts, seg, frames)
+    lo, hi, surface = _beyond_frames(seg, frames, fill)
+    t = np.full(1, t) if np.ndim(t) == 0 else np.ascontiguousarray(t[:, 0])
+    within, beyond = kernels.beyond_counts(box, d, kernels.c_array(labels, np.int32), t, lo, hi, surface)
+    return beyond / np.maximum(within, 1)
+
+
+def _beyond_rows(pts: np.ndarray, seg: Segmentation, frames: list
+                 ) -> tuple[np.ndarray, np.ndarray, float | np.ndarray, np.ndarray, np.ndarray]:
+    """The rows :func:`_beyond` counts among (every so many of ``pts``, those with finite coordinates): (them (m, 3),
+    their labels (m,), the tolerance (a number, or (m, 1) by the noise model), their coordinates along each plane's
+    in-plane axes (m, 2k) and their distances to each plane (m, k), meters)."""
     step = max(1, -(-len(pts) // BEYOND_SAMPLE))
     cloud = np.ascontiguousarray(pts[::step])  # every so many rows, read in order
     finite = np.isfinite(cloud @ np.ones(3))  # a NaN or inf coordinate makes the sum one
-    cloud, labels = np.compress(finite, cloud, axis=0), np.compress(finite, np.asarray(seg.labels)[::step])
+    labels = np.asarray(seg.labels)[::step]
+    if not finite.all():
+        cloud, labels = np.compress(finite, cloud, axis=0), np.compress(finite, labels)
     scale = tolerance_scale(cloud, seg.noise_model, seg.noise_reference, seg.viewpoint)
     t = seg.tolerance * (1.0 if scale is None else scale[:, None])
-    axes, lo, hi = np.zeros((3, 2 * k)), np.full(2 * k, np.inf), np.full(2 * k, -np.inf)  # no inliers: nothing inside
+    axes = np.zeros((3, 2 * len(seg.planes)))
+    for j, pca in enumerate(frames):
+        if pca is not None:
+            axes[:, 2 * j:2 * j + 2] = pca[3][:, 1:]  # the in-plane principal axes
+    normals = np.array([p.normal for p in seg.planes])
+    d = np.abs(cloud @ normals.T + np.array([p.offset for p in seg.planes]))
+    return cloud, labels, t, np.ascontiguousarray(cloud @ axes), np.ascontiguousarray(d)
+
+
+def _beyond_frames(seg: Segmentation, frames: list, fill: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each plane's box along its in-plane principal axes (lo, hi (2k,), in the cloud's coordinates; empty without
+    inliers) and which planes' points count as a surface for which (k, k) bool: those of a thin plane nearby,
+    parallel to one (a rug on a floor)."""
+    k = len(seg.planes)
+    lo, hi = np.full(2 * k, np.inf), np.full(2 * k, -np.inf)  # no inliers: nothing inside
     for j, pca in enumerate(frames):
         if pca is not None:
             centre, centred, _, vectors = pca
-            axes[:, 2 * j:2 * j + 2] = vectors[:, 1:]  # the in-plane principal axes
             low, high = _extent(vectors[:, 1:].T @ centred.T)
             shift = centre @ vectors[:, 1:]  # the box in the cloud's coordinates
             lo[2 * j:2 * j + 2], hi[2 * j:2 * j + 2] = low + shift, high + shift
-    box = cloud @ axes  # (m, 2k)
-    box = (box >= lo) & (box <= hi)
     normals = np.array([p.normal for p in seg.planes])
-    d = np.abs(cloud @ normals.T + np.array([p.offset for p in seg.planes]))
+    return lo, hi, (np.abs(normals @ normals.T) >= NORMAL_MIN_COS) & (fill < MAX_FILL)[None, :]
+
+
+def _beyond_numpy(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray) -> np.ndarray:
+    """:func:`_beyond` in numpy: the reference its kernel is tested against."""
+    if len(seg.planes) == 0:
+        return np.zeros(0)
+    _, labels, t, box, d = _beyond_rows(pts, seg, frames)
+    lo, hi, surface = _beyond_frames(seg, frames, fill)
+    box = (box >= lo) & (box <= hi)
     d[~(box[:, 0::2] & box[:, 1::2])] = np.inf  # (m, k): outside a plane's extent counts for neither
     within = np.count_nonzero(d <= t, axis=0)
-    # the points of a thin plane nearby, parallel to this one (a rug on a floor), are a surface, not volume
-    surface = (np.abs(normals @ normals.T) >= NORMAL_MIN_COS) & (fill < MAX_FILL)[None, :]  # (k, k)
     beyond = (d > t) & (d <= 2 * t) & ~np.where(labels[:, None] >= 0, surface.T[np.maximum(labels, 0)], False)
     return np.count_nonzero(beyond, axis=0) / np.maximum(within, 1)
 
@@ -443,7 +479,7 @@ def _layering(inl: np.ndarray, plane) -> float:
 def _inlier_sample(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     if len(rows) > THICKNESS_POINTS:  # a fixed random subset: the ratios are robust statistics
         rows = rows[np.random.default_rng(len(rows)).integers(0, len(rows), THICKNESS_POINTS)]
-    return points[rows]
+    return np.take(points, rows, axis=0)  # (much faster than points[rows] on rows of 3)
 
 
 def plane_curvature(points: np.ndarray, plane_rows: np.ndarray) -> float:
@@ -478,6 +514,16 @@ def coordinate_step(points: np.ndarray) -> np.ndarray:
     return np.spacing(largest.astype(np.float32)).astype(np.float64) if single else np.spacing(largest)
 
 
+def _coordinate_step(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """:func:`coordinate_step` of the ``rows`` (m,) of ``points`` (N, 3), read in place in one compiled pass
+    (:func:`.kernels.coordinate_extent`)."""
+    largest, single, seen = kernels.coordinate_extent(kernels.c_array(points, np.float64),
+                                                      kernels.c_array(rows, np.int64))
+    if not seen:
+        return np.zeros(3)
+    return np.spacing(largest.astype(np.float32)).astype(np.float64) if single else np.spacing(largest)
+
+
 def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
           agreement: float | None = None) -> Verdict:
     """Whether the planes of ``seg`` are reliable, with every test they fail (:class:`~.failures.Verdict`).
@@ -500,7 +546,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     ps = float(scores.plane_silhouette)
     if seg.n_planes == 0:
         return Verdict(False, (Failure(FailureKind.NO_PLANES, 0.0, 1.0, note=seg.reason),), 0, ps)
-    pts = as_points(points)
+    pts = kernels.c_array(as_points(points), np.float64)  # the layout the kernels read (copied once, if at all)
     samples = _samples(pts, seg)
     frames = [_pca(inl) for inl in samples]
     thickness = np.array([_thickness(pca) for pca in frames])
@@ -541,7 +587,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
                                 other=float(unassigned) if seg.capped else None))
     stride = max(1, int(sizes.sum()) // COORDINATE_STEP_SAMPLE)
     rows = np.concatenate([p.inliers[::stride] for p in seg.planes])
-    along = np.abs(seg.coefficients[:, :3]) @ coordinate_step(pts[rows])  # each plane's step along its normal
+    along = np.abs(seg.coefficients[:, :3]) @ _coordinate_step(pts, rows)  # each plane's step along its normal
     if (along > seg.tolerance).any():
         coarse = int(np.argmax(along))
         failures.append(Failure(FailureKind.COORDINATE_STEPS, float(along[coarse]), float(seg.tolerance), coarse))
@@ -562,8 +608,12 @@ def _distinct(points: np.ndarray, rows: np.ndarray) -> int:
     """How many distinct points the ``rows`` of ``points`` are, counted exactly below
     MIN_PLANE_POINTS (exact copies, as stacked scans have them, are no more evidence than one point)."""
     head = 8 * MIN_PLANE_POINTS  # enough on any cloud without many copies; more where copies sit together
+    pts = kernels.c_array(points, np.float64) if head <= DISTINCT_PAIRS else points
     while True:
-        distinct = len(np.unique(points[rows[:head]], axis=0))
+        if head <= DISTINCT_PAIRS:  # each point against the earlier ones, compiled
+            distinct = kernels.distinct_rows(pts, kernels.c_array(rows[:head], np.int64))
+        else:
+            distinct = len(np.unique(points[rows[:head]], axis=0))
         if distinct >= MIN_PLANE_POINTS or head >= len(rows):
             return distinct
         head *= 8

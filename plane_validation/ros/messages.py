@@ -19,10 +19,10 @@ from ..app.pipeline import FrameResult
 from ..core.geometry import (
     UNASSIGNED_RGB,
     PlaneOutline,
+    id_colors,
     outline_directions,
     outlines_from,
     plane_bases,
-    plane_colors,
     plane_outlines,
     plane_rows,
 )
@@ -149,7 +149,7 @@ def _cloud(header, result: FrameResult, columns: dict, fill: dict, *, rows: np.n
 def _colors(result: FrameResult) -> np.ndarray:
     """(k, 3) uint8: each plane the colour of its track id, so a surface keeps its colour."""
     ids = np.asarray(result.plane_ids, np.int64)
-    return plane_colors(int(ids.max()) + 1 if len(ids) else 0)[ids]
+    return id_colors(ids)
 
 
 def _quaternion(rot: np.ndarray) -> Quaternion:

@@ -59,8 +59,8 @@ def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_i
         labels[search_idx] = np.where((region >= 0) & near, region, -1)  # within t of the refitted plane
     else:
         valid_idx = np.flatnonzero(finite)
-        labels[valid_idx] = spread_nearest(pts[valid_idx] - center, graph.nearest, region, found,
-                                           tolerance_at(tolerance, valid_idx))
+        labels, residual = spread_nearest(pts, valid_idx, center, graph.nearest, region, found,
+                                          tolerance_at(tolerance, valid_idx))
     rows, bounds = kernels.group_by_label(labels, len(found))
     counts = np.diff(bounds)
     small = np.flatnonzero(counts < min_count)

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .. import kernels
 from ..params import GRID_POINTS, RANSAC_POINTS
 from ..regions import VoxelIndex, graph_neighbours, voxel_index
 from .checks import as_points, check_search_size, check_shape, check_viewpoint, finite_rows
@@ -15,7 +16,8 @@ from .neighbours import Neighbours
 from .neighbours_grid import grid_neighbours
 from .types import Tolerance, Viewpoint
 
-__all__ = ['SearchGraph', 'search_graph', 'build_search_graph', 'checked_search_graph', 'spread_nearest']
+__all__ = ['SearchGraph', 'search_graph', 'build_search_graph', 'checked_search_graph', 'spread_nearest',
+           'spread_nearest_numpy']
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,7 +106,8 @@ def build_search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, in
         searched = pts[search_idx] - center
         index = None
         if len(search_idx) < n_valid:
-            nearest, index = _nearest_searched(searched, pts[valid_idx] - center)
+            every = pts if n_valid == len(pts) else pts[valid_idx]  # all valid: no copy
+            nearest, index = _nearest_searched(searched, every - center)
         neighbours = graph_neighbours(searched, viewpoint=viewpoint - center, index=index)
     return SearchGraph(n_points=len(pts), search_idx=search_idx, step=step, center=center, neighbours=neighbours,
                        shape=shape, ransac_points=ransac_points, n_valid=n_valid, nearest=nearest,
@@ -125,10 +128,23 @@ def _nearest_searched_tree(searched: np.ndarray, points: np.ndarray) -> np.ndarr
     return cKDTree(searched).query(points, k=1)[1]
 
 
-def spread_nearest(points: np.ndarray, nearest: np.ndarray, region: np.ndarray, found: list,
-                   tolerance: Tolerance) -> np.ndarray:
-    """Labels of ``points`` (n, 3) from the region of their nearest searched point (``nearest`` (n,):
-    its position among the searched points), when within ``tolerance`` of that region's plane; -1 otherwise."""
+def spread_nearest(pts: np.ndarray, rows: np.ndarray, center: np.ndarray, nearest: np.ndarray, region: np.ndarray,
+                   found: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+    """Labels (N,) of ``pts`` (N, 3) meters: each of ``rows`` (n,) takes the region of its nearest searched point
+    (``nearest`` (n,): its position among the searched points, ``region`` their regions) when within ``tolerance``
+    (scalar or (n,)) of that region's plane (``found``: (normal, offset) about ``center`` (3,)); -1 otherwise. Also the
+    distance (N,) to the plane of each point's label, inf where none. One compiled pass
+    (:func:`.kernels.spread_nearest`; :func:`spread_nearest_numpy` is its reference)."""
+    planes = np.array([np.append(normal, offset) for normal, offset in found], dtype=np.float64).reshape(-1, 4)
+    return kernels.spread_nearest(kernels.c_array(pts, np.float64), kernels.c_array(rows, np.int64),
+                                  kernels.c_array(center, np.float64), kernels.c_array(nearest, np.int64),
+                                  kernels.c_array(region, np.int64), planes,
+                                  kernels.c_array(np.reshape(tolerance, -1), np.float64))
+
+
+def spread_nearest_numpy(points: np.ndarray, nearest: np.ndarray, region: np.ndarray, found: list,
+                         tolerance: Tolerance) -> np.ndarray:
+    """:func:`spread_nearest`'s labels of the points ``points`` (n, 3), less the center, in numpy (the reference)."""
     lab = region[nearest]
     normals = np.array([n for n, _ in found])
     offsets = np.array([d for _, d in found])
