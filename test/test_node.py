@@ -690,14 +690,15 @@ def test_a_signal_during_the_first_compile_stops_the_node_cleanly(tmp_path):
     from plane_validation.core import kernels
     cache = tmp_path / 'cache'
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONUNBUFFERED='1')
-    # all but the last four kernels warm() compiles come from this process's cache (a whole cold compile takes 25 s)
+    # every kernel but the four named below comes from this process's cache, so the node compiles only those
+    # (a whole cold compile takes over a minute)
     kernels.warm()
     subprocess.run([sys.executable, '-c', 'import numpy as np; from plane_validation.core import kernels; '
                     'kernels.finite_mask(np.zeros((2, 3)))'], env=env, check=True, timeout=120)
     folder = next(cache.glob('*'))  # where numba keeps this module's cache under NUMBA_CACHE_DIR
-    last = tuple(f'kernels.{name}-' for name in ('voxel_grid', 'voxel_knn', 'principal_axes', 'pair_graph'))
+    recompiled = tuple(f'kernels.{name}-' for name in ('voxel_grid', 'voxel_knn', 'principal_axes', 'pair_graph'))
     for path in (Path(kernels.__file__).parent / '__pycache__').glob('kernels.*.nb*'):
-        if not path.name.startswith(last):
+        if not path.name.startswith(recompiled):
             shutil.copy(path, folder / path.name)
     copied = set(folder.glob('*.nbi'))
     proc = subprocess.Popen([sys.executable, '-m', 'plane_validation.ros.node'], stdout=subprocess.PIPE,
