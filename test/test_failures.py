@@ -59,11 +59,17 @@ def test_judge_gives_no_planes_and_the_searchs_reason():
     assert verdict.failures[0].note == seg.reason and str(verdict) == f'no plane found ({seg.reason})'
 
 
+def _gable(seed: int, n: int, half_width: float, length: float, pitch_deg: float, noise: float) -> np.ndarray:
+    """(n, 3) meters: a gable roof, its ridge along y at x = 0, sloping down at ``pitch_deg`` to x = +-half_width, with
+    Gaussian noise in z."""
+    rng = np.random.default_rng(seed)
+    x, y = rng.uniform(-half_width, half_width, n), rng.uniform(0, length, n)
+    return np.column_stack([x, y, -np.abs(x) * math.tan(math.radians(pitch_deg)) + rng.normal(0, noise, n)])
+
+
 def test_a_merged_ridge_fails_with_its_numbers_and_its_plane():
     """A 4 degree gable found as one plane: SURFACES_MERGED, naming the plane and its lack of fit."""
-    rng = np.random.default_rng(3)
-    x, y = rng.uniform(-5, 5, 6000), rng.uniform(0, 8, 6000)
-    roof = np.column_stack([x, y, -np.abs(x) * math.tan(math.radians(4)) + rng.normal(0, 0.01, 6000)])
+    roof = _gable(seed=3, n=6000, half_width=5, length=8, pitch_deg=4, noise=0.01)
     seg = pv.detect_planes(roof, 0.4, seed=0, max_planes=1)
     verdict = judge(roof, seg, pv.validity_indices(roof, seg.labels, seed=0))
     merged = [f for f in verdict.failures if f.kind is FailureKind.SURFACES_MERGED]
@@ -79,16 +85,14 @@ def test_a_shallow_gable_found_as_one_plane_is_a_ridge():
     below the 2 of steep merges, which two planes meeting at the ridge explain: RIDGE, with both numbers. Each side
     alone is not a ridge."""
     from plane_validation.core.verdict import FOLD_FIT, FOLD_LACK, MAX_LACK_OF_FIT
-    rng = np.random.default_rng(5)
-    x, y = rng.uniform(-4, 4, 2048), rng.uniform(0, 10, 2048)
-    roof = np.column_stack([x, y, -np.abs(x) * math.tan(math.radians(2)) + rng.normal(0, 0.03, 2048)])
+    roof = _gable(seed=5, n=2048, half_width=4, length=10, pitch_deg=2, noise=0.03)
     seg = pv.detect_planes(roof, 0.15, seed=0, max_planes=1)
     verdict = judge(roof, seg, pv.validity_indices(roof, seg.labels, seed=0))
     ridge = [f for f in verdict.failures if f.kind is FailureKind.RIDGE]
     assert seg.n_planes == 1 and not verdict.reliable and len(ridge) == 1 and ridge[0].plane == 0, verdict
     assert FOLD_LACK <= ridge[0].value < MAX_LACK_OF_FIT and ridge[0].other <= FOLD_FIT
     assert 'form a V' in str(ridge[0])
-    for half in (roof[x < 0], roof[x >= 0]):
+    for half in (roof[roof[:, 0] < 0], roof[roof[:, 0] >= 0]):
         one = pv.detect_planes(half, 0.15, seed=0, max_planes=1)
         kinds = judge(half, one, pv.validity_indices(half, one.labels, seed=0)).kinds
         assert FailureKind.RIDGE not in kinds and FailureKind.SURFACES_MERGED not in kinds
