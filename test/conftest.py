@@ -10,3 +10,10 @@ os.environ.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '1')
 from plane_validation.app.pipeline import limit_blas_threads  # noqa: E402
 
 limit_blas_threads()
+
+
+def pytest_sessionstart(session):
+    """Compile the kernels on every core before the first test needs them: a fresh clone's cache is cold, and a
+    compile in one process takes most of two minutes."""
+    from plane_validation.core.kernels import warm
+    warm(jobs=os.cpu_count() or 1)

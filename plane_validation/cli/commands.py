@@ -351,8 +351,10 @@ def cmd_paper(args: argparse.Namespace) -> int:
 
 
 def cmd_warmup(args: argparse.Namespace) -> int:
+    import os
+
     from ..core.kernels import warm
-    ready = warm()
+    ready = warm(jobs=args.jobs or os.cpu_count() or 1)
     how = 'compiled and cached' if ready.compiled else 'loaded from the cache'
     print(f'kernels ready in {ready.seconds:.2f} s: {how}')
     return 0
@@ -755,6 +757,8 @@ def build_parser() -> argparse.ArgumentParser:
     warmup = sub.add_parser('warmup', help='compile the numba kernels into their cache (for an install step)',
                             description='Compile (or load) every compiled kernel and keep it in numba\'s cache, so '
                             'that the first start of the node loads them instead of compiling (docs/performance.md).')
+    warmup.add_argument('--jobs', type=_at_least(0), default=0, metavar='N',
+                        help='processes that compile in parallel on a cold cache (default 0: one per core)')
     warmup.set_defaults(func=cmd_warmup)
     return parser
 

@@ -2692,87 +2692,180 @@ class Warmup:
     compiled: bool
 
 
-def warm() -> Warmup:
-    """Compile (or load from the cache) every kernel for the argument types the package calls it with."""
-    start = time.perf_counter()
-    before = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS)
+def _warm_frame() -> None:
     pts = np.zeros((4, 3))
     labels = np.array([0, -1, 0, 1], np.int32)
+    flags = np.ones(4, np.bool_)
     finite_mask(pts)
-    spread_grid(pts, np.ones(4, np.bool_), np.zeros((1, 1), np.int64), np.zeros(2, np.int64), np.zeros(2, np.int64),
+    spread_grid(pts, flags, np.zeros((1, 1), np.int64), np.zeros(2, np.int64), np.zeros(2, np.int64),
                 np.zeros((1, 4)), np.ones(1), EIGHT)
     rows, bounds = group_by_label(labels, 2)
     group_by_label(labels.astype(np.int64), 2)  # a search's regions
     centroids_and_extremes(pts, rows, bounds, np.zeros((2, 8, 3)))
-    flags = np.ones(4, np.bool_)
-    index = np.arange(4, dtype=np.int64)
+    coordinate_bounds(pts)
+    widen_xyz(np.zeros((4, 5), np.float32), np.arange(3))
+    valid_rows(pts)
+    frame_pass(pts, labels, flags, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.zeros((2, 8, 3)),
+               np.empty(80, np.uint8), np.empty(48, np.uint8), False)
+
+
+def _warm_regions() -> None:
+    pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
     grid_components(index, index, flags, 2, np.zeros((1, 3), np.int64), flags)
     grid_region(index, index, flags, 2, np.zeros((1, 3), np.int64), pts, np.ones(3), 0.5, index, index, flags, flags,
                 flags, np.ones(3))
     grid_compete(np.zeros((2, 4)), np.zeros(4, np.int64), index, index, 2, EIGHT, 2)
     graph_components(4, np.zeros((1, 2), np.int64), flags)
     graph_region(np.zeros((1, 2), np.int64), pts, np.ones(3), 0.5, flags, flags, flags, np.ones(3))
-    coordinate_bounds(pts)
-    dims = np.ones(3, np.int64)
+    pair_graph(4, np.zeros((1, 2), np.int64))
+
+
+def _warm_voxel_knn() -> None:
+    pts, dims = np.zeros((4, 3)), np.ones(3, np.int64)
     grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
     voxel_knn(pts, *grid, np.zeros(3), 1.0, dims, pts, 2, 1)
     principal_axes(pts, np.zeros((4, 3), np.int64))
+
+
+def _warm_voxel_nearest() -> None:
+    pts, dims, index = np.zeros((4, 3)), np.ones(3, np.int64), np.arange(4, dtype=np.int64)
+    grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
+    voxel_nearest(pts, *grid, np.zeros(3), 1.0, dims, pts, 1)
+    spread_nearest(pts, index, np.zeros(3), index, index, np.zeros((1, 4)), np.ones(1))
+    knn_edges(np.zeros((4, 2)), np.zeros((4, 2), np.int64), np.ones(4), 1)
+    spread_among(np.zeros(4), np.zeros((4, 2), np.int64))
+
+
+def _warm_patches() -> None:
+    pts, index = np.zeros((4, 3)), np.arange(4, dtype=np.int64)
     patch_fits(pts, index, np.array([0, 4]))
-    pair_graph(4, np.zeros((1, 2), np.int64))
-    widen_xyz(np.zeros((4, 5), np.float32), np.arange(3))
-    valid_rows(pts)
-    frame_pass(pts, labels, flags, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.zeros((2, 8, 3)),
-               np.empty(80, np.uint8), np.empty(48, np.uint8), False)
     plane_patches(pts, np.eye(3)[:, :2].copy(), 2, 1)
     fold_fit(np.arange(6.0), np.ones(6), np.ones(6), 2, 2, 0.5)
+    patch_eigenvalues(np.zeros((1, 3, 3)))
+
+
+def _warm_grid_search() -> None:
+    pts, flags = np.zeros((4, 3)), np.ones(4, np.bool_)
     grid_sample(pts, flags, 2, 1, np.zeros((1, 2), np.int64))
     image, valid = np.zeros((2, 2, 3)), np.ones((2, 2), np.bool_)
     ranges, right, right_reach, down, down_reach, _ = grid_edges(image, valid)
     grid_usable(valid, ranges, right, right_reach, down, down_reach, 1.0, 4.0)
     grid_normals(image, valid, 1, 1, 0.0)
     grid_chords(image, valid, ranges, True, 1)
+
+
+def _warm_planes() -> None:
+    pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
     cols, plane, edges = np.zeros((3, 4)), np.zeros(4), np.zeros(1, np.int64)
     merge_test(cols, index, index, 0, 1, plane, np.zeros((2, 4)), np.ones(1), edges, edges, edges, edges, index, pts,
                0.5, 0.95, 1.5)
     compete_distances(cols, np.zeros((1, 4)), np.ones(1), np.zeros(3), 0.25)
     band_counts(plane_bands(cols, np.ones((2, 3)), np.zeros(2))[0], np.ones(1), 2.0)
     triple_planes(cols, np.zeros((2, 3), np.int64), 1e-6)
-    coherent_inliers(np.ones(4, np.bool_), np.ones(3), cols, 0.5)
+    coherent_inliers(flags, np.ones(3), cols, 0.5)
     largest_magnitude(pts.reshape(-1))
+
+
+def _warm_indices() -> None:
+    pts = np.zeros((4, 3))
     codes = np.array([0, -1, 0, 1], np.int64)
     group_by_label(codes, 2)
     compact = np.empty(4, np.int32)
-    for ints in (codes, labels):  # the label types the package passes
+    for ints in (codes, codes.astype(np.int32)):  # the label types the package passes
         n, m, low, count = label_census(pts, ints, compact)
     rows_at_ranks(compact, low, np.arange(len(count)) - 1, np.zeros(2, np.int64), np.array([0, 1, 2]))
     sizes = np.array([2, 2], np.int64)
     cluster_distance_pass(pts, np.array([0, 2], np.int64), sizes)
+    silhouettes(np.ones((4, 2)), codes[[0, 0, 2, 2]] // 2, sizes, True)
+
+
+def _warm_silhouette() -> None:
+    pts, index = np.zeros((4, 3)), np.arange(4, dtype=np.int64)
+    codes = np.array([0, -1, 0, 1], np.int64)
     centroids, scatter = region_scatter(pts, np.zeros(3), index, np.array([0, 2, 4]))
     region_extents(pts, np.zeros(3), index, np.array([0, 2, 4]), centroids, scatter, 0.005, 0.995)
     plane_silhouette_sum(pts, codes[[0, 2, 3, 3]], centroids, scatter, np.zeros((2, 2)), np.zeros((2, 2)), np.ones(2))
+
+
+def _warm_outside() -> None:
+    pts, index = np.zeros((4, 3)), np.arange(4, dtype=np.int64)
+    labels = np.array([0, -1, 0, 1], np.int32)
     marked_rows(pts, np.zeros(3), 1e-6)
     near_count(pts, pts, 0.3)
     beyond_counts(np.zeros((4, 4)), np.zeros((4, 2)), labels, np.ones(1), np.zeros(4), np.zeros(4),
                   np.zeros((2, 2), np.bool_))
     distinct_rows(pts, index)
     coordinate_extent(pts, index)
-    silhouettes(np.ones((4, 2)), codes[[0, 0, 2, 2]] // 2, sizes, True)
-    patch_eigenvalues(np.zeros((1, 3, 3)))
-    grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
-    voxel_nearest(pts, *grid, np.zeros(3), 1.0, dims, pts, 1)
-    spread_nearest(pts, index, np.zeros(3), index, index, np.zeros((1, 4)), np.ones(1))
-    knn_edges(np.zeros((4, 2)), np.zeros((4, 2), np.int64), np.ones(4), 1)
-    spread_among(np.zeros(4), np.zeros((4, 2), np.int64))
+
+
+def _warm_fits() -> None:
+    flags, index = np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
+    cols, codes = np.zeros((3, 4)), np.array([0, -1, 0, 1], np.int64)
     best = np.zeros((2, 3)), np.zeros(2), np.zeros(2, np.int64)
     score_hypotheses(cols, np.ones(1), np.empty((3, 0)), np.ones((2, 3)), np.zeros(2), 2, 0.5, 3.0, *best, 0)
     spread_test(cols, index, True, 1e-6)
     fit_members(cols, index)
     fit_mask(cols, flags)
     fit_regions(cols, codes, 2)
+
+
+def _warm_best_region() -> None:
+    pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
+    cols = np.zeros((3, 4))
     grid_args = (index, index, flags, 2, np.zeros((1, 3), np.int64), pts, 0.5, index, index, np.ones(3))
     winner, region, _ = grid_best_region(cols, np.ones(1), np.ones((2, 3)), np.zeros(2), 2.0, 0.5, cols, *grid_args)
     grid_refit_region(cols, region, np.ones(1), 2.0, *grid_args)
-    compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
+
+
+#: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The
+#: first is short: it tells whether the cache is cold. The longest compiles come next, so that processes compiling
+#: the rest in parallel end together.
+_WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
+               _warm_frame, _warm_silhouette, _warm_grid_search, _warm_best_region, _warm_indices, _warm_planes)
+
+
+def _compiles() -> int:
+    return sum(len(kernel.stats.cache_misses) for kernel in _KERNELS)
+
+
+def _run(step) -> bool:
+    """Run a warm-up step (in this or a worker process); whether it compiled anything."""
+    before = _compiles()
+    step()
+    return _compiles() > before
+
+
+def _hold_signals() -> None:
+    """A warm-up worker leaves Ctrl-C and SIGTERM to the process that started it, which holds them until the
+    compile ends (numba's compiler swallows a KeyboardInterrupt) and then stops."""
+    import signal
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_IGN)
+
+
+def _warm(steps: tuple, jobs: int) -> bool:
+    """Run ``steps``, the first alone and, when it compiled (a cold cache), the others first in ``jobs`` processes;
+    whether anything was compiled."""
+    compiled = _run(steps[0])
+    if compiled and jobs > 1 and len(steps) > 2:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+        # spawn: a fork of a process that has started threads (rclpy, BLAS) may hang
+        with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context('spawn'),
+                                 initializer=_hold_signals) as pool:
+            list(pool.map(_run, steps[1:]))
+    for step in steps[1:]:  # here they load what the workers compiled
+        compiled |= _run(step)
+    return compiled
+
+
+def warm(jobs: int = 1) -> Warmup:
+    """Compile (or load from the cache) every kernel for the argument types the package calls it with.
+
+    jobs: processes to compile in when the cache is cold (the first step compiled something); a warm cache
+    loads in this process alone. A cold compile takes about 1 / jobs of its time on as many cores."""
+    start = time.perf_counter()
+    compiled = _warm(_WARM_STEPS, jobs)
     return Warmup(time.perf_counter() - start, compiled)
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import threading
 from collections.abc import Callable
 
@@ -52,7 +53,7 @@ def output_publishers(create) -> dict[str, object]:
 def warm_kernels(logger) -> None:
     """Compile or load the compiled kernels and say how long it took on ``logger`` (an rclpy logger): before a node
     exists, so that it appears on the graph ready to answer its first frame without waiting for a compiler."""
-    ready = warm()
+    ready = warm(jobs=os.cpu_count() or 1)
     logger.info(f'compiled kernels ready in {ready.seconds:.2f} s ' + (
         '(compiled now and cached: later starts load them)' if ready.compiled else '(loaded from the cache)'))
 
