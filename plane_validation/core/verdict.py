@@ -179,11 +179,12 @@ def plane_tilt(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     return np.array([_tilt(_pca(inl), plane.normal) for inl, plane in zip(samples, seg.planes)])
 
 
-def _tilt(pca, normal: np.ndarray) -> float:
-    """:func:`plane_tilt` of one plane from its sampled inliers' :func:`_pca` and its ``normal``."""
+def _tilt(pca, normal: np.ndarray, cells: tuple | None = None) -> float:
+    """:func:`plane_tilt` of one plane from its sampled inliers' :func:`_pca` and its ``normal``; ``cells``: its
+    :func:`_cells` when known."""
     if pca is None or not _thickness(pca) >= TILT_THICKNESS:
         return float('nan')
-    patches = _patches(pca)
+    patches = _patches(pca, cells=cells)
     if patches is None:
         return float('nan')
     values, axes, _ = patches
@@ -193,17 +194,28 @@ def _tilt(pca, normal: np.ndarray) -> float:
     return float(np.mean(np.abs(axes[flat, :, 0] @ normal) < np.cos(np.radians(TILT_DEG))))
 
 
-def _patches(pca, axes: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.ndarray] | None:
+def _cells(pca) -> tuple[np.ndarray, np.ndarray] | None:
+    """(counts (p,), scatter (p, 3, 3)) of the patches of one plane's sampled inliers (its :func:`_pca`; see
+    :func:`_patches`); None for too few inliers."""
+    if pca is None or len(pca[1]) < 2 * TILT_NEIGHBOURS:
+        return None
+    _, centred, _, vectors = pca
+    return kernels.plane_patches(centred, np.ascontiguousarray(vectors[:, 1:]), TILT_NEIGHBOURS, TILT_NEIGHBOURS // 2)
+
+
+def _patches(pca, axes: bool = True, cells: tuple | None = None
+             ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray] | None:
     """The patches of one plane's sampled inliers (its :func:`_pca`): the cells of a square grid along their in-plane
     principal axes, sized to hold TILT_NEIGHBOURS of them on average (cells with half that or more count). Per patch
     the eigenvalues (p, 3) ascending and, with ``axes``, eigenvectors (p, 3, 3) of its scatter (per point, m^2), and
     its points (p,); None for too few inliers. Without ``axes`` the eigenvalues come in closed form
-    (:func:`.kernels.patch_eigenvalues`; :func:`symmetric_eigenvalues` is its numpy reference)."""
-    if pca is None or len(pca[1]) < 2 * TILT_NEIGHBOURS:
+    (:func:`.kernels.patch_eigenvalues`; :func:`symmetric_eigenvalues` is its numpy reference). ``cells``: its
+    :func:`_cells` when known."""
+    if cells is None:
+        cells = _cells(pca)
+    if cells is None:
         return None
-    _, centred, _, vectors = pca
-    counts, scatter = kernels.plane_patches(centred, np.ascontiguousarray(vectors[:, 1:]), TILT_NEIGHBOURS,
-                                            TILT_NEIGHBOURS // 2)
+    counts, scatter = cells
     if not len(counts):
         return None
     if axes:
@@ -241,22 +253,26 @@ def plane_lack_of_fit(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     return np.array([_lack_of_fit(_pca(inl), _tolerance(inl, seg)) for inl in _samples(as_points(points), seg)])
 
 
-def _tolerance(inl: np.ndarray, seg: Segmentation) -> float:
-    """The tolerance (m) of ``seg`` at one plane's inliers ``inl`` (m, 3): its median under the noise model."""
-    scale = tolerance_scale(inl, seg.noise_model, seg.noise_reference, seg.viewpoint) if len(inl) else None
-    return float(seg.tolerance * (1.0 if scale is None else np.median(scale)))
+def _tolerance(inl: np.ndarray, seg: Segmentation, scale: np.ndarray | None | bool = False) -> float:
+    """The tolerance (m) of ``seg`` at one plane's inliers ``inl`` (m, 3): its median under the noise model (its
+    :func:`.noise.tolerance_scale` at them when known as ``scale``)."""
+    if scale is False:
+        scale = tolerance_scale(inl, seg.noise_model, seg.noise_reference, seg.viewpoint) if len(inl) else None
+    return float(seg.tolerance * (1.0 if scale is None or not len(inl) else np.median(scale)))
 
 
-def _lack_of_fit(pca, tolerance: float) -> float:
-    """:func:`plane_lack_of_fit` of one plane from its sampled inliers' :func:`_pca` and its ``tolerance`` (m)."""
-    local = _patch_noise(pca, tolerance)
+def _lack_of_fit(pca, tolerance: float, cells: tuple | None = None) -> float:
+    """:func:`plane_lack_of_fit` of one plane from its sampled inliers' :func:`_pca` (and its :func:`_cells` when
+    known) and its ``tolerance`` (m)."""
+    local = _patch_noise(pca, tolerance, cells)
     return float(np.sqrt(max(float(pca[2][0]), 0.0) / len(pca[1]) / local)) if local is not None else float('nan')
 
 
-def _patch_noise(pca, tolerance: float) -> float | None:
+def _patch_noise(pca, tolerance: float, cells: tuple | None = None) -> float | None:
     """The mean squared thickness (m^2) of one plane's patches (see plane_lack_of_fit; at least (t /
-    LACK_OF_FIT_FLOOR)^2), from its sampled inliers' :func:`_pca`; None where not judged."""
-    patches = _patches(pca, axes=False)
+    LACK_OF_FIT_FLOOR)^2), from its sampled inliers' :func:`_pca` (and its :func:`_cells` when known); None where
+    not judged."""
+    patches = _patches(pca, axes=False, cells=cells)
     if patches is None:
         return None
     values, _, counts = patches
@@ -336,24 +352,28 @@ def surface_failures(points: np.ndarray, seg: Segmentation
     [MAX_LAYERING, EXACT_LAYERS) with plane_fill >= MAX_FILL, or a slab across steps, plane_tilt >= MAX_TILT; NaN is not
     judged; surfaces that bend away from one plane: plane_lack_of_fit >= MAX_LACK_OF_FIT), three
     (k,) bool arrays, and its plane_thickness (k,), from the same inlier samples."""
-    pts = as_points(points)
-    samples = _samples(pts, seg)
-    frames = [_pca(inl) for inl in samples]
-    beyond, layering, _, tilt = _surface(pts, seg, samples, frames)
+    pts = kernels.c_array(as_points(points), np.float64)
+    samples, frames, scales = _sampled(pts, seg)
+    cells = [_cells(pca) for pca in frames]
+    beyond, layering, _, tilt = _surface(pts, seg, samples, frames, scales, cells)
     merged = (layering >= MAX_LAYERING) & (layering < EXACT_LAYERS) | (tilt >= MAX_TILT)  # NaN tilt: not judged
-    lack = np.array([_lack_of_fit(pca, _tolerance(inl, seg)) for pca, inl in zip(frames, samples)])
+    lack = np.array([_lack_of_fit(pca, _tolerance(inl, seg, scale), c)
+                     for pca, inl, scale, c in zip(frames, samples, scales, cells)])
     misfit = lack >= MAX_LACK_OF_FIT
     return beyond >= MAX_BEYOND, merged, misfit, np.array([_thickness(pca) for pca in frames])
 
 
-def _surface(pts: np.ndarray, seg: Segmentation, samples: list, frames: list
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _surface(pts: np.ndarray, seg: Segmentation, samples: list, frames: list, scales: list | None = None,
+             cells: list | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(plane_beyond, plane_layering (0 where the plane does not fill its band), plane_fill, plane_tilt), each (k,),
-    from the planes' inlier ``samples`` and their ``frames`` (_pca)."""
-    fill = np.array([_fill(inl, plane, seg) for inl, plane in zip(samples, seg.planes)])
+    from the planes' inlier ``samples``, their ``frames`` (_pca) and, when known, their tolerance ``scales`` and
+    :func:`_cells`."""
+    scales = [False] * len(samples) if scales is None else scales
+    cells = [None] * len(samples) if cells is None else cells
+    fill = np.array([_fill(inl, plane, seg, scale) for inl, plane, scale in zip(samples, seg.planes, scales)])
     layering = np.array([_layering(inl, plane) if f >= MAX_FILL else 0.0  # only filled planes can fail
                          for inl, plane, f in zip(samples, seg.planes, fill)])
-    tilt = np.array([_tilt(pca, plane.normal) for pca, plane in zip(frames, seg.planes)])
+    tilt = np.array([_tilt(pca, plane.normal, c) for pca, plane, c in zip(frames, seg.planes, cells)])
     return _beyond(pts, seg, frames, fill), layering, fill, tilt
 
 
@@ -422,14 +442,37 @@ def _beyond_numpy(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.nda
 
 def _extent(uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(lo, hi) (2,) of points ``uv`` (2, m): their EXTENT_PERCENTILES along each axis, as order statistics."""
-    ends = [int(q / 100 * (uv.shape[1] - 1) + 0.5) for q in EXTENT_PERCENTILES]
-    part = np.partition(uv, ends, axis=1)
-    return part[:, ends[0]], part[:, ends[1]]
+    lo, hi = (int(q / 100 * (uv.shape[1] - 1) + 0.5) for q in EXTENT_PERCENTILES)
+    ends = [kernels.order_statistics(np.ascontiguousarray(axis), lo, lo, hi, hi) for axis in uv]  # (np.partition's)
+    return np.array([end[0] for end in ends]), np.array([end[2] for end in ends])
 
 
 def _samples(points: np.ndarray, seg: Segmentation) -> list[np.ndarray]:
     """Per plane the (m, 3) inliers its shape is judged on (:func:`_inlier_sample`)."""
     return [_inlier_sample(points, plane.inliers) for plane in seg.planes]
+
+
+def _sampled(pts: np.ndarray, seg: Segmentation) -> tuple[list[np.ndarray], list, list]:
+    """Per plane of ``seg`` on ``pts`` (N, 3) C-ordered float64 meters: its :func:`_samples`, their :func:`_pca` and
+    their :func:`.noise.tolerance_scale` (None: constant), the samples gathered and centred in one compiled pass
+    (:func:`.kernels.plane_samples`, the same values as numpy's take and mean)."""
+    picks = [_sample_rows(plane.inliers) for plane in seg.planes]
+    bounds = np.zeros(len(picks) + 1, np.int64)
+    np.cumsum([len(rows) for rows in picks], out=bounds[1:])
+    rows = np.concatenate(picks).astype(np.int64, copy=False) if picks else np.zeros(0, np.int64)
+    gathered, centres, centred = kernels.plane_samples(pts, rows, bounds)
+    scale = tolerance_scale(gathered, seg.noise_model, seg.noise_reference, seg.viewpoint)
+    samples, frames, scales = [], [], []
+    for j, (lo, hi) in enumerate(zip(bounds[:-1], bounds[1:])):
+        samples.append(gathered[lo:hi])
+        scales.append(None if scale is None else scale[lo:hi])
+        if hi - lo < 3:
+            frames.append(None)
+            continue
+        part = centred[lo:hi]
+        values, vectors = np.linalg.eigh(part.T @ part)
+        frames.append((centres[j], part, values, vectors))
+    return samples, frames, scales
 
 
 def _pca(inl: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
@@ -451,11 +494,13 @@ def _thickness(pca) -> float:
     return float(np.sqrt(max(ev[0], 0.0) / ev[1])) if ev[1] > 0 else np.inf
 
 
-def _fill(inl: np.ndarray, plane, seg: Segmentation) -> float:
-    """:func:`plane_fill` of one ``plane`` of ``seg`` from its inliers ``inl`` (m, 3)."""
+def _fill(inl: np.ndarray, plane, seg: Segmentation, scale: np.ndarray | None | bool = False) -> float:
+    """:func:`plane_fill` of one ``plane`` of ``seg`` from its inliers ``inl`` (m, 3) (and their
+    :func:`.noise.tolerance_scale` when known as ``scale``)."""
     if len(inl) == 0:
         return 0.0
-    scale = tolerance_scale(inl, seg.noise_model, seg.noise_reference, seg.viewpoint)
+    if scale is False:
+        scale = tolerance_scale(inl, seg.noise_model, seg.noise_reference, seg.viewpoint)
     ratio = (inl @ plane.normal + plane.offset) / (seg.tolerance * (1.0 if scale is None else scale))
     return float(np.sqrt(np.mean(ratio ** 2)))
 
@@ -477,9 +522,14 @@ def _layering(inl: np.ndarray, plane) -> float:
 
 
 def _inlier_sample(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    return np.take(points, _sample_rows(rows), axis=0)  # (much faster than points[rows] on rows of 3)
+
+
+def _sample_rows(rows: np.ndarray) -> np.ndarray:
+    """The rows (m,) of a plane's inlier ``rows`` its shape is judged on."""
     if len(rows) > THICKNESS_POINTS:  # a fixed random subset: the ratios are robust statistics
         rows = rows[np.random.default_rng(len(rows)).integers(0, len(rows), THICKNESS_POINTS)]
-    return np.take(points, rows, axis=0)  # (much faster than points[rows] on rows of 3)
+    return rows
 
 
 def plane_curvature(points: np.ndarray, plane_rows: np.ndarray) -> float:
@@ -547,13 +597,14 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     if seg.n_planes == 0:
         return Verdict(False, (Failure(FailureKind.NO_PLANES, 0.0, 1.0, note=seg.reason),), 0, ps)
     pts = kernels.c_array(as_points(points), np.float64)  # the layout the kernels read (copied once, if at all)
-    samples = _samples(pts, seg)
-    frames = [_pca(inl) for inl in samples]
+    samples, frames, scales = _sampled(pts, seg)
+    cells = [_cells(pca) for pca in frames]
     thickness = np.array([_thickness(pca) for pca in frames])
     sizes = np.array([len(p.inliers) for p in seg.planes], dtype=float)
     curvature = np.array([_curvature(pca) if t > MAX_THICKNESS else 0.0 for pca, t in zip(frames, thickness)])
-    beyond, layering, fill, tilt = _surface(pts, seg, samples, frames)
-    noise = [None if pca is None else _patch_noise(pca, _tolerance(inl, seg)) for pca, inl in zip(frames, samples)]
+    beyond, layering, fill, tilt = _surface(pts, seg, samples, frames, scales, cells)
+    noise = [None if pca is None else _patch_noise(pca, _tolerance(inl, seg, scale), c)
+             for pca, inl, scale, c in zip(frames, samples, scales, cells)]
     lack = np.array([np.nan if local is None else np.sqrt(max(float(pca[2][0]), 0.0) / len(pca[1]) / local)
                      for pca, local in zip(frames, noise)])
     # only planes that could be a ridge and are not failed as merged already (the fold search costs ~1 ms a plane)

@@ -1,0 +1,73 @@
+"""The per-frame verdict and index kernels (core/kernels.py, the 'verdict and indices per frame' block) against
+plain-numpy references: each must give numpy's values exactly, as the verdict's and the indices' figures depend on
+them bit for bit."""
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from plane_validation.core import kernels
+
+SETTINGS = settings(max_examples=80, deadline=None)
+
+
+def _values(seed: int, n: int, kind: int) -> np.ndarray:
+    """n float64 values: spread over many magnitudes, rounded (many ties), signed zeros and infinities, or small
+    integers."""
+    rng = np.random.default_rng(seed)
+    if kind == 0:
+        return rng.normal(size=n) * 10.0 ** rng.integers(-300, 300)
+    if kind == 1:
+        return np.round(rng.normal(size=n), 1)
+    if kind == 2:
+        return rng.choice([-0.0, 0.0, 1.0, -1.0, np.inf, -np.inf, 5e-324, -5e-324, 1e308], n)
+    return rng.integers(-3, 3, n).astype(np.float64)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 2500), st.integers(0, 3))
+def test_sorted_order_is_the_stable_argsort(seed, n, kind):
+    values = _values(seed, n, kind)
+    np.testing.assert_array_equal(kernels.sorted_order(values), np.argsort(values, kind='stable'))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(1, 3000), st.integers(0, 3), st.floats(0, 1), st.floats(0, 1))
+def test_order_statistics_are_those_of_a_partition(seed, n, kind, low, high):
+    values = _values(seed, n, kind)
+    if kind == 3 and seed % 5 == 0:
+        values[seed % n] = np.nan  # a NaN: the buffers step aside for np.partition
+    a0 = int(low * 0.05 * (n - 1))
+    b0 = n - 1 - int(high * 0.05 * (n - 1))
+    a0, b0 = min(a0, b0), max(a0, b0)
+    a1, b1 = min(a0 + 1, n - 1), min(b0 + 1, n - 1)
+    ordered = np.sort(values)  # NaN last, as np.partition puts it
+    got = kernels.order_statistics(values, a0, a1, b0, b1)
+    np.testing.assert_array_equal(np.array(got), ordered[[a0, a1, b0, b1]])
+
+
+def test_order_statistics_far_from_the_ends_partition():
+    values = np.random.default_rng(0).normal(size=1000)
+    ordered = np.sort(values)
+    assert kernels.order_statistics(values, 100, 101, 500, 900) == tuple(ordered[[100, 101, 500, 900]])
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 6), st.integers(0, 3000))
+def test_plane_samples_gather_and_centre_as_numpy(seed, k, n):
+    rng = np.random.default_rng(seed)
+    points = rng.normal(size=(n + 1, 3)) * 10 ** rng.uniform(-3, 6) + rng.normal(size=3) * 1e3
+    parts = [rng.integers(0, n + 1, rng.integers(0, 500)) for _ in range(k)]
+    bounds = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
+    rows = np.concatenate(parts).astype(np.int64) if parts else np.zeros(0, np.int64)
+    gathered, centres, centred = kernels.plane_samples(points, rows, bounds)
+    np.testing.assert_array_equal(gathered, points[rows])
+    for j, part in enumerate(parts):
+        if len(part) == 0:
+            np.testing.assert_array_equal(centres[j], 0.0)
+            continue
+        inl = np.take(points, part, axis=0)
+        mean = inl.mean(axis=0)
+        np.testing.assert_array_equal(centres[j], mean)  # bit for bit: numpy sums the first axis row by row
+        np.testing.assert_array_equal(centred[bounds[j]:bounds[j + 1]], inl - mean)
