@@ -2688,16 +2688,17 @@ def finite_extent(points: np.ndarray) -> tuple[np.ndarray, int, float]:
     n = points.shape[0]
     out = np.empty(n, np.bool_)
     count = 0
-    largest = -1.0  # NaN never compares greater
+    big_x = big_y = big_z = -1.0  # a running maximum per coordinate (no chain through one); NaN never compares greater
     for i in range(n):
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
         ok = np.isfinite(x) and np.isfinite(y) and np.isfinite(z)
         out[i] = ok
         count += ok
         ax, ay, az = abs(x), abs(y), abs(z)
-        largest = ax if ax > largest else largest
-        largest = ay if ay > largest else largest
-        largest = az if az > largest else largest
+        big_x = ax if ax > big_x else big_x
+        big_y = ay if ay > big_y else big_y
+        big_z = az if az > big_z else big_z
+    largest = max(big_x, max(big_y, big_z))
     return out, count, (largest if largest >= 0 else np.nan)
 
 

@@ -355,7 +355,7 @@ def _assembled(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, 
     node[pixel] = np.arange(len(pixel))
     wraps = _wraps(image_points, valid, ranges, typical)
     return GridNeighbours(n=len(pixel), shape=(h, w), pixel=pixel, node=node, usable=usable.reshape(-1),
-                          normals=normals.reshape(-1, 3)[pixel], wraps=wraps,
+                          normals=normals.reshape(-1, 3).take(pixel, axis=0), wraps=wraps,
                           bridges=_bridges(image_points, valid, ranges, typical, wraps) if lidar else None)
 
 
