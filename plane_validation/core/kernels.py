@@ -2691,7 +2691,7 @@ def finite_extent(points: np.ndarray) -> tuple[np.ndarray, int, float]:
     big_x = big_y = big_z = -1.0  # a running maximum per coordinate (no chain through one); NaN never compares greater
     for i in range(n):
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
-        ok = np.isfinite(x) and np.isfinite(y) and np.isfinite(z)
+        ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(z)  # no branch per coordinate
         out[i] = ok
         count += ok
         ax, ay, az = abs(x), abs(y), abs(z)
@@ -2753,22 +2753,37 @@ def grid_contacts(node: np.ndarray, usable: np.ndarray, width: int, wraps: bool,
 def label_rows(labels: np.ndarray, k: int, residual: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`group_by_label` of ``labels`` (N,) into 0..k-1, and the squared ``residual`` (N,) meters of its rows in
     the same order (each label's squares one run: its mean square is numpy's mean of that run)."""
+    n = labels.shape[0]
+    # labels come in runs (an image's regions): a run is counted and filled through a local counter, not through
+    # the label's entry in memory at every row
     bounds = np.zeros(k + 1, np.int64)
-    for i in range(labels.shape[0]):
+    i = 0
+    while i < n:
         lab = labels[i]
+        start = i
+        i += 1
+        while i < n and labels[i] == lab:
+            i += 1
         if 0 <= lab < k:
-            bounds[lab + 1] += 1
+            bounds[lab + 1] += i - start
     for j in range(k):
         bounds[j + 1] += bounds[j]
     fill = bounds[:-1].copy()
     rows = np.empty(bounds[k], np.int64)
     squares = np.empty(bounds[k])
-    for i in range(labels.shape[0]):
+    i = 0
+    while i < n:
         lab = labels[i]
-        if 0 <= lab < k:
-            rows[fill[lab]] = i
-            squares[fill[lab]] = residual[i] * residual[i]
-            fill[lab] += 1
+        if not 0 <= lab < k:
+            i += 1
+            continue
+        at = fill[lab]
+        while i < n and labels[i] == lab:
+            rows[at] = i
+            squares[at] = residual[i] * residual[i]
+            at += 1
+            i += 1
+        fill[lab] = at
     return rows, bounds, squares
 
 

@@ -96,7 +96,7 @@ def build_search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, in
     if step:
         grid, pixels = grid_image(pts, finite, shape, step)
         neighbours = grid_neighbours(grid - viewpoint if viewpoint.any() else grid, pixels >= 0)  # sensor ranges
-        search_idx = pixels.reshape(-1)[neighbours.pixel]
+        search_idx = pixels.reshape(-1).take(neighbours.pixel)
     else:  # unorganized, or an image too thin for a 2-D grid
         search_idx = valid_idx
         if ransac_points is not None and n_valid > ransac_points:
