@@ -7,7 +7,7 @@ import numpy as np
 
 from .. import kernels
 from .checks import resolve_min_inliers
-from .fit import allows_normal, canonical, fit_columns, plane_distances, refit_regions, tolerance_at
+from .fit import allows_normal, canonical, fit_columns, plane_distances, plane_rows, refit_regions, tolerance_at
 from .graph import SearchGraph, checked_search_graph, spread_nearest
 from .grid import spread_grid
 from .neighbours import NORMAL_MIN_COS, Neighbours
@@ -135,9 +135,9 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
         normal, offset = kernels.fit_members(cols, members)
         if not allows_normal(allows, normal):
             continue  # their joint plane leaves the orientation constraint
-        own = np.array([np.append(*found[i]), np.append(*found[j])])
-        if not kernels.merge_test(cols, members, region, int(i), int(j), np.append(normal, offset), own, tol, src, dst,
-                                  a, b, root, normals, NORMAL_MIN_COS, MERGE_KEEP, MERGE_SPREAD):
+        own = plane_rows([found[i], found[j], (normal, offset)])  # theirs, then the joint plane
+        if not kernels.merge_test(cols, members, region, int(i), int(j), own[2], own[:2], tol, src, dst, a, b, root,
+                                  normals, NORMAL_MIN_COS, MERGE_KEEP, MERGE_SPREAD):
             continue
         region[points_of[j]] = i
         points_of[i], points_of[j] = members, members[:0]
@@ -222,7 +222,7 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
     to another region can change, and after the first round only the neighbours of points that
     changed: only they are looked at (:meth:`.neighbours.Neighbours.settle`). The distances come from one compiled
     pass (:func:`.kernels.compete_distances`; :func:`_compete_distances_numpy` is its reference)."""
-    planes = np.array([np.append(normal, offset) for normal, offset in found], dtype=np.float64).reshape(-1, 4)
+    planes = plane_rows(found)
     tol = kernels.c_array(np.reshape(tolerance, -1), np.float64)  # (1,) or (m,)
     dist = kernels.compete_distances(kernels.c_array(search, np.float64), planes, tol,
                                      kernels.c_array(viewpoint, np.float64), float(np.cos(np.radians(GRAZING_DEG))))
