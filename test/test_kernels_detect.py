@@ -2,9 +2,12 @@
 on random inputs."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_kernels import _grid_case
 
 from plane_validation.core import kernels
 from plane_validation.core.search.checks import finite_extent, finite_rows, largest_magnitude_numpy
@@ -35,21 +38,12 @@ def test_finite_extent_matches_numpy(seed, n):
 
 
 def _grid(seed: int) -> tuple[GridNeighbours, np.ndarray, int]:
-    """A random sub-grid (holes, unusable pixels, bridges some across the seam, maybe wrapping) and regions on it."""
+    """test_kernels' random sub-grid (holes, unusable pixels, bridges some across the seam), maybe wrapping, and
+    regions on it."""
     rng = np.random.default_rng(seed)
-    h, w = (int(v) for v in rng.integers(1, 20, 2))
-    valid = rng.random(h * w) < rng.uniform(0.3, 1.0)
-    pixel = np.flatnonzero(valid)
-    node = np.full(h * w, -1, np.int64)
-    node[pixel] = np.arange(len(pixel))
-    usable = valid & (rng.random(h * w) < 0.9)
-    b = int(rng.integers(0, 6))
-    bridges = np.column_stack([rng.integers(0, h * w, b), rng.integers(0, h * w, b), rng.integers(0, 2, b)])
-    neighbours = GridNeighbours(n=len(pixel), shape=(h, w), pixel=pixel, node=node, usable=usable,
-                                wraps=bool(rng.random() < 0.3), bridges=bridges.astype(np.int64) if b else None)
+    neighbours = dataclasses.replace(_grid_case(seed)[0], wraps=bool(rng.random() < 0.3))
     k = int(rng.integers(1, 6))
-    region = rng.integers(-1, k, len(pixel))
-    return neighbours, region, k
+    return neighbours, rng.integers(-1, k, neighbours.n), k
 
 
 @SETTINGS
