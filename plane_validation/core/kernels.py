@@ -28,7 +28,7 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
            'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'grid_best_region', 'grid_refit_region', 'plane_samples', 'sorted_order', 'order_statistics',
-           'warm', 'Warmup']
+           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -73,12 +73,14 @@ def spread_grid(points: np.ndarray, valid: np.ndarray, sub: np.ndarray, near_r: 
     gh, gw = sub.shape
     k = planes.shape[0]
     per_point = tolerance.shape[0] > 1
-    labels = np.full(h * w, -1, np.int32)
-    best = np.full(h * w, np.inf)
+    labels = np.empty(h * w, np.int32)  # each written once below: no pass to fill them first
+    best = np.empty(h * w)
     for r in range(h):
         gr = near_r[r]
         for c in range(w):
             i = r * w + c
+            labels[i] = -1
+            best[i] = np.inf
             if not valid[i]:
                 continue
             x, y, z = points[i, 0], points[i, 1], points[i, 2]
@@ -413,24 +415,6 @@ def graph_region(edges: np.ndarray, normals: np.ndarray, normal: np.ndarray, min
     return out, out
 
 
-@numba.njit(inline='always', **_JIT)  # called per neighbour: inlined, not passed ten arrays a call
-def _offer(dist: np.ndarray, region: np.ndarray, best: np.ndarray, dst: int, src: int, offer_d: np.ndarray,
-           offer_src: np.ndarray, offer_region: np.ndarray, touched: np.ndarray, n_touched: int) -> int:
-    """Point ``src`` offers its region to ``dst`` when its plane is nearer than dst's own (the nearest offer wins,
-    equals: the smaller ``src``); returns the count of points with an offer."""
-    cand = region[src]
-    d = dist[cand, dst]
-    if not d < best[dst]:
-        return n_touched
-    if offer_src[dst] < 0:
-        touched[n_touched] = dst
-        n_touched += 1
-    elif not (d < offer_d[dst] or (d == offer_d[dst] and src < offer_src[dst])):
-        return n_touched
-    offer_d[dst], offer_src[dst], offer_region[dst] = d, src, cand
-    return n_touched
-
-
 @numba.njit(**_JIT)
 def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: np.ndarray, width: int,
                  eight: np.ndarray, rounds: int) -> np.ndarray:
@@ -453,8 +437,9 @@ def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: 
             r = pixel[i] // width
         place[i] = (r + 1) * padded + pixel[i] - r * width + 1
         at[place[i]] = i
-    step = np.empty(eight.shape[0], np.int64)
-    for e in range(eight.shape[0]):
+    n_eight = eight.shape[0]
+    step = np.empty(n_eight, np.int64)
+    for e in range(n_eight):
         step[e] = eight[e, 0] * padded + eight[e, 1]
     best = np.empty(m)
     for i in range(m):
@@ -465,31 +450,39 @@ def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: 
     touched = np.empty(m, np.int64)
     changed = np.empty(m, np.int64)
     n_changed = -1  # the first round: the bordering points receive offers
+    # the offers are written out in one loop, not in a helper: a helper passed these arrays per neighbour took
+    # two thirds of the time
     for _ in range(rounds):
         n_touched = 0
-        if n_changed < 0:
-            for i in range(m):
+        first = n_changed < 0
+        for q in range(m if first else n_changed):
+            if first:  # a bordering point: every neighbour offers to it
+                centre = q
                 bordering = False
-                for e in range(step.shape[0]):
-                    j = at[place[i] + step[e]]
-                    if j >= 0 and region[j] != region[i]:
+                for e in range(n_eight):
+                    j = at[place[centre] + step[e]]
+                    if j >= 0 and region[j] != region[centre]:
                         bordering = True
                         break
                 if not bordering:
                     continue
-                for e in range(step.shape[0]):  # a bordering point: every neighbour offers
-                    j = at[place[i] + step[e]]
-                    if j >= 0:
-                        n_touched = _offer(dist, region, best, i, j, offer_d, offer_src, offer_region, touched,
-                                           n_touched)
-        else:
-            for q in range(n_changed):  # a changed point offers its new region to every neighbour
-                j = changed[q]
-                for e in range(step.shape[0]):
-                    i = at[place[j] + step[e]]
-                    if i >= 0:
-                        n_touched = _offer(dist, region, best, i, j, offer_d, offer_src, offer_region, touched,
-                                           n_touched)
+            else:  # a changed point offers its new region to every neighbour
+                centre = changed[q]
+            for e in range(n_eight):
+                other = at[place[centre] + step[e]]
+                if other < 0:
+                    continue
+                dst, src = (centre, other) if first else (other, centre)
+                cand = region[src]
+                d = dist[cand, dst]
+                if not d < best[dst]:
+                    continue
+                if offer_src[dst] < 0:
+                    touched[n_touched] = dst
+                    n_touched += 1
+                elif not (d < offer_d[dst] or (d == offer_d[dst] and src < offer_src[dst])):
+                    continue  # the nearest offer wins, equals: the smaller src
+                offer_d[dst], offer_src[dst], offer_region[dst] = d, src, cand
         if n_touched == 0:
             break
         for q in range(n_touched):
@@ -2786,6 +2779,140 @@ def plane_samples(points: np.ndarray, rows: np.ndarray, bounds: np.ndarray
     return gathered, centres, centred
 
 
+# --- detect ---
+
+
+@numba.njit(**_JIT)
+def finite_extent(points: np.ndarray) -> tuple[np.ndarray, int, float]:
+    """:func:`finite_mask` of ``points`` (N, 3) and, in the same pass, :func:`largest_magnitude` of its coordinates:
+    (finite rows (N,) bool, how many, the largest |coordinate| that is not NaN (inf counts), NaN when none is)."""
+    n = points.shape[0]
+    out = np.empty(n, np.bool_)
+    count = 0
+    big_x = big_y = big_z = -1.0  # a running maximum per coordinate (no chain through one); NaN never compares greater
+    for i in range(n):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(z)  # no branch per coordinate
+        out[i] = ok
+        count += ok
+        ax, ay, az = abs(x), abs(y), abs(z)
+        big_x = ax if ax > big_x else big_x
+        big_y = ay if ay > big_y else big_y
+        big_z = az if az > big_z else big_z
+    largest = max(big_x, max(big_y, big_z))
+    return out, count, (largest if largest >= 0 else np.nan)
+
+
+@numba.njit(**_JIT)
+def grid_contacts(node: np.ndarray, usable: np.ndarray, width: int, wraps: bool, bridges: np.ndarray,
+                  region: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The neighbour pairs of a sub-grid image (``node`` (h * w,): the point at each pixel, -1 none; ``usable``
+    (h * w,)) that join two of the ``k`` regions ``region`` (m,) (-1: none), in the order of
+    ``GridNeighbours.touching``: right neighbours, down neighbours (row-major), the last and first pixels of each row
+    when the image ``wraps``, then the ``bridges`` (b, 3). Returns (src, dst, their regions a, b, each touching pair
+    of regions once as i * k + j (i < j), ascending)."""
+    height = node.shape[0] // width
+    cap = 2 * node.shape[0] + height + bridges.shape[0]
+    src = np.empty(cap, np.int64)
+    dst = np.empty(cap, np.int64)
+    n = 0
+    for kind in range(4):
+        count = (height * (width - 1) if kind == 0 else (height - 1) * width if kind == 1 else
+                 (height if wraps else 0) if kind == 2 else bridges.shape[0])
+        for q in range(count):
+            if kind == 0:
+                p = q // (width - 1) * width + q % (width - 1)
+                o = p + 1
+            elif kind == 1:
+                p = q
+                o = q + width
+            elif kind == 2:
+                p = q * width + width - 1
+                o = q * width
+            else:
+                p = bridges[q, 0]
+                o = bridges[q, 1]
+            i = node[p] if usable[p] else -1
+            j = node[o] if usable[o] else -1
+            if i < 0 or j < 0:
+                continue
+            ri, rj = region[i], region[j]
+            if ri >= 0 and rj >= 0 and ri != rj:
+                src[n], dst[n] = i, j
+                n += 1
+    src, dst = src[:n], dst[:n]
+    a = np.empty(n, np.int64)
+    b = np.empty(n, np.int64)
+    codes = np.empty(n, np.int64)
+    for q in range(n):
+        a[q], b[q] = region[src[q]], region[dst[q]]
+        codes[q] = min(a[q], b[q]) * k + max(a[q], b[q])
+    return src, dst, a, b, np.unique(codes)
+
+
+@numba.njit(**_JIT)
+def label_rows(labels: np.ndarray, k: int, residual: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`group_by_label` of ``labels`` (N,) into 0..k-1, and the squared ``residual`` (N,) meters of its rows in
+    the same order (each label's squares one run: its mean square is numpy's mean of that run)."""
+    n = labels.shape[0]
+    # labels come in runs (an image's regions): a run is counted and filled through a local counter, not through
+    # the label's entry in memory at every row
+    bounds = np.zeros(k + 1, np.int64)
+    i = 0
+    while i < n:
+        lab = labels[i]
+        start = i
+        i += 1
+        while i < n and labels[i] == lab:
+            i += 1
+        if 0 <= lab < k:
+            bounds[lab + 1] += i - start
+    for j in range(k):
+        bounds[j + 1] += bounds[j]
+    fill = bounds[:-1].copy()
+    rows = np.empty(bounds[k], np.int64)
+    squares = np.empty(bounds[k])
+    i = 0
+    while i < n:
+        lab = labels[i]
+        if not 0 <= lab < k:
+            i += 1
+            continue
+        at = fill[lab]
+        while i < n and labels[i] == lab:
+            rows[at] = i
+            squares[at] = residual[i] * residual[i]
+            at += 1
+            i += 1
+        fill[lab] = at
+    return rows, bounds, squares
+
+
+@numba.njit(**_JIT)
+def grid_triples(first: np.ndarray, scale_pick: np.ndarray, row_share: np.ndarray, col_share: np.ndarray,
+                 scales: np.ndarray, rest: np.ndarray, position: np.ndarray, pixel: np.ndarray, node: np.ndarray,
+                 height: int, width: int) -> np.ndarray:
+    """(c, 3) triples of nearby points of a sub-grid image (``pixel`` (n,), ``node`` (height * width,) as in
+    :func:`grid_components`) as positions among its points ``rest`` (r,) (``position`` (n + 1,): each point's, -1
+    for none and at [-1]): each of ``first`` (c,) (positions) with two points drawn near it, the 2c draws being
+    ``scales[scale_pick]`` (2c,) pixels wide and ``row_share`` and ``col_share`` (2c,) in [0, 1) the row and column
+    offsets as shares of that (the first c for the second point, the next c for the third; -1 where the window falls
+    off the image or on no point left), as ``GridNeighbours.nearby`` draws them."""
+    c = first.shape[0]
+    out = np.empty((c, 3), np.int64)
+    for q in range(2 * c):
+        f = first[q % c]
+        scale = np.float64(scales[scale_pick[q]])
+        r, col = divmod(pixel[rest[f]], width)
+        r += np.int64(np.rint((2 * row_share[q] - 1) * scale))
+        col += np.int64(np.rint((2 * col_share[q] - 1) * scale))
+        near = node[r * width + col] if 0 <= r < height and 0 <= col < width else -1
+        out[q % c, 1 + q // c] = position[near]
+    for q in range(c):
+        out[q, 0] = first[q]
+    return out
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -2926,12 +3053,22 @@ def _warm_judge() -> None:
     order_statistics(np.zeros(4), 0, 1, 2, 3)
 
 
+def _warm_detect() -> None:
+    pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
+    labels = np.array([0, -1, 0, 1], np.int32)
+    finite_extent(pts)
+    grid_contacts(index, flags, 2, True, np.zeros((1, 3), np.int64), index, 4)
+    label_rows(labels, 2, np.zeros(4))
+    grid_triples(index[:2], index[:4] % 2, np.zeros(4), np.zeros(4), np.ones(2, np.int64), index, index, index, index,
+                 2, 2)
+
+
 #: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The
 #: first is short: it tells whether the cache is cold. The longest compiles come next, so that processes compiling
 #: the rest in parallel end together.
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_best_region, _warm_indices, _warm_planes,
-               _warm_judge)
+               _warm_judge, _warm_detect)
 
 
 def _compiles() -> int:
@@ -2989,4 +3126,4 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             beyond_counts, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
             voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
             fit_mask, fit_regions, grid_best_region, grid_refit_region, plane_samples,
-            sorted_order, order_statistics)
+            sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples)

@@ -10,9 +10,9 @@ import numpy as np
 from .. import kernels
 from .types import Viewpoint
 
-__all__ = ['generator', 'check_integer', 'check_number', 'check_flag', 'as_points', 'finite_rows', 'no_returns_as_nan',
-           'no_returns_note', 'check_magnitude', 'min_inliers_number', 'resolve_min_inliers', 'check_shape',
-           'check_viewpoint', 'check_search_size', 'AT_VIEWPOINT', 'MAX_COORDINATE', 'MAX_SPREAD']
+__all__ = ['generator', 'check_integer', 'check_number', 'check_flag', 'as_points', 'finite_rows', 'finite_extent',
+           'no_returns_as_nan', 'no_returns_note', 'check_magnitude', 'min_inliers_number', 'resolve_min_inliers',
+           'check_shape', 'check_viewpoint', 'check_search_size', 'AT_VIEWPOINT', 'MAX_COORDINATE', 'MAX_SPREAD']
 
 
 def generator(seed: int | np.random.Generator | None) -> np.random.Generator:
@@ -153,13 +153,25 @@ def largest_magnitude_numpy(flat: np.ndarray) -> float:
     return max(np.fmax.reduce(flat), -np.fmin.reduce(flat))
 
 
-def check_magnitude(points: np.ndarray) -> None:
+def finite_extent(points: np.ndarray) -> tuple[np.ndarray, float]:
+    """:func:`finite_rows` of ``points`` (N, 3) and the largest |coordinate| that is not NaN (inf counts; NaN when
+    none), what :func:`check_magnitude` tests: one compiled pass over a C-ordered float64 array
+    (:func:`.kernels.finite_extent`), two otherwise."""
+    if points.dtype == np.float64 and points.flags.c_contiguous and points.flags.writeable:
+        finite, _, largest = kernels.finite_extent(points)
+        return finite, float(largest)
+    return finite_rows(points), (_largest_magnitude(points.reshape(-1)) if points.size else np.nan)
+
+
+def check_magnitude(points: np.ndarray, largest: float | None = None) -> None:
     """ValueError when a finite coordinate of ``points`` (N, 3) exceeds MAX_COORDINATE in magnitude
-    (NaN and inf rows are ignored: they are no points), or when the points spread over more than MAX_SPREAD."""
+    (NaN and inf rows are ignored: they are no points), or when the points spread over more than MAX_SPREAD.
+    ``largest``: their largest |coordinate| not NaN, when already known (:func:`finite_extent`)."""
     flat = points.reshape(-1)
     if len(flat) == 0:
         return
-    largest = _largest_magnitude(flat)  # NaN when every coordinate is NaN
+    if largest is None:
+        largest = _largest_magnitude(flat)  # NaN when every coordinate is NaN
     if largest > MAX_COORDINATE:
         big = np.abs(flat[np.abs(flat) > MAX_COORDINATE])
         worst = float(big[np.isfinite(big)].max(initial=0.0))

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from .. import kernels
-from .checks import finite_rows, resolve_min_inliers
-from .fit import allows_normal, canonical, fit_columns, plane_distances, refit_regions, tolerance_at
+from .checks import resolve_min_inliers
+from .fit import allows_normal, canonical, fit_columns, plane_distances, plane_rows, refit_regions, tolerance_at
 from .graph import SearchGraph, checked_search_graph, spread_nearest
 from .grid import spread_grid
 from .neighbours import NORMAL_MIN_COS, Neighbours
@@ -19,18 +19,18 @@ __all__ = ['detect_regions', 'MERGE_KEEP', 'MERGE_SPREAD', 'GRAZING_DEG']
 _NO_NORMALS = np.empty((0, 3))
 
 
-def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
+def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, max_planes: int, min_inliers: int | float,
                    probability: float, max_iterations: int, rng: np.random.Generator,
                    ransac_points: int | None, shape: tuple[int, int] | None,
                    graph: SearchGraph | None, viewpoint: np.ndarray, grid_points: int | None,
                    allows: Allows = None) -> Segmentation:
-    """detect_planes with connected regions (see its docstring)."""
-    finite = finite_rows(pts)
+    """detect_planes with connected regions (see its docstring) on the checked points ``pts`` (N, 3) meters, whose
+    finite rows are ``finite`` (N,)."""
     n_valid = int(np.count_nonzero(finite))
     min_count = resolve_min_inliers(min_inliers, n_valid)
     graph = checked_search_graph(graph, pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
     search_idx, step, center, neighbours = graph.search_idx, graph.step, graph.center, graph.neighbours
-    search = np.ascontiguousarray((pts[search_idx] - center).T)
+    search = np.ascontiguousarray((pts.take(search_idx, axis=0) - center).T)  # take: a faster gather
     search_min = max(3, int(np.ceil(min_count * len(search_idx) / max(n_valid, 1))))
     search_tolerance = tolerance_at(tolerance, search_idx)
     found, reason, region, capped = sequential_search(search, search_tolerance, max_planes, search_min, probability,
@@ -61,7 +61,7 @@ def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_i
         valid_idx = np.flatnonzero(finite)
         labels, residual = spread_nearest(pts, valid_idx, center, graph.nearest, region, found,
                                           tolerance_at(tolerance, valid_idx))
-    rows, bounds = kernels.group_by_label(labels, len(found))
+    rows, bounds, squares = _members(labels, len(found), residual)
     counts = np.diff(bounds)
     small = np.flatnonzero(counts < min_count)
     if len(small):
@@ -72,16 +72,27 @@ def detect_regions(pts: np.ndarray, tolerance: Tolerance, max_planes: int, min_i
         found = [found[j] for j in keep]
         reason += (f'; dropped {len(small)} region(s) left with fewer than min_inliers={min_count} points '
                    'once every point was labelled')
-        rows, bounds = kernels.group_by_label(labels, len(found))
+        rows, bounds, squares = _members(labels, len(found), residual)
     planes = []
     for j, (normal, offset) in enumerate(found):
         members = rows[bounds[j]:bounds[j + 1]]
-        resid = residual[members] if residual is not None else (pts[members] - center) @ normal + offset
+        square = squares[bounds[j]:bounds[j + 1]] if squares is not None else \
+            ((pts[members] - center) @ normal + offset) ** 2
         normal, offset = canonical(normal, offset - float(normal @ center))
         planes.append(Plane(normal=normal, offset=offset, inliers=members,
-                            rms=float(np.sqrt(np.mean(resid ** 2))) if len(members) else 0.0))
+                            rms=float(np.sqrt(np.mean(square))) if len(members) else 0.0))
     return Segmentation(labels=labels, planes=tuple(planes), tolerance=tolerance, n_valid=n_valid, reason=reason,
                         capped=capped)
+
+
+def _members(labels: np.ndarray, k: int, residual: np.ndarray | None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The rows of each of the ``k`` regions of ``labels`` (N,), ascending, one after another, and where each
+    starts (:func:`.kernels.group_by_label`); with the distances ``residual`` (N,) meters, also their squares in that
+    order (:func:`.kernels.label_rows`), else None."""
+    if residual is None:
+        return kernels.group_by_label(labels, k) + (None,)
+    return kernels.label_rows(labels, k, residual)
 
 
 #: Two touching regions whose joint plane keeps at least this share of their points within t, with
@@ -100,7 +111,7 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
     joint least-squares plane has MERGE_KEEP of their points (3, m) within ``tolerance`` becomes one
     region (the earlier one's number), with that plane. Regions renumbered in order. The fits are numpy's; each
     pair's tests run compiled (:func:`.kernels.merge_test`; :func:`_merge_coplanar_numpy` is the reference)."""
-    touching = _touching_pairs(region, neighbours, len(found))
+    touching = neighbours.contacts(region, len(found))
     if touching is None:
         return region, found
     src, dst, a, b, pairs = touching
@@ -124,9 +135,9 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
         normal, offset = kernels.fit_members(cols, members)
         if not allows_normal(allows, normal):
             continue  # their joint plane leaves the orientation constraint
-        own = np.array([np.append(*found[i]), np.append(*found[j])])
-        if not kernels.merge_test(cols, members, region, int(i), int(j), np.append(normal, offset), own, tol, src, dst,
-                                  a, b, root, normals, NORMAL_MIN_COS, MERGE_KEEP, MERGE_SPREAD):
+        own = plane_rows([found[i], found[j], (normal, offset)])  # theirs, then the joint plane
+        if not kernels.merge_test(cols, members, region, int(i), int(j), own[2], own[:2], tol, src, dst, a, b, root,
+                                  normals, NORMAL_MIN_COS, MERGE_KEEP, MERGE_SPREAD):
             continue
         region[points_of[j]] = i
         points_of[i], points_of[j] = members, members[:0]
@@ -152,7 +163,7 @@ def _merge_coplanar_numpy(search: np.ndarray, region: np.ndarray, found: list, t
     joint least-squares plane has MERGE_KEEP of their points (3, m) within ``tolerance`` becomes one
     region (the earlier one's number), with that plane. Regions renumbered in order. The reference of
     :func:`_merge_coplanar` (its tests in numpy)."""
-    touching = _touching_pairs(region, neighbours, len(found))
+    touching = Neighbours.contacts(neighbours, region, len(found))  # the numpy form
     if touching is None:
         return region, found
     src, dst, a, b, pairs = touching
@@ -194,19 +205,6 @@ def _merge_coplanar_numpy(search: np.ndarray, region: np.ndarray, found: list, t
     return renumber[region], [found[j] for j in keep]
 
 
-def _touching_pairs(region: np.ndarray, neighbours: Neighbours, k: int
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
-    """The neighbour pairs (src, dst) joining two of the ``k`` regions of ``region``, their regions (a, b), and each
-    touching pair of regions once as i * k + j (i < j), sorted; None when no two regions touch."""
-    src, dst = neighbours.touching()
-    a, b = region[src], region[dst]
-    touch = (a >= 0) & (b >= 0) & (a != b)
-    if not touch.any():
-        return None
-    src, dst, a, b = src[touch], dst[touch], a[touch], b[touch]
-    return src, dst, a, b, np.unique(np.minimum(a, b) * k + np.maximum(a, b))
-
-
 #: Border settling compares planes by the distance along each point's viewing ray (a range sensor's
 #: noise lies along the ray, so a wall's point near a corner is nearer in meters to the other face,
 #: seen at a grazing angle, but not along its ray); a ray farther than this from a plane's normal
@@ -224,7 +222,7 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
     to another region can change, and after the first round only the neighbours of points that
     changed: only they are looked at (:meth:`.neighbours.Neighbours.settle`). The distances come from one compiled
     pass (:func:`.kernels.compete_distances`; :func:`_compete_distances_numpy` is its reference)."""
-    planes = np.array([np.append(normal, offset) for normal, offset in found], dtype=np.float64).reshape(-1, 4)
+    planes = plane_rows(found)
     tol = kernels.c_array(np.reshape(tolerance, -1), np.float64)  # (1,) or (m,)
     dist = kernels.compete_distances(kernels.c_array(search, np.float64), planes, tol,
                                      kernels.c_array(viewpoint, np.float64), float(np.cos(np.radians(GRAZING_DEG))))

@@ -18,6 +18,7 @@ from .checks import (
     check_search_size,
     check_shape,
     check_viewpoint,
+    finite_extent,
     generator,
 )
 from .connected import detect_regions
@@ -95,7 +96,8 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX
     check_search_size('grid_points', grid_points)
     if shape is not None:
         shape = check_shape(shape, len(pts))
-    check_magnitude(pts)
+    finite, largest = finite_extent(pts)
+    check_magnitude(pts, largest)
     view = check_viewpoint(viewpoint)
     if orientation is not None and not isinstance(orientation, Orientation):
         raise ValueError(f'orientation must be an Orientation (orientation(axis, angle, mode)) or None, '
@@ -106,8 +108,8 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX
     point_tolerance = tolerance if scale is None else tolerance * scale  # (N,) with a noise model
     rng = generator(seed)
     if connectivity:
-        seg = detect_regions(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
-                             ransac_points, shape, graph, view, grid_points, allows)
+        seg = detect_regions(pts, finite, point_tolerance, max_planes, min_inliers, probability, int(max_iterations),
+                             rng, ransac_points, shape, graph, view, grid_points, allows)
     else:
         seg = detect_infinite(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
                               ransac_points, allows)

@@ -14,7 +14,7 @@ from .types import Allows, Tolerance
 
 __all__ = ['fit_plane', 'fit_columns', 'canonical', 'degeneracy', 'degeneracy_numpy', 'signed_distances',
            'plane_distances', 'tolerance_at', 'within_plane', 'allows_normal', 'kept_fit', 'refit_regions',
-           'refit_regions_numpy', 'MIN_SINE']
+           'refit_regions_numpy', 'plane_rows', 'MIN_SINE']
 
 
 #: Random points the degeneracy (spread) test looks at.
@@ -125,6 +125,16 @@ def plane_distances(cols: np.ndarray, normals: np.ndarray, offsets: np.ndarray) 
     """(k, n) absolute distances of the points ``cols`` (3, n) to k planes (in place, one buffer)."""
     dist = signed_distances(cols, normals, offsets)
     return np.abs(dist, out=dist)
+
+
+def plane_rows(found: list) -> np.ndarray:
+    """(k, 4) float64: the planes ``found`` [(unit normal (3,), offset meters)] as rows (a, b, c, d), as the kernels
+    take them."""
+    rows = np.empty((len(found), 4))
+    for j, (normal, offset) in enumerate(found):
+        rows[j, :3] = normal
+        rows[j, 3] = offset
+    return rows
 
 
 def tolerance_at(tolerance: Tolerance, idx) -> Tolerance:

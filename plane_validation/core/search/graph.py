@@ -11,6 +11,7 @@ from .. import kernels
 from ..params import GRID_POINTS, RANSAC_POINTS
 from ..regions import VoxelIndex, graph_neighbours, voxel_index
 from .checks import as_points, check_search_size, check_shape, check_viewpoint, finite_rows
+from .fit import plane_rows
 from .grid import grid_image, grid_step
 from .neighbours import Neighbours
 from .neighbours_grid import grid_neighbours
@@ -96,7 +97,7 @@ def build_search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, in
     if step:
         grid, pixels = grid_image(pts, finite, shape, step)
         neighbours = grid_neighbours(grid - viewpoint if viewpoint.any() else grid, pixels >= 0)  # sensor ranges
-        search_idx = pixels.reshape(-1)[neighbours.pixel]
+        search_idx = pixels.reshape(-1).take(neighbours.pixel)
     else:  # unorganized, or an image too thin for a 2-D grid
         search_idx = valid_idx
         if ransac_points is not None and n_valid > ransac_points:
@@ -135,7 +136,7 @@ def spread_nearest(pts: np.ndarray, rows: np.ndarray, center: np.ndarray, neares
     (scalar or (n,)) of that region's plane (``found``: (normal, offset) about ``center`` (3,)); -1 otherwise. Also the
     distance (N,) to the plane of each point's label, inf where none. One compiled pass
     (:func:`.kernels.spread_nearest`; :func:`spread_nearest_numpy` is its reference)."""
-    planes = np.array([np.append(normal, offset) for normal, offset in found], dtype=np.float64).reshape(-1, 4)
+    planes = plane_rows(found)
     return kernels.spread_nearest(kernels.c_array(pts, np.float64), kernels.c_array(rows, np.int64),
                                   kernels.c_array(center, np.float64), kernels.c_array(nearest, np.int64),
                                   kernels.c_array(region, np.int64), planes,

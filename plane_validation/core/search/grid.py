@@ -7,7 +7,7 @@ import functools
 import numpy as np
 
 from .. import kernels
-from .fit import tolerance_at
+from .fit import plane_rows, tolerance_at
 from .neighbours_grid import EIGHT, GridNeighbours
 from .types import Tolerance
 
@@ -92,7 +92,7 @@ def spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step
     Also the distance (N,) to the chosen plane (inf when none). One compiled pass
     (:func:`.kernels.spread_grid`; :func:`spread_grid_numpy` is its reference)."""
     sub, near_r, near_c = _sub_regions(shape, step, region, neighbours, len(planes))
-    coeffs = np.array([np.append(normal, offset) for normal, offset in planes], dtype=np.float64).reshape(-1, 4)
+    coeffs = plane_rows(planes)
     tol = kernels.c_array(np.reshape(tolerance, -1), np.float64)  # (1,) or (N,)
     return kernels.spread_grid(kernels.c_array(pts, np.float64), kernels.c_array(valid, bool), sub, near_r, near_c,
                                coeffs, tol, kernels.EIGHT)

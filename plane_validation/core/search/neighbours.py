@@ -195,6 +195,19 @@ class Neighbours(ABC):
     def touching(self) -> tuple[np.ndarray, np.ndarray]:
         """(src, dst) pairs of points that touch (see the forms)."""
 
+    def contacts(self, region: np.ndarray, k: int
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """The :meth:`touching` pairs (src, dst) that join two of the ``k`` regions of ``region`` (n,) (-1: none),
+        their regions (a, b), and each touching pair of regions once as i * k + j (i < j), ascending; None when no
+        two regions touch. A form may answer in one compiled call (the grid's does; this is its reference)."""
+        src, dst = self.touching()
+        a, b = region[src], region[dst]
+        touch = (a >= 0) & (b >= 0) & (a != b)
+        if not touch.any():
+            return None
+        src, dst, a, b = src[touch], dst[touch], a[touch], b[touch]
+        return src, dst, a, b, np.unique(np.minimum(a, b) * k + np.maximum(a, b))
+
     @abstractmethod
     def around(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every (node, neighbour) pair of the points ``nodes`` (c,), as two arrays, for border settling."""

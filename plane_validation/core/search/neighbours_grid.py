@@ -24,6 +24,7 @@ from .neighbours import (
     Remaining,
     joined_components,
 )
+from .types import Sampler
 
 __all__ = ['GridNeighbours', 'grid_neighbours', 'grid_neighbours_numpy', 'grid_region', 'grid_region_numpy',
            'rest_positions', 'EIGHT', 'JUMP', 'HOLE_BRIDGE', 'LIDAR_BEND']
@@ -55,6 +56,7 @@ BRIDGE_SLACK = 1.5
 EIGHT = kernels.EIGHT
 _NO_BRIDGES = np.empty((0, 3), np.int64)
 _NO_POINT_NORMALS = np.empty((3, 0))
+_SCALES = np.array(NEARBY_SCALES, np.int64)
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -82,6 +84,22 @@ class GridNeighbours(Neighbours):
         c = c + np.rint((2 * rng.random(len(nodes)) - 1) * scale).astype(np.int64)
         inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
         return np.where(inside, self.node[np.where(inside, r * w + c, 0)], -1)
+
+    def sampler(self, rest_idx: np.ndarray) -> Sampler:
+        """The same draws as :meth:`.neighbours.Neighbours.sampler` (its reference), the triples from them in one
+        compiled call (:func:`.kernels.grid_triples`)."""
+        position = np.full(self.n + 1, -1, dtype=np.int64)  # [-1] stays -1
+        position[rest_idx] = np.arange(len(rest_idx))
+        rest = kernels.c_array(rest_idx, np.int64)
+        h, w = self.shape
+
+        def sample(rng: np.random.Generator, count: int) -> np.ndarray:
+            first = rng.integers(0, len(rest), count)
+            scale_pick = rng.integers(0, len(NEARBY_SCALES), 2 * count)
+            row_share, col_share = rng.random(2 * count), rng.random(2 * count)
+            return kernels.grid_triples(first, scale_pick, row_share, col_share, _SCALES, rest, position, self.pixel,
+                                        self.node, h, w)
+        return sample
 
     def components(self, mask: np.ndarray) -> tuple[np.ndarray, int]:
         image = np.zeros(self.shape[0] * self.shape[1], bool)
@@ -128,6 +146,15 @@ class GridNeighbours(Neighbours):
         src, dst = np.concatenate(src), np.concatenate(dst)
         both = (src >= 0) & (dst >= 0)
         return src[both], dst[both]
+
+    def contacts(self, region: np.ndarray, k: int
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """One compiled pass (:func:`.kernels.grid_contacts`; :meth:`.neighbours.Neighbours.contacts` is its
+        reference)."""
+        bridges = _NO_BRIDGES if self.bridges is None else kernels.c_array(self.bridges, np.int64)
+        contacts = kernels.grid_contacts(self.node, self.usable, self.shape[1], self.wraps, bridges,
+                                         kernels.c_array(region, np.int64), k)
+        return contacts if len(contacts[0]) else None
 
     def around(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The 8 image neighbours, whatever their depth."""
@@ -328,7 +355,7 @@ def _assembled(image_points: np.ndarray, valid: np.ndarray, ranges: np.ndarray, 
     node[pixel] = np.arange(len(pixel))
     wraps = _wraps(image_points, valid, ranges, typical)
     return GridNeighbours(n=len(pixel), shape=(h, w), pixel=pixel, node=node, usable=usable.reshape(-1),
-                          normals=normals.reshape(-1, 3)[pixel], wraps=wraps,
+                          normals=normals.reshape(-1, 3).take(pixel, axis=0), wraps=wraps,
                           bridges=_bridges(image_points, valid, ranges, typical, wraps) if lidar else None)
 
 
