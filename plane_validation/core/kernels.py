@@ -27,7 +27,7 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
            'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
-           'fit_regions', 'grid_best_region', 'grid_refit_region', 'warm', 'Warmup']
+           'fit_regions', 'grid_best_region', 'grid_refit_region', 'read_rows', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -2684,6 +2684,45 @@ def grid_refit_region(cols: np.ndarray, region: np.ndarray, tolerance: np.ndarra
     return normal, offset, kept, took
 
 
+# --- frame input and outlines ---
+
+
+@numba.njit(**_JIT)
+def read_rows(words: np.ndarray, columns: np.ndarray, view: np.ndarray, within: float, marks: bool
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
+    """One pass over a PointCloud2's points, the float32 ``words`` (N, w) with x, y, z at ``columns`` (3,): the rows
+    (N, 3) float64, with NaN where ``marks`` and a row lies at a driver's "no return" mark (as :func:`marked_rows`
+    finds it: exactly (0, 0, 0) when ``view`` (3,) is the origin, else within ``within`` meters of ``view`` in each
+    coordinate); which rows have three finite coordinates (N,) bool and they themselves, in order ((n, 3), the
+    start of an (N, 3) buffer); how many other rows have an infinite coordinate, and how many were marked."""
+    n = words.shape[0]
+    points = np.empty((n, 3))
+    finite = np.empty(n, np.bool_)
+    valid = np.empty((n, 3))
+    a, b, c = columns[0], columns[1], columns[2]
+    origin = view[0] == 0.0 and view[1] == 0.0 and view[2] == 0.0
+    m = infinite = marked = 0
+    for i in range(n):
+        x, y, z = np.float64(words[i, a]), np.float64(words[i, b]), np.float64(words[i, c])
+        if marks:
+            if origin:
+                at = x == 0.0 and y == 0.0 and z == 0.0
+            else:
+                at = abs(x - view[0]) <= within and abs(y - view[1]) <= within and abs(z - view[2]) <= within
+            if at:
+                x = y = z = np.nan
+                marked += 1
+        points[i, 0], points[i, 1], points[i, 2] = x, y, z
+        ok = np.isfinite(x) and np.isfinite(y) and np.isfinite(z)
+        finite[i] = ok
+        if ok:
+            valid[m, 0], valid[m, 1], valid[m, 2] = x, y, z
+            m += 1
+        elif np.isinf(x) or np.isinf(y) or np.isinf(z):
+            infinite += 1
+    return points, finite, valid[:m], infinite, marked
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -2772,6 +2811,7 @@ def warm() -> Warmup:
     grid_args = (index, index, flags, 2, np.zeros((1, 3), np.int64), pts, 0.5, index, index, np.ones(3))
     winner, region, _ = grid_best_region(cols, np.ones(1), np.ones((2, 3)), np.zeros(2), 2.0, 0.5, cols, *grid_args)
     grid_refit_region(cols, region, np.ones(1), 2.0, *grid_args)
+    read_rows(np.zeros((4, 5), np.float32), np.arange(3), np.zeros(3), 1e-6, True)
     compiled = sum(len(kernel.stats.cache_misses) for kernel in _KERNELS) > before
     return Warmup(time.perf_counter() - start, compiled)
 
@@ -2785,4 +2825,4 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
             beyond_counts, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
             voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
-            fit_mask, fit_regions, grid_best_region, grid_refit_region)
+            fit_mask, fit_regions, grid_best_region, grid_refit_region, read_rows)
