@@ -1018,7 +1018,6 @@ def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_i
         for e in range(d):
             for a in range(3):
                 along[j, a, e] = directions[j, e, a]
-    value = np.empty(d)
     seg_dense = obs_dense = True
     largest = 0.0
     kept = valid = 0  # obstacle records written, finite rows passed
@@ -1060,15 +1059,14 @@ def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_i
             sums[lab, 0] += x
             sums[lab, 1] += y
             sums[lab, 2] += z
-            ax, ay, az, top = along[lab, 0], along[lab, 1], along[lab, 2], best[lab]
             beyond = q == 0  # a label's first point is its first extreme in every direction
             for e in range(d):
-                value[e] = ax[e] * x + ay[e] * y + az[e] * z
-                beyond |= value[e] > top[e]
-            if beyond:  # rare after a label's first points
+                beyond |= along[lab, 0, e] * x + along[lab, 1, e] * y + along[lab, 2, e] * z > best[lab, e]
+            if beyond:  # rare after a label's first points: the projections again, the same products and sums
                 for e in range(d):
-                    if value[e] > top[e] or q == 0:
-                        top[e] = value[e]
+                    value = along[lab, 0, e] * x + along[lab, 1, e] * y + along[lab, 2, e] * z
+                    if value > best[lab, e] or q == 0:
+                        best[lab, e] = value
                         extreme[lab, e] = q
             count[lab] = q + 1
     centroid = np.full((k, 3), np.nan)
