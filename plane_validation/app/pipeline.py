@@ -35,7 +35,7 @@ from ..core.ransac import (
 )
 from ..core.tuning import TuningResult, TuningWorkerError, noise_from_segmentation, quick_tolerance, tune_tolerance
 from ..core.verdict import judge
-from ..formats.pointcloud2 import ring_array, trailing_bytes, xyz_array
+from ..formats.pointcloud2 import ring_array, trailing_bytes, xyz_array, xyz_words
 from .config import PipelineConfig
 from .detection import ring_layout
 from .diagnostics import Diagnostic, Level, fmt
@@ -308,13 +308,14 @@ class FramePipeline:
         message gives an ERROR result. This is the per-frame step the node and replay share."""
         stamp_ns = header_stamp_ns(msg.header)
         try:
-            points = xyz_array(msg)
+            words = xyz_words(msg)  # the usual layout: read by the frame's first compiled pass
+            points = xyz_array(msg) if words is None else None
             extra = trailing_bytes(msg)
         except ValueError as exc:
             return self.reject(f'malformed PointCloud2: {exc}', ERROR, n_input=int(msg.height) * int(msg.width))
         shape = (int(msg.height), int(msg.width)) if msg.height > 1 and msg.width > 0 else None  # organized: an image
         ring = None if shape or not self.config.organize_rings else ring_array(msg)  # a spinning lidar's beams
-        result = self.process(points, stamp_ns, tune_inline=tune_inline, shape=shape, ring=ring)
+        result = self._process(points, words, stamp_ns, tune_inline, shape, ring)
         if extra:
             note = (f'PointCloud2.data has {extra} byte(s) beyond height*row_step = {msg.height}*{msg.row_step}; '
                     'they were ignored')
@@ -340,19 +341,23 @@ class FramePipeline:
         with the last tuned tolerance (else the quick estimate, else the ``tolerance`` parameter)
         and reported as WARN.
         """
+        return self._process(points, None, stamp_ns, tune_inline, shape, ring)
+
+    def _process(self, points: np.ndarray | None, words: tuple[np.ndarray, np.ndarray] | None, stamp_ns: int,
+                 tune_inline: bool, shape: tuple[int, int] | None, ring: np.ndarray | None) -> FrameResult:
+        """:meth:`process` of ``points``, or of a PointCloud2's x, y, z as :func:`.xyz_words` gives them."""
         start = time.perf_counter()
         try:
             stamp_ns = check_integer('stamp_ns', stamp_ns, None)
             if not -2**63 <= stamp_ns < 2**63:  # a header stamp (int32 s, uint32 ns) always fits
                 raise ValueError(f'stamp_ns must fit in 64 bits (nanoseconds), got {stamp_ns}')
             stamp, repeated = self._clock(stamp_ns)
-            given = as_points(points)
+            given = as_points(points) if words is None else None
             shape = None if shape is None else check_shape(shape, None)
         except ValueError as exc:
             return _failed(ERROR, f'bad input: {exc}', start, self.current_tolerance())
         cfg = self.config
-        pts, no_returns = _no_returns_as_nan(given, cfg.viewpoint) if cfg.zero_is_no_return else (given, 0)
-        finite, valid, infinite = _valid_rows(pts)
+        pts, no_returns, finite, valid, infinite = _frame_rows(given, words, cfg)
         n_input = len(pts)
         image = shape if shape is not None and shape[0] * shape[1] == n_input else None  # kept in the outputs
         if shape is not None and (cfg.voxel_size > 0 or not cfg.connectivity or shape[0] * shape[1] != n_input):
@@ -441,6 +446,20 @@ class FramePipeline:
                            plane_counts=tuple(int(c) for c in counts), organized=pts if image else None, shape=shape,
                            ring_image=(laid[0], laid[1]) if laid else None, clock=stamp, plane_ids=ids,
                            obstacles=obstacles, image_shape=image, image_labels=image_labels)
+
+
+def _frame_rows(points: np.ndarray | None, words: tuple[np.ndarray, np.ndarray] | None, cfg: PipelineConfig
+                ) -> tuple[np.ndarray, int, np.ndarray, np.ndarray, int]:
+    """A frame's rows (N, 3) meters (with ``zero_is_no_return`` its "no return" marks NaN) and how many were marks,
+    which rows are valid (N,) bool, they themselves (n, 3) and how many other rows have an infinite coordinate: of
+    ``points`` (N, 3), else of a PointCloud2's float32 ``words`` and x, y, z columns (:func:`.xyz_words`) in one
+    compiled pass."""
+    if words is not None:
+        pts, finite, valid, infinite, marked = kernels.read_rows(*words, check_viewpoint(cfg.viewpoint), AT_VIEWPOINT,
+                                                                 cfg.zero_is_no_return)
+        return pts, marked, finite, valid, infinite
+    pts, no_returns = _no_returns_as_nan(points, cfg.viewpoint) if cfg.zero_is_no_return else (points, 0)
+    return (pts, no_returns, *_valid_rows(pts))
 
 
 def _no_returns_as_nan(points: np.ndarray, viewpoint) -> tuple[np.ndarray, int]:

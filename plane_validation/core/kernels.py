@@ -28,7 +28,8 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
            'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'grid_best_region', 'grid_refit_region', 'plane_samples', 'sorted_order', 'order_statistics',
-           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'warm', 'Warmup']
+           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'warm',
+           'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -1012,7 +1013,6 @@ def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_i
         for e in range(d):
             for a in range(3):
                 along[j, a, e] = directions[j, e, a]
-    value = np.empty(d)
     seg_dense = obs_dense = True
     largest = 0.0
     kept = valid = 0  # obstacle records written, finite rows passed
@@ -1054,15 +1054,14 @@ def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_i
             sums[lab, 0] += x
             sums[lab, 1] += y
             sums[lab, 2] += z
-            ax, ay, az, top = along[lab, 0], along[lab, 1], along[lab, 2], best[lab]
             beyond = q == 0  # a label's first point is its first extreme in every direction
             for e in range(d):
-                value[e] = ax[e] * x + ay[e] * y + az[e] * z
-                beyond |= value[e] > top[e]
-            if beyond:  # rare after a label's first points
+                beyond |= along[lab, 0, e] * x + along[lab, 1, e] * y + along[lab, 2, e] * z > best[lab, e]
+            if beyond:  # rare after a label's first points: the projections again, the same products and sums
                 for e in range(d):
-                    if value[e] > top[e] or q == 0:
-                        top[e] = value[e]
+                    value = along[lab, 0, e] * x + along[lab, 1, e] * y + along[lab, 2, e] * z
+                    if value > best[lab, e] or q == 0:
+                        best[lab, e] = value
                         extreme[lab, e] = q
             count[lab] = q + 1
     centroid = np.full((k, 3), np.nan)
@@ -2913,6 +2912,45 @@ def grid_triples(first: np.ndarray, scale_pick: np.ndarray, row_share: np.ndarra
     return out
 
 
+# --- frame input and outlines ---
+
+
+@numba.njit(**_JIT)
+def read_rows(words: np.ndarray, columns: np.ndarray, view: np.ndarray, within: float, marks: bool
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
+    """One pass over a PointCloud2's points, the float32 ``words`` (N, w) with x, y, z at ``columns`` (3,): the rows
+    (N, 3) float64, with NaN where ``marks`` and a row lies at a driver's "no return" mark (as :func:`marked_rows`
+    finds it: exactly (0, 0, 0) when ``view`` (3,) is the origin, else within ``within`` meters of ``view`` in each
+    coordinate); which rows have three finite coordinates (N,) bool and they themselves, in order ((n, 3), the
+    start of an (N, 3) buffer); how many other rows have an infinite coordinate, and how many were marked."""
+    n = words.shape[0]
+    points = np.empty((n, 3))
+    finite = np.empty(n, np.bool_)
+    valid = np.empty((n, 3))
+    a, b, c = columns[0], columns[1], columns[2]
+    origin = view[0] == 0.0 and view[1] == 0.0 and view[2] == 0.0
+    m = infinite = marked = 0
+    for i in range(n):
+        x, y, z = np.float64(words[i, a]), np.float64(words[i, b]), np.float64(words[i, c])
+        if marks:
+            if origin:
+                at = x == 0.0 and y == 0.0 and z == 0.0
+            else:
+                at = abs(x - view[0]) <= within and abs(y - view[1]) <= within and abs(z - view[2]) <= within
+            if at:
+                x = y = z = np.nan
+                marked += 1
+        points[i, 0], points[i, 1], points[i, 2] = x, y, z
+        ok = np.isfinite(x) and np.isfinite(y) and np.isfinite(z)
+        finite[i] = ok
+        if ok:
+            valid[m, 0], valid[m, 1], valid[m, 2] = x, y, z
+            m += 1
+        elif np.isinf(x) or np.isinf(y) or np.isinf(z):
+            infinite += 1
+    return points, finite, valid[:m], infinite, marked
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -2934,6 +2972,7 @@ def _warm_frame() -> None:
     coordinate_bounds(pts)
     widen_xyz(np.zeros((4, 5), np.float32), np.arange(3))
     valid_rows(pts)
+    read_rows(np.zeros((4, 5), np.float32), np.arange(3), np.zeros(3), 1e-6, True)
     frame_pass(pts, labels, flags, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.zeros((2, 8, 3)),
                np.empty(80, np.uint8), np.empty(48, np.uint8), False)
 
@@ -3126,4 +3165,5 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             beyond_counts, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
             voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
             fit_mask, fit_regions, grid_best_region, grid_refit_region, plane_samples,
-            sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples)
+            sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
+            read_rows)

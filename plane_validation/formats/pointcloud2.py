@@ -32,7 +32,7 @@ from ..core import kernels
 from ..core.geometry import beam_numbers
 
 __all__ = [
-    'DATATYPES', 'CloudTypes', 'RosbagsTypes', 'structured_array', 'xyz_array', 'create_cloud',
+    'DATATYPES', 'CloudTypes', 'RosbagsTypes', 'structured_array', 'xyz_array', 'xyz_words', 'create_cloud',
     'rosbags_types', 'pack_rgb', 'unpack_rgb', 'trailing_bytes', 'record_layout', 'cloud_buffer', 'cloud_message',
 ]
 
@@ -241,8 +241,7 @@ def xyz_array(msg: Any, *, dtype: npt.DTypeLike = np.float64) -> np.ndarray:
     grid = _grid(msg)
     words = _float32_words(msg, grid) if out_dtype == np.float64 else None
     if words is not None:  # the usual layout: one compiled pass
-        columns = np.array([grid.dtype.fields[name][1] // 4 for name in _XYZ], np.int64)
-        return kernels.widen_xyz(words, columns)
+        return kernels.widen_xyz(*words)
     out = np.empty(grid.shape + (3,), out_dtype)
     # a signalling NaN (bytes of another byte order or layout than declared, say) stays a NaN, a row that is no
     # point: numpy's warning about its cast is not for the caller, who sees the values
@@ -252,10 +251,20 @@ def xyz_array(msg: Any, *, dtype: npt.DTypeLike = np.float64) -> np.ndarray:
     return out.reshape(-1, 3)
 
 
-def _float32_words(msg: Any, grid: np.ndarray) -> np.ndarray | None:
-    """The points of ``grid`` (:func:`_grid`, of ``msg``) as (N, point_step / 4) float32 words when x, y and z are
-    FLOAT32 words of them in this machine's byte order and the rows lie back to back; else None (also for
-    read-only or unaligned bytes, for which the kernel is not compiled)."""
+def xyz_words(msg: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """The points of a non-empty ``msg`` as (N, point_step / 4) float32 words and the columns (3,) of x, y, z among
+    them, for a compiled pass to read (the usual layout: see :func:`_float32_words`); None for another layout or an
+    empty cloud, which :func:`xyz_array` reads. ValueError for a malformed message, as :func:`xyz_array` says."""
+    if _uint(msg, 'height') == 0 or _uint(msg, 'width') == 0:
+        return None
+    _check_xyz(msg)
+    return _float32_words(msg, _grid(msg))
+
+
+def _float32_words(msg: Any, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The points of ``grid`` (:func:`_grid`, of ``msg``) as (N, point_step / 4) float32 words, and the columns (3,)
+    of x, y, z among them, when x, y and z are FLOAT32 words of them in this machine's byte order and the rows lie
+    back to back; else None (also for read-only or unaligned bytes, for which the kernels are not compiled)."""
     step = grid.dtype.itemsize
     fields = [grid.dtype.fields[name] for name in _XYZ]
     if step % 4 or any(dtype != np.dtype(np.float32) or offset % 4 for dtype, offset in fields):
@@ -265,7 +274,9 @@ def _float32_words(msg: Any, grid: np.ndarray) -> np.ndarray | None:
         return None
     words = _data_bytes(msg.data)[:height * width * step].view(np.float32).reshape(-1, step // 4)
     flags = words.flags
-    return words if flags.aligned and flags.c_contiguous and flags.writeable else None
+    if not (flags.aligned and flags.c_contiguous and flags.writeable):
+        return None
+    return words, np.array([offset // 4 for _, offset in fields], np.int64)
 
 
 def ring_array(msg: Any) -> np.ndarray | None:
