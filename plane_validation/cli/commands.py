@@ -812,6 +812,7 @@ def _terminate_cleanly() -> Iterator[None]:
 def _load_kernels() -> None:
     """Load (or compile) the compiled kernels with SIGINT, SIGTERM and SIGHUP held, then deliver the first one
     held: an exception raised inside numba's loader or compiler is dropped, or crashes it in a callback."""
+    import os
     import signal
 
     from ..core.kernels import warm
@@ -819,7 +820,7 @@ def _load_kernels() -> None:
     held = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
     previous = {sig: signal.signal(sig, lambda signum, _frame: caught.append(signum)) for sig in held}
     try:
-        warm()
+        warm(jobs=os.cpu_count() or 1)  # a cold cache compiles on every core
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
