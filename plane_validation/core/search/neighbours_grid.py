@@ -53,9 +53,8 @@ HOLE_BRIDGE = 3
 #: than this (radians, one standard deviation): far walls of a noisy depth camera, whose normals over a 10 cm chord
 #: are noise, were cut by the coherence test into pieces smaller than min_inliers. The noise is measured per band of
 #: ranges, not per image patch: a stair's nosings bend the surface too, but are few in their band, and keep their
-#: normals. Chosen on the tuning split (benchmarks/README.md); at 0.25 a depth camera with coarse depth steps and no
-#: other noise was tuned to a t that merged its walls.
-NOISY_TILT = 0.35
+#: normals. Chosen on the tuning split (benchmarks/README.md).
+NOISY_TILT = 0.25
 #: ... the noise at a range from this many bands of the image's ranges (equal counts of pixels), from at least
 #: NOISE_PIXELS pixels; the median of |N(0, 1)|.
 NOISE_BANDS = 10
