@@ -210,25 +210,3 @@ def test_largest_magnitude_matches_numpy(seed, n):
     values[rng.random(n) < 0.05] = np.inf * rng.choice([-1, 1])
     got, ref = kernels.largest_magnitude(values), largest_magnitude_numpy(values)
     assert got == ref or (np.isnan(got) and np.isnan(ref))
-
-
-@SETTINGS
-@given(st.integers(0, 2**32 - 1), st.booleans())
-def test_grid_normals_offsets_and_chords_match_numpy(seed, lidar):
-    """The grid normals' kernel gives the numpy pass's normals, each pixel's offsets off its neighbours' middle and
-    its shorter chord (what tells the depth noise, noisy_normals_unknown), with and without the bend test."""
-    from plane_validation.core import kernels
-    from plane_validation.core.search.neighbours_grid import LIDAR_BEND, _grid_normals
-    rng = np.random.default_rng(seed)
-    h, w = (int(v) for v in rng.integers(1, 30, 2))
-    rows, cols = np.mgrid[0:h, 0:w]
-    depth = 2.0 + 0.5 * (cols > rng.integers(0, w + 1)) + rng.normal(scale=rng.uniform(0, 0.05), size=(h, w))
-    image = np.stack([(cols - w / 2) * 0.01 * depth, (rows - h / 2) * 0.01 * depth, depth], -1)
-    valid = rng.random((h, w)) < rng.uniform(0.5, 1.0)
-    image[~valid] = np.nan
-    reach = (int(rng.integers(1, 4)), int(rng.integers(1, 4)))
-    got = kernels.grid_normals(image, valid, *reach, LIDAR_BEND if lidar else 0.0)
-    ref = _grid_normals(image, valid, reach, LIDAR_BEND if lidar else None)
-    np.testing.assert_array_equal(got[0], ref[0])
-    for a, b in zip(got[1:], ref[1:]):
-        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15)

@@ -1395,12 +1395,11 @@ def grid_usable(valid: np.ndarray, ranges: np.ndarray, right: np.ndarray, right_
 
 @numba.njit(**_NUMPY_JIT)
 def grid_normals(points: np.ndarray, valid: np.ndarray, down_reach: int, across_reach: int, bend: float
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 ) -> np.ndarray:
     """(h, w, 3) unit normals of an image of ``points`` (h, w, 3) meters with valid pixels ``valid`` (h, w): the
     cross product of (right - left) and (down - up), the pixels ``across_reach`` and ``down_reach`` away (NaN where
-    one is off the image or invalid); (h, w, 2) how far each pixel lies off the middle of those two pairs along the
-    normal, meters (across, down); (h, w) the shorter pair's distance, meters. With ``bend`` > 0 a normal is also
-    NaN where either offset exceeds ``bend`` times its pair's distance."""
+    one is off the image or invalid); with ``bend`` > 0 also NaN where the pixel lies off the middle of those two
+    pairs, along the normal, by more than ``bend`` times their distance."""
     h, w = valid.shape
     dr, ar = down_reach, across_reach
     pad = np.full((h + 2 * dr, w + 2 * ar, 3), np.nan)  # NaN off the image and at invalid pixels: no branches
@@ -1411,8 +1410,6 @@ def grid_normals(points: np.ndarray, valid: np.ndarray, down_reach: int, across_
                 pad[r + dr, c + ar, 1] = points[r, c, 1]
                 pad[r + dr, c + ar, 2] = points[r, c, 2]
     out = np.empty((h, w, 3))
-    second = np.empty((h, w, 2))
-    chord = np.empty((h, w))
     for r in range(h):
         pr = r + dr
         for c in range(w):
@@ -1428,16 +1425,16 @@ def grid_normals(points: np.ndarray, valid: np.ndarray, down_reach: int, across_
             n2 = ux * vy - uy * vx
             size = np.sqrt(_dot(n0, n1, n2, n0, n1, n2))
             n0, n1, n2 = n0 / size, n1 / size, n2 / size
-            cx, cy, cz = pad[pr, pc, 0], pad[pr, pc, 1], pad[pr, pc, 2]
-            off_u = abs(_dot(ax + bx - 2 * cx, ay + by - 2 * cy, az + bz - 2 * cz, n0, n1, n2))
-            off_v = abs(_dot(dx + ex - 2 * cx, dy + ey - 2 * cy, dz + ez - 2 * cz, n0, n1, n2))
-            len_u, len_v = _length(ux, uy, uz), _length(vx, vy, vz)
-            second[r, c, 0], second[r, c, 1] = off_u, off_v
-            chord[r, c] = min(len_u, len_v) if len_u == len_u and len_v == len_v else np.nan
-            if bend > 0 and (off_u / len_u > bend or off_v / len_v > bend):
-                n0 = n1 = n2 = np.nan
+            if bend > 0:
+                cx, cy, cz = pad[pr, pc, 0], pad[pr, pc, 1], pad[pr, pc, 2]
+                bend_u = abs(_dot(ax + bx - 2 * cx, ay + by - 2 * cy, az + bz - 2 * cz, n0, n1, n2)) / \
+                    _length(ux, uy, uz)
+                bend_v = abs(_dot(dx + ex - 2 * cx, dy + ey - 2 * cy, dz + ez - 2 * cz, n0, n1, n2)) / \
+                    _length(vx, vy, vz)
+                if bend_u > bend or bend_v > bend:
+                    n0 = n1 = n2 = np.nan
             out[r, c, 0], out[r, c, 1], out[r, c, 2] = n0, n1, n2
-    return out, second, chord
+    return out
 
 
 @numba.njit(**_NUMPY_JIT)

@@ -27,7 +27,7 @@ from .neighbours import (
 from .types import Sampler
 
 __all__ = ['GridNeighbours', 'grid_neighbours', 'grid_neighbours_numpy', 'grid_region', 'grid_region_numpy',
-           'rest_positions', 'noisy_normals_unknown', 'EIGHT', 'JUMP', 'HOLE_BRIDGE', 'LIDAR_BEND', 'NOISY_TILT']
+           'rest_positions', 'EIGHT', 'JUMP', 'HOLE_BRIDGE', 'LIDAR_BEND']
 
 #: A gap between grid neighbours this many times the gaps next to it along the image line (and
 #: this many typical pixel spacings at its range) is a depth jump.
@@ -49,17 +49,6 @@ LIDAR_BEND = 0.05
 #: patches at grazing angles and behind edges: there it changed which t quality.py's depth room was tuned to
 #: (8/9 planes correct, F1 0.978, became 6/9, 0.964), and its sub-grid already steps over scattered holes.
 HOLE_BRIDGE = 3
-#: A depth image's normal is unknown (it passes the coherence test) where the depth noise alone tilts it by more
-#: than this (radians, one standard deviation): far walls of a noisy depth camera, whose normals over a 10 cm chord
-#: are noise, were cut by the coherence test into pieces smaller than min_inliers. The noise is measured per band of
-#: ranges, not per image patch: a stair's nosings bend the surface too, but are few in their band, and keep their
-#: normals. Chosen on the tuning split (benchmarks/README.md).
-NOISY_TILT = 0.25
-#: ... the noise at a range from this many bands of the image's ranges (equal counts of pixels), from at least
-#: NOISE_PIXELS pixels; the median of |N(0, 1)|.
-NOISE_BANDS = 10
-NOISE_PIXELS = 1000
-MEDIAN_ABS_NORMAL = 0.6745
 #: ... unless the two pixels are farther apart than this many times the run's pixel steps times the gaps
 #: beside it (a box front 8 cm before a wall, seen across one missing pixel, stays apart).
 BRIDGE_SLACK = 1.5
@@ -324,9 +313,7 @@ def grid_neighbours(image_points: np.ndarray, valid: np.ndarray) -> GridNeighbou
     pitch = [kernels.grid_chords(points, flags, ranges, axis == 1, REACH_SAMPLE) for axis in (1, 0)]
     reach = _reach_of([float(np.median(chord)) if len(chord) else np.nan for chord in pitch])
     lidar = reach != (NORMAL_REACH, NORMAL_REACH)  # pixels coarser one way: a lidar's rings
-    normals, second, chord = kernels.grid_normals(points, flags, reach[0], reach[1], LIDAR_BEND if lidar else 0.0)
-    if not lidar:
-        normals = noisy_normals_unknown(normals, second, chord, ranges, flags)
+    normals = kernels.grid_normals(points, flags, reach[0], reach[1], LIDAR_BEND if lidar else 0.0)
     return _assembled(image_points, valid, ranges, typical, usable, lidar, normals)
 
 
@@ -353,9 +340,7 @@ def grid_neighbours_numpy(image_points: np.ndarray, valid: np.ndarray) -> GridNe
     usable[1:] &= ~(jump_d & far_down)
     reach = _reach(image_points, valid, ranges)
     lidar = reach != (NORMAL_REACH, NORMAL_REACH)
-    normals, second, chord = _grid_normals(image_points, valid, reach, LIDAR_BEND if lidar else None)
-    if not lidar:
-        normals = noisy_normals_unknown(normals, second, chord, ranges, valid)
+    normals = _grid_normals(image_points, valid, reach, LIDAR_BEND if lidar else None)
     return _assembled(image_points, valid, ranges, typical, usable, lidar, normals)
 
 
@@ -468,11 +453,10 @@ def _reach_of(pitch: list[float]) -> tuple[int, int]:
 
 
 def _grid_normals(image_points: np.ndarray, valid: np.ndarray, reach: tuple[int, int] = (NORMAL_REACH, NORMAL_REACH),
-                  bend: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(h, w, 3) unit normals from the image neighbours ``reach`` (down, across) pixels away (NaN at holes); (h, w, 2)
-    how far each pixel lies off the middle of its two neighbours along either axis, along the normal, meters; (h, w)
-    the shorter neighbour pair's distance, meters; with ``bend``, a normal is NaN also where an offset exceeds
-    ``bend`` times its pair's distance (LIDAR_BEND)."""
+                  bend: float | None = None) -> np.ndarray:
+    """(h, w, 3) unit normals from the image neighbours ``reach`` (down, across) pixels away (NaN at holes);
+    with ``bend``, NaN also where the pixel lies off the middle of its two neighbours along either axis, along
+    the normal, by more than ``bend`` times their distance (see LIDAR_BEND)."""
     rv, rh = reach
     pts = np.where(valid[..., None], image_points, np.nan)
     pad = np.pad(pts, ((rv, rv), (rh, rh), (0, 0)), constant_values=np.nan)
@@ -483,35 +467,9 @@ def _grid_normals(image_points: np.ndarray, valid: np.ndarray, reach: tuple[int,
     n = np.cross(du, dv)
     with np.errstate(invalid='ignore', divide='ignore'):
         n /= np.sqrt(np.einsum('...i,...i->...', n, n))[..., None]
-        centre = pad[rv:rv + h, rh:rh + w]  # the surface through the pixel and its 4 neighbours bent along n
-        off_u = np.abs(np.einsum('...i,...i->...', right + left - 2 * centre, n))
-        off_v = np.abs(np.einsum('...i,...i->...', down + up - 2 * centre, n))
-        len_u, len_v = np.linalg.norm(du, axis=-1), np.linalg.norm(dv, axis=-1)
-        if bend is not None:
-            n[(off_u / len_u > bend) | (off_v / len_v > bend)] = np.nan
-    return n, np.stack([off_u, off_v], -1), np.minimum(len_u, len_v)
-
-
-def noisy_normals_unknown(normals: np.ndarray, second: np.ndarray, chord: np.ndarray, ranges: np.ndarray,
-                          valid: np.ndarray) -> np.ndarray:
-    """``normals`` (h, w, 3) with NaN (unknown) at the valid pixels (``valid`` (h, w)) where the depth noise alone
-    tilts a normal by more than NOISY_TILT: sigma * sqrt(2) / ``chord`` (h, w) m, sigma the noise at the pixel's range
-    (``ranges`` (h, w) m) from the median offset of the pixels of its range band (``second`` (h, w, 2) m; a flat
-    surface's offsets are sigma * sqrt(6) * |N(0, 1)|). Bands: NOISE_BANDS quantiles of the range over the pixels
-    with both offsets; with fewer than NOISE_PIXELS, ``normals`` as they are."""
-    known = valid & np.isfinite(second).all(axis=-1)
-    if np.count_nonzero(known) < NOISE_PIXELS:
-        return normals
-    edges = np.quantile(ranges[known], np.linspace(0.0, 1.0, NOISE_BANDS + 1))
-    with np.errstate(invalid='ignore'):
-        band = np.clip(np.searchsorted(edges, ranges, side='right') - 1, 0, NOISE_BANDS - 1)
-    offsets, bands = second[known], band[known]
-    sigma = np.array([np.median(offsets[bands == k]) if np.any(bands == k) else 0.0 for k in range(NOISE_BANDS)])
-    sigma /= MEDIAN_ABS_NORMAL * np.sqrt(6.0)
-    with np.errstate(invalid='ignore', divide='ignore'):
-        noisy = valid & (sigma[band] * np.sqrt(2.0) / chord > NOISY_TILT)
-    if not noisy.any():
-        return normals
-    out = normals.copy()
-    out[noisy] = np.nan
-    return out
+        if bend is not None:  # the surface through the pixel and its 4 neighbours is not flat along n: noise
+            centre = pad[rv:rv + h, rh:rh + w]
+            bend_u = np.abs(np.einsum('...i,...i->...', right + left - 2 * centre, n)) / np.linalg.norm(du, axis=-1)
+            bend_v = np.abs(np.einsum('...i,...i->...', down + up - 2 * centre, n)) / np.linalg.norm(dv, axis=-1)
+            n[(bend_u > bend) | (bend_v > bend)] = np.nan
+    return n
