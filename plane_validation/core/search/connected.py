@@ -1,6 +1,7 @@
 """The connected-regions search (``connectivity=True``): sequential RANSAC over a neighbourhood, then each
-region refitted, the borders between regions settled, touching regions of one surface merged, and every
-valid point labelled from the searched ones."""
+region refitted, the borders between regions settled, touching regions of one surface merged (and coplanar ones
+apart where the part between them is hidden, :mod:`.occluded`), and every valid point labelled from the searched
+ones."""
 from __future__ import annotations
 
 import numpy as np
