@@ -18,7 +18,7 @@ from .fit import allows_normal, tolerance_at
 from .types import Allows, Tolerance
 
 __all__ = ['merge_occluded', 'OCCLUDED_COS', 'CROSS_MARGIN', 'CROSS_CELLS', 'EXPLAINED', 'CELL_POINTS',
-           'MAX_CELLS', 'MAX_TRIES', 'VIEW_MARGIN_DEG']
+           'MAX_CELLS', 'MAX_TRIES', 'VIEW_MARGIN_DEG', 'HULL_POINTS', 'CROSS_POINTS', 'NEAR_SAMPLE', 'EVIDENCE_REACH']
 
 #: Only regions whose planes' normals lie within this angle's cosine (5 degrees) are tried.
 OCCLUDED_COS = float(np.cos(np.radians(5.0)))
@@ -29,15 +29,21 @@ CROSS_MARGIN = 2.0
 CROSS_CELLS = 3
 #: At least this share of the gap's cells must be hidden or out of view.
 EXPLAINED = 0.5
+#: A cell where the plane is hidden or seen marks this many cells around it too (rays as sparse as a lidar's rings).
+EVIDENCE_REACH = 2
 #: The in-plane cells hold about this many of the two regions' points each ...
 CELL_POINTS = 4.0
 #: ... and are at most this many for a pair.
-MAX_CELLS = 1 << 18
+MAX_CELLS = 1 << 16
 #: Pairs tested (after the cheap checks) per search: the cost stays bounded on many coplanar regions.
-MAX_TRIES = 24
+MAX_TRIES = 12
 #: Directions this far (degrees) beyond the elevations (about z at the sensor) of every searched point are out of the
 #: sensor's view (a spinning lidar's lowest ring; a camera's cone).
 VIEW_MARGIN_DEG = 1.0
+#: The convex hull of a pair is taken on every so many-th of its points, about this many ...
+HULL_POINTS = 1024
+#: ... and the rays seen through the plane are every so many-th of them, about this many.
+CROSS_POINTS = 4096
 #: Regions are first compared on about this many of their points.
 NEAR_SAMPLE = 64
 
@@ -128,7 +134,8 @@ def _apart(search: np.ndarray, joint: np.ndarray, plane: tuple[np.ndarray, float
     """Whether two coplanar regions (their rows ``joint``) stay apart: the sensor at ``viewpoint`` (3,) lies on their
     ``plane``; or, in the cells of the plane inside the convex hull of their points and clear of both (the gap), rays
     cross the plane in CROSS_CELLS cells or more, or less than EXPLAINED of the gap is hidden behind points before
-    the plane or out of view (its elevation about z at the sensor outside ``view`` (low, high), radians)."""
+    the plane, holds other points on it, or is out of view (its elevation about z at the sensor outside ``view``
+    (low, high), radians)."""
     normal, offset = plane
     side = float(normal @ viewpoint + offset)
     if abs(side) <= float(np.min(tolerance_at(tolerance, joint))):
@@ -138,9 +145,16 @@ def _apart(search: np.ndarray, joint: np.ndarray, plane: tuple[np.ndarray, float
     basis = np.stack([e1, np.cross(normal, e1)])  # (2, 3): in-plane axes
     uv = basis @ search[:, joint]  # (2, n)
     try:
-        facets = ConvexHull(uv.T).equations  # (f, 3): outward normal, offset
+        facets = ConvexHull(uv[:, ::max(1, uv.shape[1] // HULL_POINTS)].T).equations  # (f, 3): outward normal, offset
     except (QhullError, ValueError):  # the points lie on a line: no area between them to judge
         return True
+    inside = facets[:, :2], facets[:, 2:]  # a point x is inside where inside[0] @ x + inside[1] <= 0
+    dq = normal @ search + offset
+    off = np.abs(dq) > CROSS_MARGIN * np.asarray(tolerance)
+    off[joint] = False
+    behind = off & (np.sign(dq) != np.sign(side))
+    crossing = _meeting(search, dq, side, behind, viewpoint, basis, CROSS_POINTS)
+    crossing = crossing[:, np.all(inside[0] @ crossing + inside[1] <= 0, axis=0)]
     lo, hi = uv.min(axis=1), uv.max(axis=1)
     extent = np.maximum(hi - lo, 1e-9)
     floor = float(np.sqrt(extent[0] * extent[1] / MAX_CELLS))
@@ -152,38 +166,39 @@ def _apart(search: np.ndarray, joint: np.ndarray, plane: tuple[np.ndarray, float
     occupied = np.zeros(int(shape.prod()), bool)
     occupied[_cell_of(uv, lo, cell, shape)] = True
     occupied = binary_dilation(occupied.reshape(shape), full).reshape(-1)
+    if crossing.shape[1] >= CROSS_CELLS:
+        crossed = np.unique(_cell_of(crossing, lo, cell, shape))
+        if np.count_nonzero(~occupied[crossed]) >= CROSS_CELLS:
+            return True
     centres = lo[:, None] + cell * (np.stack(np.divmod(np.arange(shape.prod()), shape[1])) - 0.5)  # cell 1 at lo
-    gap = ~occupied & np.all(facets[:, :2] @ centres + facets[:, 2:] <= 0, axis=0)
+    gap = ~occupied
+    gap[gap] = np.all(inside[0] @ centres[:, gap] + inside[1] <= 0, axis=0)
     if not gap.any():
         return False
-    dq = normal @ search + offset
-    off = np.abs(dq) > CROSS_MARGIN * np.asarray(tolerance)
-    off[joint] = False
-    behind = off & (np.sign(dq) != np.sign(side))
-    crossed = np.zeros_like(gap)
-    crossed[_landing(search, dq, side, behind, viewpoint, basis, lo, cell, shape)] = True
-    if np.count_nonzero(crossed & gap) >= CROSS_CELLS:
-        return True
-    hidden = np.zeros_like(gap)  # where the rays to points before the plane would have met it
-    hidden[_landing(search, dq, side, off & ~behind, viewpoint, basis, lo, cell, shape)] = True
-    hidden = binary_dilation(hidden.reshape(shape), full).reshape(-1)
+    # the plane is there where rays to points before it would have met it (hidden) or other points lie on it; both
+    # come as sparse as the sensor's rays (a lidar's rings), so each marks the cells next to it too
+    known = np.zeros_like(gap)
+    known[_cell_of(_meeting(search, dq, side, off & ~behind, viewpoint, basis), lo, cell, shape, keep=False)] = True
+    on = np.abs(dq) <= CROSS_MARGIN * np.asarray(tolerance)
+    on[joint] = False
+    known[_cell_of(basis @ search[:, on], lo, cell, shape, keep=False)] = True
+    known = binary_dilation(known.reshape(shape), full, iterations=EVIDENCE_REACH).reshape(-1)
     at = basis.T @ centres[:, gap] - (offset * normal)[:, None] - viewpoint[:, None]  # the gap's cells, from the sensor
     elevation = np.arctan2(at[2], np.hypot(at[0], at[1]))
     unseen = (elevation < view[0]) | (elevation > view[1])
-    return np.count_nonzero(hidden[gap] | unseen) < EXPLAINED * np.count_nonzero(gap)
+    return np.count_nonzero(known[gap] | unseen) < EXPLAINED * np.count_nonzero(gap)
 
 
-def _landing(search: np.ndarray, dq: np.ndarray, side: float, rows: np.ndarray, viewpoint: np.ndarray,
-             basis: np.ndarray, lo: np.ndarray, cell: float, shape: np.ndarray) -> np.ndarray:
-    """Flat cells where the rays from ``viewpoint`` through the points ``rows`` (bool (m,)) meet the plane (signed
-    distances ``dq`` (m,) of the points, ``side`` of the sensor), inside the grid."""
+def _meeting(search: np.ndarray, dq: np.ndarray, side: float, rows: np.ndarray, viewpoint: np.ndarray,
+             basis: np.ndarray, most: int | None = None) -> np.ndarray:
+    """In-plane points (2, r) where the rays from ``viewpoint`` through the points ``rows`` (bool (m,)) meet the
+    plane (signed distances ``dq`` (m,) of the points, ``side`` of the sensor; in-plane axes ``basis`` (2, 3)); of
+    every so many-th of them when more than ``most``."""
     rows = np.flatnonzero(rows)
-    if not len(rows):
-        return rows
+    if most is not None:
+        rows = rows[::max(1, len(rows) // most)]
     s = side / (side - dq[rows])  # the meeting point's share of the way from the sensor to the point
-    meet = basis @ (viewpoint[:, None] + s * (search[:, rows] - viewpoint[:, None]))
-    inside = np.all((meet >= lo[:, None]) & (meet <= (lo + cell * (shape - 2))[:, None]), axis=0)
-    return _cell_of(meet[:, inside], lo, cell, shape)
+    return basis @ (viewpoint[:, None] + s * (search[:, rows] - viewpoint[:, None]))
 
 
 def _grid(extent: np.ndarray, cell: float) -> np.ndarray:
@@ -192,9 +207,11 @@ def _grid(extent: np.ndarray, cell: float) -> np.ndarray:
     return np.floor(extent / cell).astype(np.int64) + 3
 
 
-def _cell_of(uv: np.ndarray, lo: np.ndarray, cell: float, shape: np.ndarray) -> np.ndarray:
-    """Flat cell index (n,) of in-plane points ``uv`` (2, n) on a grid of ``shape`` cells of side ``cell`` from
-    one cell before ``lo``."""
+def _cell_of(uv: np.ndarray, lo: np.ndarray, cell: float, shape: np.ndarray, keep: bool = True) -> np.ndarray:
+    """Flat cell index of in-plane points ``uv`` (2, n) on a grid of ``shape`` cells of side ``cell`` from one cell
+    before ``lo``: (n,), those outside on its border cells; without ``keep``, only of the points inside."""
     ij = np.floor((uv - lo[:, None]) / cell).astype(np.int64) + 1
+    if not keep:
+        ij = ij[:, np.all((ij >= 0) & (ij < shape[:, None]), axis=0)]
     ij = np.clip(ij, 0, shape[:, None] - 1)
     return ij[0] * shape[1] + ij[1]
