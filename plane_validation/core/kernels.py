@@ -28,7 +28,7 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
            'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'grid_best_region', 'grid_refit_region', 'plane_samples', 'sorted_order', 'order_statistics',
-           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'warm',
+           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes', 'warm',
            'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -2951,6 +2951,39 @@ def read_rows(words: np.ndarray, columns: np.ndarray, view: np.ndarray, within: 
     return points, finite, valid[:m], infinite, marked
 
 
+# --- voxel nodes ---
+
+
+@numba.njit(**_JIT)
+def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
+                origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray) -> np.ndarray:
+    """(q,) for each of ``queries`` (q, 3) meters the hashed point of :func:`voxel_grid` (``points`` (m, 3): those
+    points voxel by voxel, in its ``order``) nearest to it among those in its own voxel (equal distances: the first
+    in ``order``), as an index into the points as hashed; -1 where its voxel holds none (or it lies outside the
+    grid). One pass: no neighbouring voxel is looked at."""
+    nq = queries.shape[0]
+    out = np.full(nq, -1, np.int64)
+    total = dims[0] * dims[1] * dims[2]
+    dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * points.shape[0])
+    for q in range(nq):
+        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+        fx, fy, fz = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
+        if not (0.0 <= fx < dims[0] and 0.0 <= fy < dims[1] and 0.0 <= fz < dims[2]):
+            continue
+        v = _voxel(cell_keys, table, int(fx) + dims[0] * (int(fy) + dims[1] * int(fz)), dense)
+        if v < 0:
+            continue
+        b, bj = np.inf, -1
+        for j in range(starts[v], starts[v + 1]):
+            ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+            e = ex * ex + ey * ey + ez * ez
+            if e < b:
+                b, bj = e, j
+        if bj >= 0:
+            out[q] = order[bj]
+    return out
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -3092,6 +3125,11 @@ def _warm_judge() -> None:
     order_statistics(np.zeros(4), 0, 1, 2, 3)
 
 
+def _warm_voxel_nodes() -> None:
+    pts, dims = np.zeros((4, 3)), np.ones(3, np.int64)
+    voxel_nodes(pts, *voxel_grid(pts, np.zeros(3), 1.0, dims), np.zeros(3), 1.0, dims, pts)
+
+
 def _warm_detect() -> None:
     pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
     labels = np.array([0, -1, 0, 1], np.int32)
@@ -3107,7 +3145,7 @@ def _warm_detect() -> None:
 #: the rest in parallel end together.
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_best_region, _warm_indices, _warm_planes,
-               _warm_judge, _warm_detect)
+               _warm_judge, _warm_detect, _warm_voxel_nodes)
 
 
 def _compiles() -> int:
@@ -3166,4 +3204,4 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
             fit_mask, fit_regions, grid_best_region, grid_refit_region, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
-            read_rows)
+            read_rows, voxel_nodes)

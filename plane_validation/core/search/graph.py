@@ -29,7 +29,8 @@ class SearchGraph:
     unorganized cloud, also an image too thin for a grid: :func:`grid_step`);
     center: (3,) meters subtracted before the search; neighbours: their graph; nearest: when the
     search is a sample of an unorganized cloud, for each valid row (ascending) the position in
-    search_idx of the searched point nearest to it (the point then takes that one's region). It
+    search_idx of its node: the searched point nearest to it within its voxel of the sample's voxel hash, or the
+    nearest one where that voxel holds none (the point then takes that one's region). It
     depends only on the cloud, ``shape``, ``ransac_points`` and ``grid_points``, not on the tolerance: a sweep builds
     it once (:func:`search_graph`) and passes it to every :func:`detect_planes` call on that cloud.
     viewpoint: (3,) meters, the sensor it was built for.
@@ -116,12 +117,19 @@ def build_search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, in
 
 
 def _nearest_searched(searched: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, VoxelIndex | None]:
-    """(n,) the position among ``searched`` (m, 3) of the nearest to each of ``points`` (n, 3), through voxels; and
-    the voxel index of ``searched`` (None for far-out coordinates: then by a kd-tree)."""
+    """(n,) the node of each of ``points`` (n, 3) among ``searched`` (m, 3) (its position there): the searched point
+    nearest to it in its own voxel of a voxel hash of ``searched`` (:func:`.kernels.voxel_nodes`, one pass), or where
+    that voxel holds none, the nearest searched point; and that voxel index (None for far-out coordinates: then the
+    nearest by a kd-tree)."""
     index = voxel_index(searched, span=points)
     if index is None:
         return _nearest_searched_tree(searched, points), None
-    return index.query(points, 1)[1][:, 0], index
+    node = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims,
+                               kernels.c_array(points, np.float64))
+    alone = np.flatnonzero(node < 0)
+    if len(alone):
+        node[alone] = index.query(points[alone], 1)[1][:, 0]
+    return node, index
 
 
 def _nearest_searched_tree(searched: np.ndarray, points: np.ndarray) -> np.ndarray:
