@@ -1,5 +1,5 @@
-"""Each point's search node from its voxel (core/kernels.py, the voxel nodes block) against a plain-numpy
-reference, on random inputs."""
+"""Each point's search node from its voxel (core/kernels.py, the voxel nodes block) against plain-numpy references,
+on random inputs, and the region each point then takes against its nearest searched point's."""
 from __future__ import annotations
 
 import numpy as np
@@ -27,64 +27,121 @@ def _cloud(rng: np.random.Generator) -> np.ndarray:
     return pts * rng.uniform(0.01, 100)
 
 
-def _voxel_nodes_numpy(index, queries: np.ndarray) -> np.ndarray:
-    """:func:`.kernels.voxel_nodes` by brute force: each query's voxel from the same arithmetic as the hash, the
-    nearest hashed point with that voxel (equal distances: the first in the hash's order), -1 where none."""
-    def keys(p):
-        f = (p - index.origin) / index.cell
-        inside = ((f >= 0) & (f < index.dims)).all(axis=1)
-        c = np.where(inside[:, None], f, 0).astype(np.int64)
-        return np.where(inside, c[:, 0] + index.dims[0] * (c[:, 1] + index.dims[1] * c[:, 2]), -1)
-    own = keys(index.ordered)  # the hashed points, voxel by voxel
+def _queries(rng: np.random.Generator, pts: np.ndarray, others: bool) -> np.ndarray:
+    """The points themselves, or others across their span (some in empty voxels)."""
+    if not others:
+        return pts
+    return pts[rng.integers(0, len(pts), int(rng.integers(1, 300)))] + rng.normal(scale=0.05, size=(1, 3)) * \
+        np.ptp(pts, axis=0).max(initial=1.0)
+
+
+def _voxels(index, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Voxel coordinates (q, 3) of points ``p`` by the hash's arithmetic, and their keys (-1 outside the grid)."""
+    f = (p - index.origin) / index.cell
+    inside = ((f >= 0) & (f < index.dims)).all(axis=1)
+    c = np.where(inside[:, None], f, 0).astype(np.int64)
+    return c, np.where(inside, c[:, 0] + index.dims[0] * (c[:, 1] + index.dims[1] * c[:, 2]), -1)
+
+
+def _voxel_nodes_numpy(index, queries: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`.kernels.voxel_nodes` by brute force: the nearest hashed point with the query's voxel (equal
+    distances: the first in the hash's order), that voxel's number, and whether the node is nearer than one voxel
+    plus the query's gap to its nearest face."""
+    own = _voxels(index, index.ordered)[1]  # the hashed points, voxel by voxel
+    cells, keys = _voxels(index, queries)
     e = index.ordered[None, :, :] - queries[:, None, :]
     d2 = e[..., 0] * e[..., 0] + e[..., 1] * e[..., 1] + e[..., 2] * e[..., 2]
-    d2 = np.where(own[None, :] == keys(queries)[:, None], d2, np.inf)
+    d2 = np.where(own[None, :] == keys[:, None], d2, np.inf)
     first = np.argmin(d2, axis=1)  # the first of equal minima: the first in the hash's order
-    return np.where(np.isfinite(d2[np.arange(len(queries)), first]), index.grid[0][first], -1)
+    best = d2[np.arange(len(queries)), first]
+    found = np.isfinite(best)
+    node = np.where(found, index.grid[0][first], -1)
+    voxel = np.where(found, np.searchsorted(index.grid[1], keys), -1)
+    f = (queries - index.origin) / index.cell
+    gap = np.minimum(f - cells, cells + 1 - f).min(axis=1) * index.cell
+    return node, voxel, found & (best < (index.cell + gap) ** 2)
 
 
 @SETTINGS
 @given(st.integers(0, 2**32 - 1), st.booleans())
 def test_voxel_nodes_match_numpy(seed, others):
-    """The nearest hashed point within each query's own voxel, exactly as brute force finds it; -1 in an empty
-    voxel."""
+    """The nearest hashed point within each query's own voxel, its voxel and the nearness flag, exactly as brute force
+    finds them; -1 in an empty voxel."""
     rng = np.random.default_rng(seed)
     pts = _cloud(rng)
-    queries = pts
-    if others:  # queries other than the points, across the cloud's span (some in empty voxels)
-        queries = pts[rng.integers(0, len(pts), int(rng.integers(1, 300)))] + rng.normal(scale=0.05, size=(1, 3)) * \
-            np.ptp(pts, axis=0).max(initial=1.0)
+    queries = np.ascontiguousarray(_queries(rng, pts, others))
     index = voxel_index(pts, span=queries)
     if index is None:
         return
-    queries = np.ascontiguousarray(queries)
-    node = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims, queries)
-    np.testing.assert_array_equal(node, _voxel_nodes_numpy(index, queries))
-    assert node.dtype == np.int64
-    assert (node >= 0).any() or others
+    got = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims, queries)
+    for a, b in zip(got, _voxel_nodes_numpy(index, queries)):
+        np.testing.assert_array_equal(a, b)
+    assert got[0].dtype == got[1].dtype == np.int64
+    assert (got[0] >= 0).any() or others
+
+
+def _uncertain_numpy(index, region: np.ndarray, voxel: np.ndarray, near: np.ndarray, exact: np.ndarray) -> np.ndarray:
+    """:func:`.kernels.uncertain_nodes` by brute force: a query is certain when exact, or near with the hashed points
+    in the 27 voxels around its own all of one region."""
+    order, keys, starts, _ = index.grid
+    dims = index.dims
+    own = _voxels(index, index.ordered)[1]
+    coords = np.stack([own % dims[0], own // dims[0] % dims[1], own // (dims[0] * dims[1])], axis=1)
+    labels = region[order]
+    out = np.zeros(len(voxel), bool)
+    for q in np.flatnonzero(~exact):
+        if voxel[q] < 0 or not near[q]:
+            out[q] = True
+            continue
+        key = keys[voxel[q]]
+        c = np.array([key % dims[0], key // dims[0] % dims[1], key // (dims[0] * dims[1])])
+        around = (np.abs(coords - c) <= 1).all(axis=1)
+        out[q] = len(np.unique(labels[around])) > 1
+    return out
 
 
 @SETTINGS
-@given(st.integers(0, 2**32 - 1))
-def test_each_point_takes_the_nearest_searched_point_of_its_voxel_or_the_nearest_overall(seed):
-    """A point's node is the nearest searched point in its voxel; where its voxel holds none (or the coordinates are
-    too far out for voxels), the nearest searched point, as the kd-tree finds it."""
+@given(st.integers(0, 2**32 - 1), st.booleans(), st.integers(1, 4))
+def test_uncertain_nodes_match_numpy(seed, others, regions):
+    rng = np.random.default_rng(seed)
+    pts = _cloud(rng)
+    queries = np.ascontiguousarray(_queries(rng, pts, others))
+    index = voxel_index(pts, span=queries)
+    if index is None:
+        return
+    _, voxel, near = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims, queries)
+    region = rng.integers(-1, regions, len(pts))
+    if rng.random() < 0.5:  # regions in slabs, as planes have them: most voxels of one region
+        region = np.minimum((pts[:, 0] > np.median(pts[:, 0])).astype(np.int64), regions - 1)
+    exact = rng.random(len(queries)) < 0.2
+    got = kernels.uncertain_nodes(region, *index.grid, index.dims, voxel, near, exact)
+    np.testing.assert_array_equal(got, _uncertain_numpy(index, region, voxel, near, exact))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(1, 4))
+def test_each_point_takes_the_region_of_its_nearest_searched_point(seed, regions):
+    """Whatever node a point keeps, its region is that of the searched point nearest to it (the voxel hash's exact
+    answer, ties by its order), for any regions, again after other regions (a tolerance sweep reusing the graph);
+    where the coordinates are too far out for voxels every node is the kd-tree's nearest."""
     from plane_validation.core.search.graph import _nearest_searched, _nearest_searched_tree
     rng = np.random.default_rng(seed)
     pts = _cloud(rng)
     if rng.random() < 0.1:
         pts[0] = 3e38  # a driver's FLT_MAX row: no voxel hash
-    searched = pts[rng.random(len(pts)) < 0.3]
-    if len(searched) == 0:
-        searched = pts[:1]
-    node, index = _nearest_searched(searched, pts)
-    ref = _nearest_searched_tree(searched, pts)
-    nearest = np.linalg.norm(searched[ref] - pts, axis=1)
+    pick = rng.random(len(pts)) < 0.3
+    searched = pts[pick] if pick.any() else pts[:1]
+    nodes, index = _nearest_searched(searched, pts)
+    rows = np.arange(len(pts))
     if index is None:
-        np.testing.assert_allclose(np.linalg.norm(searched[node] - pts, axis=1), nearest, rtol=1e-12, atol=0)
+        ref = _nearest_searched_tree(searched, pts)
+        np.testing.assert_allclose(np.linalg.norm(searched[nodes.node] - pts, axis=1),
+                                   np.linalg.norm(searched[ref] - pts, axis=1), rtol=1e-12, atol=0)
         return
-    own = _voxel_nodes_numpy(index, np.ascontiguousarray(pts))
-    np.testing.assert_array_equal(node[own >= 0], own[own >= 0])
-    alone = own < 0
-    np.testing.assert_allclose(np.linalg.norm(searched[node[alone]] - pts[alone], axis=1), nearest[alone],
-                               rtol=1e-12, atol=0)
+    nearest = index.query(pts, 1)[1][:, 0]
+    for _ in range(2):
+        region = rng.integers(-1, regions, len(searched))
+        if rng.random() < 0.5:
+            region = np.minimum((searched[:, 0] > np.median(searched[:, 0])).astype(np.int64), regions - 1)
+        node = nodes.for_regions(region, pts, rows, np.zeros(3))
+        np.testing.assert_array_equal(region[node], region[nearest])

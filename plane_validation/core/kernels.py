@@ -28,7 +28,8 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
            'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'grid_best_region', 'grid_refit_region', 'plane_samples', 'sorted_order', 'order_statistics',
-           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes', 'warm',
+           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
+           'uncertain_nodes', 'warm',
            'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -2953,16 +2954,23 @@ def read_rows(words: np.ndarray, columns: np.ndarray, view: np.ndarray, within: 
 
 # --- voxel nodes ---
 
+#: :func:`uncertain_nodes`' mark of a voxel whose hashed points lie in more than one region (regions are >= -1).
+_MIXED = -2
+
 
 @numba.njit(**_JIT)
 def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
-                origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray) -> np.ndarray:
-    """(q,) for each of ``queries`` (q, 3) meters the hashed point of :func:`voxel_grid` (``points`` (m, 3): those
-    points voxel by voxel, in its ``order``) nearest to it among those in its own voxel (equal distances: the first
-    in ``order``), as an index into the points as hashed; -1 where its voxel holds none (or it lies outside the
-    grid). One pass: no neighbouring voxel is looked at."""
+                origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each of ``queries`` (q, 3) meters, in one pass: (node (q,): the hashed point of :func:`voxel_grid`
+    (``points`` (m, 3): those points voxel by voxel, in its ``order``) nearest to it among those in its own voxel
+    (equal distances: the first in ``order``), as an index into the points as hashed, -1 where its voxel holds none
+    or it lies outside the grid; voxel (q,): that occupied voxel, -1 where none; near (q,) bool: every hashed point
+    at least as near as the node lies in the 27 voxels around the query's own, so that its nearest does too)."""
     nq = queries.shape[0]
-    out = np.full(nq, -1, np.int64)
+    node = np.full(nq, -1, np.int64)
+    voxel = np.full(nq, -1, np.int64)
+    near = np.zeros(nq, np.bool_)
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * points.shape[0])
     for q in range(nq):
@@ -2970,7 +2978,8 @@ def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, st
         fx, fy, fz = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
         if not (0.0 <= fx < dims[0] and 0.0 <= fy < dims[1] and 0.0 <= fz < dims[2]):
             continue
-        v = _voxel(cell_keys, table, int(fx) + dims[0] * (int(fy) + dims[1] * int(fz)), dense)
+        cx, cy, cz = int(fx), int(fy), int(fz)
+        v = _voxel(cell_keys, table, cx + dims[0] * (cy + dims[1] * cz), dense)
         if v < 0:
             continue
         b, bj = np.inf, -1
@@ -2979,8 +2988,50 @@ def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, st
             e = ex * ex + ey * ey + ez * ez
             if e < b:
                 b, bj = e, j
-        if bj >= 0:
-            out[q] = order[bj]
+        node[q], voxel[q] = order[bj], v
+        # a point outside those voxels lies farther than one voxel plus the gap to the nearest face
+        reach = cell + min(fx - cx, cx + 1 - fx, fy - cy, cy + 1 - fy, fz - cz, cz + 1 - fz) * cell
+        near[q] = b < reach * reach
+    return node, voxel, near
+
+
+@numba.njit(**_JIT)
+def uncertain_nodes(region: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray,
+                    table: np.ndarray, dims: np.ndarray, voxel: np.ndarray, near: np.ndarray, exact: np.ndarray
+                    ) -> np.ndarray:
+    """(q,) bool: the queries of :func:`voxel_nodes` (its ``voxel``, ``near``) whose nearest hashed point may lie in
+    another region than their node: not ``exact`` (the node known to be the nearest) and not ``near``, or with
+    hashed points of more than one region (``region`` (m,), by the points' rows before hashing) in the 27 voxels
+    around their own."""
+    nv = cell_keys.shape[0]
+    total = dims[0] * dims[1] * dims[2]
+    dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * order.shape[0])
+    label = np.empty(nv, np.int64)  # the region of a voxel's points, _MIXED where they differ
+    for v in range(nv):
+        first = region[order[starts[v]]]
+        for j in range(starts[v] + 1, starts[v + 1]):
+            if region[order[j]] != first:
+                first = _MIXED
+                break
+        label[v] = first
+    uniform = np.empty(nv, np.bool_)
+    for v in range(nv):
+        same = label[v] != _MIXED
+        key = cell_keys[v]
+        vx, vy, vz = key % dims[0], (key // dims[0]) % dims[1], key // (dims[0] * dims[1])
+        for dz in range(-1, 2):
+            for dy in range(-1, 2):
+                for dx in range(-1, 2):
+                    ix, iy, iz = vx + dx, vy + dy, vz + dz
+                    if same and 0 <= ix < dims[0] and 0 <= iy < dims[1] and 0 <= iz < dims[2]:
+                        u = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
+                        if u >= 0 and label[u] != label[v]:
+                            same = False
+        uniform[v] = same
+    out = np.zeros(voxel.shape[0], np.bool_)
+    for q in range(voxel.shape[0]):
+        if not exact[q]:
+            out[q] = voxel[q] < 0 or not near[q] or not uniform[voxel[q]]
     return out
 
 
@@ -3127,7 +3178,9 @@ def _warm_judge() -> None:
 
 def _warm_voxel_nodes() -> None:
     pts, dims = np.zeros((4, 3)), np.ones(3, np.int64)
-    voxel_nodes(pts, *voxel_grid(pts, np.zeros(3), 1.0, dims), np.zeros(3), 1.0, dims, pts)
+    order, cell_keys, starts, table = voxel_grid(pts, np.zeros(3), 1.0, dims)
+    _, voxel, near = voxel_nodes(pts, order, cell_keys, starts, table, np.zeros(3), 1.0, dims, pts)
+    uncertain_nodes(np.zeros(4, np.int64), order, cell_keys, starts, table, dims, voxel, near, near)
 
 
 def _warm_detect() -> None:
@@ -3204,4 +3257,4 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
             fit_mask, fit_regions, grid_best_region, grid_refit_region, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
-            read_rows, voxel_nodes)
+            read_rows, voxel_nodes, uncertain_nodes)

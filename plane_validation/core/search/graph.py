@@ -17,7 +17,7 @@ from .neighbours import Neighbours
 from .neighbours_grid import grid_neighbours
 from .types import Tolerance, Viewpoint
 
-__all__ = ['SearchGraph', 'search_graph', 'build_search_graph', 'checked_search_graph', 'spread_nearest',
+__all__ = ['SearchGraph', 'VoxelNodes', 'search_graph', 'build_search_graph', 'checked_search_graph', 'spread_nearest',
            'spread_nearest_numpy']
 
 
@@ -28,9 +28,8 @@ class SearchGraph:
     search_idx: (m,) rows of the cloud searched; step: the image sub-grid step (0: searched as an
     unorganized cloud, also an image too thin for a grid: :func:`grid_step`);
     center: (3,) meters subtracted before the search; neighbours: their graph; nearest: when the
-    search is a sample of an unorganized cloud, for each valid row (ascending) the position in
-    search_idx of its node: the searched point nearest to it within its voxel of the sample's voxel hash, or the
-    nearest one where that voxel holds none (the point then takes that one's region). It
+    search is a sample of an unorganized cloud, which searched point each valid row (ascending) takes its region
+    from, the nearest (:class:`VoxelNodes`). It
     depends only on the cloud, ``shape``, ``ransac_points`` and ``grid_points``, not on the tolerance: a sweep builds
     it once (:func:`search_graph`) and passes it to every :func:`detect_planes` call on that cloud.
     viewpoint: (3,) meters, the sensor it was built for.
@@ -44,9 +43,41 @@ class SearchGraph:
     shape: tuple[int, int] | None
     ransac_points: int | None
     n_valid: int
-    nearest: np.ndarray | None = None
+    nearest: VoxelNodes | None = None
     viewpoint: tuple[float, float, float] = (0.0, 0.0, 0.0)
     grid_points: int | None = GRID_POINTS
+
+
+@dataclass(frozen=True, eq=False)
+class VoxelNodes:
+    """Which searched point each valid point of an unorganized cloud takes its region from: the nearest one. Found
+    through ``index``, a voxel hash of the searched points, in one pass (:func:`.kernels.voxel_nodes`): ``node``
+    (n,) the searched point (its position in search_idx) nearest to each point within its own voxel, or the nearest
+    of all where ``exact`` (n,) bool; ``voxel`` (n,) that voxel (-1: none, ``exact``), ``near`` (n,) bool: its
+    nearest lies in the voxels around it. Where those voxels hold one region the node's region is the nearest's,
+    so only the others need a nearest-point query (:meth:`for_regions`); ``node`` and ``exact`` cache those
+    answers across the calls of a tolerance sweep. ``index`` None: every node is the nearest (far-out
+    coordinates)."""
+
+    index: VoxelIndex | None
+    node: np.ndarray
+    voxel: np.ndarray
+    near: np.ndarray
+    exact: np.ndarray
+
+    def for_regions(self, region: np.ndarray, pts: np.ndarray, rows: np.ndarray, center: np.ndarray) -> np.ndarray:
+        """(n,) for each of the valid rows ``rows`` of ``pts`` (N, 3) meters a searched point in the region
+        (``region`` (m,) of the searched points, -1: none) of the searched point nearest to it (less ``center``
+        (3,))."""
+        if self.index is None:
+            return self.node
+        order, cell_keys, starts, table = self.index.grid
+        doubt = np.flatnonzero(kernels.uncertain_nodes(kernels.c_array(region, np.int64), order, cell_keys, starts,
+                                                       table, self.index.dims, self.voxel, self.near, self.exact))
+        if len(doubt):  # the same answers whichever call fills them in first: a cache shared by a sweep's threads
+            self.node[doubt] = self.index.query(pts[rows[doubt]] - center, 1)[1][:, 0]
+            self.exact[doubt] = True
+        return self.node
 
 
 def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
@@ -116,20 +147,20 @@ def build_search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, in
                        viewpoint=tuple(viewpoint.tolist()), grid_points=grid_points)
 
 
-def _nearest_searched(searched: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, VoxelIndex | None]:
-    """(n,) the node of each of ``points`` (n, 3) among ``searched`` (m, 3) (its position there): the searched point
-    nearest to it in its own voxel of a voxel hash of ``searched`` (:func:`.kernels.voxel_nodes`, one pass), or where
-    that voxel holds none, the nearest searched point; and that voxel index (None for far-out coordinates: then the
-    nearest by a kd-tree)."""
+def _nearest_searched(searched: np.ndarray, points: np.ndarray) -> tuple[VoxelNodes, VoxelIndex | None]:
+    """The :class:`VoxelNodes` of ``points`` (n, 3) among ``searched`` (m, 3) and the voxel index of ``searched``
+    they use (None for far-out coordinates: then every node is the nearest, by a kd-tree)."""
     index = voxel_index(searched, span=points)
     if index is None:
-        return _nearest_searched_tree(searched, points), None
-    node = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims,
-                               kernels.c_array(points, np.float64))
-    alone = np.flatnonzero(node < 0)
+        node = _nearest_searched_tree(searched, points)
+        return VoxelNodes(None, node, np.full(len(node), -1), np.zeros(len(node), bool), np.ones(len(node), bool)), None
+    node, voxel, near = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims,
+                                            kernels.c_array(points, np.float64))
+    exact = voxel < 0  # no searched point in its voxel: the nearest, now
+    alone = np.flatnonzero(exact)
     if len(alone):
         node[alone] = index.query(points[alone], 1)[1][:, 0]
-    return node, index
+    return VoxelNodes(index, node, voxel, near, exact), index
 
 
 def _nearest_searched_tree(searched: np.ndarray, points: np.ndarray) -> np.ndarray:
