@@ -29,7 +29,7 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'grid_best_region', 'grid_refit_region', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
-           'uncertain_nodes', 'warm',
+           'uncertain_nodes', 'first_across', 'warm',
            'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -2952,7 +2952,7 @@ def read_rows(words: np.ndarray, columns: np.ndarray, view: np.ndarray, within: 
     return points, finite, valid[:m], infinite, marked
 
 
-# --- voxel nodes ---
+# --- unorganized clouds ---
 
 #: :func:`uncertain_nodes`' mark of a voxel whose hashed points lie in more than one region (regions are >= -1).
 _MIXED = -2
@@ -3033,6 +3033,40 @@ def uncertain_nodes(region: np.ndarray, order: np.ndarray, cell_keys: np.ndarray
         if not exact[q]:
             out[q] = voxel[q] < 0 or not near[q] or not uniform[voxel[q]]
     return out
+
+
+@numba.njit(**_JIT)
+def first_across(rows: np.ndarray, near: np.ndarray, points: np.ndarray, direction: np.ndarray,
+                 elevation: np.ndarray, one_ring: np.ndarray, kind: int, off_cos: float, another_ring: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """For each of the points ``rows`` (m,) the first of its candidates ``near`` (m, c) (nearest first) across from
+    it: (found (m,) bool, that candidate (m,); the first one where none is). Across: ``kind`` 0, on another lidar ring
+    (``elevation`` (n,) radians differs by more than ``another_ring``); 1, off the line along ``direction`` (n, 3)
+    (the offset between the ``points`` (n, 3) makes a cosine below ``off_cos`` with it), 2, off the plane of that
+    normal (cosine with it above ``off_cos``), and for a point of ``one_ring`` (n,) also on another ring. An offset
+    of zero, or an unknown (NaN) direction, is never across."""
+    m, c = near.shape
+    found = np.zeros(m, np.bool_)
+    target = np.empty(m, np.int64)
+    for i in range(m):
+        r = rows[i]
+        target[i] = near[i, 0] if c else r
+        for j in range(c):
+            p = near[i, j]
+            another = abs(elevation[p] - elevation[r]) > another_ring
+            if kind == 0:
+                across = another
+            else:
+                ox, oy, oz = points[p, 0] - points[r, 0], points[p, 1] - points[r, 1], points[p, 2] - points[r, 2]
+                length = np.sqrt(ox * ox + oy * oy + oz * oz)
+                if not length > 0.0:
+                    continue
+                cos = abs(ox * direction[r, 0] + oy * direction[r, 1] + oz * direction[r, 2]) / length
+                across = (cos > off_cos if kind == 2 else cos < off_cos) and (not one_ring[r] or another)
+            if across:
+                found[i], target[i] = True, p
+                break
+    return found, target
 
 
 @dataclass(frozen=True)
@@ -3176,11 +3210,13 @@ def _warm_judge() -> None:
     order_statistics(np.zeros(4), 0, 1, 2, 3)
 
 
-def _warm_voxel_nodes() -> None:
+def _warm_unorganized() -> None:
     pts, dims = np.zeros((4, 3)), np.ones(3, np.int64)
     order, cell_keys, starts, table = voxel_grid(pts, np.zeros(3), 1.0, dims)
     _, voxel, near = voxel_nodes(pts, order, cell_keys, starts, table, np.zeros(3), 1.0, dims, pts)
     uncertain_nodes(np.zeros(4, np.int64), order, cell_keys, starts, table, dims, voxel, near, near)
+    index = np.arange(4, dtype=np.int64)
+    first_across(index, index.reshape(2, 2), pts, pts, np.zeros(4), near, 1, 0.5, 0.01)
 
 
 def _warm_detect() -> None:
@@ -3198,7 +3234,7 @@ def _warm_detect() -> None:
 #: the rest in parallel end together.
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_best_region, _warm_indices, _warm_planes,
-               _warm_judge, _warm_detect, _warm_voxel_nodes)
+               _warm_judge, _warm_detect, _warm_unorganized)
 
 
 def _compiles() -> int:
@@ -3257,4 +3293,4 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
             fit_mask, fit_regions, grid_best_region, grid_refit_region, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
-            read_rows, voxel_nodes, uncertain_nodes)
+            read_rows, voxel_nodes, uncertain_nodes, first_across)

@@ -1,5 +1,5 @@
-"""Each point's search node from its voxel (core/kernels.py, the voxel nodes block) against plain-numpy references,
-on random inputs, and the region each point then takes against its nearest searched point's."""
+"""The unorganized clouds' compiled kernels (core/kernels.py, the unorganized clouds block) against plain-numpy
+references, on random inputs: each point's search node from its voxel, and the lidar joins across rings."""
 from __future__ import annotations
 
 import numpy as np
@@ -145,3 +145,30 @@ def test_each_point_takes_the_region_of_its_nearest_searched_point(seed, regions
             region = np.minimum((searched[:, 0] > np.median(searched[:, 0])).astype(np.int64), regions - 1)
         node = nodes.for_regions(region, pts, rows, np.zeros(3))
         np.testing.assert_array_equal(region[node], region[nearest])
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.sampled_from([None, False, True]))
+def test_first_across_matches_numpy(seed, off_plane):
+    """The first candidate across (on another ring; or off a line or plane, and for a point of one ring on another
+    ring too), as the numpy test and argmax give it; none across: the first candidate."""
+    from plane_validation.core.regions import _Across
+    rng = np.random.default_rng(seed)
+    n, m, c = int(rng.integers(1, 200)), int(rng.integers(0, 60)), int(rng.integers(1, 20))
+    points = np.round(rng.normal(size=(n, 3)), int(rng.integers(0, 3)))  # rounded: zero offsets, copies
+    direction = rng.normal(size=(n, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    direction[rng.random(n) < 0.1] = np.nan  # unknown normals
+    elevation = np.round(rng.normal(scale=0.01, size=n), 3)
+    rows = rng.integers(0, n, m)
+    near = rng.integers(0, n, (m, c))
+    itself = rng.random((m, c)) < 0.1  # no neighbour found: the point itself
+    near[itself] = np.broadcast_to(rows[:, None], (m, c))[itself]
+    test = _Across(elevation) if off_plane is None else \
+        _Across(elevation, points, direction, off_plane, rng.random(n) < 0.5)
+    found, target = test.first(rows, near)
+    across = test.numpy(rows, near)
+    first = np.argmax(across, axis=1) if m else np.zeros(0, np.int64)
+    np.testing.assert_array_equal(found, across[np.arange(m), first])
+    np.testing.assert_array_equal(target, near[np.arange(m), first])
+    assert found.dtype == bool and target.dtype == np.int64
