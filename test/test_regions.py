@@ -593,8 +593,8 @@ def test_grid_normals_of_a_lidar_image_look_one_ring_away():
 
 def test_noisy_normals_of_a_lidar_image_are_unknown_not_wrong(monkeypatch):
     # 3 cm range noise in a 2.4 m corridor: a normal over one ring is noise, and such normals cut the floor
-    # and walls apart (0/8 correct, F1 0.41, where only the inliers connect a region); unknown, they let
-    # any plane keep the point
+    # and walls apart (0/8 correct, F1 0.79, where only the inliers connect a region: pieces joined only where
+    # nothing is seen between them); unknown, they let any plane keep the point
     from plane_validation.core.search import hypotheses, neighbours_grid
     scan = scenes.lidar(**{**scenes.VLP16_CORRIDOR, 'sigma': 0.03}, seed=1, organized=True)
     seg = pv.detect_planes(scan.points, 0.05, seed=0, shape=scan.shape)
@@ -602,7 +602,8 @@ def test_noisy_normals_of_a_lidar_image_are_unknown_not_wrong(monkeypatch):
     monkeypatch.setattr(neighbours_grid, 'LIDAR_BEND', np.inf)  # no normal unknown for noise
     monkeypatch.setattr(hypotheses, 'SUPPORT', 1.0)
     seg = pv.detect_planes(scan.points, 0.05, seed=0, shape=scan.shape)
-    assert segmentation_quality(seg.labels, scan.labels).f1 < 0.6
+    quality = segmentation_quality(seg.labels, scan.labels)
+    assert quality.correct <= 2 and quality.f1 < 0.85
 
 
 @pytest.mark.parametrize('n', [1, 40, 300, 70_000])
