@@ -45,8 +45,8 @@ def _voxels(index, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _voxel_nodes_numpy(index, queries: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`.kernels.voxel_nodes` by brute force: the nearest hashed point with the query's voxel (equal
-    distances: the first in the hash's order), that voxel's number, and whether the node is nearer than one voxel
-    plus the query's gap to its nearest face."""
+    distances: the first in the hash's order), that voxel's number, the squared distance and whether the node is
+    nearer than one voxel plus the query's gap to its nearest face."""
     own = _voxels(index, index.ordered)[1]  # the hashed points, voxel by voxel
     cells, keys = _voxels(index, queries)
     e = index.ordered[None, :, :] - queries[:, None, :]
@@ -55,18 +55,17 @@ def _voxel_nodes_numpy(index, queries: np.ndarray) -> tuple[np.ndarray, np.ndarr
     first = np.argmin(d2, axis=1)  # the first of equal minima: the first in the hash's order
     best = d2[np.arange(len(queries)), first]
     found = np.isfinite(best)
-    node = np.where(found, index.grid[0][first], -1)
-    voxel = np.where(found, np.searchsorted(index.grid[1], keys), -1)
     f = (queries - index.origin) / index.cell
     gap = np.minimum(f - cells, cells + 1 - f).min(axis=1) * index.cell
-    return node, voxel, found & (best < (index.cell + gap) ** 2)
+    return (np.where(found, index.grid[0][first], -1), np.where(found, np.searchsorted(index.grid[1], keys), -1),
+            best, found & (best < (index.cell + gap) ** 2))
 
 
 @SETTINGS
 @given(st.integers(0, 2**32 - 1), st.booleans())
 def test_voxel_nodes_match_numpy(seed, others):
-    """The nearest hashed point within each query's own voxel, its voxel and the nearness flag, exactly as brute force
-    finds them; -1 in an empty voxel."""
+    """The nearest hashed point within each query's own voxel, its voxel, its squared distance and the nearness flag,
+    exactly as brute force finds them; -1 (inf) in an empty voxel."""
     rng = np.random.default_rng(seed)
     pts = _cloud(rng)
     queries = np.ascontiguousarray(_queries(rng, pts, others))
@@ -80,23 +79,30 @@ def test_voxel_nodes_match_numpy(seed, others):
     assert (got[0] >= 0).any() or others
 
 
-def _uncertain_numpy(index, region: np.ndarray, voxel: np.ndarray, near: np.ndarray, exact: np.ndarray) -> np.ndarray:
-    """:func:`.kernels.uncertain_nodes` by brute force: a query is certain when exact, or near with the hashed points
-    in the 27 voxels around its own all of one region."""
-    order, keys, starts, _ = index.grid
-    dims = index.dims
+def _uncertain_numpy(index, region: np.ndarray, queries: np.ndarray, node: np.ndarray, d2: np.ndarray,
+                     voxel: np.ndarray, near: np.ndarray, exact: np.ndarray) -> np.ndarray:
+    """:func:`.kernels.uncertain_nodes` by brute force: a query not exact is uncertain when a point as near as its node
+    may lie beyond the 27 voxels around its own, or when one of the 26 voxels around, no farther than the node, holds a
+    hashed point of another region than the node's."""
+    order, keys, _, _ = index.grid
+    dims, cell = index.dims, index.cell
     own = _voxels(index, index.ordered)[1]
     coords = np.stack([own % dims[0], own // dims[0] % dims[1], own // (dims[0] * dims[1])], axis=1)
     labels = region[order]
     out = np.zeros(len(voxel), bool)
     for q in np.flatnonzero(~exact):
-        if voxel[q] < 0 or not near[q]:
-            out[q] = True
-            continue
         key = keys[voxel[q]]
         c = np.array([key % dims[0], key // dims[0] % dims[1], key // (dims[0] * dims[1])])
-        around = (np.abs(coords - c) <= 1).all(axis=1)
-        out[q] = len(np.unique(labels[around])) > 1
+        f = (queries[q] - index.origin) / cell
+        below, above = (f - c) * cell, (c + 1 - f) * cell
+        assert near[q] == (d2[q] < (cell + min(below.min(), above.min())) ** 2)
+        if not near[q]:
+            out[q] = True
+            continue
+        offset = coords - c  # of each hashed point's voxel
+        gap = np.where(offset < 0, below, np.where(offset > 0, above, 0.0))
+        within = (np.abs(offset) <= 1).all(axis=1) & (offset != 0).any(axis=1) & ((gap ** 2).sum(axis=1) <= d2[q])
+        out[q] = bool((labels[within] != region[node[q]]).any())
     return out
 
 
@@ -109,13 +115,17 @@ def test_uncertain_nodes_match_numpy(seed, others, regions):
     index = voxel_index(pts, span=queries)
     if index is None:
         return
-    _, voxel, near = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims, queries)
+    node, voxel, d2, near = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims,
+                                                queries)
     region = rng.integers(-1, regions, len(pts))
     if rng.random() < 0.5:  # regions in slabs, as planes have them: most voxels of one region
         region = np.minimum((pts[:, 0] > np.median(pts[:, 0])).astype(np.int64), regions - 1)
-    exact = rng.random(len(queries)) < 0.2
-    got = kernels.uncertain_nodes(region, *index.grid, index.dims, voxel, near, exact)
-    np.testing.assert_array_equal(got, _uncertain_numpy(index, region, voxel, near, exact))
+    exact = (rng.random(len(queries)) < 0.2) | (voxel < 0)  # a query in no voxel has its nearest already
+    rows = np.arange(len(queries))
+    got = kernels.uncertain_nodes(region, node, d2, voxel, near, exact, queries, rows, np.zeros(3), *index.grid,
+                                  index.origin, index.cell, index.dims)
+    np.testing.assert_array_equal(got, _uncertain_numpy(index, region, queries, node, d2, voxel, near, exact))
+    assert not got[exact].any()
 
 
 @SETTINGS

@@ -2961,15 +2961,17 @@ _MIXED = -2
 @numba.njit(**_JIT)
 def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
                 origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """For each of ``queries`` (q, 3) meters, in one pass: (node (q,): the hashed point of :func:`voxel_grid`
     (``points`` (m, 3): those points voxel by voxel, in its ``order``) nearest to it among those in its own voxel
     (equal distances: the first in ``order``), as an index into the points as hashed, -1 where its voxel holds none
-    or it lies outside the grid; voxel (q,): that occupied voxel, -1 where none; near (q,) bool: every hashed point
-    at least as near as the node lies in the 27 voxels around the query's own, so that its nearest does too)."""
+    or it lies outside the grid; voxel (q,): that occupied voxel, -1 where none; d2 (q,): the node's squared
+    distance, m^2, inf where none; near (q,) bool: every hashed point at least as near as the node lies in the 27
+    voxels around the query's own)."""
     nq = queries.shape[0]
     node = np.full(nq, -1, np.int64)
     voxel = np.full(nq, -1, np.int64)
+    d2 = np.full(nq, np.inf)
     near = np.zeros(nq, np.bool_)
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * points.shape[0])
@@ -2988,21 +2990,23 @@ def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, st
             e = ex * ex + ey * ey + ez * ez
             if e < b:
                 b, bj = e, j
-        node[q], voxel[q] = order[bj], v
+        node[q], voxel[q], d2[q] = order[bj], v, b
         # a point outside those voxels lies farther than one voxel plus the gap to the nearest face
         reach = cell + min(fx - cx, cx + 1 - fx, fy - cy, cy + 1 - fy, fz - cz, cz + 1 - fz) * cell
         near[q] = b < reach * reach
-    return node, voxel, near
+    return node, voxel, d2, near
 
 
 @numba.njit(**_JIT)
-def uncertain_nodes(region: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray,
-                    table: np.ndarray, dims: np.ndarray, voxel: np.ndarray, near: np.ndarray, exact: np.ndarray
-                    ) -> np.ndarray:
-    """(q,) bool: the queries of :func:`voxel_nodes` (its ``voxel``, ``near``) whose nearest hashed point may lie in
-    another region than their node: not ``exact`` (the node known to be the nearest) and not ``near``, or with
-    hashed points of more than one region (``region`` (m,), by the points' rows before hashing) in the 27 voxels
-    around their own."""
+def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel: np.ndarray, near: np.ndarray,
+                    exact: np.ndarray, points: np.ndarray, rows: np.ndarray, center: np.ndarray, order: np.ndarray,
+                    cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray, origin: np.ndarray, cell: float,
+                    dims: np.ndarray) -> np.ndarray:
+    """(q,) bool: the queries of :func:`voxel_nodes` (its ``node``, ``d2``, ``voxel`` and ``near``; the rows ``rows``
+    of ``points`` (N, 3) meters less ``center`` (3,)) whose nearest hashed point may lie in another region than their
+    node (``region`` (m,), by the hashed points' rows before hashing): not ``exact`` (the node known to be the
+    nearest), and not ``near``, or one of the 26 voxels around their own, no farther than the node, holds points of
+    another region than the node's (their own voxel is the node's search)."""
     nv = cell_keys.shape[0]
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * order.shape[0])
@@ -3014,24 +3018,40 @@ def uncertain_nodes(region: np.ndarray, order: np.ndarray, cell_keys: np.ndarray
                 first = _MIXED
                 break
         label[v] = first
-    uniform = np.empty(nv, np.bool_)
+    around = np.full((nv, 27), -1, np.int64)  # the occupied voxels around each, by offset (dz, dy, dx) + 1 in base 3
+    uniform = label != _MIXED  # those 27 voxels hold one region
     for v in range(nv):
-        same = label[v] != _MIXED
         key = cell_keys[v]
         vx, vy, vz = key % dims[0], (key // dims[0]) % dims[1], key // (dims[0] * dims[1])
-        for dz in range(-1, 2):
-            for dy in range(-1, 2):
-                for dx in range(-1, 2):
-                    ix, iy, iz = vx + dx, vy + dy, vz + dz
-                    if same and 0 <= ix < dims[0] and 0 <= iy < dims[1] and 0 <= iz < dims[2]:
-                        u = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
-                        if u >= 0 and label[u] != label[v]:
-                            same = False
-        uniform[v] = same
+        for a in range(27):
+            ix, iy, iz = vx + a % 3 - 1, vy + (a // 3) % 3 - 1, vz + a // 9 - 1
+            if 0 <= ix < dims[0] and 0 <= iy < dims[1] and 0 <= iz < dims[2]:
+                u = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
+                around[v, a] = u
+                if u >= 0 and label[u] != label[v]:
+                    uniform[v] = False
     out = np.zeros(voxel.shape[0], np.bool_)
+    gap = np.empty((3, 3))  # squared gaps to the voxels below, level with and above along each axis
     for q in range(voxel.shape[0]):
-        if not exact[q]:
-            out[q] = voxel[q] < 0 or not near[q] or not uniform[voxel[q]]
+        v = voxel[q]
+        if exact[q] or (near[q] and uniform[v]):
+            continue
+        if not near[q]:
+            out[q] = True
+            continue
+        key = cell_keys[v]
+        for axis in range(3):
+            f = (points[rows[q], axis] - center[axis] - origin[axis]) / cell
+            c = key % dims[0] if axis == 0 else (key // dims[0]) % dims[1] if axis == 1 else key // (dims[0] * dims[1])
+            below, above = (f - c) * cell, (c + 1 - f) * cell
+            gap[axis, 0], gap[axis, 1], gap[axis, 2] = below * below, 0.0, above * above
+        own = region[node[q]]
+        for a in range(27):
+            u = around[v, a]
+            if u >= 0 and u != v and label[u] != own and \
+                    gap[0, a % 3] + gap[1, (a // 3) % 3] + gap[2, a // 9] <= d2[q]:
+                out[q] = True
+                break
     return out
 
 
@@ -3213,10 +3233,11 @@ def _warm_judge() -> None:
 def _warm_unorganized() -> None:
     pts, dims = np.zeros((4, 3)), np.ones(3, np.int64)
     order, cell_keys, starts, table = voxel_grid(pts, np.zeros(3), 1.0, dims)
-    _, voxel, near = voxel_nodes(pts, order, cell_keys, starts, table, np.zeros(3), 1.0, dims, pts)
-    uncertain_nodes(np.zeros(4, np.int64), order, cell_keys, starts, table, dims, voxel, near, near)
-    index = np.arange(4, dtype=np.int64)
-    first_across(index, index.reshape(2, 2), pts, pts, np.zeros(4), near, 1, 0.5, 0.01)
+    node, voxel, d2, near = voxel_nodes(pts, order, cell_keys, starts, table, np.zeros(3), 1.0, dims, pts)
+    flags, index = np.zeros(4, np.bool_), np.arange(4, dtype=np.int64)
+    uncertain_nodes(index, node, d2, voxel, near, flags, pts, index, np.zeros(3), order, cell_keys, starts, table,
+                    np.zeros(3), 1.0, dims)
+    first_across(index, index.reshape(2, 2), pts, pts, np.zeros(4), flags, 1, 0.5, 0.01)
 
 
 def _warm_detect() -> None:

@@ -53,15 +53,16 @@ class VoxelNodes:
     """Which searched point each valid point of an unorganized cloud takes its region from: the nearest one. Found
     through ``index``, a voxel hash of the searched points, in one pass (:func:`.kernels.voxel_nodes`): ``node``
     (n,) the searched point (its position in search_idx) nearest to each point within its own voxel, or the nearest
-    of all where ``exact`` (n,) bool; ``voxel`` (n,) that voxel (-1: none, ``exact``), ``near`` (n,) bool: its
-    nearest lies in the voxels around it. Where those voxels hold one region the node's region is the nearest's,
-    so only the others need a nearest-point query (:meth:`for_regions`); ``node`` and ``exact`` cache those
-    answers across the calls of a tolerance sweep. ``index`` None: every node is the nearest (far-out
-    coordinates)."""
+    of all where ``exact`` (n,) bool; ``voxel`` (n,) that voxel (-1: none, ``exact``), ``d2`` (n,) the node's
+    squared distance, m^2, ``near`` (n,) bool: the nearest lies in the 27 voxels around. Where no searched point of
+    another region can lie as near in those voxels, the node's region is the nearest's, so only the others need a
+    nearest-point query (:meth:`for_regions`); ``node`` and ``exact`` cache those answers across the calls of a
+    tolerance sweep. ``index`` None: every node is the nearest (far-out coordinates)."""
 
     index: VoxelIndex | None
     node: np.ndarray
     voxel: np.ndarray
+    d2: np.ndarray
     near: np.ndarray
     exact: np.ndarray
 
@@ -71,9 +72,10 @@ class VoxelNodes:
         (3,))."""
         if self.index is None:
             return self.node
-        order, cell_keys, starts, table = self.index.grid
-        doubt = np.flatnonzero(kernels.uncertain_nodes(kernels.c_array(region, np.int64), order, cell_keys, starts,
-                                                       table, self.index.dims, self.voxel, self.near, self.exact))
+        index, c_array = self.index, kernels.c_array
+        doubt = np.flatnonzero(kernels.uncertain_nodes(
+            c_array(region, np.int64), self.node, self.d2, self.voxel, self.near, self.exact, c_array(pts, np.float64),
+            c_array(rows, np.int64), c_array(center, np.float64), *index.grid, index.origin, index.cell, index.dims))
         if len(doubt):  # the same answers whichever call fills them in first: a cache shared by a sweep's threads
             self.node[doubt] = self.index.query(pts[rows[doubt]] - center, 1)[1][:, 0]
             self.exact[doubt] = True
@@ -153,14 +155,15 @@ def _nearest_searched(searched: np.ndarray, points: np.ndarray) -> tuple[VoxelNo
     index = voxel_index(searched, span=points)
     if index is None:
         node = _nearest_searched_tree(searched, points)
-        return VoxelNodes(None, node, np.full(len(node), -1), np.zeros(len(node), bool), np.ones(len(node), bool)), None
-    node, voxel, near = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims,
+        none = np.zeros(len(node), bool)
+        return VoxelNodes(None, node, np.full(len(node), -1), np.zeros(len(node)), none, ~none), None
+    node, voxel, d2, near = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims,
                                             kernels.c_array(points, np.float64))
     exact = voxel < 0  # no searched point in its voxel: the nearest, now
     alone = np.flatnonzero(exact)
     if len(alone):
         node[alone] = index.query(points[alone], 1)[1][:, 0]
-    return VoxelNodes(index, node, voxel, near, exact), index
+    return VoxelNodes(index, node, voxel, d2, near, exact), index
 
 
 def _nearest_searched_tree(searched: np.ndarray, points: np.ndarray) -> np.ndarray:
