@@ -76,7 +76,7 @@ class VoxelNodes:
         doubt = np.flatnonzero(kernels.uncertain_nodes(
             c_array(region, np.int64), self.node, self.d2, self.voxel, self.near, self.exact, c_array(pts, np.float64),
             c_array(rows, np.int64), c_array(center, np.float64), *index.grid, index.origin, index.cell, index.dims))
-        if len(doubt):  # the same answers whichever call fills them in first: a cache shared by a sweep's threads
+        if len(doubt):  # kept: later calls on this graph (a sweep over one prebuilt graph) need not ask again
             self.node[doubt] = self.index.query(pts[rows[doubt]] - center, 1)[1][:, 0]
             self.exact[doubt] = True
         return self.node
