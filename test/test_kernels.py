@@ -268,21 +268,6 @@ def test_voxel_knn_matches_the_kd_tree(seed, k):
                      ref_dist.reshape(len(pts), -1), ref_idx.reshape(len(pts), -1), next_dist)
 
 
-@SETTINGS
-@given(st.integers(0, 2**32 - 1))
-def test_nearest_searched_matches_the_kd_tree(seed):
-    from plane_validation.core.search.graph import _nearest_searched, _nearest_searched_tree
-    pts = _cloud_case(seed)
-    rng = np.random.default_rng(seed)
-    searched = pts[rng.random(len(pts)) < 0.3]
-    if len(searched) == 0:
-        searched = pts[:1]
-    near = _nearest_searched(searched, pts)[0]
-    ref = _nearest_searched_tree(searched, pts)
-    np.testing.assert_allclose(np.linalg.norm(searched[near] - pts, axis=1),
-                               np.linalg.norm(searched[ref] - pts, axis=1), rtol=1e-12, atol=0)
-
-
 def test_voxel_index_declines_far_out_coordinates():
     from plane_validation.core.regions import voxel_index
     pts = np.random.default_rng(0).normal(size=(1000, 3))

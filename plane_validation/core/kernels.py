@@ -28,7 +28,8 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
            'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'grid_best_region', 'grid_refit_region', 'plane_samples', 'sorted_order', 'order_statistics',
-           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'warm',
+           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
+           'uncertain_nodes', 'first_across', 'warm',
            'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -2951,6 +2952,143 @@ def read_rows(words: np.ndarray, columns: np.ndarray, view: np.ndarray, within: 
     return points, finite, valid[:m], infinite, marked
 
 
+# --- unorganized clouds ---
+
+#: :func:`uncertain_nodes`' mark of a voxel whose hashed points lie in more than one region (regions are >= -1).
+_MIXED = -2
+
+
+@numba.njit(**_JIT)
+def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
+                origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For each of ``queries`` (q, 3) meters, in one pass: (node (q,): the hashed point of :func:`voxel_grid`
+    (``points`` (m, 3): those points voxel by voxel, in its ``order``) nearest to it among those in its own voxel
+    (equal distances: the first in ``order``), as an index into the points as hashed, -1 where its voxel holds none
+    or it lies outside the grid; voxel (q,): that occupied voxel, -1 where none; d2 (q,): the node's squared
+    distance, m^2, inf where none; near (q,) bool: every hashed point at least as near as the node lies in the 27
+    voxels around the query's own)."""
+    nq = queries.shape[0]
+    node = np.full(nq, -1, np.int64)
+    voxel = np.full(nq, -1, np.int64)
+    d2 = np.full(nq, np.inf)
+    near = np.zeros(nq, np.bool_)
+    total = dims[0] * dims[1] * dims[2]
+    dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * points.shape[0])
+    for q in range(nq):
+        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+        fx, fy, fz = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
+        if not (0.0 <= fx < dims[0] and 0.0 <= fy < dims[1] and 0.0 <= fz < dims[2]):
+            continue
+        cx, cy, cz = int(fx), int(fy), int(fz)
+        v = _voxel(cell_keys, table, cx + dims[0] * (cy + dims[1] * cz), dense)
+        if v < 0:
+            continue
+        b, bj = np.inf, -1
+        for j in range(starts[v], starts[v + 1]):
+            ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+            e = ex * ex + ey * ey + ez * ez
+            if e < b:
+                b, bj = e, j
+        node[q], voxel[q], d2[q] = order[bj], v, b
+        # a point outside those voxels lies farther than one voxel plus the gap to the nearest face
+        reach = cell + min(fx - cx, cx + 1 - fx, fy - cy, cy + 1 - fy, fz - cz, cz + 1 - fz) * cell
+        near[q] = b < reach * reach
+    return node, voxel, d2, near
+
+
+@numba.njit(**_JIT)
+def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel: np.ndarray, near: np.ndarray,
+                    exact: np.ndarray, points: np.ndarray, rows: np.ndarray, center: np.ndarray, order: np.ndarray,
+                    cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray, origin: np.ndarray, cell: float,
+                    dims: np.ndarray) -> np.ndarray:
+    """(q,) bool: the queries of :func:`voxel_nodes` (its ``node``, ``d2``, ``voxel`` and ``near``; the rows ``rows``
+    of ``points`` (N, 3) meters less ``center`` (3,)) whose nearest hashed point may lie in another region than their
+    node (``region`` (m,), by the hashed points' rows before hashing): not ``exact`` (the node known to be the
+    nearest), and not ``near``, or one of the 26 voxels around their own, no farther than the node, holds points of
+    another region than the node's (their own voxel is the node's search)."""
+    nv = cell_keys.shape[0]
+    total = dims[0] * dims[1] * dims[2]
+    dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * order.shape[0])
+    label = np.empty(nv, np.int64)  # the region of a voxel's points, _MIXED where they differ
+    for v in range(nv):
+        first = region[order[starts[v]]]
+        for j in range(starts[v] + 1, starts[v + 1]):
+            if region[order[j]] != first:
+                first = _MIXED
+                break
+        label[v] = first
+    around = np.full((nv, 27), -1, np.int64)  # the occupied voxels around each, by offset (dz, dy, dx) + 1 in base 3
+    uniform = label != _MIXED  # those 27 voxels hold one region
+    for v in range(nv):
+        key = cell_keys[v]
+        vx, vy, vz = key % dims[0], (key // dims[0]) % dims[1], key // (dims[0] * dims[1])
+        for a in range(27):
+            ix, iy, iz = vx + a % 3 - 1, vy + (a // 3) % 3 - 1, vz + a // 9 - 1
+            if 0 <= ix < dims[0] and 0 <= iy < dims[1] and 0 <= iz < dims[2]:
+                u = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
+                around[v, a] = u
+                if u >= 0 and label[u] != label[v]:
+                    uniform[v] = False
+    out = np.zeros(voxel.shape[0], np.bool_)
+    gap = np.empty((3, 3))  # squared gaps to the voxels below, level with and above along each axis
+    for q in range(voxel.shape[0]):
+        v = voxel[q]
+        if exact[q] or (near[q] and uniform[v]):
+            continue
+        if not near[q]:
+            out[q] = True
+            continue
+        key = cell_keys[v]
+        for axis in range(3):
+            f = (points[rows[q], axis] - center[axis] - origin[axis]) / cell
+            c = key % dims[0] if axis == 0 else (key // dims[0]) % dims[1] if axis == 1 else key // (dims[0] * dims[1])
+            below, above = (f - c) * cell, (c + 1 - f) * cell
+            gap[axis, 0], gap[axis, 1], gap[axis, 2] = below * below, 0.0, above * above
+        own = region[node[q]]
+        for a in range(27):
+            u = around[v, a]
+            if u >= 0 and u != v and label[u] != own and \
+                    gap[0, a % 3] + gap[1, (a // 3) % 3] + gap[2, a // 9] <= d2[q]:
+                out[q] = True
+                break
+    return out
+
+
+@numba.njit(**_JIT)
+def first_across(rows: np.ndarray, near: np.ndarray, points: np.ndarray, direction: np.ndarray,
+                 elevation: np.ndarray, one_ring: np.ndarray, kind: int, off_cos: float, another_ring: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """For each of the points ``rows`` (m,) the first of its candidates ``near`` (m, c) (nearest first) across from
+    it: (found (m,) bool, that candidate (m,); the first one where none is). Across: ``kind`` 0, on another lidar ring
+    (``elevation`` (n,) radians differs by more than ``another_ring``); 1, off the line along ``direction`` (n, 3)
+    (the offset between the ``points`` (n, 3) makes a cosine below ``off_cos`` with it), 2, off the plane of that
+    normal (cosine with it above ``off_cos``), and for a point of ``one_ring`` (n,) also on another ring. An offset
+    of zero, or an unknown (NaN) direction, is never across."""
+    m, c = near.shape
+    found = np.zeros(m, np.bool_)
+    target = np.empty(m, np.int64)
+    for i in range(m):
+        r = rows[i]
+        target[i] = near[i, 0] if c else r
+        for j in range(c):
+            p = near[i, j]
+            another = abs(elevation[p] - elevation[r]) > another_ring
+            if kind == 0:
+                across = another
+            else:
+                ox, oy, oz = points[p, 0] - points[r, 0], points[p, 1] - points[r, 1], points[p, 2] - points[r, 2]
+                length = np.sqrt(ox * ox + oy * oy + oz * oz)
+                if not length > 0.0:
+                    continue
+                cos = abs(ox * direction[r, 0] + oy * direction[r, 1] + oz * direction[r, 2]) / length
+                across = (cos > off_cos if kind == 2 else cos < off_cos) and (not one_ring[r] or another)
+            if across:
+                found[i], target[i] = True, p
+                break
+    return found, target
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -3092,6 +3230,16 @@ def _warm_judge() -> None:
     order_statistics(np.zeros(4), 0, 1, 2, 3)
 
 
+def _warm_unorganized() -> None:
+    pts, dims = np.zeros((4, 3)), np.ones(3, np.int64)
+    order, cell_keys, starts, table = voxel_grid(pts, np.zeros(3), 1.0, dims)
+    node, voxel, d2, near = voxel_nodes(pts, order, cell_keys, starts, table, np.zeros(3), 1.0, dims, pts)
+    flags, index = np.zeros(4, np.bool_), np.arange(4, dtype=np.int64)
+    uncertain_nodes(index, node, d2, voxel, near, flags, pts, index, np.zeros(3), order, cell_keys, starts, table,
+                    np.zeros(3), 1.0, dims)
+    first_across(index, index.reshape(2, 2), pts, pts, np.zeros(4), flags, 1, 0.5, 0.01)
+
+
 def _warm_detect() -> None:
     pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
     labels = np.array([0, -1, 0, 1], np.int32)
@@ -3107,7 +3255,7 @@ def _warm_detect() -> None:
 #: the rest in parallel end together.
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_best_region, _warm_indices, _warm_planes,
-               _warm_judge, _warm_detect)
+               _warm_judge, _warm_detect, _warm_unorganized)
 
 
 def _compiles() -> int:
@@ -3166,4 +3314,4 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
             fit_mask, fit_regions, grid_best_region, grid_refit_region, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
-            read_rows)
+            read_rows, voxel_nodes, uncertain_nodes, first_across)

@@ -84,14 +84,13 @@ VOXEL_RINGS = 5
 VOXEL_SPAN = 1 << 20
 
 
+_NO_POINTS = np.empty((0, 3))
+_NO_FLAGS = np.empty(0, bool)
+
 #: Searchers (voxel indices, or kd-trees) over coordinates and over every ACROSS_FAR_STRIDE-th of them, each built on
 #: first use, the coordinates and how many nearest candidates a search looks at: (tree(), far(), coordinates (n, 3),
 #: candidates).
 _Space = tuple[Callable[[], 'VoxelIndex | cKDTree'], Callable[[], 'VoxelIndex | cKDTree'], np.ndarray, int]
-#: Which candidates (m, c) of the rows (m,) are across: (rows, candidates) -> bool (m, c).
-_Test = Callable[[np.ndarray, np.ndarray], np.ndarray]
-
-
 def _space(coords: np.ndarray, candidates: int, searcher: VoxelIndex | cKDTree | None = None) -> _Space:
     return ((lambda: searcher) if searcher is not None else functools.cache(lambda: _searcher(coords)),
             functools.cache(lambda: _searcher(coords[::ACROSS_FAR_STRIDE])), coords, candidates)
@@ -103,26 +102,48 @@ def _searcher(coords: np.ndarray) -> VoxelIndex | cKDTree:
     return cKDTree(coords) if index is None else index
 
 
-def _off(points: np.ndarray, direction: np.ndarray, off_plane: bool) -> _Test:
-    """Off the line along ``direction`` (n, 3) (OFF_LINE_COS), or with ``off_plane`` off the plane of
-    normal ``direction`` (OFF_PLANE_COS)."""
-    def test(rows: np.ndarray, near: np.ndarray) -> np.ndarray:
-        offs = points[near] - points[rows, None, :]
+@dataclass(frozen=True, eq=False)
+class _Across:
+    """Which of its candidates a point joins across rings: one on another lidar ring (``elevation`` (n,) differs by
+    more than ANOTHER_RING); with ``direction`` (n, 3) instead one off the line along it (OFF_LINE_COS), or with
+    ``off_plane`` off the plane of that normal (OFF_PLANE_COS), of the ``points`` (n, 3), and for a point of
+    ``one_ring`` (n,) also on another ring."""
+
+    elevation: np.ndarray
+    points: np.ndarray | None = None
+    direction: np.ndarray | None = None
+    off_plane: bool = False
+    one_ring: np.ndarray | None = None
+
+    def first(self, rows: np.ndarray, near: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For the points ``rows`` (m,) with candidates ``near`` (m, c), nearest first: whether one is across, and the
+        first such one (the first candidate where none is): :func:`.kernels.first_across` (:meth:`numpy` is its
+        reference)."""
+        if self.direction is None:
+            kind, points, direction, one_ring = 0, _NO_POINTS, _NO_POINTS, _NO_FLAGS
+        else:
+            kind, one_ring = 2 if self.off_plane else 1, self.one_ring
+            points, direction = kernels.c_array(self.points, np.float64), kernels.c_array(self.direction, np.float64)
+        return kernels.first_across(kernels.c_array(rows, np.int64), kernels.c_array(near, np.int64), points,
+                                    direction, self.elevation, one_ring, kind,
+                                    OFF_PLANE_COS if self.off_plane else OFF_LINE_COS, ANOTHER_RING)
+
+    def numpy(self, rows: np.ndarray, near: np.ndarray) -> np.ndarray:
+        """(m, c) bool: which candidates are across, in numpy."""
+        another = np.abs(self.elevation[near] - self.elevation[rows, None]) > ANOTHER_RING
+        if self.direction is None:
+            return another
+        offs = self.points[near] - self.points[rows, None, :]
         with np.errstate(invalid='ignore', divide='ignore'):
-            cos = np.abs(np.einsum('nkd,nd->nk', offs, direction[rows])) / np.linalg.norm(offs, axis=-1)
-        return cos > OFF_PLANE_COS if off_plane else cos < OFF_LINE_COS  # NaN (the point itself) is neither
-    return test
+            cos = np.abs(np.einsum('nkd,nd->nk', offs, self.direction[rows])) / np.linalg.norm(offs, axis=-1)
+        off = cos > OFF_PLANE_COS if self.off_plane else cos < OFF_LINE_COS  # NaN (the point itself) is neither
+        return off & (~self.one_ring[rows, None] | another)
 
 
-def _another_ring(elevation: np.ndarray) -> _Test:
-    """On another lidar ring: ``elevation`` (n,) differs by more than ANOTHER_RING."""
-    return lambda rows, near: np.abs(elevation[near] - elevation[rows, None]) > ANOTHER_RING
-
-
-def _across(tree: cKDTree, coords: np.ndarray, rows: np.ndarray, test: _Test, candidates: int, skip: int,
+def _across(tree: cKDTree, coords: np.ndarray, rows: np.ndarray, test: _Across, candidates: int, skip: int,
             stride: int) -> tuple[np.ndarray, np.ndarray]:
     """For the points ``rows``: whether one of their ``candidates`` nearest in ``tree`` (after the
-    first ``skip``) passes ``test``, and the nearest such one. ``tree`` holds every ``stride``-th of
+    first ``skip``) is across (``test``), and the nearest such one. ``tree`` holds every ``stride``-th of
     ``coords`` (n, 3)."""
     candidates = min(candidates, tree.n)
     if len(rows) * candidates > ACROSS_BLOCK:  # bounded memory: a block of rows at a time
@@ -133,12 +154,10 @@ def _across(tree: cKDTree, coords: np.ndarray, rows: np.ndarray, test: _Test, ca
     _, near = tree.query(coords[rows], k=candidates)
     near = near.reshape(len(rows), -1)[:, skip:]
     near = np.where(near < tree.n, near * stride, rows[:, None])  # no neighbour found: the point itself
-    across = test(rows, near)
-    first = np.argmax(across, axis=1)
-    return across[np.arange(len(rows)), first], near[np.arange(len(rows)), first]
+    return test.first(rows, near)
 
 
-def _partners(tree: cKDTree, coords: np.ndarray, idx: np.ndarray, rows: np.ndarray, test: _Test,
+def _partners(tree: cKDTree, coords: np.ndarray, idx: np.ndarray, rows: np.ndarray, test: _Across,
               candidates: int, skip: int, stride: int) -> np.ndarray:
     """:func:`_across` for the points ``rows`` (ascending) with neighbours ``idx`` (n, k): (n,) the
     point found for each row, -1 where none (and for other points). A fixed random ACROSS_SEARCHING
@@ -161,7 +180,7 @@ def _partners(tree: cKDTree, coords: np.ndarray, idx: np.ndarray, rows: np.ndarr
     return partner
 
 
-def _search(space: _Space, idx: np.ndarray, rows: np.ndarray, test: _Test, skip: int, far: bool
+def _search(space: _Space, idx: np.ndarray, rows: np.ndarray, test: _Across, skip: int, far: bool
             ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_partners` among the nearest in ``space`` (after the first ``skip``), then, with ``far``,
     for the rows without one among every ACROSS_FAR_STRIDE-th point: (rows found (m,), partners (m,))."""
@@ -306,16 +325,16 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
         directions = _space(unit, RING_CANDIDATES)
         nearby = _space(points, ACROSS_CANDIDATES, searcher)
 
-        def search(rows: np.ndarray, off: _Test, far: bool) -> tuple[np.ndarray, np.ndarray]:
-            """Each row's partner: the nearest point off its line or plane (farther only with ``far``; for
-            a point of one ring, on another ring too), else the nearest in direction on another ring. A
-            point of one ring is also joined to the latter (the next ring at about its azimuth, as in
-            the scan's image), whatever the surface: across an edge that joins nothing, as the region
-            growth takes only points near its plane."""
-            another = _another_ring(elevation)
-            found, target = _search(nearby, idx, rows, lambda r, near: off(r, near) & (
-                ~one_ring[r, None] | another(r, near)), k, far)
-            found_d, target_d = _search(directions, idx, rows[one_ring[rows]], another, 0, True)
+        def search(rows: np.ndarray, direction: np.ndarray, off_plane: bool, far: bool
+                   ) -> tuple[np.ndarray, np.ndarray]:
+            """Each row's partner: the nearest point off its line along ``direction`` (n, 3) or with ``off_plane``
+            off its plane of that normal (farther only with ``far``; for a point of one ring, on another ring too),
+            else the nearest in direction on another ring. A point of one ring is also joined to the latter (the
+            next ring at about its azimuth, as in the scan's image), whatever the surface: across an edge that
+            joins nothing, as the region growth takes only points near its plane."""
+            found, target = _search(nearby, idx, rows, _Across(elevation, points, direction, off_plane, one_ring), k,
+                                    far)
+            found_d, target_d = _search(directions, idx, rows[one_ring[rows]], _Across(elevation), 0, True)
             edges.append(np.column_stack([found_d, target_d]))
             rest = ~np.isin(found_d, found)
             return np.concatenate([found, found_d[rest]]), np.concatenate([target, target_d[rest]])
@@ -324,7 +343,7 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
                                  rays, search)
         edges.append(np.column_stack([rows_s, target]))
         normals[rows_s] = _normals(*_principal_axes(points, np.concatenate([idx[rows_s], idx[target]], axis=1)))
-        rows_l, target = search(np.flatnonzero(line), _off(points, vectors[:, :, 2], off_plane=False), True)
+        rows_l, target = search(np.flatnonzero(line), vectors[:, :, 2], False, True)
         edges.append(np.column_stack([rows_l, target]))
     return _neighbours(n, np.concatenate(edges), normals)
 
@@ -369,14 +388,14 @@ def _normals(values: np.ndarray, axes: np.ndarray) -> np.ndarray:
 
 
 def _strips(points: np.ndarray, flat: np.ndarray, normals: np.ndarray, rays: np.ndarray,
-            search: Callable[[np.ndarray, _Test, bool], tuple[np.ndarray, np.ndarray]]
+            search: Callable[[np.ndarray, np.ndarray, bool, bool], tuple[np.ndarray, np.ndarray]]
             ) -> tuple[np.ndarray, np.ndarray]:
     """Points whose ``flat`` neighbourhood (normal ``normals``, (n, 3)) is a strip of one lidar ring
     seen along ``rays`` (n, 3) from the sensor (see STRIP_FLATNESS), and for each the point of the
     next ring found by ``search``: (rows (m,), targets (m,))."""
     with np.errstate(invalid='ignore'):
         edge_on = np.abs(np.einsum('ij,ij->i', normals, rays)) < STRIP_EDGE_ON * np.linalg.norm(rays, axis=1)
-    rows, target = search(np.flatnonzero(flat & edge_on), _off(points, normals, off_plane=True), False)
+    rows, target = search(np.flatnonzero(flat & edge_on), normals, True, False)
     # the next ring's strip lies on a cone of nearly the same normal; a point of another surface
     # across an edge (or a point without a flat neighbourhood) is not taken
     found = np.abs(np.einsum('ij,ij->i', normals[rows], normals[target])) >= NORMAL_MIN_COS

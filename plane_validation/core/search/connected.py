@@ -63,7 +63,8 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
         labels[search_idx] = np.where((region >= 0) & near, region, -1)  # within t of the refitted plane
     else:
         valid_idx = np.flatnonzero(finite)
-        labels, residual = spread_nearest(pts, valid_idx, center, graph.nearest, region, found,
+        nodes = graph.nearest.for_regions(region, pts, valid_idx, center)
+        labels, residual = spread_nearest(pts, valid_idx, center, nodes, region, found,
                                           tolerance_at(tolerance, valid_idx))
     rows, bounds, squares = _members(labels, len(found), residual)
     counts = np.diff(bounds)

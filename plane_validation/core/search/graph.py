@@ -17,7 +17,7 @@ from .neighbours import Neighbours
 from .neighbours_grid import grid_neighbours
 from .types import Tolerance, Viewpoint
 
-__all__ = ['SearchGraph', 'search_graph', 'build_search_graph', 'checked_search_graph', 'spread_nearest',
+__all__ = ['SearchGraph', 'VoxelNodes', 'search_graph', 'build_search_graph', 'checked_search_graph', 'spread_nearest',
            'spread_nearest_numpy']
 
 
@@ -28,8 +28,8 @@ class SearchGraph:
     search_idx: (m,) rows of the cloud searched; step: the image sub-grid step (0: searched as an
     unorganized cloud, also an image too thin for a grid: :func:`grid_step`);
     center: (3,) meters subtracted before the search; neighbours: their graph; nearest: when the
-    search is a sample of an unorganized cloud, for each valid row (ascending) the position in
-    search_idx of the searched point nearest to it (the point then takes that one's region). It
+    search is a sample of an unorganized cloud, which searched point each valid row (ascending) takes its region
+    from, the nearest (:class:`VoxelNodes`). It
     depends only on the cloud, ``shape``, ``ransac_points`` and ``grid_points``, not on the tolerance: a sweep builds
     it once (:func:`search_graph`) and passes it to every :func:`detect_planes` call on that cloud.
     viewpoint: (3,) meters, the sensor it was built for.
@@ -43,9 +43,43 @@ class SearchGraph:
     shape: tuple[int, int] | None
     ransac_points: int | None
     n_valid: int
-    nearest: np.ndarray | None = None
+    nearest: VoxelNodes | None = None
     viewpoint: tuple[float, float, float] = (0.0, 0.0, 0.0)
     grid_points: int | None = GRID_POINTS
+
+
+@dataclass(frozen=True, eq=False)
+class VoxelNodes:
+    """Which searched point each valid point of an unorganized cloud takes its region from: the nearest one. Found
+    through ``index``, a voxel hash of the searched points, in one pass (:func:`.kernels.voxel_nodes`): ``node``
+    (n,) the searched point (its position in search_idx) nearest to each point within its own voxel, or the nearest
+    of all where ``exact`` (n,) bool; ``voxel`` (n,) that voxel (-1: none, ``exact``), ``d2`` (n,) the node's
+    squared distance, m^2, ``near`` (n,) bool: the nearest lies in the 27 voxels around. Where no searched point of
+    another region can lie as near in those voxels, the node's region is the nearest's, so only the others need a
+    nearest-point query (:meth:`for_regions`); ``node`` and ``exact`` cache those answers across the calls of a
+    tolerance sweep. ``index`` None: every node is the nearest (far-out coordinates)."""
+
+    index: VoxelIndex | None
+    node: np.ndarray
+    voxel: np.ndarray
+    d2: np.ndarray
+    near: np.ndarray
+    exact: np.ndarray
+
+    def for_regions(self, region: np.ndarray, pts: np.ndarray, rows: np.ndarray, center: np.ndarray) -> np.ndarray:
+        """(n,) for each of the valid rows ``rows`` of ``pts`` (N, 3) meters a searched point in the region
+        (``region`` (m,) of the searched points, -1: none) of the searched point nearest to it (less ``center``
+        (3,))."""
+        if self.index is None:
+            return self.node
+        index, c_array = self.index, kernels.c_array
+        doubt = np.flatnonzero(kernels.uncertain_nodes(
+            c_array(region, np.int64), self.node, self.d2, self.voxel, self.near, self.exact, c_array(pts, np.float64),
+            c_array(rows, np.int64), c_array(center, np.float64), *index.grid, index.origin, index.cell, index.dims))
+        if len(doubt):  # kept: later calls on this graph (a sweep over one prebuilt graph) need not ask again
+            self.node[doubt] = self.index.query(pts[rows[doubt]] - center, 1)[1][:, 0]
+            self.exact[doubt] = True
+        return self.node
 
 
 def search_graph(points: np.ndarray, shape: tuple[int, int] | None = None,
@@ -115,13 +149,21 @@ def build_search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, in
                        viewpoint=tuple(viewpoint.tolist()), grid_points=grid_points)
 
 
-def _nearest_searched(searched: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, VoxelIndex | None]:
-    """(n,) the position among ``searched`` (m, 3) of the nearest to each of ``points`` (n, 3), through voxels; and
-    the voxel index of ``searched`` (None for far-out coordinates: then by a kd-tree)."""
+def _nearest_searched(searched: np.ndarray, points: np.ndarray) -> tuple[VoxelNodes, VoxelIndex | None]:
+    """The :class:`VoxelNodes` of ``points`` (n, 3) among ``searched`` (m, 3) and the voxel index of ``searched``
+    they use (None for far-out coordinates: then every node is the nearest, by a kd-tree)."""
     index = voxel_index(searched, span=points)
     if index is None:
-        return _nearest_searched_tree(searched, points), None
-    return index.query(points, 1)[1][:, 0], index
+        node = _nearest_searched_tree(searched, points)
+        none = np.zeros(len(node), bool)
+        return VoxelNodes(None, node, np.full(len(node), -1), np.zeros(len(node)), none, ~none), None
+    node, voxel, d2, near = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims,
+                                            kernels.c_array(points, np.float64))
+    exact = voxel < 0  # no searched point in its voxel: the nearest, now
+    alone = np.flatnonzero(exact)
+    if len(alone):
+        node[alone] = index.query(points[alone], 1)[1][:, 0]
+    return VoxelNodes(index, node, voxel, d2, near, exact), index
 
 
 def _nearest_searched_tree(searched: np.ndarray, points: np.ndarray) -> np.ndarray:

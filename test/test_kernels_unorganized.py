@@ -1,0 +1,184 @@
+"""The unorganized clouds' compiled kernels (core/kernels.py, the unorganized clouds block) against plain-numpy
+references, on random inputs: each point's search node from its voxel, and the lidar joins across rings."""
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from plane_validation.core import kernels
+from plane_validation.core.regions import voxel_index
+
+SETTINGS = settings(max_examples=60, deadline=None)
+
+
+def _cloud(rng: np.random.Generator) -> np.ndarray:
+    """Random (n, 3) points: a noisy plane, a line, grid-quantized ties, exact copies and sometimes a far outlier."""
+    n = int(rng.integers(1, 400))
+    kind = rng.integers(0, 4, n)
+    pts = rng.uniform(-1, 1, (n, 3))
+    pts[kind == 0, 2] = rng.normal(scale=0.01, size=int(np.sum(kind == 0)))
+    pts[kind == 1, 1:] = 0.0
+    pts[kind == 2] = np.round(pts[kind == 2] * 20) / 20  # equal distances
+    if n > 3 and rng.random() < 0.3:
+        pts[rng.integers(0, n, 3)] = pts[0]
+    if n > 2 and rng.random() < 0.3:
+        pts[-1] = rng.uniform(-50, 50, 3)
+    return pts * rng.uniform(0.01, 100)
+
+
+def _queries(rng: np.random.Generator, pts: np.ndarray, others: bool) -> np.ndarray:
+    """The points themselves, or others across their span (some in empty voxels)."""
+    if not others:
+        return pts
+    return pts[rng.integers(0, len(pts), int(rng.integers(1, 300)))] + rng.normal(scale=0.05, size=(1, 3)) * \
+        np.ptp(pts, axis=0).max(initial=1.0)
+
+
+def _voxels(index, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Voxel coordinates (q, 3) of points ``p`` by the hash's arithmetic, and their keys (-1 outside the grid)."""
+    f = (p - index.origin) / index.cell
+    inside = ((f >= 0) & (f < index.dims)).all(axis=1)
+    c = np.where(inside[:, None], f, 0).astype(np.int64)
+    return c, np.where(inside, c[:, 0] + index.dims[0] * (c[:, 1] + index.dims[1] * c[:, 2]), -1)
+
+
+def _voxel_nodes_numpy(index, queries: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`.kernels.voxel_nodes` by brute force: the nearest hashed point with the query's voxel (equal
+    distances: the first in the hash's order), that voxel's number, the squared distance and whether the node is
+    nearer than one voxel plus the query's gap to its nearest face."""
+    own = _voxels(index, index.ordered)[1]  # the hashed points, voxel by voxel
+    cells, keys = _voxels(index, queries)
+    e = index.ordered[None, :, :] - queries[:, None, :]
+    d2 = e[..., 0] * e[..., 0] + e[..., 1] * e[..., 1] + e[..., 2] * e[..., 2]
+    d2 = np.where(own[None, :] == keys[:, None], d2, np.inf)
+    first = np.argmin(d2, axis=1)  # the first of equal minima: the first in the hash's order
+    best = d2[np.arange(len(queries)), first]
+    found = np.isfinite(best)
+    f = (queries - index.origin) / index.cell
+    gap = np.minimum(f - cells, cells + 1 - f).min(axis=1) * index.cell
+    return (np.where(found, index.grid[0][first], -1), np.where(found, np.searchsorted(index.grid[1], keys), -1),
+            best, found & (best < (index.cell + gap) ** 2))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.booleans())
+def test_voxel_nodes_match_numpy(seed, others):
+    """The nearest hashed point within each query's own voxel, its voxel, its squared distance and the nearness flag,
+    exactly as brute force finds them; -1 (inf) in an empty voxel."""
+    rng = np.random.default_rng(seed)
+    pts = _cloud(rng)
+    queries = np.ascontiguousarray(_queries(rng, pts, others))
+    index = voxel_index(pts, span=queries)
+    if index is None:
+        return
+    got = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims, queries)
+    for a, b in zip(got, _voxel_nodes_numpy(index, queries)):
+        np.testing.assert_array_equal(a, b)
+    assert got[0].dtype == got[1].dtype == np.int64
+    assert (got[0] >= 0).any() or others
+
+
+def _uncertain_numpy(index, region: np.ndarray, queries: np.ndarray, node: np.ndarray, d2: np.ndarray,
+                     voxel: np.ndarray, near: np.ndarray, exact: np.ndarray) -> np.ndarray:
+    """:func:`.kernels.uncertain_nodes` by brute force: a query not exact is uncertain when a point as near as its node
+    may lie beyond the 27 voxels around its own, or when one of the 26 voxels around, no farther than the node, holds a
+    hashed point of another region than the node's."""
+    order, keys, _, _ = index.grid
+    dims, cell = index.dims, index.cell
+    own = _voxels(index, index.ordered)[1]
+    coords = np.stack([own % dims[0], own // dims[0] % dims[1], own // (dims[0] * dims[1])], axis=1)
+    labels = region[order]
+    out = np.zeros(len(voxel), bool)
+    for q in np.flatnonzero(~exact):
+        key = keys[voxel[q]]
+        c = np.array([key % dims[0], key // dims[0] % dims[1], key // (dims[0] * dims[1])])
+        f = (queries[q] - index.origin) / cell
+        below, above = (f - c) * cell, (c + 1 - f) * cell
+        assert near[q] == (d2[q] < (cell + min(below.min(), above.min())) ** 2)
+        if not near[q]:
+            out[q] = True
+            continue
+        offset = coords - c  # of each hashed point's voxel
+        gap = np.where(offset < 0, below, np.where(offset > 0, above, 0.0))
+        within = (np.abs(offset) <= 1).all(axis=1) & (offset != 0).any(axis=1) & ((gap ** 2).sum(axis=1) <= d2[q])
+        out[q] = bool((labels[within] != region[node[q]]).any())
+    return out
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.booleans(), st.integers(1, 4))
+def test_uncertain_nodes_match_numpy(seed, others, regions):
+    rng = np.random.default_rng(seed)
+    pts = _cloud(rng)
+    queries = np.ascontiguousarray(_queries(rng, pts, others))
+    index = voxel_index(pts, span=queries)
+    if index is None:
+        return
+    node, voxel, d2, near = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims,
+                                                queries)
+    region = rng.integers(-1, regions, len(pts))
+    if rng.random() < 0.5:  # regions in slabs, as planes have them: most voxels of one region
+        region = np.minimum((pts[:, 0] > np.median(pts[:, 0])).astype(np.int64), regions - 1)
+    exact = (rng.random(len(queries)) < 0.2) | (voxel < 0)  # a query in no voxel has its nearest already
+    rows = np.arange(len(queries))
+    got = kernels.uncertain_nodes(region, node, d2, voxel, near, exact, queries, rows, np.zeros(3), *index.grid,
+                                  index.origin, index.cell, index.dims)
+    np.testing.assert_array_equal(got, _uncertain_numpy(index, region, queries, node, d2, voxel, near, exact))
+    assert not got[exact].any()
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(1, 4))
+def test_each_point_takes_the_region_of_its_nearest_searched_point(seed, regions):
+    """Whatever node a point keeps, its region is that of the searched point nearest to it (the voxel hash's exact
+    answer, ties by its order), for any regions, again after other regions (a tolerance sweep reusing the graph);
+    where the coordinates are too far out for voxels every node is the kd-tree's nearest."""
+    from plane_validation.core.search.graph import _nearest_searched, _nearest_searched_tree
+    rng = np.random.default_rng(seed)
+    pts = _cloud(rng)
+    if rng.random() < 0.1:
+        pts[0] = 3e38  # a driver's FLT_MAX row: no voxel hash
+    pick = rng.random(len(pts)) < 0.3
+    searched = pts[pick] if pick.any() else pts[:1]
+    nodes, index = _nearest_searched(searched, pts)
+    rows = np.arange(len(pts))
+    if index is None:
+        ref = _nearest_searched_tree(searched, pts)
+        np.testing.assert_allclose(np.linalg.norm(searched[nodes.node] - pts, axis=1),
+                                   np.linalg.norm(searched[ref] - pts, axis=1), rtol=1e-12, atol=0)
+        return
+    nearest = index.query(pts, 1)[1][:, 0]
+    for _ in range(2):
+        region = rng.integers(-1, regions, len(searched))
+        if rng.random() < 0.5:
+            region = np.minimum((searched[:, 0] > np.median(searched[:, 0])).astype(np.int64), regions - 1)
+        node = nodes.for_regions(region, pts, rows, np.zeros(3))
+        np.testing.assert_array_equal(region[node], region[nearest])
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.sampled_from([None, False, True]))
+def test_first_across_matches_numpy(seed, off_plane):
+    """The first candidate across (on another ring; or off a line or plane, and for a point of one ring on another
+    ring too), as the numpy test and argmax give it; none across: the first candidate."""
+    from plane_validation.core.regions import _Across
+    rng = np.random.default_rng(seed)
+    n, m, c = int(rng.integers(1, 200)), int(rng.integers(0, 60)), int(rng.integers(1, 20))
+    points = np.round(rng.normal(size=(n, 3)), int(rng.integers(0, 3)))  # rounded: zero offsets, copies
+    direction = rng.normal(size=(n, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    direction[rng.random(n) < 0.1] = np.nan  # unknown normals
+    elevation = np.round(rng.normal(scale=0.01, size=n), 3)
+    rows = rng.integers(0, n, m)
+    near = rng.integers(0, n, (m, c))
+    itself = rng.random((m, c)) < 0.1  # no neighbour found: the point itself
+    near[itself] = np.broadcast_to(rows[:, None], (m, c))[itself]
+    test = _Across(elevation) if off_plane is None else \
+        _Across(elevation, points, direction, off_plane, rng.random(n) < 0.5)
+    found, target = test.first(rows, near)
+    across = test.numpy(rows, near)
+    first = np.argmax(across, axis=1) if m else np.zeros(0, np.int64)
+    np.testing.assert_array_equal(found, across[np.arange(m), first])
+    np.testing.assert_array_equal(target, near[np.arange(m), first])
+    assert found.dtype == bool and target.dtype == np.int64
