@@ -104,6 +104,14 @@ class Remaining(ABC):
         inliers, band = kernels.band_counts(near, tolerances, support)[:2]
         return (normal, offset) + self.keep(inliers[0], normal, band[0], above[0])
 
+    def refitted(self, cols: np.ndarray, tolerances: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
+                 point_normals: np.ndarray | None, support: float, bound_cos: float, refits: int
+                 ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
+        """:meth:`best`, then up to ``refits`` :meth:`refit` rounds as :func:`.hypotheses.best_region` runs them (without
+        an orientation constraint), in one compiled call when a form has one: (normal, offset, region (r,), taken
+        (r,)); None when it has none (the caller runs the rounds)."""
+        return None
+
 
 @dataclass(frozen=True, eq=False, kw_only=True)
 class Neighbours(ABC):

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from .. import kernels
+from .. import kernels, kernels_dev
 from .neighbours import (
     COMPETE_ROUNDS,
     NEARBY_SCALES,
@@ -223,6 +223,18 @@ class _GridRemaining(Remaining):
             return super().best(cols, tolerances, normals, offsets, point_normals, support, bound_cos)
         return kernels.grid_best_region(cols, tolerances, normals, offsets, support, bound_cos,
                                         _NO_POINT_NORMALS if point_normals is None else point_normals, *self._grid())
+
+    def refitted(self, cols: np.ndarray, tolerances: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
+                 point_normals: np.ndarray | None, support: float, bound_cos: float, refits: int
+                 ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
+        """One compiled call (:func:`.kernels.grid_plane`) when the grid's normals are known."""
+        nb = self.neighbours
+        if nb.normals is None or point_normals is None:
+            return None
+        bridges = _NO_BRIDGES if nb.bridges is None else kernels.c_array(nb.bridges, np.int64)
+        return kernels_dev.grid_plane(cols, tolerances, normals, offsets, support, bound_cos, point_normals,
+                                      nb.pixel.take(self.rest_idx), nb.usable, nb.shape[1], bridges, NORMAL_MIN_COS,
+                                      REGION_RULES, refits)
 
     def refit(self, cols: np.ndarray, tolerances: np.ndarray, region: np.ndarray, support: float
               ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
