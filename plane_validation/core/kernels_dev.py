@@ -4,7 +4,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .kernels import _NUMPY_JIT, _ahead, _coherent_near, _fragmented, _join, _msac_cost, _root, fit_members
+from .kernels import _NUMPY_JIT, _ahead, _length, _coherent_near, _fragmented, _join, _msac_cost, _root, fit_members
 
 
 @numba.njit(**_NUMPY_JIT)
@@ -235,3 +235,100 @@ def grid_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
         if same:
             break
     return normal, offset, region, taken
+
+
+@numba.njit(**_NUMPY_JIT)
+def _ray_distance(search: np.ndarray, p: int, planes: np.ndarray, j: int, tolerance: np.ndarray,
+                  viewpoint: np.ndarray, min_cos: float) -> float:
+    """:func:`compete_distances`' entry (j, p): point ``p``'s distance to plane ``j`` along its ray (inf for j = k, no
+    region), the same arithmetic."""
+    if j >= planes.shape[0]:
+        return np.inf
+    x, y, z = search[0, p], search[1, p], search[2, p]
+    rx, ry, rz = x - viewpoint[0], y - viewpoint[1], z - viewpoint[2]
+    size = _length(rx, ry, rz)
+    rx, ry, rz = rx / size, ry / size, rz / size
+    tol = tolerance[p] if tolerance.shape[0] > 1 else tolerance[0]
+    e = abs(planes[j, 0] * x + planes[j, 1] * y + planes[j, 2] * z + planes[j, 3])
+    if e > tol:
+        e = np.inf
+    facing = abs(planes[j, 0] * rx + planes[j, 1] * ry + planes[j, 2] * rz)
+    return e / (facing if np.isnan(facing) or facing > min_cos else min_cos)
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_settle(search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, viewpoint: np.ndarray, min_cos: float,
+                region: np.ndarray, pixel: np.ndarray, node: np.ndarray, width: int, eight: np.ndarray, rounds: int
+                ) -> np.ndarray:
+    """:func:`grid_compete` with the distances of :func:`compete_distances` (``search`` (3, m) meters, ``planes`` (k,
+    4), ``tolerance`` (1,) or (m,) meters, ``viewpoint`` (3,), ``min_cos``) worked out only where an offer compares
+    them: the same regions (m,), k for none."""
+    m = region.shape[0]
+    height = node.shape[0] // width
+    region = region.copy()
+    padded = width + 2
+    at = np.full((height + 2) * padded, -1, np.int64)
+    place = np.empty(m, np.int64)
+    r = 0
+    for i in range(m):
+        if i == 0 or pixel[i] >= (r + 1) * width:
+            r = pixel[i] // width
+        place[i] = (r + 1) * padded + pixel[i] - r * width + 1
+        at[place[i]] = i
+    n_eight = eight.shape[0]
+    step = np.empty(n_eight, np.int64)
+    for e in range(n_eight):
+        step[e] = eight[e, 0] * padded + eight[e, 1]
+    best = np.empty(m)
+    known = np.zeros(m, np.bool_)  # best worked out (the distance to its region's plane, until it changes)
+    offer_d = np.empty(m)
+    offer_src = np.full(m, -1, np.int64)
+    offer_region = np.empty(m, np.int64)
+    touched = np.empty(m, np.int64)
+    changed = np.empty(m, np.int64)
+    n_changed = -1
+    for _ in range(rounds):
+        n_touched = 0
+        first = n_changed < 0
+        for q in range(m if first else n_changed):
+            if first:
+                centre = q
+                bordering = False
+                for e in range(n_eight):
+                    j = at[place[centre] + step[e]]
+                    if j >= 0 and region[j] != region[centre]:
+                        bordering = True
+                        break
+                if not bordering:
+                    continue
+            else:
+                centre = changed[q]
+            for e in range(n_eight):
+                other = at[place[centre] + step[e]]
+                if other < 0:
+                    continue
+                dst, src = (centre, other) if first else (other, centre)
+                cand = region[src]
+                if cand == region[dst]:
+                    continue  # its own plane is never nearer than itself
+                if not known[dst]:
+                    best[dst] = _ray_distance(search, dst, planes, region[dst], tolerance, viewpoint, min_cos)
+                    known[dst] = True
+                d = _ray_distance(search, dst, planes, cand, tolerance, viewpoint, min_cos)
+                if not d < best[dst]:
+                    continue
+                if offer_src[dst] < 0:
+                    touched[n_touched] = dst
+                    n_touched += 1
+                elif not (d < offer_d[dst] or (d == offer_d[dst] and src < offer_src[dst])):
+                    continue
+                offer_d[dst], offer_src[dst], offer_region[dst] = d, src, cand
+        if n_touched == 0:
+            break
+        for q in range(n_touched):
+            i = touched[q]
+            region[i], best[i] = offer_region[i], offer_d[i]
+            offer_src[i] = -1
+            changed[q] = i
+        n_changed = n_touched
+    return region

@@ -224,9 +224,9 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
     pass (:func:`.kernels.compete_distances`; :func:`_compete_distances_numpy` is its reference)."""
     planes = plane_rows(found)
     tol = kernels.c_array(np.reshape(tolerance, -1), np.float64)  # (1,) or (m,)
-    dist = kernels.compete_distances(kernels.c_array(search, np.float64), planes, tol,
-                                     kernels.c_array(viewpoint, np.float64), float(np.cos(np.radians(GRAZING_DEG))))
-    return neighbours.settle(dist, np.where(region >= 0, region, len(found)))
+    return neighbours.settle_planes(kernels.c_array(search, np.float64), planes, tol,
+                                    kernels.c_array(viewpoint, np.float64), float(np.cos(np.radians(GRAZING_DEG))),
+                                    np.where(region >= 0, region, len(found)))
 
 
 def _compete_distances_numpy(search: np.ndarray, found: list, tolerance: Tolerance, viewpoint: np.ndarray

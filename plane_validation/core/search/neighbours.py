@@ -234,6 +234,13 @@ class Neighbours(ABC):
         """Border settling: ``region`` (m,) 0..k (k: none) after COMPETE_ROUNDS rounds in which each point takes,
         of its own and its neighbours' regions, the one nearest by ``dist`` (k + 1, m); -1 for none."""
 
+    def settle_planes(self, search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, viewpoint: np.ndarray,
+                      min_cos: float, region: np.ndarray) -> np.ndarray:
+        """:meth:`settle` by the distances :func:`.kernels.compete_distances` gives for the points ``search`` (3, m)
+        meters, ``planes`` (k, 4), ``tolerance`` (1,) or (m,) meters, ``viewpoint`` (3,) and ``min_cos``; a form may
+        work out only the distances it compares (the grid's does)."""
+        return self.settle(kernels.compete_distances(search, planes, tolerance, viewpoint, min_cos), region)
+
 
 def settle_numpy(dist: np.ndarray, region: np.ndarray, neighbours: Neighbours) -> np.ndarray:
     """:meth:`Neighbours.settle` in numpy (the graph form's, and the reference of the grid form's kernel):
