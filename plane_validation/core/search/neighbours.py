@@ -107,9 +107,9 @@ class Remaining(ABC):
     def refitted(self, cols: np.ndarray, tolerances: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
                  point_normals: np.ndarray | None, support: float, bound_cos: float, refits: int
                  ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
-        """:meth:`best`, then up to ``refits`` :meth:`refit` rounds as :func:`.hypotheses.best_region` runs them (without
-        an orientation constraint), in one compiled call when a form has one: (normal, offset, region (r,), taken
-        (r,)); None when it has none (the caller runs the rounds)."""
+        """:meth:`best`, then up to ``refits`` :meth:`refit` rounds as :func:`.hypotheses.best_region` runs them
+        (without an orientation constraint), in one compiled call when a form has one: (normal, offset, region (r,),
+        taken (r,)); None when it has none (the caller runs the rounds)."""
         return None
 
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from .. import kernels, kernels_dev
+from .. import kernels
 from .neighbours import (
     COMPETE_ROUNDS,
     NEARBY_SCALES,
@@ -192,7 +192,7 @@ class GridNeighbours(Neighbours):
                       min_cos: float, region: np.ndarray) -> np.ndarray:
         """One compiled call (:func:`.kernels.grid_settle`: :func:`.kernels.grid_compete` working out only the
         distances it compares)."""
-        region = kernels_dev.grid_settle(search, planes, tolerance, viewpoint, min_cos, region, self.pixel, self.node,
+        region = kernels.grid_settle(search, planes, tolerance, viewpoint, min_cos, region, self.pixel, self.node,
                                          self.shape[1], EIGHT, COMPETE_ROUNDS)
         return np.where(region < len(planes), region, -1)
 
@@ -240,7 +240,7 @@ class _GridRemaining(Remaining):
         if nb.normals is None or point_normals is None:
             return None
         bridges = _NO_BRIDGES if nb.bridges is None else kernels.c_array(nb.bridges, np.int64)
-        return kernels_dev.grid_plane(cols, tolerances, normals, offsets, support, bound_cos, point_normals,
+        return kernels.grid_plane(cols, tolerances, normals, offsets, support, bound_cos, point_normals,
                                       nb.pixel.take(self.rest_idx), nb.usable, nb.shape[1], bridges, NORMAL_MIN_COS,
                                       REGION_RULES, refits)
 
