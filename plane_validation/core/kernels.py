@@ -2958,16 +2958,16 @@ def read_rows(words: np.ndarray, columns: np.ndarray, view: np.ndarray, within: 
 
 
 @numba.njit(**_NUMPY_JIT)
-def _runs_member_at(members: np.ndarray, count: int, pixels: np.ndarray, p: int) -> int:
-    """The place in ``members[:count]`` of the member at pixel ``p`` (``pixels`` by member, ascending), -1 for none."""
-    lo, hi = 0, count
+def _pixel_place(pixels: np.ndarray, p: int) -> int:
+    """The place of pixel ``p`` in ``pixels`` (ascending), -1 when it is not there."""
+    lo, hi = 0, pixels.shape[0]
     while lo < hi:
         mid = (lo + hi) // 2
-        if pixels[members[mid]] < p:
+        if pixels[mid] < p:
             lo = mid + 1
         else:
             hi = mid
-    return lo if lo < count and pixels[members[lo]] == p else -1
+    return lo if lo < pixels.shape[0] and pixels[lo] == p else -1
 
 
 @numba.njit(**_NUMPY_JIT)
@@ -2984,21 +2984,21 @@ def _run_holding(starts: np.ndarray, n_runs: int, c: int) -> int:
 
 
 @numba.njit(**_NUMPY_JIT)
-def _row_run_components(members: np.ndarray, count: int, pixels: np.ndarray, width: int, bridges: np.ndarray,
-                    counted: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, int, np.ndarray]:
-    """Connected components of the points ``members[:count]`` (places in ``pixels``, whose flat pixels on a
-    sub-grid ``width`` wide ascend with them) through their 4 image neighbours and the ``bridges`` (b, 3) that do not
-    cross the seam, labelled by runs along the image rows (a run touches the runs of the row above that overlap it):
-    (the component with the most ``counted`` (by place) points, the first of equals, -1 when there is none; the
-    component of each run; where each run starts among the members (runs + 1,); the number of runs; the ``counted``
-    points of each component), components numbered in the order of their first point (as
-    :func:`grid_components`)."""
+def _row_run_components(pixels: np.ndarray, width: int, bridges: np.ndarray, counted: np.ndarray
+                        ) -> tuple[int, np.ndarray, np.ndarray, int, np.ndarray]:
+    """Connected components of the points at ``pixels`` (c,) (flat, ascending) of a sub-grid ``width`` wide through
+    their 4 image neighbours and the ``bridges`` (b, 3) that do not cross the seam, labelled by runs along the image
+    rows (a run touches the runs of the row above that overlap it): (the component with the most ``counted`` (c,)
+    points, the first of equals, -1 when there is none; the component of each run; where each run starts (runs + 1,);
+    the number of runs; the ``counted`` points of each component), components numbered in the order of their first
+    point (as :func:`grid_components`)."""
+    count = pixels.shape[0]
     starts = np.empty(count + 1, np.int64)
     n_runs = 0
     previous = -2
     row_end = 0  # where the row of the previous point ends
     for c in range(count):
-        p = pixels[members[c]]
+        p = pixels[c]
         if not (p == previous + 1 and p < row_end):
             starts[n_runs] = c
             n_runs += 1
@@ -3009,20 +3009,19 @@ def _row_run_components(members: np.ndarray, count: int, pixels: np.ndarray, wid
     parent = np.arange(n_runs)
     low = 0  # the first run that may lie above the current one: the runs before it end before its row does
     for k in range(n_runs):
-        first, last = pixels[members[starts[k]]], pixels[members[starts[k + 1] - 1]]
+        first, last = pixels[starts[k]], pixels[starts[k + 1] - 1]
         if first < width:
             continue
-        while pixels[members[starts[low + 1] - 1]] < first - width:
+        while pixels[starts[low + 1] - 1] < first - width:
             low += 1
         j = low
-        while j < k and pixels[members[starts[j]]] <= last - width:
+        while j < k and pixels[starts[j]] <= last - width:
             _join(parent, k, j)
             j += 1
     for b in range(bridges.shape[0]):
         if bridges[b, 2] != 0:
             continue
-        u = _runs_member_at(members, count, pixels, bridges[b, 0])
-        v = _runs_member_at(members, count, pixels, bridges[b, 1])
+        u, v = _pixel_place(pixels, bridges[b, 0]), _pixel_place(pixels, bridges[b, 1])
         if u >= 0 and v >= 0:
             _join(parent, _run_holding(starts, n_runs, u), _run_holding(starts, n_runs, v))
     component = np.empty(n_runs, np.int64)
@@ -3038,7 +3037,7 @@ def _row_run_components(members: np.ndarray, count: int, pixels: np.ndarray, wid
     for k in range(n_runs):
         size = 0
         for c in range(starts[k], starts[k + 1]):
-            size += counted[members[c]]
+            size += counted[c]
         sizes[component[k]] += size
     best = np.argmax(sizes) if n_components else -1
     return best, component, starts, n_runs, sizes
@@ -3046,11 +3045,12 @@ def _row_run_components(members: np.ndarray, count: int, pixels: np.ndarray, wid
 
 @numba.njit(**_NUMPY_JIT)
 def _grid_band_region(cols: np.ndarray, tolerance: np.ndarray, support: float, nx: float, ny: float, nz: float,
-               offset: float, point_normals: np.ndarray, rest_pixel: np.ndarray, usable: np.ndarray, width: int,
-               bridges: np.ndarray, min_cos: float, rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                      offset: float, point_normals: np.ndarray, rest_pixel: np.ndarray, rest_usable: np.ndarray,
+                      width: int, bridges: np.ndarray, min_cos: float, rules: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
     """(kept, taken) (r,) bool: the region the plane (nx, ny, nz, ``offset``) keeps among the r points ``cols`` (3, r)
-    meters of a sub-grid (``rest_pixel`` (r,) their pixels, ascending; ``point_normals`` (3, r)), as
-    :func:`_plane_region` gives it."""
+    meters of a sub-grid (``rest_pixel`` (r,) their pixels, ascending; ``rest_usable`` (r,) whether each may join a
+    region; ``point_normals`` (3, r)), as :func:`_plane_region` gives it."""
     r = cols.shape[1]
     per_point = tolerance.shape[0] > 1
     band = np.empty(r, np.int64)  # the band's points (places in cols) that may join a region, ascending
@@ -3058,36 +3058,34 @@ def _grid_band_region(cols: np.ndarray, tolerance: np.ndarray, support: float, n
     inlier = np.empty(r, np.bool_)  # ... within t
     above = np.empty(r, np.bool_)  # ... on the side the normal points to
     n_band = 0
-    for q in range(r):
+    for q in range(r):  # written for every point, kept for those in the band: no branch
         e = nx * cols[0, q] + ny * cols[1, q] + nz * cols[2, q] + offset
         t = tolerance[q] if per_point else tolerance[0]
-        if not abs(e) <= support * t:
-            continue
         cos = abs(point_normals[0, q] * nx + point_normals[1, q] * ny + point_normals[2, q] * nz)
-        if not cos < min_cos and usable[rest_pixel[q]]:
-            band[n_band] = q
-            pixels[n_band] = rest_pixel[q]
-            inlier[n_band] = abs(e) <= t
-            above[n_band] = e > 0
-            n_band += 1
-    members = np.empty(n_band, np.int64)
+        band[n_band] = q
+        pixels[n_band] = rest_pixel[q]
+        inlier[n_band] = abs(e) <= t
+        above[n_band] = e > 0
+        n_band += (abs(e) <= support * t) & (not cos < min_cos) & rest_usable[q]
+    in_place = np.empty(n_band, np.int64)  # the inliers' places in cols
+    in_pixels = np.empty(n_band, np.int64)  # ... and pixels
     n_in = 0
     for b in range(n_band):
-        members[n_in] = b
+        in_place[n_in] = band[b]
+        in_pixels[n_in] = pixels[b]
         n_in += inlier[b]
-    best, component, starts, n_runs, sizes = _row_run_components(members, n_in, pixels, width, bridges, inlier)
+    in_pixels = in_pixels[:n_in]
+    best, component, starts, n_runs, sizes = _row_run_components(in_pixels, width, bridges, np.ones(n_in, np.bool_))
     kept = np.zeros(r, np.bool_)
     kept_count = 0
     for k in range(n_runs):
         if component[k] == best:
             kept_count += starts[k + 1] - starts[k]
             for c in range(starts[k], starts[k + 1]):
-                kept[band[members[c]]] = True
+                kept[in_place[c]] = True
     if not _fragmented(sizes, rules[0], rules[1]):
         return kept, kept.copy()
-    for b in range(n_band):
-        members[b] = b
-    best, component, starts, n_runs, _ = _row_run_components(members, n_band, pixels, width, bridges, inlier)
+    best, component, starts, n_runs, _ = _row_run_components(pixels[:n_band], width, bridges, inlier[:n_band])
     beyond = above_count = joined = 0
     for k in range(n_runs):
         if component[k] == best:
@@ -3112,9 +3110,11 @@ def _grid_band_region(cols: np.ndarray, tolerance: np.ndarray, support: float, n
 
 @numba.njit(**_NUMPY_JIT)
 def _grid_best(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, support: float,
-               bound_cos: float, point_normals: np.ndarray, rest_pixel: np.ndarray, usable: np.ndarray, width: int,
-               bridges: np.ndarray, min_cos: float, rules: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
-    """:func:`grid_best_region` over the points of :func:`grid_plane`: (the winner, its region (r,), taken (r,))."""
+               bound_cos: float, point_normals: np.ndarray, rest_pixel: np.ndarray, rest_usable: np.ndarray,
+               width: int, bridges: np.ndarray, min_cos: float, rules: np.ndarray
+               ) -> tuple[int, np.ndarray, np.ndarray]:
+    """:func:`grid_best_region` over the points of :func:`grid_plane` (``rest_usable`` (r,): whether each may join a
+    region): (the winner, its region (r,), taken (r,))."""
     h, r = normals.shape[0], cols.shape[1]
     per_point = tolerance.shape[0] > 1
     counts = np.zeros(h, np.int64)
@@ -3156,7 +3156,8 @@ def _grid_best(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
                                 _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
                 continue
         kept, took = _grid_band_region(cols, tolerance, support, normals[j, 0], normals[j, 1], normals[j, 2],
-                                       offsets[j], point_normals, rest_pixel, usable, width, bridges, min_cos, rules)
+                                       offsets[j], point_normals, rest_pixel, rest_usable, width, bridges, min_cos,
+                                       rules)
         found = np.count_nonzero(kept)
         if found > size or (found == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) <
                             _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
@@ -3177,8 +3178,11 @@ def grid_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
     bound, ``min_cos`` for the region, ``rules`` as there), then up to ``refits`` least-squares refits on its region,
     each kept while the region does not shrink, until it stays the same (``hypotheses.best_region`` without an
     orientation constraint). Returns (normal (3,), offset meters, region (r,), taken (r,))."""
+    rest_usable = np.empty(cols.shape[1], np.bool_)
+    for q in range(cols.shape[1]):
+        rest_usable[q] = usable[rest_pixel[q]]
     winner, region, taken = _grid_best(cols, tolerance, normals, offsets, support, bound_cos, point_normals,
-                                       rest_pixel, usable, width, bridges, min_cos, rules)
+                                       rest_pixel, rest_usable, width, bridges, min_cos, rules)
     normal = normals[winner].copy()
     offset = offsets[winner]
     for _ in range(refits):
@@ -3187,8 +3191,8 @@ def grid_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
             break
         new_normal, new_offset = fit_members(cols, np.flatnonzero(region))
         new_region, new_taken = _grid_band_region(cols, tolerance, support, new_normal[0], new_normal[1],
-                                                  new_normal[2], new_offset, point_normals, rest_pixel, usable, width,
-                                                  bridges, min_cos, rules)
+                                                  new_normal[2], new_offset, point_normals, rest_pixel, rest_usable,
+                                                  width, bridges, min_cos, rules)
         if np.count_nonzero(new_region) < count:
             break
         normal, offset = new_normal, new_offset

@@ -36,9 +36,9 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
     found, reason, region, capped = sequential_search(search, search_tolerance, max_planes, search_min, probability,
                                                       max_iterations, rng, n_total=n_valid, neighbours=neighbours,
                                                       allows=allows)
-    labels = np.full(len(pts), -1, dtype=np.int32)
     if not found:
-        return Segmentation(labels=labels, planes=(), tolerance=tolerance, n_valid=n_valid, reason=reason)
+        return Segmentation(labels=np.full(len(pts), -1, dtype=np.int32), planes=(), tolerance=tolerance,
+                            n_valid=n_valid, reason=reason)
     # each region's plane refitted on its own points, then the borders settled by nearest plane
     found = refit_regions(search, region, found, allows)
     region = _compete(search, region, found, search_tolerance, neighbours, viewpoint - center)
@@ -52,6 +52,7 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
         uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]
         labels, residual = spread_grid(pts, finite, shape, step, region, neighbours, uncentred, tolerance)
     elif len(search_idx) == n_valid:
+        labels = np.full(len(pts), -1, dtype=np.int32)
         own = np.where(region >= 0, region, 0)
         normals = np.array([n for n, _ in found])
         offsets = np.array([d for _, d in found])
