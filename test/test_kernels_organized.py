@@ -1,15 +1,18 @@
 """The organized detect kernels (core/kernels.py, the organized detect block) against their plain-numpy references, on
 random sub-grids: a RANSAC run's plane (the best confirmed hypothesis by its region, then its refits) from one call,
-border settling that works out only the distances it compares, and the sub-grid's median from one selection."""
+border settling that works out only the distances it compares, a pair of touching regions tried as one surface in one
+call, and the sub-grid's median from one selection."""
 from __future__ import annotations
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_kernels_search import _stripes_case
 
 from plane_validation.core import kernels
+from plane_validation.core.orientation import orientation
 from plane_validation.core.search import hypotheses
-from plane_validation.core.search.connected import GRAZING_DEG
+from plane_validation.core.search.connected import GRAZING_DEG, _merge_coplanar, _merge_coplanar_numpy
 from plane_validation.core.search.neighbours import settle_numpy
 from plane_validation.core.search.neighbours_grid import GridNeighbours, _GridRemaining, grid_region_numpy, median
 
@@ -119,3 +122,48 @@ def test_median_is_numpys(seed, n):
         values[rng.integers(0, n)] = np.nan
     expected = np.median(values)
     assert median(values) == expected or (np.isnan(expected) and np.isnan(median(values)))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1))
+def test_merge_pair_is_its_parts(seed):
+    """One call gives the pair's points (those of either region, ascending), their least-squares plane
+    (kernels.fit_members) and merge_test's answer on it; without the test, the same points and plane."""
+    search, region, found, tolerance, neighbours = _stripes_case(seed)
+    touching = neighbours.contacts(region, len(found))
+    if touching is None:
+        return
+    src, dst, a, b, pairs = touching
+    i, j = (int(v) for v in np.divmod(pairs[0], len(found)))
+    own = np.array([np.append(*found[i]), np.append(*found[j])])
+    tol = np.reshape(tolerance, -1).astype(float)
+    root = np.arange(len(found))
+    normals = kernels.c_array(neighbours.normals, np.float64)
+    args = (own, tol, src, dst, a, b, root, normals, 0.9, 0.95, 1.5)
+    same, normal, offset, members = kernels.merge_pair(search, region, i, j, *args, True)
+    expected = np.flatnonzero((region == i) | (region == j))
+    np.testing.assert_array_equal(members, expected)
+    ref_normal, ref_offset = kernels.fit_members(search, expected)
+    np.testing.assert_array_equal(normal, ref_normal)
+    assert offset == ref_offset
+    assert same == kernels.merge_test(search, expected, region, i, j, np.append(normal, offset), *args)
+    untested = kernels.merge_pair(search, region, i, j, *args, False)
+    assert untested[0] is False
+    np.testing.assert_array_equal(untested[3], expected)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.sampled_from(['parallel', 'perpendicular']))
+def test_merge_with_an_orientation_keeps_the_numpy_merges(seed, mode):
+    """With an orientation constraint (tested between the fit and the merge test) the coplanar merge merges the same
+    regions into the same planes as its numpy reference."""
+    search, region, found, tolerance, neighbours = _stripes_case(seed)
+    allows = orientation((0.0, 0.0, 1.0), 30.0, mode).allows
+    got_region, got_found = _merge_coplanar(search, region.copy(), found, tolerance, neighbours, allows)
+    ref_region, ref_found = _merge_coplanar_numpy(search, region.copy(), found, tolerance, neighbours, allows)
+    np.testing.assert_array_equal(got_region, ref_region)
+    assert len(got_found) == len(ref_found)
+    for (normal, offset), (ref_normal, ref_offset) in zip(got_found, ref_found):
+        sign = np.sign(normal @ ref_normal)
+        np.testing.assert_allclose(normal, sign * ref_normal, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(offset, sign * ref_offset, rtol=0, atol=1e-12)

@@ -29,7 +29,7 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'grid_best_region', 'grid_refit_region', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'grid_plane',
-           'grid_settle', 'warm', 'Warmup']
+           'grid_settle', 'merge_pair', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -3300,6 +3300,34 @@ def grid_settle(search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, v
     return region
 
 
+@numba.njit(**_NUMPY_JIT)
+def merge_pair(search: np.ndarray, region: np.ndarray, i: int, j: int, own: np.ndarray, tolerance: np.ndarray,
+               src: np.ndarray, dst: np.ndarray, region_src: np.ndarray, region_dst: np.ndarray, root: np.ndarray,
+               normals: np.ndarray, min_cos: float, keep: float, spread: float, test: bool
+               ) -> tuple[bool, np.ndarray, float, np.ndarray]:
+    """Two touching regions ``i`` < ``j`` of ``region`` (m,) of the points ``search`` (3, m) meters tried as one
+    surface in one call: their points (ascending), their joint least-squares plane (:func:`fit_members`) and, with
+    ``test``, :func:`merge_test` of it (``own`` (2, 4): their own planes; the other arguments are merge_test's).
+    Returns (whether they are one surface: False without ``test``, the joint normal (3,), its offset meters, their
+    points)."""
+    m = region.shape[0]
+    members = np.empty(m, np.int64)
+    c = 0
+    for p in range(m):  # written for every point, kept for the pair's: no branch
+        members[c] = p
+        c += (region[p] == i) | (region[p] == j)
+    members = members[:c]
+    normal, offset = fit_members(search, members)
+    if not test:
+        return False, normal, offset, members
+    plane = np.empty(4)
+    plane[:3] = normal
+    plane[3] = offset
+    same = merge_test(search, members, region, i, j, plane, own, tolerance, src, dst, region_src, region_dst, root,
+                      normals, min_cos, keep, spread)
+    return same, normal, offset, members
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -3458,6 +3486,10 @@ def _warm_organized_detect() -> None:
                np.ones(3), 3)
     grid_settle(cols, np.zeros((1, 4)), np.ones(1), np.zeros(3), 0.25, np.zeros(4, np.int64), index, index, 2, EIGHT,
                 2)
+    edges = np.zeros(1, np.int64)
+    for known in (np.zeros((4, 3)), np.empty((0, 3))):  # the grid's normals, and none known
+        merge_pair(cols, index, 0, 1, np.zeros((2, 4)), np.ones(1), edges, edges, edges, edges, index, known, 0.5, 0.95,
+                   1.5, True)
 
 
 #: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The
@@ -3524,4 +3556,4 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
             fit_mask, fit_regions, grid_best_region, grid_refit_region, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
-            read_rows, grid_plane, grid_settle)
+            read_rows, grid_plane, grid_settle, merge_pair)
