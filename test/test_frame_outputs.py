@@ -79,3 +79,26 @@ def test_far_coordinates_fall_back_to_float64_for_both_clouds():
     for cloud in (frame.segmented, frame.obstacles):
         assert [f.datatype for f in cloud.fields[:3]] == [sensor_msgs.PointField.FLOAT64] * 3
         assert (cloud.height, cloud.width) == scene.shape
+
+
+def test_markers_copied_from_one_base_are_whole_messages_of_their_own():
+    """plane_markers copies one base marker per marker: each must equal a Marker built by its constructor from the
+    fields it sets (the rest at their defaults), own its lists, and survive a round trip through serialization."""
+    serialization = pytest.importorskip('rclpy.serialization')
+    marker_msgs = pytest.importorskip('visualization_msgs.msg')
+    _, result = _results()[0]
+    header = std_msgs.Header(frame_id='camera')
+    markers = messages.plane_markers(header, result).markers
+    assert len(markers) == 1 + 3 * result.n_planes
+    set_fields = ('header', 'ns', 'id', 'type', 'action', 'pose', 'scale', 'color', 'points', 'text')
+    for marker in markers:
+        built = marker_msgs.Marker(**{name: getattr(marker, name) for name in set_fields})
+        assert marker == built
+        back = [serialization.deserialize_message(serialization.serialize_message(m), marker_msgs.Marker)
+                for m in (marker, built)]  # (compared as messages: padding bytes are left uninitialised)
+        assert back[0] == back[1]
+    hull, arrow = markers[1], markers[2]
+    hull.colors.append(std_msgs.ColorRGBA(r=1.0))
+    hull.uv_coordinates.append(marker_msgs.UVCoordinate())
+    assert (len(arrow.colors), len(arrow.uv_coordinates)) == (0, 0)
+    assert hull.points is not arrow.points and arrow.points is not markers[3].points

@@ -5,6 +5,7 @@ both publish the same messages for the same frame. Needs the ROS message package
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -188,6 +189,7 @@ def plane_markers(header, result: FrameResult, ns: str = 'planes',
     (``<ns>/normal``) and a text label (``<ns>/label``), each with the plane's track id as its id."""
     outlines = _outlines(result) if outlines is None else outlines
     markers = [Marker(header=header, ns=ns, action=Marker.DELETEALL)]
+    base = Marker(header=header, action=Marker.ADD)  # each marker a copy of it: Marker() builds every default anew
     colors = _colors(result) / 255.0
     for k, outline in enumerate(outlines):
         plane, pid = result.segmentation.planes[k], int(result.plane_ids[k])
@@ -198,22 +200,28 @@ def plane_markers(header, result: FrameResult, ns: str = 'planes',
         hull = [Point(x=x, y=y, z=z) for x, y, z in corners.tolist()] if len(corners) >= 3 else []
         middle = _point(centroid)
         tri = [p for i in range(len(hull)) for p in (middle, hull[i], hull[(i + 1) % len(hull)])]
-        markers.append(Marker(header=header, ns=f'{ns}/hull', id=pid, type=Marker.TRIANGLE_LIST, action=Marker.ADD,
-                              pose=Pose(orientation=Quaternion(w=1.0)), scale=Vector3(x=1.0, y=1.0, z=1.0),
-                              color=color, points=tri))
+        markers.append(_marker(base, f'{ns}/hull', pid, Marker.TRIANGLE_LIST, Pose(orientation=Quaternion(w=1.0)),
+                               Vector3(x=1.0, y=1.0, z=1.0), color, tri))
         tip = centroid + plane.normal * max(0.25 * extent, 1e-3)
-        markers.append(Marker(header=header, ns=f'{ns}/normal', id=pid, type=Marker.ARROW, action=Marker.ADD,
-                              pose=Pose(orientation=Quaternion(w=1.0)),
-                              scale=Vector3(x=0.02 * extent, y=0.04 * extent, z=0.06 * extent),
-                              color=ColorRGBA(r=color.r, g=color.g, b=color.b, a=1.0),
-                              points=[_point(centroid), _point(tip)]))
+        markers.append(_marker(base, f'{ns}/normal', pid, Marker.ARROW, Pose(orientation=Quaternion(w=1.0)),
+                               Vector3(x=0.02 * extent, y=0.04 * extent, z=0.06 * extent),
+                               ColorRGBA(r=color.r, g=color.g, b=color.b, a=1.0), [_point(centroid), _point(tip)]))
         text_at = tip + plane.normal * 0.05 * extent
-        markers.append(Marker(header=header, ns=f'{ns}/label', id=pid,
-                              type=Marker.TEXT_VIEW_FACING, action=Marker.ADD,
-                              pose=Pose(position=_point(text_at), orientation=Quaternion(w=1.0)),
-                              scale=Vector3(z=max(0.05 * extent, 1e-3)), color=ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0),
-                              text=f'plane {pid}: {result.plane_counts[k]} pts, rms {plane.rms:.3g} m'))
+        markers.append(_marker(base, f'{ns}/label', pid, Marker.TEXT_VIEW_FACING,
+                               Pose(position=_point(text_at), orientation=Quaternion(w=1.0)),
+                               Vector3(z=max(0.05 * extent, 1e-3)), ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0), [],
+                               f'plane {pid}: {result.plane_counts[k]} pts, rms {plane.rms:.3g} m'))
     return MarkerArray(markers=markers)
+
+
+def _marker(base: Marker, ns: str, pid: int, kind: int, pose: Pose, scale: Vector3, color: ColorRGBA,
+            points: list, text: str = '') -> Marker:
+    """A copy of ``base`` with these fields: what Marker(...) gives, without building the defaults (texture, mesh
+    file, lifetime) once more for each marker; the copies share those unset defaults (and the header) with ``base``."""
+    marker = copy.copy(base)
+    marker.ns, marker.id, marker.type, marker.pose, marker.scale, marker.color = ns, pid, kind, pose, scale, color
+    marker.points, marker.colors, marker.uv_coordinates, marker.text = points, [], [], text
+    return marker
 
 
 def plane_coefficients(result: FrameResult) -> Float64MultiArray:

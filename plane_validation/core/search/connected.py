@@ -1,6 +1,7 @@
 """The connected-regions search (``connectivity=True``): sequential RANSAC over a neighbourhood, then each
-region refitted, the borders between regions settled, touching regions of one surface merged, and every
-valid point labelled from the searched ones."""
+region refitted, the borders between regions settled, touching regions of one surface merged (and coplanar ones
+apart where the part between them is hidden, :mod:`.occluded`), and every valid point labelled from the searched
+ones."""
 from __future__ import annotations
 
 import numpy as np
@@ -11,6 +12,7 @@ from .fit import allows_normal, canonical, fit_columns, plane_distances, plane_r
 from .graph import SearchGraph, checked_search_graph, spread_nearest
 from .grid import spread_grid
 from .neighbours import NORMAL_MIN_COS, Neighbours
+from .occluded import merge_occluded
 from .sequential import sequential_search
 from .types import Allows, Plane, Segmentation, Tolerance
 
@@ -45,8 +47,10 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
     found = refit_regions(search, region, found, allows)
     searched = len(found)
     region, found = _merge_coplanar(search, region, found, search_tolerance, neighbours, allows)
+    region, found = merge_occluded(search, region, found, search_tolerance, viewpoint - center, MERGE_KEEP,
+                                   MERGE_SPREAD, allows)
     if len(found) < searched:
-        reason += f'; merged {searched - len(found)} region(s) into a touching region of the same surface'
+        reason += f'; merged {searched - len(found)} region(s) into another region of the same surface'
     residual = None
     if step:
         uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]

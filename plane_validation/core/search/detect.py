@@ -67,8 +67,9 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX
     noise_model: 'constant', or 'depth_quadratic': a point at range r from the sensor is within
         t * max(1, (r / noise_reference)^2) of a plane (:mod:`.noise`).
     viewpoint: (3,) meters, where the sensor is in the cloud's frame (default the origin, as a driver
-        publishes a scan): ranges for the noise model, and the rays along which the neighbourhood
-        graph of an unorganized cloud tells a spinning lidar's rings (:func:`.regions.graph_neighbours`).
+        publishes a scan): ranges for the noise model, the rays along which the neighbourhood
+        graph of an unorganized cloud tells a spinning lidar's rings (:func:`.regions.graph_neighbours`), and
+        those that tell whether coplanar regions apart are one surface hidden between them (:mod:`.occluded`).
     orientation: an :class:`.orientation.Orientation` (from :func:`.orientation.orientation`): only planes whose
         normal satisfies it are searched for, refitted and merged (None: any plane).
 
@@ -77,9 +78,10 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX
     within ``tolerance`` (ties to the earlier plane, -1 when none): a point within ``t`` of two planes
     along a shared edge goes to the nearer, not to the first found. With connectivity, each region is
     refitted on its own points, border points go to the nearest plane of the regions they touch,
-    touching regions of one surface are merged, and every valid point takes the region of the
-    searched point nearest to it (organized: of the sub-grid pixels around it) when it lies within
-    ``tolerance`` of that region's plane, else -1. Either way a plane left with fewer than
+    touching regions of one surface are merged (and coplanar regions apart where the sensor sees nothing
+    through their plane between them and something hides it or it is out of view), and every valid point
+    takes the region of the searched point nearest to it (organized: of the sub-grid pixels around it) when it
+    lies within ``tolerance`` of that region's plane, else -1. Either way a plane left with fewer than
     ``min_inliers`` points is dropped (and said so in ``reason``); with connectivity its points stay
     unassigned, as they touch no other region.
     """
