@@ -235,9 +235,9 @@ class _GridRemaining(Remaining):
     def refitted(self, cols: np.ndarray, tolerances: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
                  point_normals: np.ndarray | None, support: float, bound_cos: float, refits: int
                  ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
-        """One compiled call (:func:`.kernels.grid_plane`) when the grid's normals are known."""
+        """One compiled call (:func:`.kernels.grid_plane`) when the grid's normals and usable pixels are known."""
         nb = self.neighbours
-        if nb.normals is None or point_normals is None:
+        if nb.normals is None or nb.usable is None or point_normals is None:
             return None
         bridges = _NO_BRIDGES if nb.bridges is None else kernels.c_array(nb.bridges, np.int64)
         return kernels.grid_plane(cols, tolerances, normals, offsets, support, bound_cos, point_normals,
