@@ -8,22 +8,20 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_kernels_search import _stripes_case
+from test_kernels_search_loop import _NumpyGridRemaining
 
 from plane_validation.core import kernels
 from plane_validation.core.orientation import orientation
 from plane_validation.core.search import hypotheses
 from plane_validation.core.search.connected import GRAZING_DEG, _merge_coplanar, _merge_coplanar_numpy
 from plane_validation.core.search.neighbours import settle_numpy
-from plane_validation.core.search.neighbours_grid import GridNeighbours, _GridRemaining, grid_region_numpy, median
+from plane_validation.core.search.neighbours_grid import GridNeighbours, _GridRemaining, median
 
 SETTINGS = settings(max_examples=80, deadline=None)
 
 
-class _NumpyGridRemaining(_GridRemaining):
+class _NumpyLoops(_NumpyGridRemaining):
     """The grid's region rule by its numpy reference, run through the generic loops (no compiled whole plane)."""
-
-    def keep(self, mask, normal, support, above):
-        return grid_region_numpy(self.neighbours, self.rest_idx, mask, normal, support, above)
 
     def refitted(self, *args):
         return None
@@ -75,7 +73,7 @@ def test_grid_plane_matches_the_numpy_loop(seed, per_point, lidar):
     tolerance = scale * rng.uniform(0.5, 1.5, len(rest)) if per_point else scale
     point_normals = np.ascontiguousarray(normals[rest].T)
     got = hypotheses.best_region(cols, tolerance, planes, offsets, _GridRemaining(neighbours, rest), point_normals)
-    ref = hypotheses.best_region(cols, tolerance, planes, offsets, _NumpyGridRemaining(neighbours, rest),
+    ref = hypotheses.best_region(cols, tolerance, planes, offsets, _NumpyLoops(neighbours, rest),
                                  point_normals)
     np.testing.assert_array_equal(got[0], ref[0])
     assert got[1] == ref[1]
@@ -83,24 +81,29 @@ def test_grid_plane_matches_the_numpy_loop(seed, per_point, lidar):
     np.testing.assert_array_equal(got[3], ref[3])
 
 
-@SETTINGS
-@given(st.integers(0, 2**32 - 1), st.booleans())
-def test_grid_settle_matches_the_numpy_settling(seed, per_point):
+@settings(max_examples=150, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.booleans(), st.booleans())
+def test_grid_settle_matches_the_numpy_settling(seed, per_point, ties):
     """Border settling with the distances worked out on demand gives the regions of the numpy settling over every
-    distance (kernels.compete_distances), points at the viewpoint (NaN distances) included."""
+    distance (kernels.compete_distances), points at the viewpoint (NaN distances) included; with ``ties``, parallel
+    planes at whole-number offsets from whole-number points, so that equal offers occur (the smaller index wins)."""
     rng = np.random.default_rng(seed)
     neighbours, points, _ = _sub_grid(rng, False)
     m = neighbours.n
     k = int(rng.integers(1, 5))
+    if ties:
+        points[:, 0] = rng.integers(0, 4, m)
     search = np.ascontiguousarray(points.T)
     viewpoint = np.array([0.5, 0.5, -1.0])
     search[:, rng.random(m) < 0.02] = viewpoint[:, None]
     planes = np.empty((k, 4))
     for j in range(k):  # planes near the points, so that many are within the tolerance of several
-        normal = np.array([0.0, 0.0, 1.0]) + rng.normal(scale=0.3, size=3)
+        normal = np.array([1.0, 0.0, 0.0]) if ties else np.array([0.0, 0.0, 1.0]) + rng.normal(scale=0.3, size=3)
         planes[j, :3] = normal / np.linalg.norm(normal)
-        planes[j, 3] = -planes[j, :3] @ points[rng.integers(0, m)]
+        planes[j, 3] = -float(rng.integers(0, 4)) if ties else -planes[j, :3] @ points[rng.integers(0, m)]
     tolerance = rng.uniform(0.01, 0.2, m) if per_point else np.array([rng.uniform(0.01, 0.2)])
+    if ties:
+        tolerance *= 20.0
     region = rng.integers(0, k + 1, m)
     min_cos = float(np.cos(np.radians(GRAZING_DEG)))
     got = neighbours.settle_planes(search, planes, tolerance, viewpoint, min_cos, region.copy())

@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
-           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'finite_mask',
+           'grid_region', 'graph_components', 'graph_region', 'finite_mask',
            'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
            'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_fit',
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
@@ -414,85 +414,6 @@ def graph_region(edges: np.ndarray, normals: np.ndarray, normal: np.ndarray, min
         component, count = graph_components(n, edges, wide)
         return _surface(_largest(component, count, full)[0], full, above, out, rules[2])
     return out, out
-
-
-@numba.njit(**_JIT)
-def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: np.ndarray, width: int,
-                 eight: np.ndarray, rounds: int) -> np.ndarray:
-    """Border settling on a sub-grid (see ``Neighbours.settle``): ``dist`` (k + 1, m) each point's distance to each
-    region's plane (row k: no region, inf; inf beyond t), ``region`` (m,) 0..k (k: none). Each round every point
-    takes the region of an 8-neighbour (``eight``) whose plane is nearer than its own (the nearest; equals: the
-    neighbour with the smaller index), all from the labels before the round; the first round looks at the points
-    with a neighbour in another region, the next ones at the neighbours of the points that changed. Returns the
-    regions (m,), k for none."""
-    m = region.shape[0]
-    height = node.shape[0] // width
-    region = region.copy()
-    # the points on an image with a one-pixel margin of no point: neighbours without bounds checks
-    padded = width + 2
-    at = np.full((height + 2) * padded, -1, np.int64)
-    place = np.empty(m, np.int64)
-    r = 0
-    for i in range(m):
-        if i == 0 or pixel[i] >= (r + 1) * width:
-            r = pixel[i] // width
-        place[i] = (r + 1) * padded + pixel[i] - r * width + 1
-        at[place[i]] = i
-    n_eight = eight.shape[0]
-    step = np.empty(n_eight, np.int64)
-    for e in range(n_eight):
-        step[e] = eight[e, 0] * padded + eight[e, 1]
-    best = np.empty(m)
-    for i in range(m):
-        best[i] = dist[region[i], i]
-    offer_d = np.empty(m)
-    offer_src = np.full(m, -1, np.int64)
-    offer_region = np.empty(m, np.int64)
-    touched = np.empty(m, np.int64)
-    changed = np.empty(m, np.int64)
-    n_changed = -1  # the first round: the bordering points receive offers
-    # the offers are written out in one loop, not in a helper: a helper passed these arrays per neighbour took
-    # two thirds of the time
-    for _ in range(rounds):
-        n_touched = 0
-        first = n_changed < 0
-        for q in range(m if first else n_changed):
-            if first:  # a bordering point: every neighbour offers to it
-                centre = q
-                bordering = False
-                for e in range(n_eight):
-                    j = at[place[centre] + step[e]]
-                    if j >= 0 and region[j] != region[centre]:
-                        bordering = True
-                        break
-                if not bordering:
-                    continue
-            else:  # a changed point offers its new region to every neighbour
-                centre = changed[q]
-            for e in range(n_eight):
-                other = at[place[centre] + step[e]]
-                if other < 0:
-                    continue
-                dst, src = (centre, other) if first else (other, centre)
-                cand = region[src]
-                d = dist[cand, dst]
-                if not d < best[dst]:
-                    continue
-                if offer_src[dst] < 0:
-                    touched[n_touched] = dst
-                    n_touched += 1
-                elif not (d < offer_d[dst] or (d == offer_d[dst] and src < offer_src[dst])):
-                    continue  # the nearest offer wins, equals: the smaller src
-                offer_d[dst], offer_src[dst], offer_region[dst] = d, src, cand
-        if n_touched == 0:
-            break
-        for q in range(n_touched):
-            i = touched[q]
-            region[i], best[i] = offer_region[i], offer_d[i]
-            offer_src[i] = -1
-            changed[q] = i
-        n_changed = n_touched
-    return region
 
 
 @numba.njit(**_JIT)
@@ -3226,9 +3147,13 @@ def _ray_distance(search: np.ndarray, p: int, planes: np.ndarray, j: int, tolera
 def grid_settle(search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, viewpoint: np.ndarray, min_cos: float,
                 region: np.ndarray, pixel: np.ndarray, node: np.ndarray, width: int, eight: np.ndarray, rounds: int
                 ) -> np.ndarray:
-    """:func:`grid_compete` with the distances of :func:`compete_distances` (``search`` (3, m) meters, ``planes`` (k,
-    4), ``tolerance`` (1,) or (m,) meters, ``viewpoint`` (3,), ``min_cos``) worked out only where an offer compares
-    them: the same regions (m,), k for none."""
+    """Border settling on a sub-grid (``Neighbours.settle``) by the distances along each point's ray of
+    :func:`compete_distances` (``search`` (3, m) meters, ``planes`` (k, 4), ``tolerance`` (1,) or (m,) meters,
+    ``viewpoint`` (3,), ``min_cos``), each worked out only where an offer compares it: ``region`` (m,) 0..k (k:
+    none). Each round every point takes the region of an 8-neighbour (``eight``) whose plane is nearer than its own
+    (the nearest; equals: the neighbour with the smaller index), all from the labels before the round; the first round
+    looks at the points with a neighbour in another region, the next ones at the neighbours of the points that
+    changed. Returns the regions (m,), k for none."""
     m = region.shape[0]
     height = node.shape[0] // width
     region = region.copy()
@@ -3359,7 +3284,6 @@ def _warm_regions() -> None:
     grid_components(index, index, flags, 2, np.zeros((1, 3), np.int64), flags)
     grid_region(index, index, flags, 2, np.zeros((1, 3), np.int64), pts, np.ones(3), 0.5, index, index, flags, flags,
                 flags, np.ones(3))
-    grid_compete(np.zeros((2, 4)), np.zeros(4, np.int64), index, index, 2, EIGHT, 2)
     graph_components(4, np.zeros((1, 2), np.int64), flags)
     graph_region(np.zeros((1, 2), np.int64), pts, np.ones(3), 0.5, flags, flags, flags, np.ones(3))
     pair_graph(4, np.zeros((1, 2), np.int64))
@@ -3546,7 +3470,7 @@ def warm(jobs: int = 1) -> Warmup:
 
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
-            grid_region, grid_compete, graph_components, graph_region, coordinate_bounds,
+            grid_region, graph_components, graph_region, coordinate_bounds,
             voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, widen_xyz,
             valid_rows, frame_pass, plane_patches, fold_fit, grid_sample, grid_edges, grid_usable,
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,

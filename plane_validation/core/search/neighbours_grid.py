@@ -23,6 +23,7 @@ from .neighbours import (
     Neighbours,
     Remaining,
     joined_components,
+    settle_numpy,
 )
 from .types import Sampler
 
@@ -184,14 +185,13 @@ class GridNeighbours(Neighbours):
         return (src,)
 
     def settle(self, dist: np.ndarray, region: np.ndarray) -> np.ndarray:
-        """One compiled call (:func:`.kernels.grid_compete`; :func:`.neighbours.settle_numpy` is its reference)."""
-        region = kernels.grid_compete(dist, region, self.pixel, self.node, self.shape[1], EIGHT, COMPETE_ROUNDS)
-        return np.where(region < dist.shape[0] - 1, region, -1)
+        """:func:`.neighbours.settle_numpy` (the search settles by :meth:`settle_planes`)."""
+        return settle_numpy(dist, region, self)
 
     def settle_planes(self, search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, viewpoint: np.ndarray,
                       min_cos: float, region: np.ndarray) -> np.ndarray:
-        """One compiled call (:func:`.kernels.grid_settle`: :func:`.kernels.grid_compete` working out only the
-        distances it compares)."""
+        """One compiled call (:func:`.kernels.grid_settle`, which works out only the distances it compares;
+        :func:`.neighbours.settle_numpy` is its reference)."""
         region = kernels.grid_settle(search, planes, tolerance, viewpoint, min_cos, region, self.pixel, self.node,
                                          self.shape[1], EIGHT, COMPETE_ROUNDS)
         return np.where(region < len(planes), region, -1)
