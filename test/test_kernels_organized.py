@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_kernels_search import _stripes_case
+from test_kernels_search import _stripes_case, same_merges
 from test_kernels_search_loop import _NumpyGridRemaining
 
 from plane_validation.core import kernels
@@ -162,11 +162,5 @@ def test_merge_with_an_orientation_keeps_the_numpy_merges(seed, mode):
     regions into the same planes as its numpy reference."""
     search, region, found, tolerance, neighbours = _stripes_case(seed)
     allows = orientation((0.0, 0.0, 1.0), 30.0, mode).allows
-    got_region, got_found = _merge_coplanar(search, region.copy(), found, tolerance, neighbours, allows)
-    ref_region, ref_found = _merge_coplanar_numpy(search, region.copy(), found, tolerance, neighbours, allows)
-    np.testing.assert_array_equal(got_region, ref_region)
-    assert len(got_found) == len(ref_found)
-    for (normal, offset), (ref_normal, ref_offset) in zip(got_found, ref_found):
-        sign = np.sign(normal @ ref_normal)
-        np.testing.assert_allclose(normal, sign * ref_normal, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(offset, sign * ref_offset, rtol=0, atol=1e-12)
+    same_merges(_merge_coplanar(search, region.copy(), found, tolerance, neighbours, allows),
+                _merge_coplanar_numpy(search, region.copy(), found, tolerance, neighbours, allows))

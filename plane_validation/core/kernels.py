@@ -27,9 +27,9 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
            'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
-           'fit_regions', 'grid_best_region', 'grid_refit_region', 'plane_samples', 'sorted_order', 'order_statistics',
+           'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'grid_plane',
-           'grid_settle', 'merge_pair', 'warm', 'Warmup']
+           'grid_refit', 'grid_settle', 'merge_pair', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -2448,43 +2448,6 @@ def _ahead(a: int, b: int, counts: np.ndarray, cost: np.ndarray) -> bool:
 
 
 @numba.njit(**_NUMPY_JIT)
-def _plane_region(cols: np.ndarray, tolerance: np.ndarray, support: float, normal: np.ndarray, offset: float,
-                  pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
-                  grid_normals: np.ndarray, min_cos: float, rest: np.ndarray, position: np.ndarray, rules: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`grid_region` of the plane (``normal`` (3,), ``offset``) on the points ``cols`` (3, r) meters: its
-    inliers within ``tolerance`` ((1,) or (r,) meters), its support band within ``support`` times it, its side from
-    the signed distances (as :func:`plane_bands` and :func:`band_counts` give them), in the same pass."""
-    r = rest.shape[0]
-    per_point = tolerance.shape[0] > 1
-    nx, ny, nz = normal[0], normal[1], normal[2]
-    wide = np.zeros(r, np.bool_)
-    full = np.zeros(r, np.bool_)
-    up = np.zeros(r, np.bool_)
-    band = np.empty(r, np.int64)
-    inliers = np.empty(r, np.int64)
-    n_band = n_in = 0
-    for q in range(r):
-        e = nx * cols[0, q] + ny * cols[1, q] + nz * cols[2, q] + offset
-        t = tolerance[q] if per_point else tolerance[0]
-        if not abs(e) <= support * t:
-            continue
-        i = rest[q]
-        up[q] = e > 0
-        cos = abs(grid_normals[i, 0] * nx + grid_normals[i, 1] * ny + grid_normals[i, 2] * nz)
-        if not cos < min_cos and usable[pixel[i]]:
-            wide[q] = True
-            band[n_band] = q
-            n_band += 1
-            if abs(e) <= t:
-                full[q] = True
-                inliers[n_in] = q
-                n_in += 1
-    return _band_region(pixel, node, width, bridges, rest, position, wide, full, up, band[:n_band], inliers[:n_in],
-                        rules)
-
-
-@numba.njit(**_NUMPY_JIT)
 def _coherent_near(cols: np.ndarray, tolerance: np.ndarray, normal: np.ndarray, offset: float,
                    point_normals: np.ndarray, min_cos: float) -> int:
     """:func:`coherent_inliers` of the inliers of the plane (``normal`` (3,), ``offset``) among ``cols`` (3, r)
@@ -2520,17 +2483,12 @@ def _msac_cost(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
 
 
 @numba.njit(**_NUMPY_JIT)
-def grid_best_region(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
-                     support: float, bound_cos: float, point_normals: np.ndarray, pixel: np.ndarray, node: np.ndarray,
-                     usable: np.ndarray, width: int, bridges: np.ndarray, grid_normals: np.ndarray, min_cos: float,
-                     rest: np.ndarray, position: np.ndarray, rules: np.ndarray
-                     ) -> tuple[int, np.ndarray, np.ndarray]:
-    """Of the h confirmed hypotheses (``normals`` (h, 3), ``offsets`` (h,)) on the points ``cols`` (3, r) meters,
-    the points ``rest`` (r,) of a sub-grid (the arguments of :func:`grid_region`), the one whose region is largest
-    (equals: the lower MSAC cost): (its number, region (r,), taken (r,)). Hypotheses are tried by inliers, then cost;
-    none can keep more than its inliers (within ``tolerance``; support band: ``support`` times it), nor, with
-    ``point_normals`` (3, r) ((3, 0): none known), more than those whose normal lies within ``bound_cos`` of its own:
-    such hypotheses are not labelled."""
+def _ranked(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The h hypotheses (``normals`` (h, 3), ``offsets`` (h,)) on the points ``cols`` (3, r) meters in the order the
+    region kernels try them: by inliers (within ``tolerance``, (1,) or (r,) meters), then MSAC cost, as np.lexsort
+    ((cost, -counts)) orders them. Returns (inliers (h,), costs (h,), which costs are summed (h,), the order (h,));
+    the costs only decide between equal counts: each is summed (as band_counts sums it) when first compared."""
     h, r = normals.shape[0], cols.shape[1]
     per_point = tolerance.shape[0] > 1
     counts = np.zeros(h, np.int64)
@@ -2538,11 +2496,14 @@ def grid_best_region(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarra
     for j in range(h):  # band_counts' counts, without its masks
         nx, ny, nz, d = normals[j, 0], normals[j, 1], normals[j, 2], offsets[j]
         near = 0
-        for q in range(r):
-            near += np.int64(abs(nx * x[q] + ny * y[q] + nz * z[q] + d) <= (tolerance[q] if per_point else
-                                                                                tolerance[0]))
+        if per_point:
+            for q in range(r):
+                near += np.int64(abs(nx * x[q] + ny * y[q] + nz * z[q] + d) <= tolerance[q])
+        else:
+            t = tolerance[0]
+            for q in range(r):
+                near += np.int64(abs(nx * x[q] + ny * y[q] + nz * z[q] + d) <= t)
         counts[j] = near
-    # the MSAC costs only decide between equal counts: each summed (as band_counts sums it) when first compared
     cost = np.full(h, np.nan)
     known = np.zeros(h, np.bool_)
     for j in range(h):
@@ -2551,44 +2512,13 @@ def grid_best_region(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarra
                 _msac_cost(cols, tolerance, normals, offsets, j, cost, known)
     order = np.arange(h)
     for i in range(1, h):  # an insertion sort: stable, and h is a handful
-        x = order[i]
+        k = order[i]
         q = i
-        while q > 0 and _ahead(x, order[q - 1], counts, cost):
+        while q > 0 and _ahead(k, order[q - 1], counts, cost):
             order[q] = order[q - 1]
             q -= 1
-        order[q] = x
-    winner, size = -1, -1
-    region = taken = np.zeros(r, np.bool_)
-    for i in range(h):
-        j = order[i]
-        if counts[j] <= size:
-            break
-        if size > 0 and point_normals.shape[1] > 0:
-            bound = _coherent_near(cols, tolerance, normals[j], offsets[j], point_normals, bound_cos)
-            if bound < size or (bound == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) >=
-                                _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
-                continue
-        kept, took = _plane_region(cols, tolerance, support, normals[j], offsets[j], pixel, node, usable, width,
-                                   bridges, grid_normals, min_cos, rest, position, rules)
-        found = np.count_nonzero(kept)
-        if found > size or (found == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) <
-                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
-            winner, region, taken, size = j, kept, took, found
-    return winner, region, taken
-
-
-@numba.njit(**_NUMPY_JIT)
-def grid_refit_region(cols: np.ndarray, region: np.ndarray, tolerance: np.ndarray, support: float,
-                      pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
-                      grid_normals: np.ndarray, min_cos: float, rest: np.ndarray, position: np.ndarray,
-                      rules: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
-    """The least-squares plane of the points ``region`` (r,) bool (at least one) of ``cols`` (3, r) meters and the
-    region it keeps among the points ``rest`` of a sub-grid (see :func:`grid_best_region`): (normal (3,), offset
-    meters, region (r,), taken (r,))."""
-    normal, offset = fit_mask(cols, region)
-    kept, took = _plane_region(cols, tolerance, support, normal, offset, pixel, node, usable, width, bridges,
-                               grid_normals, min_cos, rest, position, rules)
-    return normal, offset, kept, took
+        order[q] = k
+    return counts, cost, known, order
 
 
 # --- verdict and indices per frame ---
@@ -2971,7 +2901,7 @@ def _grid_band_region(cols: np.ndarray, tolerance: np.ndarray, support: float, n
                       ) -> tuple[np.ndarray, np.ndarray]:
     """(kept, taken) (r,) bool: the region the plane (nx, ny, nz, ``offset``) keeps among the r points ``cols`` (3, r)
     meters of a sub-grid (``rest_pixel`` (r,) their pixels, ascending; ``rest_usable`` (r,) whether each may join a
-    region; ``point_normals`` (3, r)), as :func:`_plane_region` gives it."""
+    region; ``point_normals`` (3, r)), as :func:`grid_region` gives it."""
     r = cols.shape[1]
     per_point = tolerance.shape[0] > 1
     band = np.empty(r, np.int64)  # the band's points (places in cols) that may join a region, ascending
@@ -3034,37 +2964,12 @@ def _grid_best(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
                bound_cos: float, point_normals: np.ndarray, rest_pixel: np.ndarray, rest_usable: np.ndarray,
                width: int, bridges: np.ndarray, min_cos: float, rules: np.ndarray
                ) -> tuple[int, np.ndarray, np.ndarray]:
-    """:func:`grid_best_region` over the points of :func:`grid_plane` (``rest_usable`` (r,): whether each may join a
-    region): (the winner, its region (r,), taken (r,))."""
+    """Of the confirmed hypotheses, the one whose region is largest (see :func:`grid_plane`; ``rest_usable`` (r,):
+    whether each point may join a region): (its number, region (r,), taken (r,)). Hypotheses are tried by inliers,
+    then cost; none can keep more than its inliers, nor more than those whose normal lies within ``bound_cos`` of its
+    own: such hypotheses are not labelled (a bound, so it changes no answer)."""
     h, r = normals.shape[0], cols.shape[1]
-    per_point = tolerance.shape[0] > 1
-    counts = np.zeros(h, np.int64)
-    x, y, z = cols[0], cols[1], cols[2]
-    for j in range(h):
-        nx, ny, nz, d = normals[j, 0], normals[j, 1], normals[j, 2], offsets[j]
-        near = 0
-        if per_point:
-            for q in range(r):
-                near += np.int64(abs(nx * x[q] + ny * y[q] + nz * z[q] + d) <= tolerance[q])
-        else:
-            t = tolerance[0]
-            for q in range(r):
-                near += np.int64(abs(nx * x[q] + ny * y[q] + nz * z[q] + d) <= t)
-        counts[j] = near
-    cost = np.full(h, np.nan)
-    known = np.zeros(h, np.bool_)
-    for j in range(h):
-        for i in range(h):
-            if i != j and counts[i] == counts[j]:
-                _msac_cost(cols, tolerance, normals, offsets, j, cost, known)
-    order = np.arange(h)
-    for i in range(1, h):
-        k = order[i]
-        q = i
-        while q > 0 and _ahead(k, order[q - 1], counts, cost):
-            order[q] = order[q - 1]
-            q -= 1
-        order[q] = k
+    counts, cost, known, order = _ranked(cols, tolerance, normals, offsets)
     winner, size = -1, -1
     region = taken = np.zeros(r, np.bool_)
     for i in range(h):
@@ -3087,21 +2992,53 @@ def _grid_best(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
 
 
 @numba.njit(**_NUMPY_JIT)
+def _usable_at(usable: np.ndarray, rest_pixel: np.ndarray) -> np.ndarray:
+    """(r,) whether the pixel ``rest_pixel`` (r,) of each point may join a region (``usable`` (h * w,))."""
+    out = np.empty(rest_pixel.shape[0], np.bool_)
+    for q in range(rest_pixel.shape[0]):
+        out[q] = usable[rest_pixel[q]]
+    return out
+
+
+@numba.njit(**_NUMPY_JIT)
+def _grid_refit(cols: np.ndarray, region: np.ndarray, tolerance: np.ndarray, support: float,
+                point_normals: np.ndarray, rest_pixel: np.ndarray, rest_usable: np.ndarray, width: int,
+                bridges: np.ndarray, min_cos: float, rules: np.ndarray
+                ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+    """:func:`grid_refit` with the usable flags of the points (r,)."""
+    normal, offset = fit_members(cols, np.flatnonzero(region))
+    kept, took = _grid_band_region(cols, tolerance, support, normal[0], normal[1], normal[2], offset, point_normals,
+                                   rest_pixel, rest_usable, width, bridges, min_cos, rules)
+    return normal, offset, kept, took
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_refit(cols: np.ndarray, region: np.ndarray, tolerance: np.ndarray, support: float, point_normals: np.ndarray,
+               rest_pixel: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray, min_cos: float,
+               rules: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+    """The least-squares plane of the points ``region`` (r,) bool (at least one) of ``cols`` (3, r) meters and the
+    region it keeps among them (the sub-grid arguments as :func:`grid_plane` takes them): (normal (3,), offset meters,
+    region (r,), taken (r,))."""
+    return _grid_refit(cols, region, tolerance, support, point_normals, rest_pixel, _usable_at(usable, rest_pixel),
+                       width, bridges, min_cos, rules)
+
+
+@numba.njit(**_NUMPY_JIT)
 def grid_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, support: float,
                bound_cos: float, point_normals: np.ndarray, rest_pixel: np.ndarray, usable: np.ndarray, width: int,
                bridges: np.ndarray, min_cos: float, rules: np.ndarray, refits: int
-               ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+               ) -> tuple[int, np.ndarray, float, np.ndarray, np.ndarray]:
     """A RANSAC run's plane on a sub-grid's points ``cols`` (3, r) meters (their pixels ``rest_pixel`` (r,),
     ascending, on an image ``width`` wide with ``usable`` pixels and ``bridges`` (b, 3), as :func:`grid_components`
     takes them; their local normals ``point_normals`` (3, r), NaN where unknown): of the confirmed hypotheses
-    (``normals`` (h, 3), ``offsets`` (h,)) the one whose region is largest, as :func:`grid_best_region` chooses it
-    (``tolerance`` (1,) or (r,) meters, the support band ``support`` times it, ``bound_cos`` for the coherent-inlier
-    bound, ``min_cos`` for the region, ``rules`` as there), then up to ``refits`` least-squares refits on its region,
-    each kept while the region does not shrink, until it stays the same (``hypotheses.best_region`` without an
-    orientation constraint). Returns (normal (3,), offset meters, region (r,), taken (r,))."""
-    rest_usable = np.empty(cols.shape[1], np.bool_)
-    for q in range(cols.shape[1]):
-        rest_usable[q] = usable[rest_pixel[q]]
+    (``normals`` (h, 3), ``offsets`` (h,)) the one whose region (``Neighbours.region``: its inliers within
+    ``tolerance``, (1,) or (r,) meters, whose normals lie within ``min_cos`` of its own, their largest connected
+    component, or through the support band ``support`` times as wide by ``rules`` (FRAGMENTED, FRAGMENT_PIECE,
+    SUPPORT_BALANCE)) is largest, equals by the lower MSAC cost (``bound_cos``: see :func:`_grid_best`); then up to
+    ``refits`` least-squares refits on its region (:func:`grid_refit`), each kept while the region does not shrink,
+    until it stays the same (``hypotheses.best_region`` without an orientation constraint). Returns (the winner, the
+    plane's normal (3,), offset meters, region (r,), taken (r,))."""
+    rest_usable = _usable_at(usable, rest_pixel)
     winner, region, taken = _grid_best(cols, tolerance, normals, offsets, support, bound_cos, point_normals,
                                        rest_pixel, rest_usable, width, bridges, min_cos, rules)
     normal = normals[winner].copy()
@@ -3110,10 +3047,9 @@ def grid_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
         count = np.count_nonzero(region)
         if count < 3:
             break
-        new_normal, new_offset = fit_members(cols, np.flatnonzero(region))
-        new_region, new_taken = _grid_band_region(cols, tolerance, support, new_normal[0], new_normal[1],
-                                                  new_normal[2], new_offset, point_normals, rest_pixel, rest_usable,
-                                                  width, bridges, min_cos, rules)
+        new_normal, new_offset, new_region, new_taken = _grid_refit(cols, region, tolerance, support, point_normals,
+                                                                    rest_pixel, rest_usable, width, bridges, min_cos,
+                                                                    rules)
         if np.count_nonzero(new_region) < count:
             break
         normal, offset = new_normal, new_offset
@@ -3121,7 +3057,7 @@ def grid_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
         region, taken = new_region, new_taken
         if same:
             break
-    return normal, offset, region, taken
+    return winner, normal, offset, region, taken
 
 
 @numba.njit(**_NUMPY_JIT)
@@ -3378,14 +3314,6 @@ def _warm_fits() -> None:
     fit_regions(cols, codes, 2)
 
 
-def _warm_best_region() -> None:
-    pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
-    cols = np.zeros((3, 4))
-    grid_args = (index, index, flags, 2, np.zeros((1, 3), np.int64), pts, 0.5, index, index, np.ones(3))
-    winner, region, _ = grid_best_region(cols, np.ones(1), np.ones((2, 3)), np.zeros(2), 2.0, 0.5, cols, *grid_args)
-    grid_refit_region(cols, region, np.ones(1), 2.0, *grid_args)
-
-
 def _warm_judge() -> None:
     pts, index = np.zeros((4, 3)), np.arange(4, dtype=np.int64)
     plane_samples(pts, index, np.array([0, 4]))
@@ -3406,8 +3334,9 @@ def _warm_detect() -> None:
 def _warm_organized_detect() -> None:
     flags, index, cols = np.ones(4, np.bool_), np.arange(4, dtype=np.int64), np.zeros((3, 4))
     bridges = np.zeros((1, 3), np.int64)
-    grid_plane(cols, np.ones(1), np.ones((2, 3)), np.zeros(2), 2.0, 0.5, cols, index, flags, 2, bridges, 0.5,
-               np.ones(3), 3)
+    plane = grid_plane(cols, np.ones(1), np.ones((2, 3)), np.zeros(2), 2.0, 0.5, cols, index, flags, 2, bridges, 0.5,
+                       np.ones(3), 3)
+    grid_refit(cols, plane[3], np.ones(1), 2.0, cols, index, flags, 2, bridges, 0.5, np.ones(3))
     grid_settle(cols, np.zeros((1, 4)), np.ones(1), np.zeros(3), 0.25, np.zeros(4, np.int64), index, index, 2, EIGHT,
                 2)
     edges = np.zeros(1, np.int64)
@@ -3420,7 +3349,7 @@ def _warm_organized_detect() -> None:
 #: first is short: it tells whether the cache is cold. The longest compiles come next, so that processes compiling
 #: the rest in parallel end together.
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
-               _warm_frame, _warm_silhouette, _warm_grid_search, _warm_best_region, _warm_indices, _warm_planes,
+               _warm_frame, _warm_silhouette, _warm_grid_search, _warm_indices, _warm_planes,
                _warm_judge, _warm_detect, _warm_organized_detect)
 
 
@@ -3478,6 +3407,6 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
             beyond_counts, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
             voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
-            fit_mask, fit_regions, grid_best_region, grid_refit_region, plane_samples,
+            fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
-            read_rows, grid_plane, grid_settle, merge_pair)
+            read_rows, grid_plane, grid_refit, grid_settle, merge_pair)

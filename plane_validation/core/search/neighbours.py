@@ -78,7 +78,7 @@ class Remaining(ABC):
         taken (r,)). ``tolerances`` (1,) or (r,) meters; the support band is ``support`` times it. Hypotheses are tried
         by inliers, then cost; none can keep more than its inliers, nor, with ``point_normals`` (3, r) (NaN:
         unknown), more than those whose normal lies within ``bound_cos`` of its own: such hypotheses are not
-        labelled. A form may answer in one compiled call (:func:`.kernels.grid_best_region` is this loop)."""
+        labelled. A form may answer in one compiled call (:func:`.kernels.grid_plane` runs this loop)."""
         dist, above = kernels.plane_bands(cols, normals, offsets)
         inliers, band, counts, cost = kernels.band_counts(dist, tolerances, support)
         winner, region, taken, size = -1, None, None, -1

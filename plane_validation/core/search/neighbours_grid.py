@@ -56,7 +56,6 @@ BRIDGE_SLACK = 1.5
 #: The 8 image neighbours (row, column offsets).
 EIGHT = kernels.EIGHT
 _NO_BRIDGES = np.empty((0, 3), np.int64)
-_NO_POINT_NORMALS = np.empty((3, 0))
 _SCALES = np.array(NEARBY_SCALES, np.int64)
 
 
@@ -217,39 +216,45 @@ class _GridRemaining(Remaining):
     def without(self, left: np.ndarray) -> Remaining:
         return _GridRemaining(self.neighbours, self.rest_idx[left])
 
-    def _grid(self) -> tuple:
-        """The sub-grid's arguments of the region kernels, from ``pixel`` to ``rules``."""
+    def _compiled(self, point_normals: np.ndarray | None) -> tuple | None:
+        """The sub-grid arguments of :func:`.kernels.grid_plane` and :func:`.kernels.grid_refit`, from the points'
+        normals (3, r) (``point_normals``, or the grid's own at these points when None) to the region rules; None when
+        the grid's normals or usable pixels are unknown."""
         nb = self.neighbours
+        if nb.normals is None or nb.usable is None:
+            return None
+        if point_normals is None:
+            point_normals = np.ascontiguousarray(nb.normals.take(self.rest_idx, axis=0).T)
         bridges = _NO_BRIDGES if nb.bridges is None else kernels.c_array(nb.bridges, np.int64)
-        return (nb.pixel, nb.node, nb.usable, nb.shape[1], bridges, nb.normals, NORMAL_MIN_COS, self.rest_idx,
-                self.position, REGION_RULES)
+        return (point_normals, nb.pixel.take(self.rest_idx), nb.usable, nb.shape[1], bridges, NORMAL_MIN_COS,
+                REGION_RULES)
 
     def best(self, cols: np.ndarray, tolerances: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
              point_normals: np.ndarray | None, support: float, bound_cos: float) -> tuple[int, np.ndarray, np.ndarray]:
-        """One compiled call (:func:`.kernels.grid_best_region`)."""
-        if self.neighbours.normals is None:
+        """One compiled call (:func:`.kernels.grid_plane` without refits)."""
+        grid = self._compiled(point_normals)
+        if grid is None:
             return super().best(cols, tolerances, normals, offsets, point_normals, support, bound_cos)
-        return kernels.grid_best_region(cols, tolerances, normals, offsets, support, bound_cos,
-                                        _NO_POINT_NORMALS if point_normals is None else point_normals, *self._grid())
+        winner, _, _, region, taken = kernels.grid_plane(cols, tolerances, normals, offsets, support, bound_cos, *grid,
+                                                         0)
+        return int(winner), region, taken
 
     def refitted(self, cols: np.ndarray, tolerances: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
                  point_normals: np.ndarray | None, support: float, bound_cos: float, refits: int
                  ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
-        """One compiled call (:func:`.kernels.grid_plane`) when the grid's normals and usable pixels are known."""
-        nb = self.neighbours
-        if nb.normals is None or nb.usable is None or point_normals is None:
+        """One compiled call (:func:`.kernels.grid_plane`)."""
+        grid = self._compiled(point_normals)
+        if grid is None:
             return None
-        bridges = _NO_BRIDGES if nb.bridges is None else kernels.c_array(nb.bridges, np.int64)
-        return kernels.grid_plane(cols, tolerances, normals, offsets, support, bound_cos, point_normals,
-                                      nb.pixel.take(self.rest_idx), nb.usable, nb.shape[1], bridges, NORMAL_MIN_COS,
-                                      REGION_RULES, refits)
+        return kernels.grid_plane(cols, tolerances, normals, offsets, support, bound_cos, *grid, refits)[1:]
 
     def refit(self, cols: np.ndarray, tolerances: np.ndarray, region: np.ndarray, support: float
               ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
-        """One compiled call (:func:`.kernels.grid_refit_region`)."""
-        if self.neighbours.normals is None:
+        """One compiled call (:func:`.kernels.grid_refit`)."""
+        grid = self._compiled(None)
+        if grid is None:
             return super().refit(cols, tolerances, region, support)
-        return kernels.grid_refit_region(cols, region, tolerances, support, *self._grid())
+        return kernels.grid_refit(cols, region, tolerances, support, *grid)
 
 
 def rest_positions(n: int, rest_idx: np.ndarray) -> np.ndarray:
