@@ -175,25 +175,6 @@ def test_grid_components_match_the_numpy_labelling(seed):
     np.testing.assert_array_equal(component, ref)
 
 
-@settings(max_examples=200, deadline=None)
-@given(st.integers(0, 2**32 - 1))
-def test_grid_compete_matches_numpy(seed):
-    """Random distances on a random sub-grid, rounded so that equal offers occur (ties go to the smaller index)."""
-    from plane_validation.core.search.neighbours import COMPETE_ROUNDS, settle_numpy
-    neighbours, _, _, _, _, _ = _grid_case(seed)
-    rng = np.random.default_rng(seed)
-    k, m = int(rng.integers(1, 5)), neighbours.n
-    dist = np.round(rng.random((k + 1, m)), 1)
-    dist[rng.random((k + 1, m)) < 0.3] = np.inf
-    dist[k] = np.inf
-    dist[:, rng.random(m) < 0.02] = np.nan  # a point at the viewpoint
-    region = rng.integers(0, k + 1, m)
-    got = kernels.grid_compete(dist, region.copy(), neighbours.pixel, neighbours.node, neighbours.shape[1],
-                               kernels.EIGHT, COMPETE_ROUNDS)
-    expected = settle_numpy(dist, region.copy(), neighbours)
-    np.testing.assert_array_equal(np.where(got < k, got, -1), expected)
-
-
 def _graph_case(seed: int):
     """A random graph (as Neighbours' graph form: each pair once, smaller index first, sorted) with local normals
     (some unknown, or none at all) and a plane's bands."""

@@ -102,11 +102,16 @@ def test_merge_test_keeps_the_numpy_merges(seed):
     arbitrary)."""
     from plane_validation.core.search.connected import _merge_coplanar, _merge_coplanar_numpy
     search, region, found, tolerance, neighbours = _stripes_case(seed)
-    got_region, got_found = _merge_coplanar(search, region.copy(), found, tolerance, neighbours)
-    ref_region, ref_found = _merge_coplanar_numpy(search, region.copy(), found, tolerance, neighbours)
-    np.testing.assert_array_equal(got_region, ref_region)
-    assert len(got_found) == len(ref_found)
-    for (normal, offset), (ref_normal, ref_offset) in zip(got_found, ref_found):
+    same_merges(_merge_coplanar(search, region.copy(), found, tolerance, neighbours),
+                _merge_coplanar_numpy(search, region.copy(), found, tolerance, neighbours))
+
+
+def same_merges(got: tuple, ref: tuple) -> None:
+    """The same regions (m,) and planes [(normal, offset)] from a coplanar merge and its reference, the planes to
+    the fits' rounding (an eigenvector's sign is arbitrary)."""
+    np.testing.assert_array_equal(got[0], ref[0])
+    assert len(got[1]) == len(ref[1])
+    for (normal, offset), (ref_normal, ref_offset) in zip(got[1], ref[1]):
         sign = np.sign(normal @ ref_normal)
         np.testing.assert_allclose(normal, sign * ref_normal, rtol=0, atol=1e-12)
         np.testing.assert_allclose(offset, sign * ref_offset, rtol=0, atol=1e-12)

@@ -164,9 +164,10 @@ def _grid_search(seed: int):
 
 @SETTINGS
 @given(st.integers(0, 2**32 - 1), st.booleans())
-def test_grid_best_region_matches_numpy(seed, bound):
+def test_grid_best_and_refit_match_numpy(seed, bound):
     """The confirmed hypothesis whose region is largest, with its region and the points it takes, from one compiled
-    call: as the generic loop finds it over the numpy region rule (with and without the coherent-inlier bound)."""
+    call (kernels.grid_plane without refits), and a refit on that region (kernels.grid_refit): as the generic loops
+    find them over the numpy region rule (with and without the coherent-inlier bound)."""
     neighbours, rest, cols, (normals, offsets), tolerance, point_normals = _grid_search(seed)
     if not len(normals):
         return

@@ -309,6 +309,7 @@ def test_skipping_hypotheses_by_their_coherent_inliers_keeps_the_same_planes(mon
     monkeypatch.setattr(module, name, lambda *args: calls.append(1) or compiled(*args))
     if organized:  # the generic loop, labelling through the call counted (the kernel that runs it is tested alike)
         monkeypatch.setattr(neighbours_grid._GridRemaining, 'best', Remaining.best)
+        monkeypatch.setattr(neighbours_grid._GridRemaining, 'refitted', Remaining.refitted)
     fast = pv.detect_planes(points, t, seed=5, shape=shape, max_planes=8)
     n_fast, calls[:] = len(calls), []
     best_region = hypotheses.best_region

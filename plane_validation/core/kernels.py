@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
-           'grid_region', 'grid_compete', 'graph_components', 'graph_region', 'finite_mask',
+           'grid_region', 'graph_components', 'graph_region', 'finite_mask',
            'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
            'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_fit',
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
@@ -27,9 +27,9 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
            'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
-           'fit_regions', 'grid_best_region', 'grid_refit_region', 'plane_samples', 'sorted_order', 'order_statistics',
+           'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
-           'uncertain_nodes', 'first_across', 'warm',
+           'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'warm',
            'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -415,85 +415,6 @@ def graph_region(edges: np.ndarray, normals: np.ndarray, normal: np.ndarray, min
         component, count = graph_components(n, edges, wide)
         return _surface(_largest(component, count, full)[0], full, above, out, rules[2])
     return out, out
-
-
-@numba.njit(**_JIT)
-def grid_compete(dist: np.ndarray, region: np.ndarray, pixel: np.ndarray, node: np.ndarray, width: int,
-                 eight: np.ndarray, rounds: int) -> np.ndarray:
-    """Border settling on a sub-grid (see ``Neighbours.settle``): ``dist`` (k + 1, m) each point's distance to each
-    region's plane (row k: no region, inf; inf beyond t), ``region`` (m,) 0..k (k: none). Each round every point
-    takes the region of an 8-neighbour (``eight``) whose plane is nearer than its own (the nearest; equals: the
-    neighbour with the smaller index), all from the labels before the round; the first round looks at the points
-    with a neighbour in another region, the next ones at the neighbours of the points that changed. Returns the
-    regions (m,), k for none."""
-    m = region.shape[0]
-    height = node.shape[0] // width
-    region = region.copy()
-    # the points on an image with a one-pixel margin of no point: neighbours without bounds checks
-    padded = width + 2
-    at = np.full((height + 2) * padded, -1, np.int64)
-    place = np.empty(m, np.int64)
-    r = 0
-    for i in range(m):
-        if i == 0 or pixel[i] >= (r + 1) * width:
-            r = pixel[i] // width
-        place[i] = (r + 1) * padded + pixel[i] - r * width + 1
-        at[place[i]] = i
-    n_eight = eight.shape[0]
-    step = np.empty(n_eight, np.int64)
-    for e in range(n_eight):
-        step[e] = eight[e, 0] * padded + eight[e, 1]
-    best = np.empty(m)
-    for i in range(m):
-        best[i] = dist[region[i], i]
-    offer_d = np.empty(m)
-    offer_src = np.full(m, -1, np.int64)
-    offer_region = np.empty(m, np.int64)
-    touched = np.empty(m, np.int64)
-    changed = np.empty(m, np.int64)
-    n_changed = -1  # the first round: the bordering points receive offers
-    # the offers are written out in one loop, not in a helper: a helper passed these arrays per neighbour took
-    # two thirds of the time
-    for _ in range(rounds):
-        n_touched = 0
-        first = n_changed < 0
-        for q in range(m if first else n_changed):
-            if first:  # a bordering point: every neighbour offers to it
-                centre = q
-                bordering = False
-                for e in range(n_eight):
-                    j = at[place[centre] + step[e]]
-                    if j >= 0 and region[j] != region[centre]:
-                        bordering = True
-                        break
-                if not bordering:
-                    continue
-            else:  # a changed point offers its new region to every neighbour
-                centre = changed[q]
-            for e in range(n_eight):
-                other = at[place[centre] + step[e]]
-                if other < 0:
-                    continue
-                dst, src = (centre, other) if first else (other, centre)
-                cand = region[src]
-                d = dist[cand, dst]
-                if not d < best[dst]:
-                    continue
-                if offer_src[dst] < 0:
-                    touched[n_touched] = dst
-                    n_touched += 1
-                elif not (d < offer_d[dst] or (d == offer_d[dst] and src < offer_src[dst])):
-                    continue  # the nearest offer wins, equals: the smaller src
-                offer_d[dst], offer_src[dst], offer_region[dst] = d, src, cand
-        if n_touched == 0:
-            break
-        for q in range(n_touched):
-            i = touched[q]
-            region[i], best[i] = offer_region[i], offer_d[i]
-            offer_src[i] = -1
-            changed[q] = i
-        n_changed = n_touched
-    return region
 
 
 @numba.njit(**_JIT)
@@ -2528,43 +2449,6 @@ def _ahead(a: int, b: int, counts: np.ndarray, cost: np.ndarray) -> bool:
 
 
 @numba.njit(**_NUMPY_JIT)
-def _plane_region(cols: np.ndarray, tolerance: np.ndarray, support: float, normal: np.ndarray, offset: float,
-                  pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
-                  grid_normals: np.ndarray, min_cos: float, rest: np.ndarray, position: np.ndarray, rules: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`grid_region` of the plane (``normal`` (3,), ``offset``) on the points ``cols`` (3, r) meters: its
-    inliers within ``tolerance`` ((1,) or (r,) meters), its support band within ``support`` times it, its side from
-    the signed distances (as :func:`plane_bands` and :func:`band_counts` give them), in the same pass."""
-    r = rest.shape[0]
-    per_point = tolerance.shape[0] > 1
-    nx, ny, nz = normal[0], normal[1], normal[2]
-    wide = np.zeros(r, np.bool_)
-    full = np.zeros(r, np.bool_)
-    up = np.zeros(r, np.bool_)
-    band = np.empty(r, np.int64)
-    inliers = np.empty(r, np.int64)
-    n_band = n_in = 0
-    for q in range(r):
-        e = nx * cols[0, q] + ny * cols[1, q] + nz * cols[2, q] + offset
-        t = tolerance[q] if per_point else tolerance[0]
-        if not abs(e) <= support * t:
-            continue
-        i = rest[q]
-        up[q] = e > 0
-        cos = abs(grid_normals[i, 0] * nx + grid_normals[i, 1] * ny + grid_normals[i, 2] * nz)
-        if not cos < min_cos and usable[pixel[i]]:
-            wide[q] = True
-            band[n_band] = q
-            n_band += 1
-            if abs(e) <= t:
-                full[q] = True
-                inliers[n_in] = q
-                n_in += 1
-    return _band_region(pixel, node, width, bridges, rest, position, wide, full, up, band[:n_band], inliers[:n_in],
-                        rules)
-
-
-@numba.njit(**_NUMPY_JIT)
 def _coherent_near(cols: np.ndarray, tolerance: np.ndarray, normal: np.ndarray, offset: float,
                    point_normals: np.ndarray, min_cos: float) -> int:
     """:func:`coherent_inliers` of the inliers of the plane (``normal`` (3,), ``offset``) among ``cols`` (3, r)
@@ -2600,17 +2484,12 @@ def _msac_cost(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
 
 
 @numba.njit(**_NUMPY_JIT)
-def grid_best_region(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
-                     support: float, bound_cos: float, point_normals: np.ndarray, pixel: np.ndarray, node: np.ndarray,
-                     usable: np.ndarray, width: int, bridges: np.ndarray, grid_normals: np.ndarray, min_cos: float,
-                     rest: np.ndarray, position: np.ndarray, rules: np.ndarray
-                     ) -> tuple[int, np.ndarray, np.ndarray]:
-    """Of the h confirmed hypotheses (``normals`` (h, 3), ``offsets`` (h,)) on the points ``cols`` (3, r) meters,
-    the points ``rest`` (r,) of a sub-grid (the arguments of :func:`grid_region`), the one whose region is largest
-    (equals: the lower MSAC cost): (its number, region (r,), taken (r,)). Hypotheses are tried by inliers, then cost;
-    none can keep more than its inliers (within ``tolerance``; support band: ``support`` times it), nor, with
-    ``point_normals`` (3, r) ((3, 0): none known), more than those whose normal lies within ``bound_cos`` of its own:
-    such hypotheses are not labelled."""
+def _ranked(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The h hypotheses (``normals`` (h, 3), ``offsets`` (h,)) on the points ``cols`` (3, r) meters in the order the
+    region kernels try them: by inliers (within ``tolerance``, (1,) or (r,) meters), then MSAC cost, as np.lexsort
+    ((cost, -counts)) orders them. Returns (inliers (h,), costs (h,), which costs are summed (h,), the order (h,));
+    the costs only decide between equal counts: each is summed (as band_counts sums it) when first compared."""
     h, r = normals.shape[0], cols.shape[1]
     per_point = tolerance.shape[0] > 1
     counts = np.zeros(h, np.int64)
@@ -2618,11 +2497,14 @@ def grid_best_region(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarra
     for j in range(h):  # band_counts' counts, without its masks
         nx, ny, nz, d = normals[j, 0], normals[j, 1], normals[j, 2], offsets[j]
         near = 0
-        for q in range(r):
-            near += np.int64(abs(nx * x[q] + ny * y[q] + nz * z[q] + d) <= (tolerance[q] if per_point else
-                                                                                tolerance[0]))
+        if per_point:
+            for q in range(r):
+                near += np.int64(abs(nx * x[q] + ny * y[q] + nz * z[q] + d) <= tolerance[q])
+        else:
+            t = tolerance[0]
+            for q in range(r):
+                near += np.int64(abs(nx * x[q] + ny * y[q] + nz * z[q] + d) <= t)
         counts[j] = near
-    # the MSAC costs only decide between equal counts: each summed (as band_counts sums it) when first compared
     cost = np.full(h, np.nan)
     known = np.zeros(h, np.bool_)
     for j in range(h):
@@ -2631,44 +2513,13 @@ def grid_best_region(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarra
                 _msac_cost(cols, tolerance, normals, offsets, j, cost, known)
     order = np.arange(h)
     for i in range(1, h):  # an insertion sort: stable, and h is a handful
-        x = order[i]
+        k = order[i]
         q = i
-        while q > 0 and _ahead(x, order[q - 1], counts, cost):
+        while q > 0 and _ahead(k, order[q - 1], counts, cost):
             order[q] = order[q - 1]
             q -= 1
-        order[q] = x
-    winner, size = -1, -1
-    region = taken = np.zeros(r, np.bool_)
-    for i in range(h):
-        j = order[i]
-        if counts[j] <= size:
-            break
-        if size > 0 and point_normals.shape[1] > 0:
-            bound = _coherent_near(cols, tolerance, normals[j], offsets[j], point_normals, bound_cos)
-            if bound < size or (bound == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) >=
-                                _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
-                continue
-        kept, took = _plane_region(cols, tolerance, support, normals[j], offsets[j], pixel, node, usable, width,
-                                   bridges, grid_normals, min_cos, rest, position, rules)
-        found = np.count_nonzero(kept)
-        if found > size or (found == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) <
-                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
-            winner, region, taken, size = j, kept, took, found
-    return winner, region, taken
-
-
-@numba.njit(**_NUMPY_JIT)
-def grid_refit_region(cols: np.ndarray, region: np.ndarray, tolerance: np.ndarray, support: float,
-                      pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray,
-                      grid_normals: np.ndarray, min_cos: float, rest: np.ndarray, position: np.ndarray,
-                      rules: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
-    """The least-squares plane of the points ``region`` (r,) bool (at least one) of ``cols`` (3, r) meters and the
-    region it keeps among the points ``rest`` of a sub-grid (see :func:`grid_best_region`): (normal (3,), offset
-    meters, region (r,), taken (r,))."""
-    normal, offset = fit_mask(cols, region)
-    kept, took = _plane_region(cols, tolerance, support, normal, offset, pixel, node, usable, width, bridges,
-                               grid_normals, min_cos, rest, position, rules)
-    return normal, offset, kept, took
+        order[q] = k
+    return counts, cost, known, order
 
 
 # --- verdict and indices per frame ---
@@ -3089,6 +2940,393 @@ def first_across(rows: np.ndarray, near: np.ndarray, points: np.ndarray, directi
     return found, target
 
 
+# --- organized detect ---
+# A RANSAC run's plane on an image's sub-grid (the best confirmed hypothesis by its region, then its refits) in one
+# call, its regions labelled along runs of the image rows; and border settling that works out only the distances it
+# compares.
+
+
+@numba.njit(**_NUMPY_JIT)
+def _pixel_place(pixels: np.ndarray, p: int) -> int:
+    """The place of pixel ``p`` in ``pixels`` (ascending), -1 when it is not there."""
+    lo, hi = 0, pixels.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if pixels[mid] < p:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo if lo < pixels.shape[0] and pixels[lo] == p else -1
+
+
+@numba.njit(**_NUMPY_JIT)
+def _run_holding(starts: np.ndarray, n_runs: int, c: int) -> int:
+    """The run (``starts`` (n_runs + 1,): where each begins) that holds place ``c``."""
+    lo, hi = 0, n_runs - 1
+    while lo < hi:
+        mid = (lo + hi + 1) // 2
+        if starts[mid] <= c:
+            lo = mid
+        else:
+            hi = mid - 1
+    return lo
+
+
+@numba.njit(**_NUMPY_JIT)
+def _row_run_components(pixels: np.ndarray, width: int, bridges: np.ndarray, counted: np.ndarray
+                        ) -> tuple[int, np.ndarray, np.ndarray, int, np.ndarray]:
+    """Connected components of the points at ``pixels`` (c,) (flat, ascending) of a sub-grid ``width`` wide through
+    their 4 image neighbours and the ``bridges`` (b, 3) that do not cross the seam, labelled by runs along the image
+    rows (a run touches the runs of the row above that overlap it): (the component with the most ``counted`` (c,)
+    points, the first of equals, -1 when there is none; the component of each run; where each run starts (runs + 1,);
+    the number of runs; the ``counted`` points of each component), components numbered in the order of their first
+    point (as :func:`grid_components`)."""
+    count = pixels.shape[0]
+    starts = np.empty(count + 1, np.int64)
+    n_runs = 0
+    previous = -2
+    row_end = 0  # where the row of the previous point ends
+    for c in range(count):
+        p = pixels[c]
+        if not (p == previous + 1 and p < row_end):
+            starts[n_runs] = c
+            n_runs += 1
+            if p >= row_end:
+                row_end = p - p % width + width
+        previous = p
+    starts[n_runs] = count
+    parent = np.arange(n_runs)
+    low = 0  # the first run that may lie above the current one: the runs before it end before its row does
+    for k in range(n_runs):
+        first, last = pixels[starts[k]], pixels[starts[k + 1] - 1]
+        if first < width:
+            continue
+        while pixels[starts[low + 1] - 1] < first - width:
+            low += 1
+        j = low
+        while j < k and pixels[starts[j]] <= last - width:
+            _join(parent, k, j)
+            j += 1
+    for b in range(bridges.shape[0]):
+        if bridges[b, 2] != 0:
+            continue
+        u, v = _pixel_place(pixels, bridges[b, 0]), _pixel_place(pixels, bridges[b, 1])
+        if u >= 0 and v >= 0:
+            _join(parent, _run_holding(starts, n_runs, u), _run_holding(starts, n_runs, v))
+    component = np.empty(n_runs, np.int64)
+    n_components = 0
+    for k in range(n_runs):
+        root = _root(parent, k)
+        if root == k:  # a root is its component's first run: met first
+            component[k] = n_components
+            n_components += 1
+        else:
+            component[k] = component[root]
+    sizes = np.zeros(n_components, np.int64)
+    for k in range(n_runs):
+        size = 0
+        for c in range(starts[k], starts[k + 1]):
+            size += counted[c]
+        sizes[component[k]] += size
+    best = np.argmax(sizes) if n_components else -1
+    return best, component, starts, n_runs, sizes
+
+
+@numba.njit(**_NUMPY_JIT)
+def _grid_band_region(cols: np.ndarray, tolerance: np.ndarray, support: float, nx: float, ny: float, nz: float,
+                      offset: float, point_normals: np.ndarray, rest_pixel: np.ndarray, rest_usable: np.ndarray,
+                      width: int, bridges: np.ndarray, min_cos: float, rules: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """(kept, taken) (r,) bool: the region the plane (nx, ny, nz, ``offset``) keeps among the r points ``cols`` (3, r)
+    meters of a sub-grid (``rest_pixel`` (r,) their pixels, ascending; ``rest_usable`` (r,) whether each may join a
+    region; ``point_normals`` (3, r)), as :func:`grid_region` gives it."""
+    r = cols.shape[1]
+    per_point = tolerance.shape[0] > 1
+    band = np.empty(r, np.int64)  # the band's points (places in cols) that may join a region, ascending
+    pixels = np.empty(r, np.int64)  # ... their pixels
+    inlier = np.empty(r, np.bool_)  # ... within t
+    above = np.empty(r, np.bool_)  # ... on the side the normal points to
+    n_band = 0
+    for q in range(r):  # written for every point, kept for those in the band: no branch
+        e = nx * cols[0, q] + ny * cols[1, q] + nz * cols[2, q] + offset
+        t = tolerance[q] if per_point else tolerance[0]
+        cos = abs(point_normals[0, q] * nx + point_normals[1, q] * ny + point_normals[2, q] * nz)
+        band[n_band] = q
+        pixels[n_band] = rest_pixel[q]
+        inlier[n_band] = abs(e) <= t
+        above[n_band] = e > 0
+        n_band += (abs(e) <= support * t) & (not cos < min_cos) & rest_usable[q]
+    in_place = np.empty(n_band, np.int64)  # the inliers' places in cols
+    in_pixels = np.empty(n_band, np.int64)  # ... and pixels
+    n_in = 0
+    for b in range(n_band):
+        in_place[n_in] = band[b]
+        in_pixels[n_in] = pixels[b]
+        n_in += inlier[b]
+    in_pixels = in_pixels[:n_in]
+    best, component, starts, n_runs, sizes = _row_run_components(in_pixels, width, bridges, np.ones(n_in, np.bool_))
+    kept = np.zeros(r, np.bool_)
+    kept_count = 0
+    for k in range(n_runs):
+        if component[k] == best:
+            kept_count += starts[k + 1] - starts[k]
+            for c in range(starts[k], starts[k + 1]):
+                kept[in_place[c]] = True
+    if not _fragmented(sizes, rules[0], rules[1]):
+        return kept, kept.copy()
+    best, component, starts, n_runs, _ = _row_run_components(pixels[:n_band], width, bridges, inlier[:n_band])
+    beyond = above_count = joined = 0
+    for k in range(n_runs):
+        if component[k] == best:
+            for b in range(starts[k], starts[k + 1]):
+                if inlier[b]:
+                    joined += 1
+                else:
+                    beyond += 1
+                    above_count += above[b]
+    below = beyond - above_count
+    if min(above_count, below) >= rules[2] * max(above_count, below) and joined > kept_count:
+        taken = np.zeros(r, np.bool_)
+        joint = np.zeros(r, np.bool_)
+        for k in range(n_runs):
+            if component[k] == best:
+                for b in range(starts[k], starts[k + 1]):
+                    taken[band[b]] = True
+                    joint[band[b]] = inlier[b]
+        return joint, taken
+    return kept, kept.copy()
+
+
+@numba.njit(**_NUMPY_JIT)
+def _grid_best(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, support: float,
+               bound_cos: float, point_normals: np.ndarray, rest_pixel: np.ndarray, rest_usable: np.ndarray,
+               width: int, bridges: np.ndarray, min_cos: float, rules: np.ndarray
+               ) -> tuple[int, np.ndarray, np.ndarray]:
+    """Of the confirmed hypotheses, the one whose region is largest (see :func:`grid_plane`; ``rest_usable`` (r,):
+    whether each point may join a region): (its number, region (r,), taken (r,)). Hypotheses are tried by inliers,
+    then cost; none can keep more than its inliers, nor more than those whose normal lies within ``bound_cos`` of its
+    own: such hypotheses are not labelled (a bound, so it changes no answer)."""
+    h, r = normals.shape[0], cols.shape[1]
+    counts, cost, known, order = _ranked(cols, tolerance, normals, offsets)
+    winner, size = -1, -1
+    region = taken = np.zeros(r, np.bool_)
+    for i in range(h):
+        j = order[i]
+        if counts[j] <= size:
+            break
+        if size > 0:
+            bound = _coherent_near(cols, tolerance, normals[j], offsets[j], point_normals, bound_cos)
+            if bound < size or (bound == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) >=
+                                _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
+                continue
+        kept, took = _grid_band_region(cols, tolerance, support, normals[j, 0], normals[j, 1], normals[j, 2],
+                                       offsets[j], point_normals, rest_pixel, rest_usable, width, bridges, min_cos,
+                                       rules)
+        found = np.count_nonzero(kept)
+        if found > size or (found == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) <
+                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
+            winner, region, taken, size = j, kept, took, found
+    return winner, region, taken
+
+
+@numba.njit(**_NUMPY_JIT)
+def _usable_at(usable: np.ndarray, rest_pixel: np.ndarray) -> np.ndarray:
+    """(r,) whether the pixel ``rest_pixel`` (r,) of each point may join a region (``usable`` (h * w,))."""
+    out = np.empty(rest_pixel.shape[0], np.bool_)
+    for q in range(rest_pixel.shape[0]):
+        out[q] = usable[rest_pixel[q]]
+    return out
+
+
+@numba.njit(**_NUMPY_JIT)
+def _grid_refit(cols: np.ndarray, region: np.ndarray, tolerance: np.ndarray, support: float,
+                point_normals: np.ndarray, rest_pixel: np.ndarray, rest_usable: np.ndarray, width: int,
+                bridges: np.ndarray, min_cos: float, rules: np.ndarray
+                ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+    """:func:`grid_refit` with the usable flags of the points (r,)."""
+    normal, offset = fit_members(cols, np.flatnonzero(region))
+    kept, took = _grid_band_region(cols, tolerance, support, normal[0], normal[1], normal[2], offset, point_normals,
+                                   rest_pixel, rest_usable, width, bridges, min_cos, rules)
+    return normal, offset, kept, took
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_refit(cols: np.ndarray, region: np.ndarray, tolerance: np.ndarray, support: float, point_normals: np.ndarray,
+               rest_pixel: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray, min_cos: float,
+               rules: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+    """The least-squares plane of the points ``region`` (r,) bool (at least one) of ``cols`` (3, r) meters and the
+    region it keeps among them (the sub-grid arguments as :func:`grid_plane` takes them): (normal (3,), offset meters,
+    region (r,), taken (r,))."""
+    return _grid_refit(cols, region, tolerance, support, point_normals, rest_pixel, _usable_at(usable, rest_pixel),
+                       width, bridges, min_cos, rules)
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, support: float,
+               bound_cos: float, point_normals: np.ndarray, rest_pixel: np.ndarray, usable: np.ndarray, width: int,
+               bridges: np.ndarray, min_cos: float, rules: np.ndarray, refits: int
+               ) -> tuple[int, np.ndarray, float, np.ndarray, np.ndarray]:
+    """A RANSAC run's plane on a sub-grid's points ``cols`` (3, r) meters (their pixels ``rest_pixel`` (r,),
+    ascending, on an image ``width`` wide with ``usable`` pixels and ``bridges`` (b, 3), as :func:`grid_components`
+    takes them; their local normals ``point_normals`` (3, r), NaN where unknown): of the confirmed hypotheses
+    (``normals`` (h, 3), ``offsets`` (h,)) the one whose region (``Neighbours.region``: its inliers within
+    ``tolerance``, (1,) or (r,) meters, whose normals lie within ``min_cos`` of its own, their largest connected
+    component, or through the support band ``support`` times as wide by ``rules`` (FRAGMENTED, FRAGMENT_PIECE,
+    SUPPORT_BALANCE)) is largest, equals by the lower MSAC cost (``bound_cos``: see :func:`_grid_best`); then up to
+    ``refits`` least-squares refits on its region (:func:`grid_refit`), each kept while the region does not shrink,
+    until it stays the same (``hypotheses.best_region`` without an orientation constraint). Returns (the winner, the
+    plane's normal (3,), offset meters, region (r,), taken (r,))."""
+    rest_usable = _usable_at(usable, rest_pixel)
+    winner, region, taken = _grid_best(cols, tolerance, normals, offsets, support, bound_cos, point_normals,
+                                       rest_pixel, rest_usable, width, bridges, min_cos, rules)
+    normal = normals[winner].copy()
+    offset = offsets[winner]
+    for _ in range(refits):
+        count = np.count_nonzero(region)
+        if count < 3:
+            break
+        new_normal, new_offset, new_region, new_taken = _grid_refit(cols, region, tolerance, support, point_normals,
+                                                                    rest_pixel, rest_usable, width, bridges, min_cos,
+                                                                    rules)
+        if np.count_nonzero(new_region) < count:
+            break
+        normal, offset = new_normal, new_offset
+        same = np.array_equal(new_region, region)
+        region, taken = new_region, new_taken
+        if same:
+            break
+    return winner, normal, offset, region, taken
+
+
+@numba.njit(**_NUMPY_JIT)
+def _ray_distance(search: np.ndarray, p: int, planes: np.ndarray, j: int, tolerance: np.ndarray,
+                  viewpoint: np.ndarray, min_cos: float) -> float:
+    """:func:`compete_distances`' entry (j, p): point ``p``'s distance to plane ``j`` along its ray (inf for j = k, no
+    region), the same arithmetic."""
+    if j >= planes.shape[0]:
+        return np.inf
+    x, y, z = search[0, p], search[1, p], search[2, p]
+    rx, ry, rz = x - viewpoint[0], y - viewpoint[1], z - viewpoint[2]
+    size = _length(rx, ry, rz)
+    rx, ry, rz = rx / size, ry / size, rz / size
+    tol = tolerance[p] if tolerance.shape[0] > 1 else tolerance[0]
+    e = abs(planes[j, 0] * x + planes[j, 1] * y + planes[j, 2] * z + planes[j, 3])
+    if e > tol:
+        e = np.inf
+    facing = abs(planes[j, 0] * rx + planes[j, 1] * ry + planes[j, 2] * rz)
+    return e / (facing if np.isnan(facing) or facing > min_cos else min_cos)
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_settle(search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, viewpoint: np.ndarray, min_cos: float,
+                region: np.ndarray, pixel: np.ndarray, node: np.ndarray, width: int, eight: np.ndarray, rounds: int
+                ) -> np.ndarray:
+    """Border settling on a sub-grid (``Neighbours.settle``) by the distances along each point's ray of
+    :func:`compete_distances` (``search`` (3, m) meters, ``planes`` (k, 4), ``tolerance`` (1,) or (m,) meters,
+    ``viewpoint`` (3,), ``min_cos``), each worked out only where an offer compares it: ``region`` (m,) 0..k (k:
+    none). Each round every point takes the region of an 8-neighbour (``eight``) whose plane is nearer than its own
+    (the nearest; equals: the neighbour with the smaller index), all from the labels before the round; the first round
+    looks at the points with a neighbour in another region, the next ones at the neighbours of the points that
+    changed. Returns the regions (m,), k for none."""
+    m = region.shape[0]
+    height = node.shape[0] // width
+    region = region.copy()
+    padded = width + 2
+    at = np.full((height + 2) * padded, -1, np.int64)
+    place = np.empty(m, np.int64)
+    r = 0
+    for i in range(m):
+        if i == 0 or pixel[i] >= (r + 1) * width:
+            r = pixel[i] // width
+        place[i] = (r + 1) * padded + pixel[i] - r * width + 1
+        at[place[i]] = i
+    n_eight = eight.shape[0]
+    step = np.empty(n_eight, np.int64)
+    for e in range(n_eight):
+        step[e] = eight[e, 0] * padded + eight[e, 1]
+    best = np.empty(m)
+    known = np.zeros(m, np.bool_)  # best worked out (the distance to its region's plane, until it changes)
+    offer_d = np.empty(m)
+    offer_src = np.full(m, -1, np.int64)
+    offer_region = np.empty(m, np.int64)
+    touched = np.empty(m, np.int64)
+    changed = np.empty(m, np.int64)
+    n_changed = -1
+    for _ in range(rounds):
+        n_touched = 0
+        first = n_changed < 0
+        for q in range(m if first else n_changed):
+            if first:
+                centre = q
+                bordering = False
+                for e in range(n_eight):
+                    j = at[place[centre] + step[e]]
+                    if j >= 0 and region[j] != region[centre]:
+                        bordering = True
+                        break
+                if not bordering:
+                    continue
+            else:
+                centre = changed[q]
+            for e in range(n_eight):
+                other = at[place[centre] + step[e]]
+                if other < 0:
+                    continue
+                dst, src = (centre, other) if first else (other, centre)
+                cand = region[src]
+                if cand == region[dst]:
+                    continue  # its own plane is never nearer than itself
+                if not known[dst]:
+                    best[dst] = _ray_distance(search, dst, planes, region[dst], tolerance, viewpoint, min_cos)
+                    known[dst] = True
+                d = _ray_distance(search, dst, planes, cand, tolerance, viewpoint, min_cos)
+                if not d < best[dst]:
+                    continue
+                if offer_src[dst] < 0:
+                    touched[n_touched] = dst
+                    n_touched += 1
+                elif not (d < offer_d[dst] or (d == offer_d[dst] and src < offer_src[dst])):
+                    continue
+                offer_d[dst], offer_src[dst], offer_region[dst] = d, src, cand
+        if n_touched == 0:
+            break
+        for q in range(n_touched):
+            i = touched[q]
+            region[i], best[i] = offer_region[i], offer_d[i]
+            offer_src[i] = -1
+            changed[q] = i
+        n_changed = n_touched
+    return region
+
+
+@numba.njit(**_NUMPY_JIT)
+def merge_pair(search: np.ndarray, region: np.ndarray, i: int, j: int, own: np.ndarray, tolerance: np.ndarray,
+               src: np.ndarray, dst: np.ndarray, region_src: np.ndarray, region_dst: np.ndarray, root: np.ndarray,
+               normals: np.ndarray, min_cos: float, keep: float, spread: float, test: bool
+               ) -> tuple[bool, np.ndarray, float, np.ndarray]:
+    """Two touching regions ``i`` < ``j`` of ``region`` (m,) of the points ``search`` (3, m) meters tried as one
+    surface in one call: their points (ascending), their joint least-squares plane (:func:`fit_members`) and, with
+    ``test``, :func:`merge_test` of it (``own`` (2, 4): their own planes; the other arguments are merge_test's).
+    Returns (whether they are one surface: False without ``test``, the joint normal (3,), its offset meters, their
+    points)."""
+    m = region.shape[0]
+    members = np.empty(m, np.int64)
+    c = 0
+    for p in range(m):  # written for every point, kept for the pair's: no branch
+        members[c] = p
+        c += (region[p] == i) | (region[p] == j)
+    members = members[:c]
+    normal, offset = fit_members(search, members)
+    if not test:
+        return False, normal, offset, members
+    plane = np.empty(4)
+    plane[:3] = normal
+    plane[3] = offset
+    same = merge_test(search, members, region, i, j, plane, own, tolerance, src, dst, region_src, region_dst, root,
+                      normals, min_cos, keep, spread)
+    return same, normal, offset, members
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -3120,7 +3358,6 @@ def _warm_regions() -> None:
     grid_components(index, index, flags, 2, np.zeros((1, 3), np.int64), flags)
     grid_region(index, index, flags, 2, np.zeros((1, 3), np.int64), pts, np.ones(3), 0.5, index, index, flags, flags,
                 flags, np.ones(3))
-    grid_compete(np.zeros((2, 4)), np.zeros(4, np.int64), index, index, 2, EIGHT, 2)
     graph_components(4, np.zeros((1, 2), np.int64), flags)
     graph_region(np.zeros((1, 2), np.int64), pts, np.ones(3), 0.5, flags, flags, flags, np.ones(3))
     pair_graph(4, np.zeros((1, 2), np.int64))
@@ -3215,14 +3452,6 @@ def _warm_fits() -> None:
     fit_regions(cols, codes, 2)
 
 
-def _warm_best_region() -> None:
-    pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
-    cols = np.zeros((3, 4))
-    grid_args = (index, index, flags, 2, np.zeros((1, 3), np.int64), pts, 0.5, index, index, np.ones(3))
-    winner, region, _ = grid_best_region(cols, np.ones(1), np.ones((2, 3)), np.zeros(2), 2.0, 0.5, cols, *grid_args)
-    grid_refit_region(cols, region, np.ones(1), 2.0, *grid_args)
-
-
 def _warm_judge() -> None:
     pts, index = np.zeros((4, 3)), np.arange(4, dtype=np.int64)
     plane_samples(pts, index, np.array([0, 4]))
@@ -3250,12 +3479,26 @@ def _warm_detect() -> None:
                  2, 2)
 
 
+def _warm_organized_detect() -> None:
+    flags, index, cols = np.ones(4, np.bool_), np.arange(4, dtype=np.int64), np.zeros((3, 4))
+    bridges = np.zeros((1, 3), np.int64)
+    plane = grid_plane(cols, np.ones(1), np.ones((2, 3)), np.zeros(2), 2.0, 0.5, cols, index, flags, 2, bridges, 0.5,
+                       np.ones(3), 3)
+    grid_refit(cols, plane[3], np.ones(1), 2.0, cols, index, flags, 2, bridges, 0.5, np.ones(3))
+    grid_settle(cols, np.zeros((1, 4)), np.ones(1), np.zeros(3), 0.25, np.zeros(4, np.int64), index, index, 2, EIGHT,
+                2)
+    edges = np.zeros(1, np.int64)
+    for known in (np.zeros((4, 3)), np.empty((0, 3))):  # the grid's normals, and none known
+        merge_pair(cols, index, 0, 1, np.zeros((2, 4)), np.ones(1), edges, edges, edges, edges, index, known, 0.5, 0.95,
+                   1.5, True)
+
+
 #: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The
 #: first is short: it tells whether the cache is cold. The longest compiles come next, so that processes compiling
 #: the rest in parallel end together.
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
-               _warm_frame, _warm_silhouette, _warm_grid_search, _warm_best_region, _warm_indices, _warm_planes,
-               _warm_judge, _warm_detect, _warm_unorganized)
+               _warm_frame, _warm_silhouette, _warm_grid_search, _warm_indices, _warm_planes,
+               _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect)
 
 
 def _compiles() -> int:
@@ -3304,7 +3547,7 @@ def warm(jobs: int = 1) -> Warmup:
 
 
 _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
-            grid_region, grid_compete, graph_components, graph_region, coordinate_bounds,
+            grid_region, graph_components, graph_region, coordinate_bounds,
             voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, widen_xyz,
             valid_rows, frame_pass, plane_patches, fold_fit, grid_sample, grid_edges, grid_usable,
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
@@ -3312,6 +3555,7 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
             beyond_counts, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
             voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
-            fit_mask, fit_regions, grid_best_region, grid_refit_region, plane_samples,
+            fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
-            read_rows, voxel_nodes, uncertain_nodes, first_across)
+            read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
+            merge_pair)

@@ -38,9 +38,9 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
     found, reason, region, capped = sequential_search(search, search_tolerance, max_planes, search_min, probability,
                                                       max_iterations, rng, n_total=n_valid, neighbours=neighbours,
                                                       allows=allows)
-    labels = np.full(len(pts), -1, dtype=np.int32)
     if not found:
-        return Segmentation(labels=labels, planes=(), tolerance=tolerance, n_valid=n_valid, reason=reason)
+        return Segmentation(labels=np.full(len(pts), -1, dtype=np.int32), planes=(), tolerance=tolerance,
+                            n_valid=n_valid, reason=reason)
     # each region's plane refitted on its own points, then the borders settled by nearest plane
     found = refit_regions(search, region, found, allows)
     region = _compete(search, region, found, search_tolerance, neighbours, viewpoint - center)
@@ -56,6 +56,7 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
         uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]
         labels, residual = spread_grid(pts, finite, shape, step, region, neighbours, uncentred, tolerance)
     elif len(search_idx) == n_valid:
+        labels = np.full(len(pts), -1, dtype=np.int32)
         own = np.where(region >= 0, region, 0)
         normals = np.array([n for n, _ in found])
         offsets = np.array([d for _, d in found])
@@ -114,8 +115,8 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
                     neighbours: Neighbours, allows: Allows = None) -> tuple[np.ndarray, list]:
     """Merge touching regions of one surface: a pair of regions joined by a neighbour pair whose
     joint least-squares plane has MERGE_KEEP of their points (3, m) within ``tolerance`` becomes one
-    region (the earlier one's number), with that plane. Regions renumbered in order. The fits are numpy's; each
-    pair's tests run compiled (:func:`.kernels.merge_test`; :func:`_merge_coplanar_numpy` is the reference)."""
+    region (the earlier one's number), with that plane. Regions renumbered in order. Each pair's points, fit and tests
+    come from one compiled call (:func:`.kernels.merge_pair`; :func:`_merge_coplanar_numpy` is the reference)."""
     touching = neighbours.contacts(region, len(found))
     if touching is None:
         return region, found
@@ -128,24 +129,25 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
     src, dst = kernels.c_array(src, np.int64), kernels.c_array(dst, np.int64)
     a, b = kernels.c_array(a, np.int64), kernels.c_array(b, np.int64)
     cols = kernels.c_array(search, np.float64)
-    # the points of each region, ascending, kept up to date as regions merge
-    rows, bounds = kernels.group_by_label(kernels.c_array(region, np.int64), k)
-    points_of = [rows[bounds[r]:bounds[r + 1]] for r in range(k)]
+    region = kernels.c_array(region, np.int64)
     for i, j in zip(*np.divmod(pairs, k)):
         i, j = root[i], root[j]
         if i == j:
             continue
-        i, j = min(i, j), max(i, j)
-        members = np.sort(np.concatenate([points_of[i], points_of[j]]), kind='stable')  # two sorted runs: merged
-        normal, offset = kernels.fit_members(cols, members)
-        if not allows_normal(allows, normal):
-            continue  # their joint plane leaves the orientation constraint
-        own = plane_rows([found[i], found[j], (normal, offset)])  # theirs, then the joint plane
-        if not kernels.merge_test(cols, members, region, int(i), int(j), own[2], own[:2], tol, src, dst, a, b, root,
-                                  normals, NORMAL_MIN_COS, MERGE_KEEP, MERGE_SPREAD):
+        i, j = int(min(i, j)), int(max(i, j))
+        own = plane_rows([found[i], found[j]])
+        # one call finds their points, fits them and tests the fit; with an orientation constraint, the test waits
+        # for it
+        same, normal, offset, members = kernels.merge_pair(cols, region, i, j, own, tol, src, dst, a, b, root, normals,
+                                                           NORMAL_MIN_COS, MERGE_KEEP, MERGE_SPREAD, allows is None)
+        if allows is not None:
+            if not allows_normal(allows, normal):
+                continue  # their joint plane leaves the orientation constraint
+            same = kernels.merge_test(cols, members, region, i, j, plane_rows([(normal, offset)])[0], own, tol, src,
+                                      dst, a, b, root, normals, NORMAL_MIN_COS, MERGE_KEEP, MERGE_SPREAD)
+        if not same:
             continue
-        region[points_of[j]] = i
-        points_of[i], points_of[j] = members, members[:0]
+        region[members] = i
         root[root == j] = i
         found[i] = (normal, offset)
     return _renumbered(region, found, root)
@@ -229,9 +231,9 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
     pass (:func:`.kernels.compete_distances`; :func:`_compete_distances_numpy` is its reference)."""
     planes = plane_rows(found)
     tol = kernels.c_array(np.reshape(tolerance, -1), np.float64)  # (1,) or (m,)
-    dist = kernels.compete_distances(kernels.c_array(search, np.float64), planes, tol,
-                                     kernels.c_array(viewpoint, np.float64), float(np.cos(np.radians(GRAZING_DEG))))
-    return neighbours.settle(dist, np.where(region >= 0, region, len(found)))
+    return neighbours.settle_planes(kernels.c_array(search, np.float64), planes, tol,
+                                    kernels.c_array(viewpoint, np.float64), float(np.cos(np.radians(GRAZING_DEG))),
+                                    np.where(region >= 0, region, len(found)))
 
 
 def _compete_distances_numpy(search: np.ndarray, found: list, tolerance: Tolerance, viewpoint: np.ndarray

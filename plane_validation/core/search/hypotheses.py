@@ -39,6 +39,10 @@ PRESCORE = 512
 PRESCORE_SIGMAS = 3.0
 
 
+#: Least-squares refits of a region's plane on its region (each kept while the region does not shrink).
+REFITS = 3
+
+
 #: A little below NORMAL_MIN_COS: best_region's count of the inliers whose normal agrees is at
 #: least what a region may keep (neighbours.Neighbours.coherent), whatever the rounding of the dot products.
 _COHERENT_BOUND = NORMAL_MIN_COS - 1e-9
@@ -321,10 +325,14 @@ def best_region(cols: np.ndarray, tolerance: Tolerance, normals: np.ndarray, off
     region again, at most 3 times. ``point_normals`` (3, m), NaN where unknown: a region keeps only points whose
     normal agrees. Returns (normal, offset, region (m,), taken (m,): see :data:`Keep`)."""
     tolerances = _tolerances(tolerance)
+    if allows is None:
+        plane = remaining.refitted(cols, tolerances, normals, offsets, point_normals, SUPPORT, _COHERENT_BOUND, REFITS)
+        if plane is not None:
+            return plane
     winner, region, taken = remaining.best(cols, tolerances, normals, offsets, point_normals, SUPPORT,
                                            _COHERENT_BOUND)
     normal, offset = normals[winner], offsets[winner]
-    for _ in range(3):
+    for _ in range(REFITS):
         count = int(np.count_nonzero(region))
         if count < 3:
             break

@@ -78,7 +78,7 @@ class Remaining(ABC):
         taken (r,)). ``tolerances`` (1,) or (r,) meters; the support band is ``support`` times it. Hypotheses are tried
         by inliers, then cost; none can keep more than its inliers, nor, with ``point_normals`` (3, r) (NaN:
         unknown), more than those whose normal lies within ``bound_cos`` of its own: such hypotheses are not
-        labelled. A form may answer in one compiled call (:func:`.kernels.grid_best_region` is this loop)."""
+        labelled. A form may answer in one compiled call (:func:`.kernels.grid_plane` runs this loop)."""
         dist, above = kernels.plane_bands(cols, normals, offsets)
         inliers, band, counts, cost = kernels.band_counts(dist, tolerances, support)
         winner, region, taken, size = -1, None, None, -1
@@ -103,6 +103,14 @@ class Remaining(ABC):
         near, above = kernels.plane_bands(cols, normal[None, :], np.array([offset]))
         inliers, band = kernels.band_counts(near, tolerances, support)[:2]
         return (normal, offset) + self.keep(inliers[0], normal, band[0], above[0])
+
+    def refitted(self, cols: np.ndarray, tolerances: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
+                 point_normals: np.ndarray | None, support: float, bound_cos: float, refits: int
+                 ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
+        """:meth:`best`, then up to ``refits`` :meth:`refit` rounds as :func:`.hypotheses.best_region` runs them
+        (without an orientation constraint), in one compiled call when a form has one: (normal, offset, region (r,),
+        taken (r,)); None when it has none (the caller runs the rounds)."""
+        return None
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -225,6 +233,13 @@ class Neighbours(ABC):
     def settle(self, dist: np.ndarray, region: np.ndarray) -> np.ndarray:
         """Border settling: ``region`` (m,) 0..k (k: none) after COMPETE_ROUNDS rounds in which each point takes,
         of its own and its neighbours' regions, the one nearest by ``dist`` (k + 1, m); -1 for none."""
+
+    def settle_planes(self, search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, viewpoint: np.ndarray,
+                      min_cos: float, region: np.ndarray) -> np.ndarray:
+        """:meth:`settle` by the distances :func:`.kernels.compete_distances` gives for the points ``search`` (3, m)
+        meters, ``planes`` (k, 4), ``tolerance`` (1,) or (m,) meters, ``viewpoint`` (3,) and ``min_cos``; a form may
+        work out only the distances it compares (the grid's does)."""
+        return self.settle(kernels.compete_distances(search, planes, tolerance, viewpoint, min_cos), region)
 
 
 def settle_numpy(dist: np.ndarray, region: np.ndarray, neighbours: Neighbours) -> np.ndarray:

@@ -23,10 +23,11 @@ from .neighbours import (
     Neighbours,
     Remaining,
     joined_components,
+    settle_numpy,
 )
 from .types import Sampler
 
-__all__ = ['GridNeighbours', 'grid_neighbours', 'grid_neighbours_numpy', 'grid_region', 'grid_region_numpy',
+__all__ = ['GridNeighbours', 'grid_neighbours', 'grid_neighbours_numpy', 'median', 'grid_region', 'grid_region_numpy',
            'rest_positions', 'EIGHT', 'JUMP', 'HOLE_BRIDGE', 'LIDAR_BEND']
 
 #: A gap between grid neighbours this many times the gaps next to it along the image line (and
@@ -55,7 +56,6 @@ BRIDGE_SLACK = 1.5
 #: The 8 image neighbours (row, column offsets).
 EIGHT = kernels.EIGHT
 _NO_BRIDGES = np.empty((0, 3), np.int64)
-_NO_POINT_NORMALS = np.empty((3, 0))
 _SCALES = np.array(NEARBY_SCALES, np.int64)
 
 
@@ -184,9 +184,16 @@ class GridNeighbours(Neighbours):
         return (src,)
 
     def settle(self, dist: np.ndarray, region: np.ndarray) -> np.ndarray:
-        """One compiled call (:func:`.kernels.grid_compete`; :func:`.neighbours.settle_numpy` is its reference)."""
-        region = kernels.grid_compete(dist, region, self.pixel, self.node, self.shape[1], EIGHT, COMPETE_ROUNDS)
-        return np.where(region < dist.shape[0] - 1, region, -1)
+        """:func:`.neighbours.settle_numpy` (the search settles by :meth:`settle_planes`)."""
+        return settle_numpy(dist, region, self)
+
+    def settle_planes(self, search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, viewpoint: np.ndarray,
+                      min_cos: float, region: np.ndarray) -> np.ndarray:
+        """One compiled call (:func:`.kernels.grid_settle`, which works out only the distances it compares;
+        :func:`.neighbours.settle_numpy` is its reference)."""
+        region = kernels.grid_settle(search, planes, tolerance, viewpoint, min_cos, region, self.pixel, self.node,
+                                         self.shape[1], EIGHT, COMPETE_ROUNDS)
+        return np.where(region < len(planes), region, -1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -209,27 +216,45 @@ class _GridRemaining(Remaining):
     def without(self, left: np.ndarray) -> Remaining:
         return _GridRemaining(self.neighbours, self.rest_idx[left])
 
-    def _grid(self) -> tuple:
-        """The sub-grid's arguments of the region kernels, from ``pixel`` to ``rules``."""
+    def _compiled(self, point_normals: np.ndarray | None) -> tuple | None:
+        """The sub-grid arguments of :func:`.kernels.grid_plane` and :func:`.kernels.grid_refit`, from the points'
+        normals (3, r) (``point_normals``, or the grid's own at these points when None) to the region rules; None when
+        the grid's normals or usable pixels are unknown."""
         nb = self.neighbours
+        if nb.normals is None or nb.usable is None:
+            return None
+        if point_normals is None:
+            point_normals = np.ascontiguousarray(nb.normals.take(self.rest_idx, axis=0).T)
         bridges = _NO_BRIDGES if nb.bridges is None else kernels.c_array(nb.bridges, np.int64)
-        return (nb.pixel, nb.node, nb.usable, nb.shape[1], bridges, nb.normals, NORMAL_MIN_COS, self.rest_idx,
-                self.position, REGION_RULES)
+        return (point_normals, nb.pixel.take(self.rest_idx), nb.usable, nb.shape[1], bridges, NORMAL_MIN_COS,
+                REGION_RULES)
 
     def best(self, cols: np.ndarray, tolerances: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
              point_normals: np.ndarray | None, support: float, bound_cos: float) -> tuple[int, np.ndarray, np.ndarray]:
-        """One compiled call (:func:`.kernels.grid_best_region`)."""
-        if self.neighbours.normals is None:
+        """One compiled call (:func:`.kernels.grid_plane` without refits)."""
+        grid = self._compiled(point_normals)
+        if grid is None:
             return super().best(cols, tolerances, normals, offsets, point_normals, support, bound_cos)
-        return kernels.grid_best_region(cols, tolerances, normals, offsets, support, bound_cos,
-                                        _NO_POINT_NORMALS if point_normals is None else point_normals, *self._grid())
+        winner, _, _, region, taken = kernels.grid_plane(cols, tolerances, normals, offsets, support, bound_cos, *grid,
+                                                         0)
+        return int(winner), region, taken
+
+    def refitted(self, cols: np.ndarray, tolerances: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
+                 point_normals: np.ndarray | None, support: float, bound_cos: float, refits: int
+                 ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
+        """One compiled call (:func:`.kernels.grid_plane`)."""
+        grid = self._compiled(point_normals)
+        if grid is None:
+            return None
+        return kernels.grid_plane(cols, tolerances, normals, offsets, support, bound_cos, *grid, refits)[1:]
 
     def refit(self, cols: np.ndarray, tolerances: np.ndarray, region: np.ndarray, support: float
               ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
-        """One compiled call (:func:`.kernels.grid_refit_region`)."""
-        if self.neighbours.normals is None:
+        """One compiled call (:func:`.kernels.grid_refit`)."""
+        grid = self._compiled(None)
+        if grid is None:
             return super().refit(cols, tolerances, region, support)
-        return kernels.grid_refit_region(cols, region, tolerances, support, *self._grid())
+        return kernels.grid_refit(cols, region, tolerances, support, *grid)
 
 
 def rest_positions(n: int, rest_idx: np.ndarray) -> np.ndarray:
@@ -308,13 +333,26 @@ def grid_neighbours(image_points: np.ndarray, valid: np.ndarray) -> GridNeighbou
     points = kernels.c_array(image_points, np.float64)
     flags = kernels.c_array(valid, bool)
     ranges, right, right_reach, down, down_reach, angular = kernels.grid_edges(points, flags)
-    typical = float(np.median(angular)) if len(angular) else 0.0  # pixel spacing per meter of range
+    typical = median(angular) if len(angular) else 0.0  # pixel spacing per meter of range
     usable = kernels.grid_usable(flags, ranges, right, right_reach, down, down_reach, typical, JUMP)
     pitch = [kernels.grid_chords(points, flags, ranges, axis == 1, REACH_SAMPLE) for axis in (1, 0)]
-    reach = _reach_of([float(np.median(chord)) if len(chord) else np.nan for chord in pitch])
+    reach = _reach_of([median(chord) if len(chord) else np.nan for chord in pitch])
     lidar = reach != (NORMAL_REACH, NORMAL_REACH)  # pixels coarser one way: a lidar's rings
     normals = kernels.grid_normals(points, flags, reach[0], reach[1], LIDAR_BEND if lidar else 0.0)
     return _assembled(image_points, valid, ranges, typical, usable, lidar, normals)
+
+
+def median(values: np.ndarray) -> float:
+    """``np.median`` of the (n,) float64 ``values``, n >= 1, the same number from one selection of the upper middle
+    value (numpy selects both middle values, several times slower on the tens of thousands of a sub-grid's gaps)."""
+    n = len(values)
+    part = np.partition(values, n // 2)
+    upper = part[n // 2]
+    if np.isnan(part[n // 2:]).any():  # NaN sorts last: any NaN lies here
+        return np.nan
+    if n % 2:
+        return float(upper)
+    return float(((0.0 + part[:n // 2].max()) + upper) / 2)  # as np.mean sums the two middle values
 
 
 def grid_neighbours_numpy(image_points: np.ndarray, valid: np.ndarray) -> GridNeighbours:
