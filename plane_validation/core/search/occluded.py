@@ -3,9 +3,10 @@
 A corridor's floor seen by a spinning lidar lies ahead of and behind the sensor, the part beside it below the lowest
 ring; a wall behind a pole is cut in two. Their regions do not touch, so the merge of touching regions
 (:func:`.connected._merge_coplanar`) leaves them apart. Two coplanar regions are one surface when, between them, no
-ray of the sensor passes through their joint plane, and most of the plane there is hidden behind points in front of
-it or lies outside the directions the sensor sees. Two tables of one height are not: the floor seen between them lies
-behind their plane; nor are they when nothing tells why the part between them is missing (a cropped cloud).
+ray of the sensor passes through their joint plane, and at least half of the plane there is hidden behind points in
+front of it, holds other points on it, or lies outside the directions the sensor sees. Two tables of one height are
+not: the floor seen between them lies behind their plane; nor are they when nothing tells why the part between them
+is missing (a cropped cloud).
 """
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ CROSS_MARGIN = 2.0
 #: Rays crossing the joint plane in at least this many cells of the gap between the regions keep them apart
 #: (fewer: stray points, such as mixed pixels at a depth edge).
 CROSS_CELLS = 3
-#: At least this share of the gap's cells must be hidden or out of view.
+#: At least this share of the gap's cells must be hidden, hold other points on the plane, or be out of view.
 EXPLAINED = 0.5
 #: A cell where the plane is hidden or seen marks this many cells around it too (rays as sparse as a lidar's rings).
 EVIDENCE_REACH = 2
@@ -51,7 +52,7 @@ NEAR_SAMPLE = 64
 def merge_occluded(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance, viewpoint: np.ndarray,
                    keep: float, spread: float, allows: Allows = None) -> tuple[np.ndarray, list]:
     """Merge coplanar regions that do not touch, where nothing is seen through their joint plane between them and
-    the plane there is hidden or out of view (see the module's docstring).
+    the plane there is hidden, seen or out of view (see the module's docstring).
 
     search: (3, m) searched points, meters (less the graph's centre); region: (m,) their regions (-1: none),
     relabelled in place; found: each region's (normal (3,), offset) in those coordinates; tolerance: t, scalar or
