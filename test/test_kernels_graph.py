@@ -12,9 +12,10 @@ from plane_validation.core.regions import VOXEL_RINGS, voxel_index
 SETTINGS = settings(max_examples=60, deadline=None)
 
 
-def _cloud(rng: np.random.Generator) -> np.ndarray:
-    """Random (n, 3) points: a noisy plane, a line, grid-quantized ties, exact copies and sometimes a far outlier."""
-    n = int(rng.integers(1, 500))
+def _cloud(rng: np.random.Generator, most: int = 500) -> np.ndarray:
+    """Random (n, 3) points, n < ``most``: a noisy plane, a line, grid-quantized ties, exact copies and sometimes a
+    far outlier."""
+    n = int(rng.integers(1, most))
     kind = rng.integers(0, 4, n)
     pts = rng.uniform(-1, 1, (n, 3))
     pts[kind == 0, 2] = rng.normal(scale=0.01, size=int(np.sum(kind == 0)))

@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_kernels_search import _stripes_case, same_merges
-from test_kernels_search_loop import _NumpyGridRemaining
+from test_kernels_search_loop import _NumpyGridRemaining, two_planes_grid
 
 from plane_validation.core import kernels
 from plane_validation.core.orientation import orientation
@@ -31,19 +31,8 @@ def _sub_grid(rng: np.random.Generator, lidar: bool) -> tuple[GridNeighbours, np
     """A random sub-grid of points (n, 3) meters on two planes meeting along a column, with holes, unusable pixels,
     noise from none to several tolerances (so that regions fall apart into pieces and are joined through their
     support), local normals (some unknown) and, for a lidar-like image, bridges over runs of holes; and its points."""
-    h, w = (int(v) for v in rng.integers(3, 60, 2))
-    valid = rng.random(h * w) < rng.uniform(0.5, 1.0)
-    pixel = np.flatnonzero(valid)
+    h, w, valid, pixel, node, points, normals = two_planes_grid(rng, 60, 0.5, 0.03)
     n = len(pixel)
-    node = np.full(h * w, -1, np.int64)
-    node[pixel] = np.arange(n)
-    r, c = np.divmod(pixel, w)
-    split = int(rng.integers(0, w + 1))
-    z = np.where(c < split, 1.0 + 0.01 * r, 1.5 - 0.02 * c) + rng.normal(scale=rng.uniform(0.0, 0.03), size=n)
-    points = np.column_stack([c * 0.05, r * 0.05, z])
-    normals = np.where((c < split)[:, None], [0.0, -0.2, 1.0], [0.4, 0.0, 1.0]) + rng.normal(scale=0.2, size=(n, 3))
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    normals[rng.random(n) < 0.1] = np.nan
     bridges = None
     if lidar:  # pairs of pixels, some across the seam, some without a point or repeated
         b = int(rng.integers(1, 3 * h))

@@ -132,24 +132,32 @@ class _NumpyGridRemaining(_GridRemaining):
         return grid_region_numpy(self.neighbours, self.rest_idx, mask, normal, support, above)
 
 
-def _grid_search(seed: int):
-    """A random sub-grid of points on a few planes with holes, unusable pixels and bridges, its region rule over a
-    random share of its points, those points (3, r) and a few plane hypotheses through them."""
-    rng = np.random.default_rng(seed)
-    h, w = (int(v) for v in rng.integers(3, 30, 2))
-    valid = rng.random(h * w) < rng.uniform(0.6, 1.0)
+def two_planes_grid(rng: np.random.Generator, most: int, kept: float, noise: float) -> tuple:
+    """A random h x w image (3 to ``most`` pixels each way, a share of at least ``kept`` valid) of points on two
+    planes meeting along a column, noise up to ``noise`` meters, with local normals (a tenth unknown): h, w, the valid
+    flags (h * w,), their flat pixels (n,), each pixel's point (h * w,; -1: none), the points (n, 3), the normals."""
+    h, w = (int(v) for v in rng.integers(3, most, 2))
+    valid = rng.random(h * w) < rng.uniform(kept, 1.0)
     pixel = np.flatnonzero(valid)
     n = len(pixel)
     node = np.full(h * w, -1, np.int64)
     node[pixel] = np.arange(n)
     r, c = np.divmod(pixel, w)
-    # two planes meeting along a column, noise up to the tolerance's order
     split = int(rng.integers(0, w + 1))
-    z = np.where(c < split, 1.0 + 0.01 * r, 1.5 - 0.02 * c) + rng.normal(scale=rng.uniform(0.0, 0.02), size=n)
+    z = np.where(c < split, 1.0 + 0.01 * r, 1.5 - 0.02 * c) + rng.normal(scale=rng.uniform(0.0, noise), size=n)
     points = np.column_stack([c * 0.05, r * 0.05, z])
     normals = np.where((c < split)[:, None], [0.0, -0.2, 1.0], [0.4, 0.0, 1.0]) + rng.normal(scale=0.2, size=(n, 3))
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     normals[rng.random(n) < 0.1] = np.nan
+    return h, w, valid, pixel, node, points, normals
+
+
+def _grid_search(seed: int):
+    """A random sub-grid of points on a few planes with holes, unusable pixels and bridges, its region rule over a
+    random share of its points, those points (3, r) and a few plane hypotheses through them."""
+    rng = np.random.default_rng(seed)
+    h, w, valid, pixel, node, points, normals = two_planes_grid(rng, 30, 0.6, 0.02)
+    n = len(pixel)
     b = int(rng.integers(0, 6))
     bridges = np.column_stack([rng.integers(0, h * w, b), rng.integers(0, h * w, b), rng.integers(0, 2, b)])
     neighbours = GridNeighbours(n=n, shape=(h, w), pixel=pixel, node=node, usable=valid & (rng.random(h * w) < 0.95),

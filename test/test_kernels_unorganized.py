@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_kernels_graph import _cloud
 
 from plane_validation.core import kernels
 from plane_validation.core.regions import voxel_index
@@ -12,19 +13,12 @@ from plane_validation.core.regions import voxel_index
 SETTINGS = settings(max_examples=60, deadline=None)
 
 
-def _cloud(rng: np.random.Generator) -> np.ndarray:
-    """Random (n, 3) points: a noisy plane, a line, grid-quantized ties, exact copies and sometimes a far outlier."""
-    n = int(rng.integers(1, 400))
-    kind = rng.integers(0, 4, n)
-    pts = rng.uniform(-1, 1, (n, 3))
-    pts[kind == 0, 2] = rng.normal(scale=0.01, size=int(np.sum(kind == 0)))
-    pts[kind == 1, 1:] = 0.0
-    pts[kind == 2] = np.round(pts[kind == 2] * 20) / 20  # equal distances
-    if n > 3 and rng.random() < 0.3:
-        pts[rng.integers(0, n, 3)] = pts[0]
-    if n > 2 and rng.random() < 0.3:
-        pts[-1] = rng.uniform(-50, 50, 3)
-    return pts * rng.uniform(0.01, 100)
+def _indexed(rng: np.random.Generator, others: bool) -> tuple:
+    """A random cloud (:func:`_cloud`), queries (:func:`_queries`) and the voxel index over both (None: far-out
+    coordinates)."""
+    pts = _cloud(rng, 400)
+    queries = np.ascontiguousarray(_queries(rng, pts, others))
+    return pts, queries, voxel_index(pts, span=queries)
 
 
 def _queries(rng: np.random.Generator, pts: np.ndarray, others: bool) -> np.ndarray:
@@ -67,9 +61,7 @@ def test_voxel_nodes_match_numpy(seed, others):
     """The nearest hashed point within each query's own voxel, its voxel, its squared distance and the nearness flag,
     exactly as brute force finds them; -1 (inf) in an empty voxel."""
     rng = np.random.default_rng(seed)
-    pts = _cloud(rng)
-    queries = np.ascontiguousarray(_queries(rng, pts, others))
-    index = voxel_index(pts, span=queries)
+    pts, queries, index = _indexed(rng, others)
     if index is None:
         return
     got = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims, queries)
@@ -110,9 +102,7 @@ def _uncertain_numpy(index, region: np.ndarray, queries: np.ndarray, node: np.nd
 @given(st.integers(0, 2**32 - 1), st.booleans(), st.integers(1, 4))
 def test_uncertain_nodes_match_numpy(seed, others, regions):
     rng = np.random.default_rng(seed)
-    pts = _cloud(rng)
-    queries = np.ascontiguousarray(_queries(rng, pts, others))
-    index = voxel_index(pts, span=queries)
+    pts, queries, index = _indexed(rng, others)
     if index is None:
         return
     node, voxel, d2, near = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims,
@@ -136,7 +126,7 @@ def test_each_point_takes_the_region_of_its_nearest_searched_point(seed, regions
     where the coordinates are too far out for voxels every node is the kd-tree's nearest."""
     from plane_validation.core.search.graph import _nearest_searched, _nearest_searched_tree
     rng = np.random.default_rng(seed)
-    pts = _cloud(rng)
+    pts = _cloud(rng, 400)
     if rng.random() < 0.1:
         pts[0] = 3e38  # a driver's FLT_MAX row: no voxel hash
     pick = rng.random(len(pts)) < 0.3

@@ -73,10 +73,7 @@ def merge_occluded(search: np.ndarray, region: np.ndarray, found: list, toleranc
     pairs.sort(key=lambda p: -(sizes[p[0]] + sizes[p[1]]))
     found = list(found)
     root = np.arange(k)
-    rays = search - viewpoint[:, None]
-    elevation = np.arctan2(rays[2], np.hypot(rays[0], rays[1]))
-    margin = np.radians(VIEW_MARGIN_DEG)
-    view = (float(elevation.min()) - margin, float(elevation.max()) + margin)
+    view = None  # the elevations the sensor sees: only once a pair gets that far
     tried = 0
     for i, j in pairs:
         i, j = root[i], root[j]
@@ -92,6 +89,8 @@ def merge_occluded(search: np.ndarray, region: np.ndarray, found: list, toleranc
         tried += 1
         if tried > MAX_TRIES:
             break
+        if view is None:
+            view = _view(search, viewpoint)
         if _apart(search, joint, plane, tolerance, viewpoint, view):
             continue
         region[members[j]] = i
@@ -104,6 +103,15 @@ def merge_occluded(search: np.ndarray, region: np.ndarray, found: list, toleranc
     renumber = np.full(k + 1, -1, dtype=np.int64)
     renumber[kept] = np.arange(len(kept))
     return renumber[region], [found[j] for j in kept]
+
+
+def _view(search: np.ndarray, viewpoint: np.ndarray) -> tuple[float, float]:
+    """The elevations (low, high), radians about z at ``viewpoint`` (3,), of the points ``search`` (3, m), widened
+    by VIEW_MARGIN_DEG: the directions the sensor sees."""
+    rays = search - viewpoint[:, None]
+    elevation = np.arctan2(rays[2], np.hypot(rays[0], rays[1]))
+    margin = np.radians(VIEW_MARGIN_DEG)
+    return float(elevation.min()) - margin, float(elevation.max()) + margin
 
 
 def _near(search: np.ndarray, rows: np.ndarray, plane: tuple[np.ndarray, float], tolerance: Tolerance) -> bool:
