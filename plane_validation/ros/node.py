@@ -9,6 +9,7 @@ thread runs the shared pipeline and publishes every output; tolerance sweeps run
 """
 from __future__ import annotations
 
+import os
 import signal
 import sys
 
@@ -116,8 +117,10 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
         limit_blas_threads()
         rclpy.init(args=args)
         # rclpy shuts down on SIGINT and SIGTERM; SIGHUP (a closed terminal or session) would end the process
-        # on the spot, leaving the sweep's worker processes behind: it shuts down the same way
-        signal.signal(signal.SIGHUP, lambda signum, frame: rclpy.try_shutdown())
+        # on the spot, leaving the sweep's worker processes behind: it becomes a SIGTERM. Not try_shutdown() here:
+        # this handler runs in the main thread between two bytecodes, maybe inside Context.ok(), whose lock
+        # try_shutdown() takes too (the node then waited forever)
+        signal.signal(signal.SIGHUP, lambda signum, frame: os.kill(os.getpid(), signal.SIGTERM))
     except KeyboardInterrupt:  # Ctrl-C while starting: as quiet as while spinning
         rclpy.try_shutdown()
         return 0
