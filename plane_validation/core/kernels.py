@@ -29,7 +29,8 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
-           'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'warm',
+           'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
+           'warm',
            'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -3327,6 +3328,29 @@ def merge_pair(search: np.ndarray, region: np.ndarray, i: int, j: int, own: np.n
     return same, normal, offset, members
 
 
+# --- frame outside 5 ---
+
+
+@numba.njit(**_JIT)
+def relabel_rows(labels: np.ndarray, finite: np.ndarray, rank: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``rank[labels]`` for the labels (N,) in -1..k-1 of an organized frame's rows (-1 takes the last entry of
+    ``rank`` (k + 1,) int32), (N,) int32, and the same at the rows ``finite`` (N,) bool marks, in order ((n,)): the
+    renumbered labels of the rows and of the valid points in one pass."""
+    n = labels.shape[0]
+    last = rank.shape[0] - 1
+    rows = np.empty(n, np.int32)
+    points = np.empty(n, np.int32)
+    m = 0
+    for i in range(n):
+        lab = labels[i]
+        value = rank[lab] if 0 <= lab < last else rank[last]
+        rows[i] = value
+        if finite[i]:
+            points[m] = value
+            m += 1
+    return rows, points[:m]
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -3493,12 +3517,17 @@ def _warm_organized_detect() -> None:
                    1.5, True)
 
 
+
+def _warm_frame_outside_5() -> None:
+    relabel_rows(np.array([0, -1, 0, 1], np.int32), np.ones(4, np.bool_), np.array([1, 0, -1], np.int32))
+
+
 #: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The
 #: first is short: it tells whether the cache is cold. The longest compiles come next, so that processes compiling
 #: the rest in parallel end together.
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_indices, _warm_planes,
-               _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect)
+               _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect, _warm_frame_outside_5)
 
 
 def _compiles() -> int:
@@ -3558,4 +3587,4 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
             read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
-            merge_pair)
+            merge_pair, relabel_rows)
