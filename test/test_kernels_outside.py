@@ -50,8 +50,8 @@ def test_near_share_matches_a_kd_tree_query(seed, m, p, lattice):
 @SETTINGS
 @given(st.integers(0, 2**32 - 1), st.integers(0, 60), st.integers(0, 60), st.sampled_from([0.0, 4_012_345.6789]))
 def test_near_count_matches_every_pair_tested(seed, m, p, offset):
-    """Samples far from the origin too (a window in x must stay wide enough for the rounding there), with many equal
-    x and pairs exactly the radius apart, and rows of NaN or inf (never near)."""
+    """Samples on a lattice (pairs exactly the radius apart), also far from the origin, with rows of NaN or inf (never
+    near)."""
     rng = np.random.default_rng(seed)
     a = rng.integers(0, 5, (m, 3)) * 0.1 + rng.choice([0.0, 1e-9], (m, 3)) + offset
     b = rng.integers(0, 5, (p, 3)) * 0.1 + rng.choice([0.0, -1e-9], (p, 3)) + offset

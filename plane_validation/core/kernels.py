@@ -1854,26 +1854,16 @@ def marked_rows(points: np.ndarray, view: np.ndarray, within: float) -> int:
 @numba.njit(**_JIT)
 def near_count(a: np.ndarray, b: np.ndarray, radius: float) -> int:
     """How many rows of ``a`` (m, 3) have a row of ``b`` (p, 3) closer than ``radius`` (meters; squared distances
-    compared with radius ** 2, as a kd-tree query bounded by it). The rows of ``b`` are sorted by x once; each row of
-    ``a`` tests only those whose x lies within a window a little wider than ``radius`` (wide enough for any rounding
-    of the test), the same pairs' test as over all of them."""
+    compared with radius ** 2, as a kd-tree query bounded by it)."""
     bound = radius * radius
-    p = b.shape[0]
-    order = np.argsort(b[:, 0].copy())
-    sx, sy, sz = np.empty(p), np.empty(p), np.empty(p)
-    for j in range(p):
-        sx[j], sy[j], sz[j] = b[order[j], 0], b[order[j], 1], b[order[j], 2]
     count = 0
     for i in range(a.shape[0]):
         x, y, z = a[i, 0], a[i, 1], a[i, 2]
-        reach = radius * 1.000001 + 1e-9 * abs(x)
-        j = np.searchsorted(sx, x - reach)
-        while j < p and sx[j] <= x + reach:
-            dx, dy, dz = x - sx[j], y - sy[j], z - sz[j]
+        for j in range(b.shape[0]):
+            dx, dy, dz = x - b[j, 0], y - b[j, 1], z - b[j, 2]
             if dx * dx + dy * dy + dz * dz < bound:
                 count += 1
                 break
-            j += 1
     return count
 
 
