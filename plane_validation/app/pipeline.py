@@ -428,7 +428,8 @@ class FramePipeline:
         values = _values(cfg, tolerance, source, n_input, len(valid), (no_returns, infinite),
                          int(np.count_nonzero(labels < 0)), seg, counts, scores, noise_from_segmentation(seg, work),
                          work, ids)
-        values += (('obstacle_points', str(int(obstacles.sum()))), ('reliable', str(verdict.reliable).lower()),
+        values += (('obstacle_points', str(int(np.count_nonzero(obstacles)))),
+                   ('reliable', str(verdict.reliable).lower()),
                    ('verdict_failures', ' '.join(f.kind.value for f in verdict.failures) or 'none'))
         if cfg.ground_margin > 0:
             ground = ground_plane(seg, counts)
