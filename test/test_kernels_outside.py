@@ -1,6 +1,6 @@
-"""The kernels of the frame's work outside the search (core/kernels.py, ``# --- frame outside the search ---``)
-against plain-numpy references on random inputs: the no-return count, the tracker's overlap, the verdict's beyond
-counts and its distinct points."""
+"""The kernels of the frame's work outside the search (core/kernels.py, ``# --- frame outside the search ---`` and
+``# --- frame outside 5 ---``) against plain-numpy references on random inputs: the no-return count, the tracker's
+overlap, the verdict's beyond counts and its distinct points, and the labels renumbered by track id."""
 from __future__ import annotations
 
 import numpy as np
@@ -45,6 +45,23 @@ def test_near_share_matches_a_kd_tree_query(seed, m, p, lattice):
         a, b = rng.normal(size=(m, 3)), rng.normal(size=(p, 3))
         radius = float(rng.uniform(0.05, 1.5))
     assert _near_share(a, b, radius) == _near_share_kdtree(a, b, radius)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 60), st.integers(0, 60), st.sampled_from([0.0, 4_012_345.6789]))
+def test_near_count_matches_every_pair_tested(seed, m, p, offset):
+    """Samples on a lattice (pairs exactly the radius apart), also far from the origin, with rows of NaN or inf (never
+    near)."""
+    rng = np.random.default_rng(seed)
+    a = rng.integers(0, 5, (m, 3)) * 0.1 + rng.choice([0.0, 1e-9], (m, 3)) + offset
+    b = rng.integers(0, 5, (p, 3)) * 0.1 + rng.choice([0.0, -1e-9], (p, 3)) + offset
+    a[rng.random(m) < 0.1, rng.integers(0, 3)] = rng.choice([np.nan, np.inf])
+    b[rng.random(p) < 0.1, rng.integers(0, 3)] = rng.choice([np.nan, -np.inf])
+    radius = float(rng.choice([0.1, 0.2, 0.3]))
+    d = a[:, None, :] - b[None, :, :]
+    with np.errstate(invalid='ignore'):
+        near = d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2] < radius * radius
+    assert kernels.near_count(a, b, radius) == int(near.any(axis=1).sum())
 
 
 def test_near_share_bound_is_strict_like_the_kd_tree():
@@ -158,3 +175,18 @@ def test_the_verdict_is_the_same_on_any_layout_of_the_points():
     for pts in (np.asfortranarray(scene.points), frozen, strided):
         assert V.judge(pts, seg, scores) == want
     assert want.n_planes == seg.n_planes >= 2
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 300), st.integers(0, 6))
+def test_relabel_rows_matches_numpy(seed, n, k):
+    """An organized frame's labels (-1..k-1) and its finite rows: the renumbered labels of the rows, and of the valid
+    points, as a rank index and a compress give them."""
+    rng = np.random.default_rng(seed)
+    labels = rng.integers(-1, k, n).astype(np.int32)
+    finite = rng.random(n) < 0.8
+    rank = np.append(rng.permutation(k), -1).astype(np.int32)
+    rows, points = kernels.relabel_rows(labels, finite, rank)
+    np.testing.assert_array_equal(rows, rank[labels])
+    np.testing.assert_array_equal(points, np.compress(finite, rank[labels]))
+    assert rows.dtype == points.dtype == np.int32

@@ -498,3 +498,25 @@ def test_retune_period_counts_frames_whose_stamps_do_not_advance():
     assert sweeps == [7.0] * period + [7.5] * (8 - period)  # retuned on the frame 0.5 s of frames later
     assert pipe.process(corner(1.0), 3 * 10**9).tolerance_source == 'tuned at t=3.000s'  # time ran backwards
     assert pipe.tuned_at == 3.0
+
+
+def test_planes_put_in_id_order_alike_on_an_organized_frame_and_on_points():
+    """The renumbering by track id: an organized frame's rows and valid points in one compiled pass give what an index
+    by rank gives each of them, as the other inputs' renumbering does."""
+    from plane_validation.app.pipeline import _by_id
+    from plane_validation.core.scenes import depth_camera
+    scene = depth_camera('table', width=64, height=48, seed=0)
+    result = FramePipeline(dataclasses.replace(FIXED, tolerance=0.02, max_planes=4)).process(scene.points, 10**9,
+                                                                                                shape=scene.shape)
+    seg = result.segmentation
+    assert seg.n_planes >= 3
+    finite = np.isfinite(result.organized).all(axis=1)
+    labels = np.compress(finite, seg.labels)
+    ids = tuple(10 * (seg.n_planes - k) for k in range(seg.n_planes))  # the reverse order
+    rank = np.append(np.arange(seg.n_planes)[::-1], -1).astype(np.int32)
+    for got_seg, got_labels, got_ids in (_by_id(seg, labels, ids, finite), _by_id(seg, labels, ids)):
+        np.testing.assert_array_equal(got_seg.labels, rank[seg.labels])
+        np.testing.assert_array_equal(got_labels, rank[labels])
+        assert got_seg.labels.dtype == got_labels.dtype == np.int32
+        assert got_ids == tuple(sorted(ids)) and got_seg.planes == seg.planes[::-1]
+    assert _by_id(seg, labels, tuple(range(seg.n_planes)), finite)[0] is seg  # in order already: as it is

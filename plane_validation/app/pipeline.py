@@ -410,7 +410,7 @@ class FramePipeline:
                 tracked = (work, seg.labels) if inverse is None else (valid, labels)
                 found = self.tracker.update(*tracked, seg.coefficients, plane_rows(tracked[1], seg))
                 verdict = judge(work, seg, scores, agreement).renumbered(found)  # planes named by their ids
-                seg, labels, ids = _by_id(seg, labels, found)
+                seg, labels, ids = _by_id(seg, labels, found, finite if shape is not None else None)
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
             return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
                            (tolerance, source), n_input=n_input, n_valid=len(valid))
@@ -425,9 +425,11 @@ class FramePipeline:
         obstacles = obstacle_mask(valid, labels, seg, counts, cfg.ground_margin)
         # an organized input's outputs are laid out on its rows: its labels there too
         image_labels = None if not image else seg.labels if shape is not None else _on_rows(labels, finite, -1)
-        values = _values(cfg, tolerance, source, n_input, len(valid), (no_returns, infinite), int(np.sum(labels < 0)),
-                         seg, counts, scores, noise_from_segmentation(seg, work), work, ids)
-        values += (('obstacle_points', str(int(obstacles.sum()))), ('reliable', str(verdict.reliable).lower()),
+        values = _values(cfg, tolerance, source, n_input, len(valid), (no_returns, infinite),
+                         int(np.count_nonzero(labels < 0)), seg, counts, scores, noise_from_segmentation(seg, work),
+                         work, ids)
+        values += (('obstacle_points', str(int(np.count_nonzero(obstacles)))),
+                   ('reliable', str(verdict.reliable).lower()),
                    ('verdict_failures', ' '.join(f.kind.value for f in verdict.failures) or 'none'))
         if cfg.ground_margin > 0:
             ground = ground_plane(seg, counts)
@@ -498,15 +500,21 @@ def _valid_rows_numpy(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
     return finite, valid, int(np.count_nonzero(np.isinf(np.compress(~finite, points, axis=0)).any(axis=1)))
 
 
-def _by_id(seg: Segmentation, labels: np.ndarray, ids: tuple[int, ...]) -> tuple[Segmentation, np.ndarray, tuple]:
-    """The segmentation and the labels with the planes in ascending track id order, and those ids."""
+def _by_id(seg: Segmentation, labels: np.ndarray, ids: tuple[int, ...], finite: np.ndarray | None = None
+           ) -> tuple[Segmentation, np.ndarray, tuple]:
+    """The segmentation and the labels with the planes in ascending track id order, and those ids. ``finite``: the
+    rows of an organized frame whose ``seg.labels`` are ``labels`` (both renumbered in one compiled pass)."""
     order = np.argsort(ids, kind='stable')
     if np.all(order == np.arange(len(ids))):
         return seg, labels, tuple(ids)
     rank = np.empty(len(ids) + 1, np.int32)
-    rank[order], rank[-1] = np.arange(len(ids)), -1  # label -1 stays -1
-    seg = replace(seg, planes=tuple(seg.planes[k] for k in order), labels=rank[seg.labels])
-    return seg, rank[labels], tuple(int(ids[k]) for k in order)
+    rank[order], rank[-1] = np.arange(len(ids)), -1  # label -1 (taking the last entry) stays -1
+    if finite is not None:
+        renumbered, labels = kernels.relabel_rows(kernels.c_array(seg.labels, np.int32), finite, rank)
+    else:  # (take wraps -1 round to the last entry, as an index does, in half the time)
+        renumbered, labels = np.take(rank, seg.labels, mode='wrap'), np.take(rank, labels, mode='wrap')
+    seg = replace(seg, planes=tuple(seg.planes[k] for k in order), labels=renumbered)
+    return seg, labels, tuple(int(ids[k]) for k in order)
 
 
 def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_valid: int, left_out: tuple[int, int],

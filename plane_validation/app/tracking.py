@@ -117,13 +117,13 @@ class PlaneTracker:
         cfg = self.config
         if len(track.sample) == 0 or len(sample) == 0:
             return _REFUSED
-        cos = abs(float(track.coefficients[:3] @ coeff[:3]))
-        angle = np.degrees(np.arccos(min(cos, 1.0)))
+        dot = float(track.coefficients[:3] @ coeff[:3])
+        angle = np.degrees(np.arccos(min(abs(dot), 1.0)))
         if angle > cfg.max_angle_deg:
             return _REFUSED
         # the planes' distances from the sensor (the origin): unchanged by the sensor turning, changed
         # by its moving no more than its step
-        sign = 1.0 if float(track.coefficients[:3] @ coeff[:3]) >= 0 else -1.0
+        sign = 1.0 if dot >= 0 else -1.0
         offset = abs(float(track.coefficients[3]) - sign * float(coeff[3]))
         if offset > cfg.max_offset:
             return _REFUSED

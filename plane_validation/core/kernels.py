@@ -29,7 +29,8 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
-           'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'warm',
+           'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
+           'warm',
            'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -1853,15 +1854,34 @@ def marked_rows(points: np.ndarray, view: np.ndarray, within: float) -> int:
 @numba.njit(**_JIT)
 def near_count(a: np.ndarray, b: np.ndarray, radius: float) -> int:
     """How many rows of ``a`` (m, 3) have a row of ``b`` (p, 3) closer than ``radius`` (meters; squared distances
-    compared with radius ** 2, as a kd-tree query bounded by it)."""
+    compared with radius ** 2, as a kd-tree query bounded by it). A row's scan of ``b`` starts at the row that was near
+    the row before it (a sample's neighbouring rows lie near each other), and a row farther than ``radius`` from the
+    box around ``b`` in a coordinate is not scanned: the same count in a fraction of the pairs."""
     bound = radius * radius
-    count = 0
+    p = b.shape[0]
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for j in range(p):
+        for c in range(3):
+            if b[j, c] < lo[c]:
+                lo[c] = b[j, c]
+            if b[j, c] > hi[c]:
+                hi[c] = b[j, c]
+    count = start = 0
     for i in range(a.shape[0]):
         x, y, z = a[i, 0], a[i, 1], a[i, 2]
-        for j in range(b.shape[0]):
+        outside = False
+        for c in range(3):  # (a margin above radius: no pair that passes the test below is left out by rounding)
+            v = a[i, c]
+            reach = radius * 1.000001 + 1e-9 * abs(v)
+            outside |= v < lo[c] - reach or v > hi[c] + reach
+        if outside:
+            continue
+        for s in range(p):
+            j = start + s if start + s < p else start + s - p
             dx, dy, dz = x - b[j, 0], y - b[j, 1], z - b[j, 2]
             if dx * dx + dy * dy + dz * dz < bound:
                 count += 1
+                start = j
                 break
     return count
 
@@ -3327,6 +3347,29 @@ def merge_pair(search: np.ndarray, region: np.ndarray, i: int, j: int, own: np.n
     return same, normal, offset, members
 
 
+# --- frame outside 5 ---
+
+
+@numba.njit(**_JIT)
+def relabel_rows(labels: np.ndarray, finite: np.ndarray, rank: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``rank[labels]`` for the labels (N,) in -1..k-1 of an organized frame's rows (-1 takes the last entry of
+    ``rank`` (k + 1,) int32), (N,) int32, and the same at the rows ``finite`` (N,) bool marks, in order ((n,)): the
+    renumbered labels of the rows and of the valid points in one pass."""
+    n = labels.shape[0]
+    last = rank.shape[0] - 1
+    rows = np.empty(n, np.int32)
+    points = np.empty(n, np.int32)
+    m = 0
+    for i in range(n):
+        lab = labels[i]
+        value = rank[lab] if 0 <= lab < last else rank[last]
+        rows[i] = value
+        if finite[i]:
+            points[m] = value
+            m += 1
+    return rows, points[:m]
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -3493,12 +3536,17 @@ def _warm_organized_detect() -> None:
                    1.5, True)
 
 
+
+def _warm_frame_outside_5() -> None:
+    relabel_rows(np.array([0, -1, 0, 1], np.int32), np.ones(4, np.bool_), np.array([1, 0, -1], np.int32))
+
+
 #: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The
 #: first is short: it tells whether the cache is cold. The longest compiles come next, so that processes compiling
 #: the rest in parallel end together.
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_indices, _warm_planes,
-               _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect)
+               _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect, _warm_frame_outside_5)
 
 
 def _compiles() -> int:
@@ -3558,4 +3606,4 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
             read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
-            merge_pair)
+            merge_pair, relabel_rows)
