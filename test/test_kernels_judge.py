@@ -33,6 +33,28 @@ def test_sorted_order_is_the_stable_argsort(seed, n, kind):
 
 
 @SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(1, 2500), st.integers(0, 40))
+def test_sorted_order_keeps_ties_in_order_within_buckets(seed, n, copies):
+    """Spread values with a few copies each (up to the buckets' limit and past it): ties stay in input order."""
+    rng = np.random.default_rng(seed)
+    values = rng.uniform(-1.0, 1.0, n)
+    values[rng.integers(0, n, copies)] = values[rng.integers(0, n)]  # copies of one value, scattered
+    np.testing.assert_array_equal(kernels.sorted_order(values), np.argsort(values, kind='stable'))
+
+
+@SETTINGS
+@given(st.floats(1e-12, 1e6), st.integers(0, 10**6), st.integers(-3, 3))
+def test_floor_quotient_is_floor_division(b, k, ulps):
+    """Quotients at and a few units in the last place around whole numbers, where the rounded quotient's floor and
+    Python's floor division part."""
+    a = float(k) * b
+    for _ in range(abs(ulps)):
+        a = np.nextafter(a, np.inf if ulps > 0 else -np.inf)
+    a = max(a, 0.0)
+    assert kernels._floor_quotient(a, b) == a // b
+
+
+@SETTINGS
 @given(st.integers(0, 2**32 - 1), st.integers(1, 3000), st.integers(0, 3), st.floats(0, 1), st.floats(0, 1))
 def test_order_statistics_are_those_of_a_partition(seed, n, kind, low, high):
     values = _values(seed, n, kind)

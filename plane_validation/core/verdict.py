@@ -281,9 +281,10 @@ def _patch_noise(pca, tolerance: float, cells: tuple | None = None) -> float | N
     if np.count_nonzero(noisy) < max(TILT_MIN_PATCHES, len(noisy) / 2):  # noise-free: only edge patches are thick
         return None
     values, counts = values[noisy], counts[noisy]
-    local = float(np.average(values[:, 0], weights=counts))
+    weight = counts.sum(dtype=np.float64)  # both means weighted by the points, as np.average sums them
+    local = float(np.multiply(values[:, 0], counts, dtype=np.float64).sum() / weight)
     # per-patch eigenvalues of a few dozen points underestimate their noise by about (n - 3) / n
-    local *= float(np.average(counts / np.maximum(counts - 3, 1), weights=counts))
+    local *= float(np.multiply(counts / np.maximum(counts - 3, 1), counts, dtype=np.float64).sum() / weight)
     return max(local, (tolerance / LACK_OF_FIT_FLOOR) ** 2)
 
 
