@@ -1,6 +1,6 @@
-"""The per-frame verdict and index kernels (core/kernels.py, the 'verdict and indices per frame' block) against
-plain-numpy references: each must give numpy's values exactly, as the verdict's and the indices' figures depend on
-them bit for bit."""
+"""The per-frame verdict and index kernels (core/kernels.py, the 'verdict and indices per frame', 'verdict' and
+'verdict 5' blocks) against plain-numpy references: each must give numpy's values exactly, as the verdict's and the
+indices' figures depend on them bit for bit."""
 from __future__ import annotations
 
 import numpy as np
@@ -93,3 +93,19 @@ def test_plane_samples_gather_and_centre_as_numpy(seed, k, n):
         mean = inl.mean(axis=0)
         np.testing.assert_array_equal(centres[j], mean)  # bit for bit: numpy sums the first axis row by row
         np.testing.assert_array_equal(centred[bounds[j]:bounds[j + 1]], inl - mean)
+
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 300), st.integers(1, 40), st.floats(0, 1))
+def test_beyond_rows_are_numpys_strided_finite_rows(seed, n, step, holes):
+    """beyond_rows against the strided rows numpy keeps: NaN and inf coordinates, and sums too large for a float."""
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(size=(n, 3))
+    pts[rng.random(n) < holes, rng.integers(0, 3)] = rng.choice([np.nan, np.inf, -np.inf])
+    pts[rng.random(n) < 0.05] = 1e308  # finite coordinates whose sum is not
+    labels = rng.integers(-1, 5, n).astype(np.int32)
+    cloud, kept = kernels.beyond_rows(pts, step, labels)
+    finite = np.isfinite(pts[::step].sum(axis=1))
+    np.testing.assert_array_equal(cloud, pts[::step][finite])
+    np.testing.assert_array_equal(kept, labels[::step][finite])

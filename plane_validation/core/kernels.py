@@ -25,6 +25,7 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
            'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
            'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
+           'beyond_rows',
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
            'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
@@ -3379,6 +3380,27 @@ def merge_pair(search: np.ndarray, region: np.ndarray, i: int, j: int, own: np.n
     return same, normal, offset, members
 
 
+# --- verdict 5 ---
+
+
+@numba.njit(**_JIT)
+def beyond_rows(points: np.ndarray, step: int, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every ``step``-th row of ``points`` (N, 3) whose coordinates sum to a finite value (m, 3), and its entry of
+    ``labels`` (N,) (m,): in one pass, without a strided copy of every such row first."""
+    n = points.shape[0]
+    cloud = np.empty(((n + step - 1) // step, 3))
+    kept = np.empty((n + step - 1) // step, labels.dtype)
+    m = 0
+    for i in range(0, n, step):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        total = x + y + z
+        if total - total == 0.0:  # NaN for a coordinate not finite, or a sum too large
+            cloud[m, 0], cloud[m, 1], cloud[m, 2] = x, y, z
+            kept[m] = labels[i]
+            m += 1
+    return cloud[:m], kept[:m]
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -3548,9 +3570,13 @@ def _warm_organized_detect() -> None:
 #: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The
 #: first is short: it tells whether the cache is cold. The longest compiles come next, so that processes compiling
 #: the rest in parallel end together.
+def _warm_verdict5() -> None:
+    beyond_rows(np.zeros((4, 3)), 2, np.array([0, -1, 0, 1], np.int32))
+
+
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_indices, _warm_planes,
-               _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect)
+               _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect, _warm_verdict5)
 
 
 def _compiles() -> int:
@@ -3605,7 +3631,7 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
             cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
-            beyond_counts, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
+            beyond_counts, beyond_rows, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
             voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
             fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,

@@ -383,7 +383,7 @@ def _beyond(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray) 
     counts in one compiled pass, :func:`.kernels.beyond_counts`; :func:`_beyond_numpy` is the reference)."""
     if len(seg.planes) == 0:
         return np.zeros(0)
-    cloud, labels, t, box, d = _beyond_rows(pts, seg, frames)
+    _, labels, t, box, d = _beyond_rows(pts, seg, frames)
     lo, hi, surface = _beyond_frames(seg, frames, fill)
     t = np.full(1, t) if np.ndim(t) == 0 else np.ascontiguousarray(t[:, 0])
     within, beyond = kernels.beyond_counts(box, d, kernels.c_array(labels, np.int32), t, lo, hi, surface)
@@ -392,15 +392,12 @@ def _beyond(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray) 
 
 def _beyond_rows(pts: np.ndarray, seg: Segmentation, frames: list
                  ) -> tuple[np.ndarray, np.ndarray, float | np.ndarray, np.ndarray, np.ndarray]:
-    """The rows :func:`_beyond` counts among (every so many of ``pts``, those with finite coordinates): (them (m, 3),
-    their labels (m,), the tolerance (a number, or (m, 1) by the noise model), their coordinates along each plane's
-    in-plane axes (m, 2k) and their distances to each plane (m, k), meters)."""
-    step = max(1, -(-len(pts) // BEYOND_SAMPLE))
-    cloud = np.ascontiguousarray(pts[::step])  # every so many rows, read in order
-    finite = np.isfinite(cloud @ np.ones(3))  # a NaN or inf coordinate makes the sum one
-    labels = np.asarray(seg.labels)[::step]
-    if not finite.all():
-        cloud, labels = np.compress(finite, cloud, axis=0), np.compress(finite, labels)
+    """The rows :func:`_beyond` counts among (every so many of ``pts``, those whose coordinates sum to a finite value,
+    gathered in one compiled pass: :func:`.kernels.beyond_rows`): (them (m, 3), their labels (m,), the tolerance (a
+    number, or (m, 1) by the noise model), their coordinates along each plane's in-plane axes (m, 2k) and their
+    distances to each plane (m, k), meters)."""
+    cloud, labels = kernels.beyond_rows(kernels.c_array(pts, np.float64), max(1, -(-len(pts) // BEYOND_SAMPLE)),
+                                        kernels.c_array(seg.labels, np.int32))
     scale = tolerance_scale(cloud, seg.noise_model, seg.noise_reference, seg.viewpoint)
     t = seg.tolerance * (1.0 if scale is None else scale[:, None])
     axes = np.zeros((3, 2 * len(seg.planes)))
@@ -408,8 +405,9 @@ def _beyond_rows(pts: np.ndarray, seg: Segmentation, frames: list
         if pca is not None:
             axes[:, 2 * j:2 * j + 2] = pca[3][:, 1:]  # the in-plane principal axes
     normals = np.array([p.normal for p in seg.planes])
-    d = np.abs(cloud @ normals.T + np.array([p.offset for p in seg.planes]))
-    return cloud, labels, t, np.ascontiguousarray(cloud @ axes), np.ascontiguousarray(d)
+    d = cloud @ normals.T
+    d += np.array([p.offset for p in seg.planes])  # in place: a large temporary less each (page faults)
+    return cloud, labels, t, cloud @ axes, np.abs(d, out=d)
 
 
 def _beyond_frames(seg: Segmentation, frames: list, fill: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
