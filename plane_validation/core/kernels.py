@@ -2596,12 +2596,14 @@ def sorted_order(values: np.ndarray) -> np.ndarray:
     if m == 0:
         return order
     low = high = values[0]
+    number = True
     for i in range(m):
         low = min(low, values[i])
         high = max(high, values[i])
+        number &= values[i] == values[i]
     buckets = m
     scale = buckets / (high - low) if high > low else 0.0
-    if 0.0 < scale < np.inf:
+    if number and 0.0 < scale < np.inf:  # (a NaN would have no bucket: the radix sort gives it a place)
         start = np.zeros(buckets + 1, np.int64)
         bucket = np.empty(m, np.int64)
         for i in range(m):

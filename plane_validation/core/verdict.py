@@ -152,7 +152,7 @@ FOLD_FIT = 1.1
 FOLD_ANGLES = 12
 FOLD_OFFSETS = 15
 FOLD_INNER = 0.7
-#: ... searched on at most this many of the plane's sampled inliers (every so many-th): 1 ms a plane.
+#: ... searched on at most this many of the plane's sampled inliers (every so many-th): about 0.2 ms a plane.
 FOLD_POINTS = 1024
 
 
