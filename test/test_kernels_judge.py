@@ -1,6 +1,6 @@
-"""The per-frame verdict and index kernels (core/kernels.py, the 'verdict and indices per frame' block) against
-plain-numpy references: each must give numpy's values exactly, as the verdict's and the indices' figures depend on
-them bit for bit."""
+"""The per-frame verdict and index kernels (core/kernels.py, the 'verdict and indices per frame', 'verdict' and
+'verdict 5' blocks) against plain-numpy references: each must give numpy's values exactly, as the verdict's and the
+indices' figures depend on them bit for bit."""
 from __future__ import annotations
 
 import numpy as np
@@ -30,6 +30,35 @@ def _values(seed: int, n: int, kind: int) -> np.ndarray:
 def test_sorted_order_is_the_stable_argsort(seed, n, kind):
     values = _values(seed, n, kind)
     np.testing.assert_array_equal(kernels.sorted_order(values), np.argsort(values, kind='stable'))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(1, 2500), st.integers(0, 40), st.integers(0, 3))
+def test_sorted_order_keeps_ties_in_order_within_buckets(seed, n, copies, nans):
+    """Spread values with a few copies of one (up to the buckets' limit and past it): ties stay in input order. A NaN
+    is outside the contract, but must not be written outside the buckets: then a permutation, the numbers sorted."""
+    rng = np.random.default_rng(seed)
+    values = rng.uniform(-1.0, 1.0, n)
+    values[rng.integers(0, n, copies)] = values[rng.integers(0, n)]  # copies of one value, scattered
+    values[rng.integers(0, n, nans)] = np.nan
+    order = kernels.sorted_order(values)
+    if not nans:
+        np.testing.assert_array_equal(order, np.argsort(values, kind='stable'))
+    np.testing.assert_array_equal(np.sort(order), np.arange(n))
+    numbers = values[order][~np.isnan(values[order])]
+    assert (np.diff(numbers) >= 0).all()
+
+
+@SETTINGS
+@given(st.floats(1e-12, 1e6), st.integers(0, 10**6), st.integers(-3, 3))
+def test_floor_quotient_is_floor_division(b, k, ulps):
+    """Quotients at and a few units in the last place around whole numbers, where the rounded quotient's floor and
+    Python's floor division part."""
+    a = float(k) * b
+    for _ in range(abs(ulps)):
+        a = np.nextafter(a, np.inf if ulps > 0 else -np.inf)
+    a = max(a, 0.0)
+    assert kernels._floor_quotient(a, b) == a // b
 
 
 @SETTINGS
@@ -71,3 +100,20 @@ def test_plane_samples_gather_and_centre_as_numpy(seed, k, n):
         mean = inl.mean(axis=0)
         np.testing.assert_array_equal(centres[j], mean)  # bit for bit: numpy sums the first axis row by row
         np.testing.assert_array_equal(centred[bounds[j]:bounds[j + 1]], inl - mean)
+
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 300), st.integers(1, 40), st.floats(0, 1))
+def test_beyond_rows_are_numpys_strided_finite_rows(seed, n, step, holes):
+    """beyond_rows against the strided rows numpy keeps: NaN and inf coordinates, and sums too large for a float."""
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(size=(n, 3))
+    pts[rng.random(n) < holes, rng.integers(0, 3)] = rng.choice([np.nan, np.inf, -np.inf])
+    pts[rng.random(n) < 0.05] = 1e308  # finite coordinates whose sum is not
+    labels = rng.integers(-1, 5, n).astype(np.int32)
+    cloud, kept = kernels.beyond_rows(pts, step, labels)
+    with np.errstate(over='ignore'):  # the sums too large for a float are the point
+        finite = np.isfinite(pts[::step].sum(axis=1))
+    np.testing.assert_array_equal(cloud, pts[::step][finite])
+    np.testing.assert_array_equal(kept, labels[::step][finite])

@@ -477,8 +477,8 @@ def _db_classic(cl: _Clusters) -> float:
     spread = np.sqrt(((cl.points - centroids[cl.codes]) ** 2).sum(axis=1))
     intra = np.add.reduceat(spread, cl.starts) / cl.sizes
     sep = cdist(centroids, centroids)
-    # the same conventions as sklearn.metrics.davies_bouldin_score
-    if np.allclose(intra, 0) or np.allclose(sep, 0):
+    # the same conventions as sklearn.metrics.davies_bouldin_score (np.allclose(x, 0): |x| <= its atol, 1e-8)
+    if (np.abs(intra) <= 1e-8).all() or (np.abs(sep) <= 1e-8).all():
         return 0.0
     sep[sep == 0] = np.inf
     return float(np.max((intra[:, None] + intra[None, :]) / sep, axis=1).mean())

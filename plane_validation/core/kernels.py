@@ -25,6 +25,7 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
            'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
            'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
+           'beyond_rows',
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
            'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
@@ -999,6 +1000,16 @@ def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_i
 
 
 @numba.njit(**_JIT)
+def _floor_quotient(a: float, b: float) -> float:
+    """``a // b`` for a >= 0, b > 0 (Python's floor division, whose fmod costs several times more): the rounded
+    quotient's floor is the exact quotient's unless the rounding reached a whole number, which is then settled by
+    ``//`` itself."""
+    q = a / b
+    whole = np.floor(q)
+    return whole if whole != q else a // b
+
+
+@numba.njit(**_JIT)
 def plane_patches(centred: np.ndarray, axes: np.ndarray, per_patch: int, min_count: int
                   ) -> tuple[np.ndarray, np.ndarray]:
     """The patches of a plane's points ``centred`` (m, 3) (about their mean, meters): the cells of a square grid along
@@ -1019,11 +1030,11 @@ def plane_patches(centred: np.ndarray, axes: np.ndarray, per_patch: int, min_cou
     side = np.sqrt((u.max() - lo_u) * (v.max() - lo_v) * per_patch / m)
     if not side > 0.0:
         return empty
-    width = int((v.max() - lo_v) // side) + 1
-    height = int((u.max() - lo_u) // side) + 1
+    width = int(_floor_quotient(v.max() - lo_v, side)) + 1
+    height = int(_floor_quotient(u.max() - lo_u, side)) + 1
     cells = np.empty(m, np.int64)
     for i in range(m):
-        cells[i] = int((u[i] - lo_u) // side) * width + int((v[i] - lo_v) // side)
+        cells[i] = int(_floor_quotient(u[i] - lo_u, side)) * width + int(_floor_quotient(v[i] - lo_v, side))
     if width * height <= 4 * m:  # a counting sort by cell
         start = np.zeros(width * height + 1, np.int64)
         for i in range(m):
@@ -2588,19 +2599,63 @@ def order_statistics(values: np.ndarray, a0: int, a1: int, b0: int, b1: int) -> 
 
 
 
+#: sorted_order spreads m values over m buckets, evenly between the smallest and the largest, and sorts them by radix
+#: instead when a bucket holds more than this many (clustered values, many copies).
+_BUCKET_MOST = 32
+
+
 @numba.njit(**_JIT)
 def sorted_order(values: np.ndarray) -> np.ndarray:
     """The order (m,) int64 that sorts ``values`` (m,) float64 without NaN ascending, equal values in their order
-    (as np.argsort's stable sort): an LSD radix sort of the floats' bits, a byte a pass, skipping the bytes all
-    keys share (several times faster than a comparison sort on the thousand values fold_fit sorts)."""
+    (as np.argsort's stable sort). Spread evenly over buckets by value (a monotone map: no bucket holds a value larger
+    than a later bucket's), each bucket insertion-sorted: a few passes where values spread out, as fold_fit's do.
+    Where a bucket would hold more than _BUCKET_MOST values: an LSD radix sort of the floats' bits, a byte a pass,
+    skipping the bytes all keys share (both several times faster than a comparison sort on a thousand values)."""
     m = values.shape[0]
+    order = np.empty(m, np.int64)
+    if m == 0:
+        return order
+    low = high = values[0]
+    number = True
+    for i in range(m):
+        low = min(low, values[i])
+        high = max(high, values[i])
+        number &= values[i] == values[i]
+    buckets = m
+    scale = buckets / (high - low) if high > low else 0.0
+    if number and 0.0 < scale < np.inf:  # (a NaN would have no bucket: the radix sort gives it a place)
+        start = np.zeros(buckets + 1, np.int64)
+        bucket = np.empty(m, np.int64)
+        for i in range(m):
+            b = min(int((values[i] - low) * scale), buckets - 1)
+            bucket[i] = b
+            start[b + 1] += 1
+        if start.max() <= _BUCKET_MOST:
+            for b in range(buckets):
+                start[b + 1] += start[b]
+            for i in range(m):  # in input order: equal values keep it
+                order[start[bucket[i]]] = i
+                start[bucket[i]] += 1
+            first = 0  # start[b] is now where bucket b ends
+            for b in range(buckets):
+                for q in range(first + 1, start[b]):
+                    i = order[q]
+                    x = values[i]
+                    r = q
+                    while r > first and values[order[r - 1]] > x:  # strictly larger: stable
+                        order[r] = order[r - 1]
+                        r -= 1
+                    order[r] = i
+                first = start[b]
+            return order
     keys = np.empty(m, np.uint64)
     raw = np.ascontiguousarray(values).view(np.uint64)
     top = np.uint64(1) << np.uint64(63)
     for i in range(m):
         bits = raw[i] if raw[i] != top else np.uint64(0)  # -0.0 as 0.0: equal values
         keys[i] = ~bits if bits & top else bits | top  # ordered as unsigned integers
-    order = np.arange(m)
+    for i in range(m):
+        order[i] = i
     spare = np.empty(m, np.int64)
     count = np.empty(257, np.int64)
     for shift in range(0, 64, 8):
@@ -3370,6 +3425,27 @@ def relabel_rows(labels: np.ndarray, finite: np.ndarray, rank: np.ndarray) -> tu
     return rows, points[:m]
 
 
+# --- verdict 5 ---
+
+
+@numba.njit(**_JIT)
+def beyond_rows(points: np.ndarray, step: int, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every ``step``-th row of ``points`` (N, 3) whose coordinates sum to a finite value (m, 3), and its entry of
+    ``labels`` (N,) (m,): in one pass, without a strided copy of every such row first."""
+    n = points.shape[0]
+    cloud = np.empty(((n + step - 1) // step, 3))
+    kept = np.empty((n + step - 1) // step, labels.dtype)
+    m = 0
+    for i in range(0, n, step):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        total = x + y + z
+        if total - total == 0.0:  # NaN for a coordinate not finite, or a sum too large
+            cloud[m, 0], cloud[m, 1], cloud[m, 2] = x, y, z
+            kept[m] = labels[i]
+            m += 1
+    return cloud[:m], kept[:m]
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -3541,12 +3617,17 @@ def _warm_frame_outside_5() -> None:
     relabel_rows(np.array([0, -1, 0, 1], np.int32), np.ones(4, np.bool_), np.array([1, 0, -1], np.int32))
 
 
+def _warm_verdict5() -> None:
+    beyond_rows(np.zeros((4, 3)), 2, np.array([0, -1, 0, 1], np.int32))
+
+
 #: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The
 #: first is short: it tells whether the cache is cold. The longest compiles come next, so that processes compiling
 #: the rest in parallel end together.
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_indices, _warm_planes,
-               _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect, _warm_frame_outside_5)
+               _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect, _warm_frame_outside_5,
+               _warm_verdict5)
 
 
 def _compiles() -> int:
@@ -3601,7 +3682,7 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
             cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
-            beyond_counts, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
+            beyond_counts, beyond_rows, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
             voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
             fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
