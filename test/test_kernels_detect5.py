@@ -63,3 +63,17 @@ def test_strided_rows_are_every_stride_th_valid_row(flags, stride):
     got = kernels.strided_rows(flags, int(np.count_nonzero(flags)), stride)
     np.testing.assert_array_equal(got, np.flatnonzero(flags)[::stride])
     assert got.dtype == np.int64
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 200))
+def test_columns_at_are_the_rows_less_the_centre(seed, m):
+    """numpy's gather, subtraction and transposed copy, bit for bit (NaN rows too)."""
+    rng = np.random.default_rng(seed)
+    values = rng.normal(scale=10.0 ** rng.integers(-3, 4), size=(int(rng.integers(1, 300)), 3))
+    values[rng.random(len(values)) < 0.1] = np.nan
+    rows = rng.integers(0, len(values), m)
+    center = rng.normal(size=3) if seed % 2 else np.zeros(3)
+    got = kernels.columns_at(values, rows, center)
+    np.testing.assert_array_equal(got, np.ascontiguousarray((values.take(rows, axis=0) - center).T))
+    assert got.shape == (3, m) and got.flags.c_contiguous

@@ -30,7 +30,7 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'grid_spread',
-           'strided_rows', 'grid_batch', 'warm',
+           'strided_rows', 'columns_at', 'grid_batch', 'warm',
            'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -3414,6 +3414,21 @@ def strided_rows(flags: np.ndarray, count: int, stride: int) -> np.ndarray:
 
 
 @numba.njit(**_NUMPY_JIT)
+def columns_at(values: np.ndarray, rows: np.ndarray, center: np.ndarray) -> np.ndarray:
+    """(3, m) the rows ``rows`` (m,) of ``values`` (N, 3) less ``center`` (3,), as columns: numpy's
+    (values.take(rows, axis=0) - center).T made C-ordered, in one pass."""
+    m = rows.shape[0]
+    out = np.empty((3, m))
+    cx, cy, cz = center[0], center[1], center[2]
+    for q in range(m):
+        i = rows[q]
+        out[0, q] = values[i, 0] - cx
+        out[1, q] = values[i, 1] - cy
+        out[2, q] = values[i, 2] - cz
+    return out
+
+
+@numba.njit(**_NUMPY_JIT)
 def grid_batch(cols: np.ndarray, spread: np.ndarray, first: np.ndarray, scale_pick: np.ndarray, row_share: np.ndarray,
                col_share: np.ndarray, scales: np.ndarray, rest: np.ndarray, position: np.ndarray, pixel: np.ndarray,
                node: np.ndarray, height: int, width: int, min_sine: float, subset: np.ndarray, tolerance: np.ndarray,
@@ -3608,6 +3623,7 @@ def _warm_organized_detect_5() -> None:
     lines = np.zeros(2, np.int64)
     grid_spread(pts, flags, index[:1], index[:1], 1, 1, lines, lines, np.zeros((1, 4)), np.ones(1), EIGHT)
     strided_rows(flags, 4, 2)
+    columns_at(pts, index, np.zeros(3))
     cols, best = np.zeros((3, 4)), (np.zeros((2, 3)), np.zeros(2), np.zeros(2, np.int64))
     for known in (cols, np.empty((3, 0))):  # the grid's normals, and none known
         grid_batch(cols, index.reshape(-1, 2)[:, :1].repeat(3, axis=1), index[:2], index % 2, np.zeros(4), np.zeros(4),
@@ -3679,4 +3695,4 @@ _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components
             fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
             read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
-            merge_pair, grid_spread, strided_rows, grid_batch)
+            merge_pair, grid_spread, strided_rows, columns_at, grid_batch)

@@ -32,7 +32,8 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
     min_count = resolve_min_inliers(min_inliers, n_valid)
     graph = checked_search_graph(graph, pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
     search_idx, step, center, neighbours = graph.search_idx, graph.step, graph.center, graph.neighbours
-    search = np.ascontiguousarray((pts.take(search_idx, axis=0) - center).T)  # take: a faster gather
+    search = kernels.columns_at(kernels.c_array(pts, np.float64), kernels.c_array(search_idx, np.int64),
+                                kernels.c_array(center, np.float64))  # (3, m)
     search_min = max(3, int(np.ceil(min_count * len(search_idx) / max(n_valid, 1))))
     search_tolerance = tolerance_at(tolerance, search_idx)
     found, reason, region, capped = sequential_search(search, search_tolerance, max_planes, search_min, probability,
