@@ -2623,9 +2623,9 @@ def grid_contacts(node: np.ndarray, usable: np.ndarray, width: int, wraps: bool,
     for kind in range(4):
         count = (height * (width - 1) if kind == 0 else (height - 1) * width if kind == 1 else
                  (height if wraps else 0) if kind == 2 else bridges.shape[0])
+        p = col = 0  # right neighbours: p steps along the rows (col its column), no division per pair
         for q in range(count):
             if kind == 0:
-                p = q // (width - 1) * width + q % (width - 1)
                 o = p + 1
             elif kind == 1:
                 p = q
@@ -2638,12 +2638,17 @@ def grid_contacts(node: np.ndarray, usable: np.ndarray, width: int, wraps: bool,
                 o = bridges[q, 1]
             i = node[p] if usable[p] else -1
             j = node[o] if usable[o] else -1
-            if i < 0 or j < 0:
-                continue
-            ri, rj = region[i], region[j]
-            if ri >= 0 and rj >= 0 and ri != rj:
-                src[n], dst[n] = i, j
-                n += 1
+            if i >= 0 and j >= 0:
+                ri, rj = region[i], region[j]
+                if ri >= 0 and rj >= 0 and ri != rj:
+                    src[n], dst[n] = i, j
+                    n += 1
+            if kind == 0:
+                p += 1
+                col += 1
+                if col == width - 1:  # past the row's last pair: the next row's first pixel
+                    col = 0
+                    p += 1
     src, dst = src[:n], dst[:n]
     a = np.empty(n, np.int64)
     b = np.empty(n, np.int64)
