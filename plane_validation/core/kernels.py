@@ -2359,26 +2359,45 @@ def fit_regions(cols: np.ndarray, region: np.ndarray, k: int) -> tuple[np.ndarra
     m = cols.shape[1]
     count = np.zeros(k, np.int64)
     centre = np.zeros((k, 3))
-    for p in range(m):
+    # regions come in runs: a run's sums are kept in locals, each added in the order of the points as before
+    p = 0
+    while p < m:
         j = region[p]
-        if j >= 0:
-            count[j] += 1
-            centre[j, 0] += cols[0, p]
-            centre[j, 1] += cols[1, p]
-            centre[j, 2] += cols[2, p]
+        if j < 0:
+            p += 1
+            continue
+        start = p
+        sx, sy, sz = centre[j, 0], centre[j, 1], centre[j, 2]
+        while p < m and region[p] == j:
+            sx += cols[0, p]
+            sy += cols[1, p]
+            sz += cols[2, p]
+            p += 1
+        centre[j, 0], centre[j, 1], centre[j, 2] = sx, sy, sz
+        count[j] += p - start
     for j in range(k):
         centre[j] /= count[j]
     scatter = np.zeros((k, 6))
-    for p in range(m):
+    p = 0
+    while p < m:
         j = region[p]
-        if j >= 0:
-            x, y, z = cols[0, p] - centre[j, 0], cols[1, p] - centre[j, 1], cols[2, p] - centre[j, 2]
-            scatter[j, 0] += x * x
-            scatter[j, 1] += x * y
-            scatter[j, 2] += x * z
-            scatter[j, 3] += y * y
-            scatter[j, 4] += y * z
-            scatter[j, 5] += z * z
+        if j < 0:
+            p += 1
+            continue
+        cx, cy, cz = centre[j, 0], centre[j, 1], centre[j, 2]
+        s0, s1, s2 = scatter[j, 0], scatter[j, 1], scatter[j, 2]
+        s3, s4, s5 = scatter[j, 3], scatter[j, 4], scatter[j, 5]
+        while p < m and region[p] == j:
+            x, y, z = cols[0, p] - cx, cols[1, p] - cy, cols[2, p] - cz
+            s0 += x * x
+            s1 += x * y
+            s2 += x * z
+            s3 += y * y
+            s4 += y * z
+            s5 += z * z
+            p += 1
+        scatter[j, 0], scatter[j, 1], scatter[j, 2] = s0, s1, s2
+        scatter[j, 3], scatter[j, 4], scatter[j, 5] = s3, s4, s5
     normals = np.full((k, 3), np.nan)
     offsets = np.full(k, np.nan)
     for j in range(k):
