@@ -45,12 +45,17 @@ def _image_case(seed: int, per_point: bool):
 @SETTINGS
 @given(st.integers(0, 2**32 - 1), st.booleans())
 def test_spread_grid_matches_numpy(seed, per_point):
+    """The labels, and each region's rows (ascending) with their squared distances to its plane, one after another."""
     case = _image_case(seed, per_point)
-    labels, best = spread_grid(*case)
+    labels, rows, bounds, squares = spread_grid(*case)
     ref_labels, ref_best = spread_grid_numpy(*case)
     np.testing.assert_array_equal(labels, ref_labels)
-    np.testing.assert_allclose(best, ref_best, rtol=1e-12, atol=1e-12)
     assert labels.dtype == np.int32
+    k = len(case[6])
+    assert len(bounds) == k + 1 and bounds[0] == 0 and bounds[k] == len(rows) == len(squares)
+    for j in range(k):
+        np.testing.assert_array_equal(rows[bounds[j]:bounds[j + 1]], np.flatnonzero(ref_labels == j))
+    np.testing.assert_allclose(np.sqrt(squares), ref_best[rows], rtol=1e-12, atol=1e-12)
 
 
 @SETTINGS

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-__all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_extremes', 'grid_components',
+__all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'graph_components', 'graph_region', 'finite_mask',
            'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
            'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_fit',
@@ -31,7 +31,7 @@ __all__ = ['EIGHT', 'c_array', 'spread_grid', 'group_by_label', 'centroids_and_e
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
-           'warm',
+           'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'warm',
            'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -61,54 +61,6 @@ def finite_mask(points: np.ndarray) -> tuple[np.ndarray, int]:
         out[i] = ok
         count += ok
     return out, count
-
-
-@numba.njit(**_JIT)
-def spread_grid(points: np.ndarray, valid: np.ndarray, sub: np.ndarray, near_r: np.ndarray, near_c: np.ndarray,
-                planes: np.ndarray, tolerance: np.ndarray, eight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Labels (N,) int32 of the pixels of an H x W image ``points`` (N, 3) from the regions ``sub``
-    (gh, gw) of its sub-grid (k: no region), ``planes`` (k, 4) rows (a, b, c, d) in the coordinates of
-    ``points``. A pixel takes the region of its nearest sub-grid pixel (``near_r`` (H,), ``near_c`` (W,))
-    when within tolerance of its plane, else of the 8 sub-grid pixels around that one (``eight``, in order)
-    the region whose plane is nearest within tolerance (a strictly nearer one wins a tie); -1 otherwise.
-    ``valid`` (N,) bool: finite rows. ``tolerance``: (1,) or (N,) meters. Also the distance (N,) to the
-    chosen plane, meters (inf when none)."""
-    h, w = near_r.shape[0], near_c.shape[0]
-    gh, gw = sub.shape
-    k = planes.shape[0]
-    per_point = tolerance.shape[0] > 1
-    labels = np.empty(h * w, np.int32)  # each written once below: no pass to fill them first
-    best = np.empty(h * w)
-    for r in range(h):
-        gr = near_r[r]
-        for c in range(w):
-            i = r * w + c
-            labels[i] = -1
-            best[i] = np.inf
-            if not valid[i]:
-                continue
-            x, y, z = points[i, 0], points[i, 1], points[i, 2]
-            tol = tolerance[i] if per_point else tolerance[0]
-            gc = near_c[c]
-            lab = sub[gr, gc]
-            if lab < k:
-                d = abs(planes[lab, 0] * x + planes[lab, 1] * y + planes[lab, 2] * z + planes[lab, 3])
-                if d <= tol:
-                    labels[i] = lab
-                    best[i] = d
-                    continue
-            for e in range(eight.shape[0]):
-                rr, cc = gr + eight[e, 0], gc + eight[e, 1]
-                if rr < 0 or rr >= gh or cc < 0 or cc >= gw:
-                    continue
-                lab = sub[rr, cc]
-                if lab >= k:
-                    continue
-                d = abs(planes[lab, 0] * x + planes[lab, 1] * y + planes[lab, 2] * z + planes[lab, 3])
-                if d <= tol and d < best[i]:
-                    labels[i] = lab
-                    best[i] = d
-    return labels, best
 
 
 @numba.njit(**_JIT)
@@ -2437,26 +2389,45 @@ def fit_regions(cols: np.ndarray, region: np.ndarray, k: int) -> tuple[np.ndarra
     m = cols.shape[1]
     count = np.zeros(k, np.int64)
     centre = np.zeros((k, 3))
-    for p in range(m):
+    # regions come in runs: a run's sums are kept in locals, each added in the order of the points as before
+    p = 0
+    while p < m:
         j = region[p]
-        if j >= 0:
-            count[j] += 1
-            centre[j, 0] += cols[0, p]
-            centre[j, 1] += cols[1, p]
-            centre[j, 2] += cols[2, p]
+        if j < 0:
+            p += 1
+            continue
+        start = p
+        sx, sy, sz = centre[j, 0], centre[j, 1], centre[j, 2]
+        while p < m and region[p] == j:
+            sx += cols[0, p]
+            sy += cols[1, p]
+            sz += cols[2, p]
+            p += 1
+        centre[j, 0], centre[j, 1], centre[j, 2] = sx, sy, sz
+        count[j] += p - start
     for j in range(k):
         centre[j] /= count[j]
     scatter = np.zeros((k, 6))
-    for p in range(m):
+    p = 0
+    while p < m:
         j = region[p]
-        if j >= 0:
-            x, y, z = cols[0, p] - centre[j, 0], cols[1, p] - centre[j, 1], cols[2, p] - centre[j, 2]
-            scatter[j, 0] += x * x
-            scatter[j, 1] += x * y
-            scatter[j, 2] += x * z
-            scatter[j, 3] += y * y
-            scatter[j, 4] += y * z
-            scatter[j, 5] += z * z
+        if j < 0:
+            p += 1
+            continue
+        cx, cy, cz = centre[j, 0], centre[j, 1], centre[j, 2]
+        s0, s1, s2 = scatter[j, 0], scatter[j, 1], scatter[j, 2]
+        s3, s4, s5 = scatter[j, 3], scatter[j, 4], scatter[j, 5]
+        while p < m and region[p] == j:
+            x, y, z = cols[0, p] - cx, cols[1, p] - cy, cols[2, p] - cz
+            s0 += x * x
+            s1 += x * y
+            s2 += x * z
+            s3 += y * y
+            s4 += y * z
+            s5 += z * z
+            p += 1
+        scatter[j, 0], scatter[j, 1], scatter[j, 2] = s0, s1, s2
+        scatter[j, 3], scatter[j, 4], scatter[j, 5] = s3, s4, s5
     normals = np.full((k, 3), np.nan)
     offsets = np.full(k, np.nan)
     for j in range(k):
@@ -2745,9 +2716,9 @@ def grid_contacts(node: np.ndarray, usable: np.ndarray, width: int, wraps: bool,
     for kind in range(4):
         count = (height * (width - 1) if kind == 0 else (height - 1) * width if kind == 1 else
                  (height if wraps else 0) if kind == 2 else bridges.shape[0])
+        p = col = 0  # right neighbours: p steps along the rows (col its column), no division per pair
         for q in range(count):
             if kind == 0:
-                p = q // (width - 1) * width + q % (width - 1)
                 o = p + 1
             elif kind == 1:
                 p = q
@@ -2760,12 +2731,17 @@ def grid_contacts(node: np.ndarray, usable: np.ndarray, width: int, wraps: bool,
                 o = bridges[q, 1]
             i = node[p] if usable[p] else -1
             j = node[o] if usable[o] else -1
-            if i < 0 or j < 0:
-                continue
-            ri, rj = region[i], region[j]
-            if ri >= 0 and rj >= 0 and ri != rj:
-                src[n], dst[n] = i, j
-                n += 1
+            if i >= 0 and j >= 0:
+                ri, rj = region[i], region[j]
+                if ri >= 0 and rj >= 0 and ri != rj:
+                    src[n], dst[n] = i, j
+                    n += 1
+            if kind == 0:
+                p += 1
+                col += 1
+                if col == width - 1:  # past the row's last pair: the next row's first pixel
+                    col = 0
+                    p += 1
     src, dst = src[:n], dst[:n]
     a = np.empty(n, np.int64)
     b = np.empty(n, np.int64)
@@ -3446,6 +3422,180 @@ def beyond_rows(points: np.ndarray, step: int, labels: np.ndarray) -> tuple[np.n
     return cloud[:m], kept[:m]
 
 
+# --- organized detect 5 ---
+# Every pixel of an image labelled from its sub-grid's regions and grouped by region in one pass; a RANSAC batch drawn
+# on a sub-grid, its planes and their scores in one call.
+
+
+@numba.njit(**_NUMPY_JIT)
+def _cell_regions(sub: np.ndarray, cell: int, k: int, steps: np.ndarray, cand: np.ndarray, n_cand: np.ndarray
+                  ) -> None:
+    """The regions of the 8 neighbours (``steps`` from ``cell`` in the padded sub-grid regions ``sub``, k: none) of
+    ``cell`` other than its own, each once, in the order met, into ``cand[cell]`` and their number into
+    ``n_cand[cell]``: a neighbour of the cell's own region, or of one met before, is no nearer."""
+    own = sub[cell]
+    n = 0
+    for e in range(steps.shape[0]):
+        lab = sub[cell + steps[e]]
+        if lab >= k or lab == own:
+            continue
+        seen = False
+        for q in range(n):
+            seen |= cand[cell, q] == lab
+        if not seen:
+            cand[cell, n] = lab
+            n += 1
+    n_cand[cell] = n
+
+
+@numba.njit(**_NUMPY_JIT)
+def _grouped(labels: np.ndarray, best: np.ndarray, counts: np.ndarray, k: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`label_rows` of ``labels`` (N,) in -1..k-1 with ``counts`` (k + 1,) rows of each already known, squaring
+    the distances ``best`` (N,) (read at labelled rows only)."""
+    bounds = np.zeros(k + 1, np.int64)
+    for j in range(k):
+        bounds[j + 1] = bounds[j] + counts[j]
+    fill = bounds[:-1].copy()
+    rows = np.empty(bounds[k], np.int64)
+    squares = np.empty(bounds[k])
+    n = labels.shape[0]
+    i = 0
+    while i < n:
+        lab = labels[i]
+        if lab < 0:
+            i += 1
+            continue
+        at = fill[lab]
+        while i < n and labels[i] == lab:
+            rows[at] = i
+            squares[at] = best[i] * best[i]
+            at += 1
+            i += 1
+        fill[lab] = at
+    return rows, bounds, squares
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_spread(points: np.ndarray, valid: np.ndarray, pixel: np.ndarray, region: np.ndarray, gh: int, gw: int,
+                near_r: np.ndarray, near_c: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, eight: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Labels (N,) int32 of the pixels of an H x W image ``points`` (N, 3) meters from the regions ``region`` (m,)
+    (-1: none) of the points at ``pixel`` (m,) of its gh x gw sub-grid, ``planes`` (k, 4) rows (a, b, c, d) in the
+    coordinates of ``points``: a pixel takes the region of its nearest sub-grid pixel (``near_r`` (H,), ``near_c``
+    (W,)) when within tolerance of its plane, else of the 8 sub-grid pixels around that one (``eight``, in order) the
+    region whose plane is nearest within tolerance (a strictly nearer one wins a tie); -1 otherwise. ``valid`` (N,)
+    bool: finite rows; ``tolerance``: (1,) or (N,) meters. Also each region's rows, ascending, one after another
+    (rows (c,) int64, bounds (k + 1,) int64: region j's are rows[bounds[j]:bounds[j + 1]]) and their squared
+    distances to its plane (c,) m^2 in the same order (:func:`label_rows` of the labels and those distances)."""
+    h, w = near_r.shape[0], near_c.shape[0]
+    k = planes.shape[0]
+    per_point = tolerance.shape[0] > 1
+    wide = gw + 2  # the sub-grid padded by a cell of no region all round: no bounds tests
+    sub = np.full((gh + 2) * wide, k, np.int64)
+    for q in range(pixel.shape[0]):
+        if region[q] >= 0:
+            sub[(pixel[q] // gw + 1) * wide + pixel[q] % gw + 1] = region[q]
+    steps = np.empty(eight.shape[0], np.int64)
+    for e in range(eight.shape[0]):
+        steps[e] = eight[e, 0] * wide + eight[e, 1]
+    cand = np.empty((sub.shape[0], eight.shape[0]), np.int64)
+    n_cand = np.full(sub.shape[0], -1, np.int64)  # -1: not worked out yet (most cells never need them)
+    labels = np.empty(h * w, np.int32)
+    best = np.empty(h * w)  # the distance of each labelled pixel to its plane
+    counts = np.zeros(k + 1, np.int64)
+    run, run_length = -1, 0  # labels come in runs: counted through a local counter
+    for r in range(h):
+        row_cell = (near_r[r] + 1) * wide + 1
+        for c in range(w):
+            i = r * w + c
+            out = -1
+            if valid[i]:
+                x, y, z = points[i, 0], points[i, 1], points[i, 2]
+                tol = tolerance[i] if per_point else tolerance[0]
+                cell = row_cell + near_c[c]
+                lab = sub[cell]
+                nearest = np.inf
+                if lab < k:
+                    d = abs(planes[lab, 0] * x + planes[lab, 1] * y + planes[lab, 2] * z + planes[lab, 3])
+                    if d <= tol:
+                        out, nearest = lab, d
+                if out < 0:
+                    if n_cand[cell] < 0:
+                        _cell_regions(sub, cell, k, steps, cand, n_cand)
+                    for q in range(n_cand[cell]):
+                        lab = cand[cell, q]
+                        d = abs(planes[lab, 0] * x + planes[lab, 1] * y + planes[lab, 2] * z + planes[lab, 3])
+                        if d <= tol and d < nearest:
+                            out, nearest = lab, d
+                best[i] = nearest
+            labels[i] = out
+            if out != run:
+                counts[run] += run_length  # run -1 counts into counts[k], never read
+                run, run_length = out, 0
+            run_length += 1
+    counts[run] += run_length
+    rows, bounds, squares = _grouped(labels, best, counts, k)
+    return labels, rows, bounds, squares
+
+
+@numba.njit(**_NUMPY_JIT)
+def strided_rows(flags: np.ndarray, count: int, stride: int) -> np.ndarray:
+    """The rows of every ``stride``-th True of ``flags`` (N,), from the first, which holds ``count`` of them:
+    np.flatnonzero(flags)[::stride] without the rows in between."""
+    out = np.empty((count + stride - 1) // stride, np.int64)
+    seen = taken = 0
+    for i in range(flags.shape[0]):
+        if flags[i]:
+            if seen == 0:
+                out[taken] = i
+                taken += 1
+                seen = stride
+            seen -= 1
+    return out[:taken]
+
+
+@numba.njit(**_NUMPY_JIT)
+def columns_at(values: np.ndarray, rows: np.ndarray, center: np.ndarray) -> np.ndarray:
+    """(3, m) the rows ``rows`` (m,) of ``values`` (N, 3) less ``center`` (3,), as columns: numpy's
+    (values.take(rows, axis=0) - center).T made C-ordered, in one pass."""
+    m = rows.shape[0]
+    out = np.empty((3, m))
+    cx, cy, cz = center[0], center[1], center[2]
+    for q in range(m):
+        i = rows[q]
+        out[0, q] = values[i, 0] - cx
+        out[1, q] = values[i, 1] - cy
+        out[2, q] = values[i, 2] - cz
+    return out
+
+
+@numba.njit(**_NUMPY_JIT)
+def grid_batch(cols: np.ndarray, spread: np.ndarray, first: np.ndarray, scale_pick: np.ndarray, row_share: np.ndarray,
+               col_share: np.ndarray, scales: np.ndarray, rest: np.ndarray, position: np.ndarray, pixel: np.ndarray,
+               node: np.ndarray, height: int, width: int, min_sine: float, subset: np.ndarray, tolerance: np.ndarray,
+               point_normals: np.ndarray, head: int, min_cos: float, sigmas: float, best_normals: np.ndarray,
+               best_offsets: np.ndarray, best_counts: np.ndarray, n_best: int) -> int:
+    """One batch of RANSAC hypotheses on a sub-grid's points ``cols`` (3, r) meters, scored: the triples ``spread``
+    (c, 3) drawn from all of them and those drawn near ``first`` (:func:`grid_triples`, the draws and the sub-grid as
+    it takes them), without those with a point it did not find, then their planes (:func:`triple_planes`,
+    ``min_sine``), merged into the best so far (:func:`score_hypotheses`, the scoring arguments as it takes them).
+    Returns how many of the best are held now (as before when every triple was degenerate)."""
+    near = grid_triples(first, scale_pick, row_share, col_share, scales, rest, position, pixel, node, height, width)
+    idx = np.empty((spread.shape[0] + near.shape[0], 3), np.int64)
+    g = 0
+    for source in (spread, near):
+        for q in range(source.shape[0]):
+            if source[q, 0] >= 0 and source[q, 1] >= 0 and source[q, 2] >= 0:
+                idx[g, 0], idx[g, 1], idx[g, 2] = source[q, 0], source[q, 1], source[q, 2]
+                g += 1
+    normals, offsets = triple_planes(cols, idx[:g], min_sine)
+    if normals.shape[0] == 0:
+        return n_best
+    return score_hypotheses(subset, tolerance, point_normals, normals, offsets, head, min_cos, sigmas, best_normals,
+                            best_offsets, best_counts, n_best)
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -3459,8 +3609,6 @@ def _warm_frame() -> None:
     labels = np.array([0, -1, 0, 1], np.int32)
     flags = np.ones(4, np.bool_)
     finite_mask(pts)
-    spread_grid(pts, flags, np.zeros((1, 1), np.int64), np.zeros(2, np.int64), np.zeros(2, np.int64),
-                np.zeros((1, 4)), np.ones(1), EIGHT)
     rows, bounds = group_by_label(labels, 2)
     group_by_label(labels.astype(np.int64), 2)  # a search's regions
     centroids_and_extremes(pts, rows, bounds, np.zeros((2, 8, 3)))
@@ -3621,13 +3769,26 @@ def _warm_verdict5() -> None:
     beyond_rows(np.zeros((4, 3)), 2, np.array([0, -1, 0, 1], np.int32))
 
 
+def _warm_organized_detect_5() -> None:
+    pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
+    lines = np.zeros(2, np.int64)
+    grid_spread(pts, flags, index[:1], index[:1], 1, 1, lines, lines, np.zeros((1, 4)), np.ones(1), EIGHT)
+    strided_rows(flags, 4, 2)
+    columns_at(pts, index, np.zeros(3))
+    cols, best = np.zeros((3, 4)), (np.zeros((2, 3)), np.zeros(2), np.zeros(2, np.int64))
+    for known in (cols, np.empty((3, 0))):  # the grid's normals, and none known
+        grid_batch(cols, index.reshape(-1, 2)[:, :1].repeat(3, axis=1), index[:2], index % 2, np.zeros(4), np.zeros(4),
+                   np.ones(2, np.int64), index, index, index, index, 2, 2, 1e-6, cols, np.ones(1), known, 2, 0.5, 3.0,
+                   *best, 0)
+
+
 #: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The
 #: first is short: it tells whether the cache is cold. The longest compiles come next, so that processes compiling
 #: the rest in parallel end together.
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_indices, _warm_planes,
                _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect, _warm_frame_outside_5,
-               _warm_verdict5)
+               _warm_verdict5, _warm_organized_detect_5)
 
 
 def _compiles() -> int:
@@ -3675,7 +3836,7 @@ def warm(jobs: int = 1) -> Warmup:
     return Warmup(time.perf_counter() - start, compiled)
 
 
-_KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, grid_components,
+_KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components,
             grid_region, graph_components, graph_region, coordinate_bounds,
             voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, widen_xyz,
             valid_rows, frame_pass, plane_patches, fold_fit, grid_sample, grid_edges, grid_usable,
@@ -3687,4 +3848,4 @@ _KERNELS = (finite_mask, spread_grid, group_by_label, centroids_and_extremes, gr
             fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
             read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
-            merge_pair, relabel_rows)
+            merge_pair, relabel_rows, grid_spread, strided_rows, columns_at, grid_batch)

@@ -32,7 +32,8 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
     min_count = resolve_min_inliers(min_inliers, n_valid)
     graph = checked_search_graph(graph, pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
     search_idx, step, center, neighbours = graph.search_idx, graph.step, graph.center, graph.neighbours
-    search = np.ascontiguousarray((pts.take(search_idx, axis=0) - center).T)  # take: a faster gather
+    search = kernels.columns_at(kernels.c_array(pts, np.float64), kernels.c_array(search_idx, np.int64),
+                                kernels.c_array(center, np.float64))  # (3, m)
     search_min = max(3, int(np.ceil(min_count * len(search_idx) / max(n_valid, 1))))
     search_tolerance = tolerance_at(tolerance, search_idx)
     found, reason, region, capped = sequential_search(search, search_tolerance, max_planes, search_min, probability,
@@ -51,10 +52,9 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
                                    MERGE_SPREAD, allows)
     if len(found) < searched:
         reason += f'; merged {searched - len(found)} region(s) into another region of the same surface'
-    residual = None
     if step:
         uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]
-        labels, residual = spread_grid(pts, finite, shape, step, region, neighbours, uncentred, tolerance)
+        labels, rows, bounds, squares = spread_grid(pts, finite, shape, step, region, neighbours, uncentred, tolerance)
     elif len(search_idx) == n_valid:
         labels = np.full(len(pts), -1, dtype=np.int32)
         own = np.where(region >= 0, region, 0)
@@ -62,25 +62,26 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
         offsets = np.array([d for _, d in found])
         near = np.abs(np.einsum('ji,ij->j', normals[own], search) + offsets[own]) <= search_tolerance
         labels[search_idx] = np.where((region >= 0) & near, region, -1)  # within t of the refitted plane
+        rows, bounds, squares = _members(labels, len(found), None)
     else:
         valid_idx = np.flatnonzero(finite)
         nodes = graph.nearest.for_regions(region, pts, valid_idx, center)
         labels, residual = spread_nearest(pts, valid_idx, center, nodes, region, found,
                                           tolerance_at(tolerance, valid_idx))
-    rows, bounds, squares = _members(labels, len(found), residual)
+        rows, bounds, squares = _members(labels, len(found), residual)
     counts = np.diff(bounds)
+    kept = np.arange(len(found))
     small = np.flatnonzero(counts < min_count)
     if len(small):
-        keep = np.flatnonzero(counts >= min_count)
+        kept = np.flatnonzero(counts >= min_count)
         remap = np.full(len(found) + 1, -1, dtype=np.int32)
-        remap[keep] = np.arange(len(keep))
+        remap[kept] = np.arange(len(kept))
         labels = remap[labels]  # -1 indexes the last entry, which is -1
-        found = [found[j] for j in keep]
         reason += (f'; dropped {len(small)} region(s) left with fewer than min_inliers={min_count} points '
                    'once every point was labelled')
-        rows, bounds, squares = _members(labels, len(found), residual)
     planes = []
-    for j, (normal, offset) in enumerate(found):
+    for j in kept:  # a kept region's rows (and squares) are those it had before the others were dropped
+        normal, offset = found[j]
         members = rows[bounds[j]:bounds[j + 1]]
         square = squares[bounds[j]:bounds[j + 1]] if squares is not None else \
             ((pts[members] - center) @ normal + offset) ** 2

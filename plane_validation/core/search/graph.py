@@ -123,11 +123,13 @@ def build_search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, in
                        rng: np.random.Generator | None, viewpoint: np.ndarray, grid_points: int | None
                        ) -> SearchGraph | None:
     """:func:`search_graph` of checked points ``pts`` with their finite rows ``finite`` (N,)."""
-    valid_idx = np.flatnonzero(finite)
-    n_valid = len(valid_idx)
-    center = np.median(pts[valid_idx[::max(1, n_valid // 1024)]], axis=0) if n_valid else np.zeros(3)
-    nearest = None
+    n_valid = int(np.count_nonzero(finite))
     step = 0 if shape is None else grid_step(shape, n_valid, grid_points)
+    stride = max(1, n_valid // 1024)
+    valid_idx = None if step else np.flatnonzero(finite)  # a sub-grid's search needs only every stride-th of them
+    centred = kernels.strided_rows(kernels.c_array(finite, bool), n_valid, stride) if step else valid_idx[::stride]
+    center = np.median(pts[centred], axis=0) if n_valid else np.zeros(3)
+    nearest = None
     if step:
         grid, pixels = grid_image(pts, finite, shape, step)
         neighbours = grid_neighbours(grid - viewpoint if viewpoint.any() else grid, pixels >= 0)  # sensor ranges

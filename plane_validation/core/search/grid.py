@@ -84,36 +84,44 @@ def grid_image_numpy(points: np.ndarray, finite: np.ndarray, shape: tuple[int, i
 
 
 def spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
-                neighbours: GridNeighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+                neighbours: GridNeighbours, planes: list, tolerance: Tolerance
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Labels (N,) of every pixel of the image ``pts`` (N, 3; ``valid`` (N,): its finite rows) from
     the regions of the searched sub-grid: the region of the nearest sub-grid pixel when the pixel is
     within ``tolerance`` of its plane (``planes`` in the coordinates of ``pts``), else, of the 3 x 3
     sub-grid pixels around it, the region whose plane is nearest within ``tolerance``; -1 otherwise.
-    Also the distance (N,) to the chosen plane (inf when none). One compiled pass
-    (:func:`.kernels.spread_grid`; :func:`spread_grid_numpy` is its reference)."""
-    sub, near_r, near_c = _sub_regions(shape, step, region, neighbours, len(planes))
-    coeffs = plane_rows(planes)
+    Also each region's rows, ascending, one after another (rows (c,), bounds (k + 1,)) and their squared distances
+    to its plane (c,) m^2 in that order. One compiled pass (:func:`.kernels.grid_spread`; :func:`spread_grid_numpy`
+    gives its labels and distances)."""
+    near_r, near_c = _nearest_lines(shape, step, neighbours.shape)
     tol = kernels.c_array(np.reshape(tolerance, -1), np.float64)  # (1,) or (N,)
-    return kernels.spread_grid(kernels.c_array(pts, np.float64), kernels.c_array(valid, bool), sub, near_r, near_c,
-                               coeffs, tol, kernels.EIGHT)
+    return kernels.grid_spread(kernels.c_array(pts, np.float64), kernels.c_array(valid, bool),
+                               kernels.c_array(neighbours.pixel, np.int64), kernels.c_array(region, np.int64),
+                               *neighbours.shape, near_r, near_c, plane_rows(planes), tol, kernels.EIGHT)
+
+
+def _nearest_lines(shape: tuple[int, int], step: int, grid_shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """The nearest sub-grid row of each image row (H,) and column of each image column (W,), int64."""
+    (h, w), (gh, gw) = shape, grid_shape
+    near_r = np.clip(np.round((np.arange(h) - step // 2) / step).astype(np.int64), 0, gh - 1)
+    near_c = np.clip(np.round((np.arange(w) - step // 2) / step).astype(np.int64), 0, gw - 1)
+    return near_r, near_c
 
 
 def _sub_regions(shape: tuple[int, int], step: int, region: np.ndarray, neighbours: GridNeighbours, k: int
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The sub-grid's regions as an image (gh, gw) int64 (k: no region), and the nearest sub-grid row of each
     image row (H,) and column of each image column (W,)."""
-    h, w = shape
     gh, gw = neighbours.shape
     sub = np.full(gh * gw, k, dtype=np.int64)
     sub[neighbours.pixel] = np.where(region >= 0, region, k)
-    near_r = np.clip(np.round((np.arange(h) - step // 2) / step).astype(np.int64), 0, gh - 1)
-    near_c = np.clip(np.round((np.arange(w) - step // 2) / step).astype(np.int64), 0, gw - 1)
-    return sub.reshape(gh, gw), near_r, near_c
+    return (sub.reshape(gh, gw),) + _nearest_lines(shape, step, neighbours.shape)
 
 
 def spread_grid_numpy(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
                       neighbours: GridNeighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`spread_grid` in numpy: the reference its kernel is tested against."""
+    """:func:`spread_grid`'s labels in numpy, and each pixel's distance to its label's plane (N,) meters (inf for
+    none): the reference its kernel is tested against."""
     h, w = shape
     gh, gw = neighbours.shape
     k, n = len(planes), len(pts)

@@ -10,6 +10,7 @@ import numpy as np
 from .. import kernels
 from .fit import MIN_SINE, allows_normal, fit_columns, plane_distances, tolerance_at, within_plane
 from .neighbours import NORMAL_MIN_COS, Remaining
+from .neighbours_grid import GridSampler
 from .types import Allows, Sampler, Tolerance
 
 __all__ = ['best_plane', 'best_region', 'BATCH', 'SUBSET', 'CONFIRM', 'PRESCORE', 'LOCAL_SHARE', 'SUPPORT']
@@ -235,6 +236,16 @@ class _CompiledScores:
                                              self.best_offsets, self.best_counts, self.held)
         return self.best_counts[:self.held]
 
+    def add_drawn(self, cols: np.ndarray, rng: np.random.Generator, count: int, sampler: GridSampler) -> np.ndarray:
+        """:func:`_hypotheses` of ``count`` triples of ``cols`` (3, n), C-ordered (the same draws), scored as
+        :meth:`add` scores them, in one compiled call (:func:`.kernels.grid_batch`)."""
+        local = int(round(LOCAL_SHARE * count))
+        spread = rng.integers(0, cols.shape[1], size=(count - local, 3))
+        self.held = kernels.grid_batch(cols, spread, *sampler.draws(rng, local), *sampler.grid, MIN_SINE, self.subset,
+                                       self.tolerance, self.normals, self.head, NORMAL_MIN_COS, PRESCORE_SIGMAS,
+                                       self.best_normals, self.best_offsets, self.best_counts, self.held)
+        return self.best_counts[:self.held]
+
     def counts(self) -> np.ndarray:
         return self.best_counts[:self.held]
 
@@ -266,18 +277,23 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
     scorer = _CompiledScores(ordered, tolerance, point_normals, pick, head) if region_of is not None else \
         _NumpyScores(cols, tolerance, point_normals, pick, head)
     best_counts = scorer.counts()
+    drawn = isinstance(scorer, _CompiledScores) and isinstance(sampler, GridSampler) and allows is None
     iterations = 0
     needed = float(max_iterations)
     while iterations < min(needed, max_iterations):
         batch = int(min(BATCH, max_iterations - iterations))
-        normals, offsets = _hypotheses(ordered, rng, batch, sampler)
-        iterations += batch
-        if allows is not None:
-            ok = allows(normals)
-            normals, offsets = normals[ok], offsets[ok]
-        if len(normals) == 0:
-            continue
-        best_counts = scorer.add(normals, offsets)
+        if drawn:  # a batch in one call (no hypothesis left: the best as they were)
+            iterations += batch
+            best_counts = scorer.add_drawn(ordered, rng, batch, sampler)
+        else:
+            normals, offsets = _hypotheses(ordered, rng, batch, sampler)
+            iterations += batch
+            if allows is not None:
+                ok = allows(normals)
+                normals, offsets = normals[ok], offsets[ok]
+            if len(normals) == 0:
+                continue
+            best_counts = scorer.add(normals, offsets)
         if len(best_counts):
             needed = _required_iterations(best_counts[0] / scored, probability, sampler is not None)
     best_normals, best_offsets = scorer.planes()

@@ -25,10 +25,9 @@ from .neighbours import (
     joined_components,
     settle_numpy,
 )
-from .types import Sampler
 
-__all__ = ['GridNeighbours', 'grid_neighbours', 'grid_neighbours_numpy', 'median', 'grid_region', 'grid_region_numpy',
-           'rest_positions', 'EIGHT', 'JUMP', 'HOLE_BRIDGE', 'LIDAR_BEND']
+__all__ = ['GridNeighbours', 'GridSampler', 'grid_neighbours', 'grid_neighbours_numpy', 'median', 'grid_region',
+           'grid_region_numpy', 'rest_positions', 'EIGHT', 'JUMP', 'HOLE_BRIDGE', 'LIDAR_BEND']
 
 #: A gap between grid neighbours this many times the gaps next to it along the image line (and
 #: this many typical pixel spacings at its range) is a depth jump.
@@ -85,21 +84,13 @@ class GridNeighbours(Neighbours):
         inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
         return np.where(inside, self.node[np.where(inside, r * w + c, 0)], -1)
 
-    def sampler(self, rest_idx: np.ndarray) -> Sampler:
+    def sampler(self, rest_idx: np.ndarray) -> GridSampler:
         """The same draws as :meth:`.neighbours.Neighbours.sampler` (its reference), the triples from them in one
         compiled call (:func:`.kernels.grid_triples`)."""
         position = np.full(self.n + 1, -1, dtype=np.int64)  # [-1] stays -1
         position[rest_idx] = np.arange(len(rest_idx))
-        rest = kernels.c_array(rest_idx, np.int64)
         h, w = self.shape
-
-        def sample(rng: np.random.Generator, count: int) -> np.ndarray:
-            first = rng.integers(0, len(rest), count)
-            scale_pick = rng.integers(0, len(NEARBY_SCALES), 2 * count)
-            row_share, col_share = rng.random(2 * count), rng.random(2 * count)
-            return kernels.grid_triples(first, scale_pick, row_share, col_share, _SCALES, rest, position, self.pixel,
-                                        self.node, h, w)
-        return sample
+        return GridSampler((_SCALES, kernels.c_array(rest_idx, np.int64), position, self.pixel, self.node, h, w))
 
     def components(self, mask: np.ndarray) -> tuple[np.ndarray, int]:
         image = np.zeros(self.shape[0] * self.shape[1], bool)
@@ -194,6 +185,27 @@ class GridNeighbours(Neighbours):
         region = kernels.grid_settle(search, planes, tolerance, viewpoint, min_cos, region, self.pixel, self.node,
                                          self.shape[1], EIGHT, COMPETE_ROUNDS)
         return np.where(region < len(planes), region, -1)
+
+
+@dataclass(frozen=True, eq=False)
+class GridSampler:
+    """Triples of nearby points among the points ``rest`` (ascending) of a sub-grid (a :data:`.types.Sampler`):
+    ``grid`` holds the sub-grid as :func:`.kernels.grid_triples` takes it after the draws (scales, rest, each point's
+    place in rest (n + 1,), pixel, node, height, width)."""
+
+    grid: tuple
+
+    def draws(self, rng: np.random.Generator, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The random draws of ``count`` triples: their first points (places in rest), and for the 2 * count nearby
+        points a scale (index into NEARBY_SCALES) and row and column shares in [0, 1)."""
+        first = rng.integers(0, len(self.grid[1]), count)
+        scale_pick = rng.integers(0, len(NEARBY_SCALES), 2 * count)
+        row_share, col_share = rng.random(2 * count), rng.random(2 * count)
+        return first, scale_pick, row_share, col_share
+
+    def __call__(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        """(count, 3) positions in rest, -1 where a nearby point is not among them."""
+        return kernels.grid_triples(*self.draws(rng, count), *self.grid)
 
 
 @dataclass(frozen=True, eq=False)

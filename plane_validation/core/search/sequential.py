@@ -3,12 +3,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import kernels
 from .fit import degeneracy, tolerance_at
 from .hypotheses import best_plane
 from .neighbours import Neighbours
 from .types import Allows, Tolerance
 
 __all__ = ['sequential_search']
+
+_ORIGIN = np.zeros(3)
 
 
 def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_count: int, probability: float,
@@ -27,7 +30,8 @@ def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, m
     region = None if neighbours is None else np.full(n, -1, dtype=np.int64)
     remaining = None if neighbours is None else neighbours.remaining(rest_idx)
     rest_normals = None if neighbours is None or neighbours.normals is None else \
-        np.ascontiguousarray(neighbours.normals.take(rest_idx, axis=0).T)  # (3, r), kept in step with rest
+        kernels.columns_at(kernels.c_array(neighbours.normals, np.float64), kernels.c_array(rest_idx, np.int64),
+                           _ORIGIN)  # (3, r), kept in step with rest
     found: list[tuple[np.ndarray, float]] = []
     reason = f'reached max_planes={max_planes}'
     while len(found) < max_planes:
