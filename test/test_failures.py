@@ -59,6 +59,19 @@ def test_judge_gives_no_planes_and_the_searchs_reason():
     assert verdict.failures[0].note == seg.reason and str(verdict) == f'no plane found ({seg.reason})'
 
 
+
+def test_judge_refuses_points_other_than_those_the_segmentation_labels():
+    scene = scenes.room(3000, 0.005, seed=0)
+    seg = pv.detect_planes(scene.points, 0.02, seed=0)
+    scores = pv.validity_indices(scene.points, seg.labels, seed=0)
+    more = np.vstack([scene.points, scene.points[:500] + 10.0])  # its compiled passes would read past the labels
+    for points in (more, scene.points[:-500]):
+        with pytest.raises(ValueError, match='rows but the segmentation labels'):
+            judge(points, seg, scores)
+        with pytest.raises(ValueError, match='rows but the segmentation labels'):
+            verdict_module.surface_failures(points, seg)
+    assert judge(scene.points, seg, scores).n_planes == seg.n_planes
+
 def _gable(seed: int, n: int, half_width: float, length: float, pitch_deg: float, noise: float) -> np.ndarray:
     """(n, 3) meters: a gable roof, its ridge along y at x = 0, sloping down at ``pitch_deg`` to x = +-half_width, with
     Gaussian noise in z."""

@@ -102,7 +102,6 @@ def test_plane_samples_gather_and_centre_as_numpy(seed, k, n):
         np.testing.assert_array_equal(centred[bounds[j]:bounds[j + 1]], inl - mean)
 
 
-
 @SETTINGS
 @given(st.integers(0, 2**32 - 1), st.integers(0, 300), st.integers(1, 40), st.floats(0, 1))
 def test_beyond_rows_are_numpys_strided_finite_rows(seed, n, step, holes):

@@ -1793,7 +1793,6 @@ def plane_silhouette_sum(x: np.ndarray, own: np.ndarray, centroids: np.ndarray, 
     return total
 
 
-
 # --- frame outside the search ---
 
 
@@ -2389,7 +2388,7 @@ def fit_regions(cols: np.ndarray, region: np.ndarray, k: int) -> tuple[np.ndarra
     m = cols.shape[1]
     count = np.zeros(k, np.int64)
     centre = np.zeros((k, 3))
-    # regions come in runs: a run's sums are kept in locals, each added in the order of the points as before
+    # regions come in runs: a run's sums are kept in locals, each added in the order of the points
     p = 0
     while p < m:
         j = region[p]
@@ -2569,7 +2568,6 @@ def order_statistics(values: np.ndarray, a0: int, a1: int, b0: int, b1: int) -> 
     return part[a0], part[a1], part[b0], part[b1]
 
 
-
 #: sorted_order spreads m values over m buckets, evenly between the smallest and the largest, and sorts them by radix
 #: instead when a bucket holds more than this many (clustered values, many copies).
 _BUCKET_MOST = 32
@@ -2644,7 +2642,6 @@ def sorted_order(values: np.ndarray) -> np.ndarray:
             count[d] += 1
         order, spare = spare, order
     return order
-
 
 
 @numba.njit(**_JIT)
@@ -3378,14 +3375,14 @@ def merge_pair(search: np.ndarray, region: np.ndarray, i: int, j: int, own: np.n
     return same, normal, offset, members
 
 
-# --- frame outside 5 ---
+# --- frame: planes renumbered by track id ---
 
 
 @numba.njit(**_JIT)
 def relabel_rows(labels: np.ndarray, finite: np.ndarray, rank: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``rank[labels]`` for the labels (N,) in -1..k-1 of an organized frame's rows (-1 takes the last entry of
-    ``rank`` (k + 1,) int32), (N,) int32, and the same at the rows ``finite`` (N,) bool marks, in order ((n,)): the
-    renumbered labels of the rows and of the valid points in one pass."""
+    """``rank[labels]`` for the labels (N,) in -1..k-1 of an organized frame's rows (-1, and any label outside
+    0..k-1, takes the last entry of ``rank`` (k + 1,) int32), (N,) int32, and the same at the rows ``finite`` (N,)
+    bool marks, in order ((n,)): the renumbered labels of the rows and of the valid points in one pass."""
     n = labels.shape[0]
     last = rank.shape[0] - 1
     rows = np.empty(n, np.int32)
@@ -3401,7 +3398,7 @@ def relabel_rows(labels: np.ndarray, finite: np.ndarray, rank: np.ndarray) -> tu
     return rows, points[:m]
 
 
-# --- verdict 5 ---
+# --- verdict: the beyond test's rows ---
 
 
 @numba.njit(**_JIT)
@@ -3422,7 +3419,7 @@ def beyond_rows(points: np.ndarray, step: int, labels: np.ndarray) -> tuple[np.n
     return cloud[:m], kept[:m]
 
 
-# --- organized detect 5 ---
+# --- organized detect: labelling, batches, gathers ---
 # Every pixel of an image labelled from its sub-grid's regions and grouped by region in one pass; a RANSAC batch drawn
 # on a sub-grid, its planes and their scores in one call.
 
@@ -3548,6 +3545,8 @@ def strided_rows(flags: np.ndarray, count: int, stride: int) -> np.ndarray:
     for i in range(flags.shape[0]):
         if flags[i]:
             if seen == 0:
+                if taken == out.shape[0]:  # more Trues than ``count``: the rows of the first ``count`` only
+                    break
                 out[taken] = i
                 taken += 1
                 seen = stride
@@ -3580,7 +3579,7 @@ def grid_batch(cols: np.ndarray, spread: np.ndarray, first: np.ndarray, scale_pi
     (c, 3) drawn from all of them and those drawn near ``first`` (:func:`grid_triples`, the draws and the sub-grid as
     it takes them), without those with a point it did not find, then their planes (:func:`triple_planes`,
     ``min_sine``), merged into the best so far (:func:`score_hypotheses`, the scoring arguments as it takes them).
-    Returns how many of the best are held now (as before when every triple was degenerate)."""
+    Returns how many of the best are held now (unchanged when every triple was degenerate)."""
     near = grid_triples(first, scale_pick, row_share, col_share, scales, rest, position, pixel, node, height, width)
     idx = np.empty((spread.shape[0] + near.shape[0], 3), np.int64)
     g = 0
@@ -3760,26 +3759,24 @@ def _warm_organized_detect() -> None:
                    1.5, True)
 
 
-
-def _warm_frame_outside_5() -> None:
+def _warm_frame_ids() -> None:
     relabel_rows(np.array([0, -1, 0, 1], np.int32), np.ones(4, np.bool_), np.array([1, 0, -1], np.int32))
 
 
-def _warm_verdict5() -> None:
+def _warm_beyond_rows() -> None:
     beyond_rows(np.zeros((4, 3)), 2, np.array([0, -1, 0, 1], np.int32))
 
 
-def _warm_organized_detect_5() -> None:
+def _warm_organized_batch() -> None:
     pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
     lines = np.zeros(2, np.int64)
     grid_spread(pts, flags, index[:1], index[:1], 1, 1, lines, lines, np.zeros((1, 4)), np.ones(1), EIGHT)
     strided_rows(flags, 4, 2)
     columns_at(pts, index, np.zeros(3))
     cols, best = np.zeros((3, 4)), (np.zeros((2, 3)), np.zeros(2), np.zeros(2, np.int64))
-    for known in (cols, np.empty((3, 0))):  # the grid's normals, and none known
-        grid_batch(cols, index.reshape(-1, 2)[:, :1].repeat(3, axis=1), index[:2], index % 2, np.zeros(4), np.zeros(4),
-                   np.ones(2, np.int64), index, index, index, index, 2, 2, 1e-6, cols, np.ones(1), known, 2, 0.5, 3.0,
-                   *best, 0)
+    grid_batch(cols, index.reshape(-1, 2)[:, :1].repeat(3, axis=1), index[:2], index % 2, np.zeros(4), np.zeros(4),
+               np.ones(2, np.int64), index, index, index, index, 2, 2, 1e-6, cols, np.ones(1), cols, 2, 0.5, 3.0, *best,
+               0)
 
 
 #: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The
@@ -3787,8 +3784,8 @@ def _warm_organized_detect_5() -> None:
 #: the rest in parallel end together.
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_indices, _warm_planes,
-               _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect, _warm_frame_outside_5,
-               _warm_verdict5, _warm_organized_detect_5)
+               _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect, _warm_frame_ids,
+               _warm_beyond_rows, _warm_organized_batch)
 
 
 def _compiles() -> int:

@@ -387,7 +387,7 @@ def _beyond(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray) 
     counts in one compiled pass, :func:`.kernels.beyond_counts`; :func:`_beyond_numpy` is the reference)."""
     if len(seg.planes) == 0:
         return np.zeros(0)
-    _, labels, t, box, d = _beyond_rows(pts, seg, frames)
+    labels, t, box, d = _beyond_rows(pts, seg, frames)
     lo, hi, surface = _beyond_frames(seg, frames, fill)
     t = np.full(1, t) if np.ndim(t) == 0 else np.ascontiguousarray(t[:, 0])
     within, beyond = kernels.beyond_counts(box, d, kernels.c_array(labels, np.int32), t, lo, hi, surface)
@@ -395,11 +395,12 @@ def _beyond(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray) 
 
 
 def _beyond_rows(pts: np.ndarray, seg: Segmentation, frames: list
-                 ) -> tuple[np.ndarray, np.ndarray, float | np.ndarray, np.ndarray, np.ndarray]:
+                 ) -> tuple[np.ndarray, float | np.ndarray, np.ndarray, np.ndarray]:
     """The rows :func:`_beyond` counts among (every so many of ``pts``, those whose coordinates sum to a finite value,
-    gathered in one compiled pass: :func:`.kernels.beyond_rows`): (them (m, 3), their labels (m,), the tolerance (a
-    number, or (m, 1) by the noise model), their coordinates along each plane's in-plane axes (m, 2k) and their
-    distances to each plane (m, k), meters)."""
+    gathered in one compiled pass: :func:`.kernels.beyond_rows`): (their labels (m,), the tolerance (a number, or
+    (m, 1) by the noise model), their coordinates along each plane's in-plane axes (m, 2k) and their distances to
+    each plane (m, k), meters)."""
+    _check_rows(pts, seg)
     cloud, labels = kernels.beyond_rows(kernels.c_array(pts, np.float64), max(1, -(-len(pts) // BEYOND_SAMPLE)),
                                         kernels.c_array(seg.labels, np.int32))
     scale = tolerance_scale(cloud, seg.noise_model, seg.noise_reference, seg.viewpoint)
@@ -411,7 +412,14 @@ def _beyond_rows(pts: np.ndarray, seg: Segmentation, frames: list
     normals = np.array([p.normal for p in seg.planes])
     d = cloud @ normals.T
     d += np.array([p.offset for p in seg.planes])  # in place: a large temporary less each (page faults)
-    return cloud, labels, t, cloud @ axes, np.abs(d, out=d)
+    return labels, t, cloud @ axes, np.abs(d, out=d)
+
+
+def _check_rows(pts: np.ndarray, seg: Segmentation) -> None:
+    """ValueError unless ``seg`` labels the rows of ``pts`` (N, 3): the compiled passes index them by its labels."""
+    if len(seg.labels) != len(pts):
+        raise ValueError(f'points has {len(pts)} rows but the segmentation labels {len(seg.labels)}: judge a '
+                         'segmentation with the points it was found on')
 
 
 def _beyond_frames(seg: Segmentation, frames: list, fill: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -434,7 +442,7 @@ def _beyond_numpy(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.nda
     """:func:`_beyond` in numpy: the reference its kernel is tested against."""
     if len(seg.planes) == 0:
         return np.zeros(0)
-    _, labels, t, box, d = _beyond_rows(pts, seg, frames)
+    labels, t, box, d = _beyond_rows(pts, seg, frames)
     lo, hi, surface = _beyond_frames(seg, frames, fill)
     box = (box >= lo) & (box <= hi)
     d[~(box[:, 0::2] & box[:, 1::2])] = np.inf  # (m, k): outside a plane's extent counts for neither
@@ -459,6 +467,7 @@ def _sampled(pts: np.ndarray, seg: Segmentation) -> tuple[list[np.ndarray], list
     """Per plane of ``seg`` on ``pts`` (N, 3) C-ordered float64 meters: its :func:`_samples`, their :func:`_pca` and
     their :func:`.noise.tolerance_scale` (None: constant), the samples gathered and centred in one compiled pass
     (:func:`.kernels.plane_samples`, the same values as numpy's take and mean)."""
+    _check_rows(pts, seg)
     picks = [_sample_rows(plane.inliers) for plane in seg.planes]
     bounds = np.zeros(len(picks) + 1, np.int64)
     np.cumsum([len(rows) for rows in picks], out=bounds[1:])
@@ -611,8 +620,8 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     lack = np.array([np.nan if local is None else np.sqrt(max(float(pca[2][0]), 0.0) / len(pca[1]) / local)
                      for pca, local in zip(frames, noise)])
     # only planes that could be a ridge and are not failed as merged already (the fold search costs ~0.2 ms a plane)
-    folds = np.array([_fold(pca, np.nan, local, True) if FOLD_LACK <= x < MAX_LACK_OF_FIT else (np.nan, np.nan)
-                      for pca, local, x in zip(frames, noise, lack)]).reshape(-1, 2)
+    folds = np.array([_fold(pca, np.nan, local, ridge_only=True) if FOLD_LACK <= x < MAX_LACK_OF_FIT
+                      else (np.nan, np.nan) for pca, local, x in zip(frames, noise, lack)]).reshape(-1, 2)
     ridge = (folds[:, 0] <= FOLD_FIT) & (folds[:, 0] < folds[:, 1])  # NaN: not judged
     distinct = np.array([_distinct(pts, p.inliers) for p in seg.planes])
     failures = []  # every test that fails, so that fixing one cause does not reveal another

@@ -119,7 +119,7 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
         # rclpy shuts down on SIGINT and SIGTERM; SIGHUP (a closed terminal or session) would end the process
         # on the spot, leaving the sweep's worker processes behind: it becomes a SIGTERM. Not try_shutdown() here:
         # this handler runs in the main thread between two bytecodes, maybe inside Context.ok(), whose lock
-        # try_shutdown() takes too (the node then waited forever)
+        # try_shutdown() takes too: the node would wait for itself
         signal.signal(signal.SIGHUP, lambda signum, frame: os.kill(os.getpid(), signal.SIGTERM))
     except KeyboardInterrupt:  # Ctrl-C while starting: as quiet as while spinning
         rclpy.try_shutdown()
@@ -144,6 +144,7 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
         if rclpy.ok():
             raise
     finally:
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)  # ending already: a late one must not end the clean-up
         node.destroy_node()
         rclpy.try_shutdown()
         stop_workers()  # whichever signal ended the node: its sweep's worker processes end with it
