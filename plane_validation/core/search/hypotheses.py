@@ -91,9 +91,16 @@ def _triples(cols: np.ndarray, rng: np.random.Generator, count: int, sampler: Sa
     ``sampler`` (those with a point it did not find, -1, dropped)."""
     if sampler is None:
         return rng.integers(0, cols.shape[1], size=(count, 3))
-    local = int(round(LOCAL_SHARE * count))
-    idx = np.concatenate([rng.integers(0, cols.shape[1], size=(count - local, 3)), sampler(rng, local)])
+    spread, local = _spread(cols, rng, count)
+    idx = np.concatenate([spread, sampler(rng, local)])
     return idx[(idx >= 0).all(axis=1)]
+
+
+def _spread(cols: np.ndarray, rng: np.random.Generator, count: int) -> tuple[np.ndarray, int]:
+    """Of ``count`` triples of ``cols`` (3, n), those drawn from all of them ((count - local, 3) int64, drawn first)
+    and how many (local, LOCAL_SHARE of them) are left to draw near each other."""
+    local = int(round(LOCAL_SHARE * count))
+    return rng.integers(0, cols.shape[1], size=(count - local, 3)), local
 
 
 def _triple_planes_numpy(cols: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -239,8 +246,7 @@ class _CompiledScores:
     def add_drawn(self, cols: np.ndarray, rng: np.random.Generator, count: int, sampler: GridSampler) -> np.ndarray:
         """:func:`_hypotheses` of ``count`` triples of ``cols`` (3, n), C-ordered (the same draws), scored as
         :meth:`add` scores them, in one compiled call (:func:`.kernels.grid_batch`)."""
-        local = int(round(LOCAL_SHARE * count))
-        spread = rng.integers(0, cols.shape[1], size=(count - local, 3))
+        spread, local = _spread(cols, rng, count)
         self.held = kernels.grid_batch(cols, spread, *sampler.draws(rng, local), *sampler.grid, MIN_SINE, self.subset,
                                        self.tolerance, self.normals, self.head, NORMAL_MIN_COS, PRESCORE_SIGMAS,
                                        self.best_normals, self.best_offsets, self.best_counts, self.held)
