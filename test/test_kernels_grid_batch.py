@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_kernels_detect import _grid
-from test_kernels_search_loop import _planar_points
+from test_kernels_search_loop import _planar_points, _scoring_case
 
 from plane_validation.core import kernels
 from plane_validation.core.search import hypotheses
@@ -32,14 +32,7 @@ def test_grid_batch_matches_numpy(seed, with_normals, per_point):
     cols = kernels.c_array(_planar_points(rng, m), np.float64)
     if rng.random() < 0.2:  # repeated points: degenerate triples, maybe a batch without any plane
         cols[:, :] = cols[:, :1]
-    tolerance = rng.uniform(0.002, 0.05, m) if per_point else float(rng.uniform(0.002, 0.05))
-    point_normals = None
-    if with_normals:
-        point_normals = rng.normal(size=(3, m))
-        point_normals /= np.linalg.norm(point_normals, axis=0)
-        point_normals[:, rng.random(m) < 0.2] = np.nan
-    pick = rng.permutation(m)[:int(rng.integers(3, m + 1))]
-    head = int(rng.integers(1, len(pick) + 1))
+    tolerance, point_normals, pick, head = _scoring_case(rng, m, per_point, with_normals)
     compiled = hypotheses._CompiledScores(cols, tolerance, point_normals, pick, head)
     reference = hypotheses._NumpyScores(cols, tolerance, point_normals, pick, head, np.float64)
     sampler, numpy_sampler = neighbours.sampler(rest_idx), Neighbours.sampler(neighbours, rest_idx)

@@ -39,6 +39,20 @@ def _planar_points(rng: np.random.Generator, n: int, planes: int = 3) -> np.ndar
     return out
 
 
+def _scoring_case(rng: np.random.Generator, m: int, per_point: bool, with_normals: bool
+                  ) -> tuple[float | np.ndarray, np.ndarray | None, np.ndarray, int]:
+    """Random scoring arguments for m points: the tolerance (one, or per point), the points' normals (some unknown)
+    or None, the subset scored and its head."""
+    tolerance = rng.uniform(0.002, 0.05, m) if per_point else float(rng.uniform(0.002, 0.05))
+    point_normals = None
+    if with_normals:
+        point_normals = rng.normal(size=(3, m))
+        point_normals /= np.linalg.norm(point_normals, axis=0)
+        point_normals[:, rng.random(m) < 0.2] = np.nan
+    pick = rng.permutation(m)[:int(rng.integers(3, m + 1))]
+    return tolerance, point_normals, pick, int(rng.integers(1, len(pick) + 1))
+
+
 @SETTINGS
 @given(st.integers(0, 2**32 - 1), st.booleans(), st.booleans())
 def test_score_hypotheses_matches_numpy(seed, with_normals, per_point):
@@ -48,14 +62,7 @@ def test_score_hypotheses_matches_numpy(seed, with_normals, per_point):
     rng = np.random.default_rng(seed)
     m = int(rng.integers(20, 3000))
     cols = _planar_points(rng, m)
-    tolerance = rng.uniform(0.002, 0.05, m) if per_point else float(rng.uniform(0.002, 0.05))
-    point_normals = None
-    if with_normals:
-        point_normals = rng.normal(size=(3, m))
-        point_normals /= np.linalg.norm(point_normals, axis=0)
-        point_normals[:, rng.random(m) < 0.2] = np.nan
-    pick = rng.permutation(m)[:int(rng.integers(3, m + 1))]
-    head = int(rng.integers(1, len(pick) + 1))
+    tolerance, point_normals, pick, head = _scoring_case(rng, m, per_point, with_normals)
     ordered = kernels.c_array(cols, np.float64)
     compiled = hypotheses._CompiledScores(ordered, tolerance, point_normals, pick, head)
     reference = hypotheses._NumpyScores(cols, tolerance, point_normals, pick, head, np.float64)

@@ -2768,6 +2768,17 @@ def label_rows(labels: np.ndarray, k: int, residual: np.ndarray) -> tuple[np.nda
             bounds[lab + 1] += i - start
     for j in range(k):
         bounds[j + 1] += bounds[j]
+    rows, squares = _filled_runs(labels, bounds, residual)
+    return rows, bounds, squares
+
+
+@numba.njit(**_JIT)
+def _filled_runs(labels: np.ndarray, bounds: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows (M,) int64 of each label 0..k-1 of ``labels`` (N,) in turn, from ``bounds`` (k + 1,) (label j's
+    between bounds[j] and bounds[j + 1]; other labels skipped), and the squares of ``values`` (N,) at them, run by
+    run of one label."""
+    k = bounds.shape[0] - 1
+    n = labels.shape[0]
     fill = bounds[:-1].copy()
     rows = np.empty(bounds[k], np.int64)
     squares = np.empty(bounds[k])
@@ -2780,11 +2791,11 @@ def label_rows(labels: np.ndarray, k: int, residual: np.ndarray) -> tuple[np.nda
         at = fill[lab]
         while i < n and labels[i] == lab:
             rows[at] = i
-            squares[at] = residual[i] * residual[i]
+            squares[at] = values[i] * values[i]
             at += 1
             i += 1
         fill[lab] = at
-    return rows, bounds, squares
+    return rows, squares
 
 
 @numba.njit(**_JIT)
@@ -3453,23 +3464,7 @@ def _grouped(labels: np.ndarray, best: np.ndarray, counts: np.ndarray, k: int
     bounds = np.zeros(k + 1, np.int64)
     for j in range(k):
         bounds[j + 1] = bounds[j] + counts[j]
-    fill = bounds[:-1].copy()
-    rows = np.empty(bounds[k], np.int64)
-    squares = np.empty(bounds[k])
-    n = labels.shape[0]
-    i = 0
-    while i < n:
-        lab = labels[i]
-        if lab < 0:
-            i += 1
-            continue
-        at = fill[lab]
-        while i < n and labels[i] == lab:
-            rows[at] = i
-            squares[at] = best[i] * best[i]
-            at += 1
-            i += 1
-        fill[lab] = at
+    rows, squares = _filled_runs(labels, bounds, best)
     return rows, bounds, squares
 
 
