@@ -368,6 +368,20 @@ def test_fold_fit_matches_least_squares(seed, n, angles, offsets, ridge):
     np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-12)
 
 
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(5, 300), st.integers(1, 12), st.integers(1, 9))
+def test_fold_line_gives_the_line_of_fold_fits_best_fit(seed, n, angles, offsets):
+    rng = np.random.default_rng(seed)
+    u, v = rng.uniform(-5, 5, n), rng.uniform(-3, 3, n)
+    w = rng.normal(0, 0.02, n) + 0.05 * np.abs(u - 1)
+    mse, theta, s0 = kernels.fold_line(u, v, w, angles, offsets, 0.7)
+    assert mse == kernels.fold_fit(u, v, w, angles, offsets, 0.7)
+    design = np.column_stack([np.ones_like(u), u, v, np.abs(u * np.cos(theta) + v * np.sin(theta) - s0)])
+    coef, *_ = np.linalg.lstsq(design, w, rcond=None)  # that line's own fit has that mean squared residual
+    np.testing.assert_allclose(mse, np.mean((w - design @ coef) ** 2), rtol=1e-6, atol=1e-12)
+    assert 0 <= theta < np.pi
+
+
 def test_fold_fit_finds_a_ridge_and_not_a_plane():
     rng = np.random.default_rng(0)
     u, v = rng.uniform(-4, 4, 2000), rng.uniform(0, 8, 2000)
@@ -375,3 +389,6 @@ def test_fold_fit_finds_a_ridge_and_not_a_plane():
     ridge = -0.05 * np.abs(u) + noise
     assert kernels.fold_fit(u, v, ridge - ridge.mean(), 18, 15, 0.7) < 1.1 * np.var(noise) < np.var(ridge)
     assert np.isnan(kernels.fold_fit(u[:4], v[:4], noise[:4], 18, 15, 0.7))
+    mse, theta, s0 = kernels.fold_line(u, v, ridge - ridge.mean(), 18, 15, 0.7)
+    assert theta == 0.0 and abs(s0) < 0.3  # the ridge runs along v at u = 0
+    assert np.isnan(kernels.fold_line(u[:4], v[:4], noise[:4], 18, 15, 0.7)).all()

@@ -20,7 +20,7 @@ import numpy as np
 __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'graph_components', 'graph_region', 'finite_mask',
            'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
-           'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_fit',
+           'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_fit', 'fold_line',
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
            'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
@@ -1063,9 +1063,17 @@ def fold_fit(u: np.ndarray, v: np.ndarray, w: np.ndarray, angles: int, offsets: 
     in-plane coordinates (u, v) (m,) with residuals ``w`` (m,), all meters: two planes meeting at a line (a ridge or a
     fold), s = u cos(theta) + v sin(theta) across it, over ``angles`` directions theta in [0, pi) and ``offsets`` lines
     s0 per direction at evenly spaced quantiles of s within its middle ``inner`` share. NaN for fewer than 5 points."""
+    return fold_line(u, v, w, angles, offsets, inner)[0]
+
+
+@numba.njit(**_JIT)
+def fold_line(u: np.ndarray, v: np.ndarray, w: np.ndarray, angles: int, offsets: int, inner: float
+              ) -> tuple[float, float, float]:
+    """:func:`fold_fit` and the line of its best fit: (mean squared residual (m^2), theta (rad), s0 (m)); (NaN, NaN,
+    NaN) for fewer than 5 points, and theta and s0 NaN where no line's fit could be solved."""
     m = u.shape[0]
     if m < 5:
-        return np.nan
+        return np.nan, np.nan, np.nan
     # sums over all points of 1, u, v and their products with w: the plane part of every fit
     su = sv = sw = suu = suv = svv = suw = svw = sww = 0.0
     for i in range(m):
@@ -1078,7 +1086,7 @@ def fold_fit(u: np.ndarray, v: np.ndarray, w: np.ndarray, angles: int, offsets: 
         suw += u[i] * w[i]
         svw += v[i] * w[i]
         sww += w[i] * w[i]
-    best = np.inf
+    best, best_theta, best_s0 = np.inf, np.nan, np.nan
     s = np.empty(m)
     a = np.empty((4, 4))
     rhs = np.empty(4)
@@ -1130,8 +1138,10 @@ def fold_fit(u: np.ndarray, v: np.ndarray, w: np.ndarray, angles: int, offsets: 
             x, ok = _solve4(a, rhs)
             if ok:
                 rss = sww - (x[0] * rhs[0] + x[1] * rhs[1] + x[2] * rhs[2] + x[3] * rhs[3])
-                best = min(best, max(rss, 0.0) / m)
-    return best
+                mse = max(rss, 0.0) / m
+                if mse < best:
+                    best, best_theta, best_s0 = mse, theta, s0
+    return best, best_theta, best_s0
 
 
 # --- search ---
@@ -3645,6 +3655,7 @@ def _warm_patches() -> None:
     patch_fits(pts, index, np.array([0, 4]))
     plane_patches(pts, np.eye(3)[:, :2].copy(), 2, 1)
     fold_fit(np.arange(6.0), np.ones(6), np.ones(6), 2, 2, 0.5)
+    fold_line(np.arange(6.0), np.ones(6), np.ones(6), 2, 2, 0.5)
     patch_eigenvalues(np.zeros((1, 3, 3)))
 
 
@@ -3831,7 +3842,7 @@ def warm(jobs: int = 1) -> Warmup:
 _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components,
             grid_region, graph_components, graph_region, coordinate_bounds,
             voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, widen_xyz,
-            valid_rows, frame_pass, plane_patches, fold_fit, grid_sample, grid_edges, grid_usable,
+            valid_rows, frame_pass, plane_patches, fold_fit, fold_line, grid_sample, grid_edges, grid_usable,
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
             cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
