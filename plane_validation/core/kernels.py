@@ -31,8 +31,8 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
-           'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'warm',
-           'Warmup']
+           'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'kept_edges', 'graph_contacts', 'graph_settle',
+           'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -537,12 +537,11 @@ def voxel_knn(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, star
 
 
 @numba.njit(**_JIT)
-def _rotate(a: np.ndarray, v: np.ndarray, p: int, q: int) -> None:
-    """One Jacobi rotation zeroing a[p, q] of the symmetric 3 x 3 ``a``, applied to the columns of ``v`` too."""
-    apq = a[p, q]
-    if apq == 0.0:
-        return
-    theta = (a[q, q] - a[p, p]) / (2.0 * apq)
+def _turn(app: float, aqq: float, apq: float, apt: float, aqt: float
+          ) -> tuple[float, float, float, float, float, float]:
+    """One Jacobi rotation zeroing a_pq of a symmetric 3 x 3 matrix (t: the third index): (c, s, and the new a_pp,
+    a_qq, a_pt, a_qt), rounded as the product a <- J^T (a J) rounds them."""
+    theta = (aqq - app) / (2.0 * apq)
     if abs(theta) > 1e150:
         t = 0.5 / theta
     else:
@@ -551,28 +550,20 @@ def _rotate(a: np.ndarray, v: np.ndarray, p: int, q: int) -> None:
             t = -t
     c = 1.0 / np.sqrt(t * t + 1.0)
     s = t * c
-    for r in range(3):  # a <- a J (columns p, q)
-        arp, arq = a[r, p], a[r, q]
-        a[r, p], a[r, q] = c * arp - s * arq, s * arp + c * arq
-    for r in range(3):  # a <- J^T a (rows p, q)
-        apr, aqr = a[p, r], a[q, r]
-        a[p, r], a[q, r] = c * apr - s * aqr, s * apr + c * aqr
-    a[p, q] = a[q, p] = 0.0
-    for r in range(3):
-        vrp, vrq = v[r, p], v[r, q]
-        v[r, p], v[r, q] = c * vrp - s * vrq, s * vrp + c * vrq
+    pp, pq = c * app - s * apq, s * app + c * apq  # a J, rows p and q of columns p and q
+    qp, qq = c * apq - s * aqq, s * apq + c * aqq
+    return c, s, c * pp - s * qp, s * pq + c * qq, c * apt - s * aqt, s * apt + c * aqt
 
 
 @numba.njit(**_JIT)
 def principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvalues (m, 3), ascending, and unit principal axes (m, 3, 3), as columns, of the scatter about their mean
     of the point sets ``points[idx[i]]`` (``points`` (n, 3) meters, ``idx`` (m, k)), by cyclic Jacobi rotations (an
-    axis' sign is arbitrary, as is the basis of equal eigenvalues)."""
+    axis' sign is arbitrary, as is the basis of equal eigenvalues). The matrices live in scalars: the rotations
+    stay in registers."""
     m, k = idx.shape
     values = np.empty((m, 3))
     axes = np.empty((m, 3, 3))
-    a = np.empty((3, 3))
-    v = np.empty((3, 3))
     for i in range(m):
         mx = my = mz = 0.0
         for j in range(k):
@@ -591,20 +582,33 @@ def principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.
             yy += y * y
             yz += y * z
             zz += z * z
-        a[0, 0], a[0, 1], a[0, 2] = xx, xy, xz
-        a[1, 0], a[1, 1], a[1, 2] = xy, yy, yz
-        a[2, 0], a[2, 1], a[2, 2] = xz, yz, zz
-        v[:] = 0.0
-        v[0, 0] = v[1, 1] = v[2, 2] = 1.0
+        a00, a01, a02, a11, a12, a22 = xx, xy, xz, yy, yz, zz
+        v00 = v11 = v22 = 1.0
+        v01 = v02 = v10 = v12 = v20 = v21 = 0.0
         scale = xx * xx + yy * yy + zz * zz + 2 * (xy * xy + xz * xz + yz * yz)
         for _ in range(32):
-            off = a[0, 1] * a[0, 1] + a[0, 2] * a[0, 2] + a[1, 2] * a[1, 2]
+            off = a01 * a01 + a02 * a02 + a12 * a12
             if not off > 1e-32 * scale:
                 break
-            _rotate(a, v, 0, 1)
-            _rotate(a, v, 0, 2)
-            _rotate(a, v, 1, 2)
-        d0, d1, d2 = a[0, 0], a[1, 1], a[2, 2]
+            if a01 != 0.0:  # (p, q, t) = (0, 1, 2)
+                c, s, a00, a11, a02, a12 = _turn(a00, a11, a01, a02, a12)
+                a01 = 0.0
+                v00, v01 = c * v00 - s * v01, s * v00 + c * v01
+                v10, v11 = c * v10 - s * v11, s * v10 + c * v11
+                v20, v21 = c * v20 - s * v21, s * v20 + c * v21
+            if a02 != 0.0:  # (0, 2, 1)
+                c, s, a00, a22, a01, a12 = _turn(a00, a22, a02, a01, a12)
+                a02 = 0.0
+                v00, v02 = c * v00 - s * v02, s * v00 + c * v02
+                v10, v12 = c * v10 - s * v12, s * v10 + c * v12
+                v20, v22 = c * v20 - s * v22, s * v20 + c * v22
+            if a12 != 0.0:  # (1, 2, 0)
+                c, s, a11, a22, a01, a02 = _turn(a11, a22, a12, a01, a02)
+                a12 = 0.0
+                v01, v02 = c * v01 - s * v02, s * v01 + c * v02
+                v11, v12 = c * v11 - s * v12, s * v11 + c * v12
+                v21, v22 = c * v21 - s * v22, s * v21 + c * v22
+        d0, d1, d2 = a00, a11, a22
         o0, o1, o2 = 0, 1, 2  # ascending by a 3-element sort
         if d1 < d0:
             d0, d1, o0, o1 = d1, d0, o1, o0
@@ -613,8 +617,14 @@ def principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.
         if d1 < d0:
             d0, d1, o0, o1 = d1, d0, o1, o0
         values[i, 0], values[i, 1], values[i, 2] = d0, d1, d2
-        for r in range(3):
-            axes[i, r, 0], axes[i, r, 1], axes[i, r, 2] = v[r, o0], v[r, o1], v[r, o2]
+        for col in range(3):
+            o = o0 if col == 0 else o1 if col == 1 else o2
+            if o == 0:
+                axes[i, 0, col], axes[i, 1, col], axes[i, 2, col] = v00, v10, v20
+            elif o == 1:
+                axes[i, 0, col], axes[i, 1, col], axes[i, 2, col] = v01, v11, v21
+            else:
+                axes[i, 0, col], axes[i, 1, col], axes[i, 2, col] = v02, v12, v22
     return values, axes
 
 
@@ -3590,6 +3600,121 @@ def grid_batch(cols: np.ndarray, spread: np.ndarray, first: np.ndarray, scale_pi
                             best_offsets, best_counts, n_best)
 
 
+# --- plain graph: subgraphs and border settling ---
+
+
+@numba.njit(**_JIT)
+def kept_edges(edges: np.ndarray, keep: np.ndarray, n: int) -> np.ndarray:
+    """The pairs (e', 2) of ``edges`` (e, 2) of a graph of n points whose both ends are among ``keep`` (ascending
+    point indices), renumbered to positions in ``keep``, in their order."""
+    position = np.full(n, -1, np.int64)
+    for i in range(keep.shape[0]):
+        position[keep[i]] = i
+    count = 0
+    for q in range(edges.shape[0]):
+        if position[edges[q, 0]] >= 0 and position[edges[q, 1]] >= 0:
+            count += 1
+    out = np.empty((count, 2), np.int64)
+    count = 0
+    for q in range(edges.shape[0]):
+        a, b = position[edges[q, 0]], position[edges[q, 1]]
+        if a >= 0 and b >= 0:
+            out[count, 0], out[count, 1] = a, b
+            count += 1
+    return out
+
+
+@numba.njit(**_JIT)
+def graph_contacts(edges: np.ndarray, region: np.ndarray, k: int
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs of ``edges`` (e, 2) that join two of the ``k`` regions ``region`` (m,) (-1: none), in their order:
+    (src, dst, their regions a, b, each touching pair of regions once as i * k + j (i < j), ascending)."""
+    n = 0
+    for q in range(edges.shape[0]):
+        ri, rj = region[edges[q, 0]], region[edges[q, 1]]
+        if ri >= 0 and rj >= 0 and ri != rj:
+            n += 1
+    src = np.empty(n, np.int64)
+    dst = np.empty(n, np.int64)
+    a = np.empty(n, np.int64)
+    b = np.empty(n, np.int64)
+    codes = np.empty(n, np.int64)
+    n = 0
+    for q in range(edges.shape[0]):
+        i, j = edges[q, 0], edges[q, 1]
+        ri, rj = region[i], region[j]
+        if ri >= 0 and rj >= 0 and ri != rj:
+            src[n], dst[n], a[n], b[n] = i, j, ri, rj
+            codes[n] = min(ri, rj) * k + max(ri, rj)
+            n += 1
+    return src, dst, a, b, np.unique(codes)
+
+
+@numba.njit(**_JIT)
+def _offer(dst: int, src: int, d: float, cand: int, offer_d: np.ndarray, offer_src: np.ndarray,
+           offer_region: np.ndarray, offered: np.ndarray, count: int) -> int:
+    """Record the offer of region ``cand`` from ``src`` to ``dst`` at distance ``d`` when it beats the one ``dst``
+    holds (nearer; equal: from a smaller index than ``dst``, then from the largest index); returns how many points
+    hold an offer (``offered`` lists them)."""
+    held = offer_src[dst]
+    if held < 0:
+        offered[count] = dst
+        count += 1
+    elif not (d < offer_d[dst] or (d == offer_d[dst] and ((src < dst and held > dst) or
+                                                          ((src < dst) == (held < dst) and src > held)))):
+        return count
+    offer_d[dst], offer_src[dst], offer_region[dst] = d, src, cand
+    return count
+
+
+@numba.njit(**_JIT)
+def graph_settle(dist: np.ndarray, region: np.ndarray, indptr: np.ndarray, indices: np.ndarray, rounds: int
+                 ) -> np.ndarray:
+    """Border settling on a graph (adjacency ``indptr`` (m + 1,), ``indices``): ``region`` (m,) 0..k (k: none) after
+    up to ``rounds`` rounds in which each point takes, of its own region and the regions its neighbours held at the
+    round's start, the one nearest by ``dist`` (k + 1, m) (row k: inf); equal distances go to a neighbour of smaller
+    index than the point, then to the largest. Returns the regions, -1 for none (updates ``region``)."""
+    k, m = dist.shape[0] - 1, dist.shape[1]
+    best = np.empty(m)
+    for i in range(m):
+        best[i] = dist[region[i], i]
+    offer_d = np.empty(m)
+    offer_src = np.full(m, -1, np.int64)
+    offer_region = np.empty(m, np.int64)
+    offered = np.empty(m, np.int64)
+    count = 0
+    for i in range(m):  # the first round: every point, from each neighbour (only those across a border can win)
+        for q in range(indptr[i], indptr[i + 1]):
+            j = indices[q]
+            cand = region[j]
+            if cand != region[i]:
+                d = dist[cand, i]
+                if d < best[i]:
+                    count = _offer(i, j, d, cand, offer_d, offer_src, offer_region, offered, count)
+    changed = np.empty(m, np.int64)
+    for _ in range(rounds):
+        if count == 0:
+            break
+        for g in range(count):  # the offers above read the regions at the round's start
+            i = offered[g]
+            region[i], best[i] = offer_region[i], offer_d[i]
+            offer_src[i] = -1
+            changed[g] = i
+        n_changed, count = count, 0
+        for g in range(n_changed):  # their neighbours are offered the new regions
+            c = changed[g]
+            cand = region[c]
+            for q in range(indptr[c], indptr[c + 1]):
+                j = indices[q]
+                d = dist[cand, j]
+                if d < best[j]:
+                    count = _offer(j, c, d, cand, offer_d, offer_src, offer_region, offered, count)
+    out = np.empty(m, np.int64)
+    for i in range(m):
+        out[i] = region[i] if region[i] < k else -1
+    return out
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -3774,13 +3899,20 @@ def _warm_organized_batch() -> None:
                0)
 
 
+def _warm_plain_graph() -> None:
+    edges, index = np.zeros((1, 2), np.int64), np.arange(4, dtype=np.int64)
+    kept_edges(edges, index, 4)
+    graph_contacts(edges, index, 2)
+    graph_settle(np.zeros((3, 4)), np.zeros(4, np.int64), np.zeros(5, np.int64), np.zeros(0, np.int64), 6)
+
+
 #: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The
 #: first is short: it tells whether the cache is cold. The longest compiles come next, so that processes compiling
 #: the rest in parallel end together.
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_indices, _warm_planes,
                _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect, _warm_frame_ids,
-               _warm_beyond_rows, _warm_organized_batch)
+               _warm_beyond_rows, _warm_organized_batch, _warm_plain_graph)
 
 
 def _compiles() -> int:
@@ -3840,4 +3972,5 @@ _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components
             fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
             read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
-            merge_pair, relabel_rows, grid_spread, strided_rows, columns_at, grid_batch)
+            merge_pair, relabel_rows, grid_spread, strided_rows, columns_at, grid_batch, kept_edges, graph_contacts,
+            graph_settle)
