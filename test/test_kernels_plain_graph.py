@@ -6,6 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from plane_validation.core import kernels
 from plane_validation.core.regions import _neighbours, _principal_axes
 from plane_validation.core.search.neighbours import COMPETE_ROUNDS, Neighbours, settle_numpy
 
@@ -131,3 +132,20 @@ def test_principal_axes_match_a_jacobi_reference_bit_for_bit(seed, k):
         np.testing.assert_array_equal(values[i], ref_values)
         if np.all(np.diff(ref_values) > 0):  # distinct eigenvalues: no tie for the sorts to order otherwise
             np.testing.assert_array_equal(axes[i], ref_axes)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.floats(0.02, 2.0))
+def test_voxel_count_matches_the_grid(seed, size):
+    """The occupied voxels counted without building the grid: as many as the grid holds, and as numpy's distinct keys
+    of the same voxel arithmetic."""
+    from test_kernels_graph import _cloud
+    rng = np.random.default_rng(seed)
+    pts = _cloud(rng, 400)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    cell = size * float(np.ptp(pts, axis=0).max(initial=0.0) or 1.0) / 4
+    dims = ((hi - lo) // cell).astype(np.int64) + 2
+    count = kernels.voxel_count(pts, lo, cell, dims)
+    assert count == len(kernels.voxel_grid(pts, lo, cell, dims)[1])
+    cells = ((pts - lo) / cell).astype(np.int64)
+    assert count == len(np.unique(cells[:, 0] + dims[0] * (cells[:, 1] + dims[1] * cells[:, 2])))

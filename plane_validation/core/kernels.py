@@ -32,7 +32,7 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
            'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'kept_edges', 'graph_contacts', 'graph_settle',
-           'warm', 'Warmup']
+           'voxel_count', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -2882,12 +2882,13 @@ _MIXED = -2
 def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
                 origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """For each of ``queries`` (q, 3) meters, in one pass: (node (q,): the hashed point of :func:`voxel_grid`
-    (``points`` (m, 3): those points voxel by voxel, in its ``order``) nearest to it among those in its own voxel
-    (equal distances: the first in ``order``), as an index into the points as hashed, -1 where its voxel holds none
-    or it lies outside the grid; voxel (q,): that occupied voxel, -1 where none; d2 (q,): the node's squared
-    distance, m^2, inf where none; near (q,) bool: every hashed point at least as near as the node lies in the 27
-    voxels around the query's own)."""
+    """For each of ``queries`` (q, 3) meters, in one pass: (node (q,): a hashed point of :func:`voxel_grid`
+    (``points`` (m, 3): those points voxel by voxel, in its ``order``) in its own voxel, the first in ``order`` nearer
+    than one voxel plus the query's gap to its voxel's nearest face, else the nearest there (equal distances: the
+    first in ``order``), as an index into the points as hashed, -1 where its voxel holds none or it lies outside the
+    grid; voxel (q,): that occupied voxel, -1 where none; d2 (q,): the node's squared distance, m^2, inf where none;
+    near (q,) bool: the node is that near, so every hashed point at least as near lies in the 27 voxels around the
+    query's own)."""
     nq = queries.shape[0]
     node = np.full(nq, -1, np.int64)
     voxel = np.full(nq, -1, np.int64)
@@ -2904,29 +2905,34 @@ def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, st
         v = _voxel(cell_keys, table, cx + dims[0] * (cy + dims[1] * cz), dense)
         if v < 0:
             continue
+        # a point outside those voxels lies farther than one voxel plus the gap to the nearest face
+        reach = cell + min(fx - cx, cx + 1 - fx, fy - cy, cy + 1 - fy, fz - cz, cz + 1 - fz) * cell
+        within = reach * reach
         b, bj = np.inf, -1
         for j in range(starts[v], starts[v + 1]):
             ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
             e = ex * ex + ey * ey + ez * ez
+            if e < within:  # near enough: uncertain_nodes looks for the nearest only where regions meet
+                b, bj = e, j
+                break
             if e < b:
                 b, bj = e, j
         node[q], voxel[q], d2[q] = order[bj], v, b
-        # a point outside those voxels lies farther than one voxel plus the gap to the nearest face
-        reach = cell + min(fx - cx, cx + 1 - fx, fy - cy, cy + 1 - fy, fz - cz, cz + 1 - fz) * cell
-        near[q] = b < reach * reach
+        near[q] = b < within
     return node, voxel, d2, near
 
 
 @numba.njit(**_JIT)
 def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel: np.ndarray, near: np.ndarray,
-                    exact: np.ndarray, points: np.ndarray, rows: np.ndarray, center: np.ndarray, order: np.ndarray,
-                    cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray, origin: np.ndarray, cell: float,
-                    dims: np.ndarray) -> np.ndarray:
+                    exact: np.ndarray, points: np.ndarray, rows: np.ndarray, center: np.ndarray, ordered: np.ndarray,
+                    order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
+                    origin: np.ndarray, cell: float, dims: np.ndarray) -> np.ndarray:
     """(q,) bool: the queries of :func:`voxel_nodes` (its ``node``, ``d2``, ``voxel`` and ``near``; the rows ``rows``
-    of ``points`` (N, 3) meters less ``center`` (3,)) whose nearest hashed point may lie in another region than their
-    node (``region`` (m,), by the hashed points' rows before hashing): not ``exact`` (the node known to be the
-    nearest), and not ``near``, or one of the 26 voxels around their own, no farther than the node, holds points of
-    another region than the node's (their own voxel is the node's search)."""
+    of ``points`` (N, 3) meters less ``center`` (3,); ``ordered`` its hashed points voxel by voxel) whose nearest
+    hashed point may lie in another region than their node (``region`` (m,), by the hashed points' rows before
+    hashing): not ``exact`` (the node known to be the nearest), and not ``near``, or one of the 26 voxels around their
+    own, no farther than the node, holds points of another region than the node's. A near query whose own voxel holds
+    several regions first takes the nearest point there as its node (``node`` and ``d2`` updated)."""
     nv = cell_keys.shape[0]
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * order.shape[0])
@@ -2959,6 +2965,15 @@ def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel:
         if not near[q]:
             out[q] = True
             continue
+        if label[v] == _MIXED:  # the node is one near point of its voxel: the nearest there instead
+            x, y, z = points[rows[q], 0] - center[0], points[rows[q], 1] - center[1], points[rows[q], 2] - center[2]
+            b, bj = np.inf, -1
+            for j in range(starts[v], starts[v + 1]):
+                ex, ey, ez = ordered[j, 0] - x, ordered[j, 1] - y, ordered[j, 2] - z
+                e = ex * ex + ey * ey + ez * ez
+                if e < b:
+                    b, bj = e, j
+            node[q], d2[q] = order[bj], b
         key = cell_keys[v]
         for axis in range(3):
             f = (points[rows[q], axis] - center[axis] - origin[axis]) / cell
@@ -3651,6 +3666,30 @@ def graph_contacts(edges: np.ndarray, region: np.ndarray, k: int
 
 
 @numba.njit(**_JIT)
+def voxel_count(points: np.ndarray, origin: np.ndarray, cell: float, dims: np.ndarray) -> int:
+    """How many voxels :func:`voxel_grid` would find occupied by ``points`` (m, 3) with the same ``origin``, ``cell``
+    and ``dims``, counted in a hash set (no sort)."""
+    m = points.shape[0]
+    size = 1
+    while size < 2 * m + 2:
+        size *= 2
+    table = np.full(size, -1, np.int64)
+    count = 0
+    for i in range(m):
+        ix = int((points[i, 0] - origin[0]) / cell)
+        iy = int((points[i, 1] - origin[1]) / cell)
+        iz = int((points[i, 2] - origin[2]) / cell)
+        key = ix + dims[0] * (iy + dims[1] * iz)
+        s = _slot(key, size - 1)
+        while table[s] >= 0 and table[s] != key:
+            s = (s + 1) & (size - 1)
+        if table[s] < 0:
+            table[s] = key
+            count += 1
+    return count
+
+
+@numba.njit(**_JIT)
 def _offer(dst: int, src: int, d: float, cand: int, offer_d: np.ndarray, offer_src: np.ndarray,
            offer_region: np.ndarray, offered: np.ndarray, count: int) -> int:
     """Record the offer of region ``cand`` from ``src`` to ``dst`` at distance ``d`` when it beats the one ``dst``
@@ -3850,8 +3889,8 @@ def _warm_unorganized() -> None:
     order, cell_keys, starts, table = voxel_grid(pts, np.zeros(3), 1.0, dims)
     node, voxel, d2, near = voxel_nodes(pts, order, cell_keys, starts, table, np.zeros(3), 1.0, dims, pts)
     flags, index = np.zeros(4, np.bool_), np.arange(4, dtype=np.int64)
-    uncertain_nodes(index, node, d2, voxel, near, flags, pts, index, np.zeros(3), order, cell_keys, starts, table,
-                    np.zeros(3), 1.0, dims)
+    uncertain_nodes(index, node, d2, voxel, near, flags, pts, index, np.zeros(3), pts, order, cell_keys, starts,
+                    table, np.zeros(3), 1.0, dims)
     first_across(index, index.reshape(2, 2), pts, pts, np.zeros(4), flags, 1, 0.5, 0.01)
 
 
@@ -3903,6 +3942,7 @@ def _warm_plain_graph() -> None:
     edges, index = np.zeros((1, 2), np.int64), np.arange(4, dtype=np.int64)
     kept_edges(edges, index, 4)
     graph_contacts(edges, index, 2)
+    voxel_count(np.zeros((4, 3)), np.zeros(3), 1.0, np.ones(3, np.int64))
     graph_settle(np.zeros((3, 4)), np.zeros(4, np.int64), np.zeros(5, np.int64), np.zeros(0, np.int64), 6)
 
 
@@ -3973,4 +4013,4 @@ _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
             read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
             merge_pair, relabel_rows, grid_spread, strided_rows, columns_at, grid_batch, kept_edges, graph_contacts,
-            graph_settle)
+            graph_settle, voxel_count)

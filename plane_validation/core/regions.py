@@ -257,10 +257,11 @@ def voxel_index(points: np.ndarray, span: np.ndarray | None = None) -> VoxelInde
             return None
         # one voxel more than the extent needs: the kernels' (p - lo) / cell may round up to extent // cell + 1
         dims = (extent // cell).astype(np.int64) + 2
-        grid = kernels.voxel_grid(points, lo, cell, dims)
-        per_voxel = len(points) / len(grid[1])
-        if per_voxel <= 2 * VOXEL_POINTS and (per_voxel >= VOXEL_POINTS / 2 or len(grid[1]) == len(points)):
-            return VoxelIndex(points=points, origin=lo, cell=cell, dims=dims, grid=grid)
+        occupied = kernels.voxel_count(points, lo, cell, dims)  # the grid is built for the size chosen only
+        per_voxel = len(points) / occupied
+        if per_voxel <= 2 * VOXEL_POINTS and (per_voxel >= VOXEL_POINTS / 2 or occupied == len(points)):
+            return VoxelIndex(points=points, origin=lo, cell=cell, dims=dims,
+                              grid=kernels.voxel_grid(points, lo, cell, dims))
         cell *= float(np.clip(np.sqrt(VOXEL_POINTS / per_voxel), 0.25, 4.0))  # a surface: points grow as cell^2
     return None  # the points' spacing varies beyond what one voxel size serves (far-out coordinates)
 

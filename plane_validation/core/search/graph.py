@@ -52,12 +52,13 @@ class SearchGraph:
 class VoxelNodes:
     """Which searched point each valid point of an unorganized cloud takes its region from: the nearest one. Found
     through ``index``, a voxel hash of the searched points, in one pass (:func:`.kernels.voxel_nodes`): ``node``
-    (n,) the searched point (its position in search_idx) nearest to each point within its own voxel, or the nearest
-    of all where ``exact`` (n,) bool; ``voxel`` (n,) that voxel (-1: none, ``exact``), ``d2`` (n,) the node's
-    squared distance, m^2, ``near`` (n,) bool: the nearest lies in the 27 voxels around. Where no searched point of
-    another region can lie as near in those voxels, the node's region is the nearest's, so only the others need a
-    nearest-point query (:meth:`for_regions`); ``node`` and ``exact`` cache those answers across the calls of a
-    tolerance sweep. ``index`` None: every node is the nearest (far-out coordinates)."""
+    (n,) a searched point (its position in search_idx) in each point's own voxel, near enough that the nearest lies in
+    the 27 voxels around (else the nearest in its voxel), or the nearest of all where ``exact`` (n,) bool; ``voxel``
+    (n,) that voxel (-1: none, ``exact``), ``d2`` (n,) the node's squared distance, m^2, ``near`` (n,) bool: the
+    nearest lies in the 27 voxels around. Where no searched point of another region can lie as near in those voxels,
+    the node's region is the nearest's, so only the others need a nearest-point query (:meth:`for_regions`); ``node``
+    and ``exact`` cache those answers across the calls of a tolerance sweep. ``index`` None: every node is the nearest
+    (far-out coordinates)."""
 
     index: VoxelIndex | None
     node: np.ndarray
@@ -75,7 +76,8 @@ class VoxelNodes:
         index, c_array = self.index, kernels.c_array
         doubt = np.flatnonzero(kernels.uncertain_nodes(
             c_array(region, np.int64), self.node, self.d2, self.voxel, self.near, self.exact, c_array(pts, np.float64),
-            c_array(rows, np.int64), c_array(center, np.float64), *index.grid, index.origin, index.cell, index.dims))
+            c_array(rows, np.int64), c_array(center, np.float64), index.ordered, *index.grid, index.origin, index.cell,
+            index.dims))
         if len(doubt):  # kept: later calls on this graph (a sweep over one prebuilt graph) need not ask again
             self.node[doubt] = self.index.query(pts[rows[doubt]] - center, 1)[1][:, 0]
             self.exact[doubt] = True
