@@ -59,14 +59,18 @@ def _voxel_nodes_numpy(index, queries: np.ndarray) -> tuple[np.ndarray, np.ndarr
 @SETTINGS
 @given(st.integers(0, 2**32 - 1), st.booleans())
 def test_voxel_nodes_match_numpy(seed, others):
-    """The nearest hashed point within each query's own voxel, its voxel, its squared distance and the nearness flag,
-    exactly as brute force finds them; -1 (inf) in an empty voxel."""
+    """The node within each query's own voxel (the first within reach, else the nearest), its voxel, its squared
+    distance and the nearness flag, exactly as brute force finds them; -1 (inf) in an empty voxel. The queries are
+    rows of a cloud less a center, as the search passes them."""
     rng = np.random.default_rng(seed)
     pts, queries, index = _indexed(rng, others)
     if index is None:
         return
-    got = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims, queries)
-    for a, b in zip(got, _voxel_nodes_numpy(index, queries)):
+    center = rng.normal(size=3) * rng.choice([0.0, 1.0])
+    cloud = np.concatenate([queries, rng.normal(size=(5, 3))]) + center  # rows beyond the queries: not asked
+    rows = rng.permutation(len(queries))
+    got = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims, cloud, rows, center)
+    for a, b in zip(got, _voxel_nodes_numpy(index, cloud[rows] - center)):
         np.testing.assert_array_equal(a, b)
     assert got[0].dtype == got[1].dtype == np.int64
     assert (got[0] >= 0).any() or others
@@ -113,7 +117,7 @@ def test_uncertain_nodes_match_numpy(seed, others, regions):
     if index is None:
         return
     node, voxel, d2, near = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims,
-                                                queries)
+                                                queries, np.arange(len(queries)), np.zeros(3))
     region = rng.integers(-1, regions, len(pts))
     if rng.random() < 0.5:  # regions in slabs, as planes have them: most voxels of one region
         region = np.minimum((pts[:, 0] > np.median(pts[:, 0])).astype(np.int64), regions - 1)
@@ -141,7 +145,7 @@ def test_each_point_takes_the_region_of_its_nearest_searched_point(seed, regions
         pts[0] = 3e38  # a driver's FLT_MAX row: no voxel hash
     pick = rng.random(len(pts)) < 0.3
     searched = pts[pick] if pick.any() else pts[:1]
-    nodes, index = _nearest_searched(searched, pts)
+    nodes, index = _nearest_searched(searched, pts, np.arange(len(pts)), np.zeros(3))
     rows = np.arange(len(pts))
     if index is None:
         ref = _nearest_searched_tree(searched, pts)

@@ -2880,16 +2880,17 @@ _MIXED = -2
 
 @numba.njit(**_JIT)
 def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
-                origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """For each of ``queries`` (q, 3) meters, in one pass: (node (q,): a hashed point of :func:`voxel_grid`
+                origin: np.ndarray, cell: float, dims: np.ndarray, cloud: np.ndarray, rows: np.ndarray,
+                center: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For each query, the rows ``rows`` (q,) of ``cloud`` (N, 3) meters less ``center`` (3,), in one pass: (node
+    (q,): a hashed point of :func:`voxel_grid`
     (``points`` (m, 3): those points voxel by voxel, in its ``order``) in its own voxel, the first in ``order`` nearer
     than one voxel plus the query's gap to its voxel's nearest face, else the nearest there (equal distances: the
     first in ``order``), as an index into the points as hashed, -1 where its voxel holds none or it lies outside the
     grid; voxel (q,): that occupied voxel, -1 where none; d2 (q,): the node's squared distance, m^2, inf where none;
     near (q,) bool: the node is that near, so every hashed point at least as near lies in the 27 voxels around the
     query's own)."""
-    nq = queries.shape[0]
+    nq = rows.shape[0]
     node = np.full(nq, -1, np.int64)
     voxel = np.full(nq, -1, np.int64)
     d2 = np.full(nq, np.inf)
@@ -2897,7 +2898,8 @@ def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, st
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * points.shape[0])
     for q in range(nq):
-        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+        r = rows[q]
+        x, y, z = cloud[r, 0] - center[0], cloud[r, 1] - center[1], cloud[r, 2] - center[2]
         fx, fy, fz = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
         if not (0.0 <= fx < dims[0] and 0.0 <= fy < dims[1] and 0.0 <= fz < dims[2]):
             continue
@@ -3887,8 +3889,9 @@ def _warm_judge() -> None:
 def _warm_unorganized() -> None:
     pts, dims = np.zeros((4, 3)), np.ones(3, np.int64)
     order, cell_keys, starts, table = voxel_grid(pts, np.zeros(3), 1.0, dims)
-    node, voxel, d2, near = voxel_nodes(pts, order, cell_keys, starts, table, np.zeros(3), 1.0, dims, pts)
     flags, index = np.zeros(4, np.bool_), np.arange(4, dtype=np.int64)
+    node, voxel, d2, near = voxel_nodes(pts, order, cell_keys, starts, table, np.zeros(3), 1.0, dims, pts, index,
+                                        np.zeros(3))
     uncertain_nodes(index, node, d2, voxel, near, flags, pts, index, np.zeros(3), pts, order, cell_keys, starts,
                     table, np.zeros(3), 1.0, dims)
     first_across(index, index.reshape(2, 2), pts, pts, np.zeros(4), flags, 1, 0.5, 0.01)

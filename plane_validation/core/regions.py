@@ -238,13 +238,17 @@ class VoxelIndex:
         return dist, idx
 
 
-def voxel_index(points: np.ndarray, span: np.ndarray | None = None) -> VoxelIndex | None:
+def voxel_index(points: np.ndarray, span: np.ndarray | tuple[np.ndarray, np.ndarray] | None = None
+                ) -> VoxelIndex | None:
     """A :class:`VoxelIndex` of ``points`` (m, 3) meters, m >= 1, finite, with about VOXEL_POINTS points per
-    occupied voxel; ``span`` (q, 3): the queries, when others than ``points``. None when the voxels would span more
-    than VOXEL_SPAN along an axis, or no voxel size gives about that many (far-out coordinates: use a kd-tree)."""
+    occupied voxel; ``span`` (q, 3): the queries, when others than ``points``, or their smallest and largest
+    coordinates ((3,), (3,)). None when the voxels would span more than VOXEL_SPAN along an axis, or no voxel size
+    gives about that many (far-out coordinates: use a kd-tree)."""
     points = kernels.c_array(points, np.float64)
     lo, hi = kernels.coordinate_bounds(points)
-    if span is not None and len(span):
+    if isinstance(span, tuple):
+        lo, hi = np.minimum(lo, span[0]), np.maximum(hi, span[1])
+    elif span is not None and len(span):
         span_lo, span_hi = kernels.coordinate_bounds(kernels.c_array(span, np.float64))
         lo, hi = np.minimum(lo, span_lo), np.maximum(hi, span_hi)
     extent = hi - lo
