@@ -27,7 +27,7 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
            'beyond_rows',
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
-           'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
+           'spread_nearest', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
@@ -771,24 +771,45 @@ def patch_fits(points: np.ndarray, members: np.ndarray, starts: np.ndarray
 
 
 @numba.njit(**_JIT)
-def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The graph of n points joined by ``pairs`` (e, 2) (any order, repeats allowed): (edges (2, u) each joined pair
-    once, smaller index first, sorted by it then by the other; indptr (n + 1,) and indices: each point's neighbours,
-    first the larger ones ascending, then the smaller ones ascending)."""
+def _pair_rows(n: int, pairs: np.ndarray, dist: np.ndarray, idx: np.ndarray, reach: np.ndarray, always: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`pair_graph`'s pairs by their smaller end: (count (n + 1,): row i's larger ends are
+    larger[count[i]:count[i + 1]], in no order; larger)."""
     e = pairs.shape[0]
+    m, k = idx.shape
     count = np.zeros(n + 1, np.int64)
     for q in range(e):
         count[min(pairs[q, 0], pairs[q, 1]) + 1] += 1
+    for i in range(m):  # the nearest neighbours' pairs are counted and filled where they are, not gathered first
+        for j in range(1, k):
+            if dist[i, j] <= reach[i] or (j <= always and np.isfinite(dist[i, j])):
+                count[min(i, idx[i, j]) + 1] += 1
     for i in range(n):
         count[i + 1] += count[i]
     fill = count[:-1].copy()
-    larger = np.empty(e, np.int64)
+    larger = np.empty(count[n], np.int64)
     for q in range(e):
         a, b = pairs[q, 0], pairs[q, 1]
-        if b < a:
-            a, b = b, a
-        larger[fill[a]] = b
-        fill[a] += 1
+        larger[fill[min(a, b)]] = max(a, b)
+        fill[min(a, b)] += 1
+    for i in range(m):
+        for j in range(1, k):
+            if dist[i, j] <= reach[i] or (j <= always and np.isfinite(dist[i, j])):
+                a, b = i, idx[i, j]
+                larger[fill[min(a, b)]] = max(a, b)
+                fill[min(a, b)] += 1
+    return count, larger
+
+
+@numba.njit(**_JIT)
+def pair_graph(n: int, pairs: np.ndarray, dist: np.ndarray, idx: np.ndarray, reach: np.ndarray, always: int
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The graph of n points joined by ``pairs`` (e, 2) (any order, repeats allowed) and each point i to its nearest
+    neighbours ``idx[i, 1:]`` (``dist`` (n, k) meters, nearest first; the first column the point itself; (0, k): none)
+    that lie within ``reach[i]`` meters, or among its first ``always`` at a finite distance: (edges (2, u) each joined
+    pair once, smaller index first, sorted by it then by the other; indptr (n + 1,) and indices: each point's
+    neighbours, first the larger ones ascending, then the smaller ones ascending)."""
+    count, larger = _pair_rows(n, pairs, dist, idx, reach, always)
     unique = 0
     degree = np.zeros(n, np.int64)
     stop = 0
@@ -2156,27 +2177,6 @@ def spread_nearest(points: np.ndarray, rows: np.ndarray, center: np.ndarray, nea
             labels[i] = lab
             residual[i] = d
     return labels, residual
-
-
-@numba.njit(**_JIT)
-def knn_edges(dist: np.ndarray, idx: np.ndarray, reach: np.ndarray, always: int) -> np.ndarray:
-    """The pairs (e, 2) joining each point i to its nearest neighbours ``idx[i, 1:]`` (``dist`` (n, k) meters, nearest
-    first; the first column the point itself) that lie within ``reach[i]`` meters, or among its first ``always`` at
-    a finite distance; row by row, nearest first."""
-    n, k = idx.shape
-    e = 0
-    for i in range(n):
-        for j in range(1, k):
-            if dist[i, j] <= reach[i] or (j <= always and np.isfinite(dist[i, j])):
-                e += 1
-    pairs = np.empty((e, 2), np.int64)
-    e = 0
-    for i in range(n):
-        for j in range(1, k):
-            if dist[i, j] <= reach[i] or (j <= always and np.isfinite(dist[i, j])):
-                pairs[e, 0], pairs[e, 1] = i, idx[i, j]
-                e += 1
-    return pairs
 
 
 @numba.njit(**_JIT)
@@ -3787,7 +3787,7 @@ def _warm_regions() -> None:
                 flags, np.ones(3))
     graph_components(4, np.zeros((1, 2), np.int64), flags)
     graph_region(np.zeros((1, 2), np.int64), pts, np.ones(3), 0.5, flags, flags, flags, np.ones(3))
-    pair_graph(4, np.zeros((1, 2), np.int64))
+    pair_graph(4, np.zeros((1, 2), np.int64), np.zeros((4, 2)), np.zeros((4, 2), np.int64), np.ones(4), 1)
 
 
 def _warm_voxel_knn() -> None:
@@ -3802,7 +3802,6 @@ def _warm_voxel_nearest() -> None:
     grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
     voxel_nearest(pts, *grid, np.zeros(3), 1.0, dims, pts, 1)
     spread_nearest(pts, index, np.zeros(3), index, index, np.zeros((1, 4)), np.ones(1))
-    knn_edges(np.zeros((4, 2)), np.zeros((4, 2), np.int64), np.ones(4), 1)
     spread_among(np.zeros(4), np.zeros((4, 2), np.int64))
 
 
@@ -4011,7 +4010,7 @@ _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
             cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
             beyond_counts, beyond_rows, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
-            voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
+            voxel_nearest, spread_nearest, spread_among, score_hypotheses, spread_test, fit_members,
             fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
             read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
