@@ -304,8 +304,9 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
     if merge_copies and np.any(dist[:, 1] == 0):  # copies would fill the neighbour lists (stacked scans)
         return _with_copies(points, viewpoint)
     missing = idx >= n  # far-out coordinates (a driver's FLT_MAX rows) find no neighbour
-    idx = np.where(missing, np.arange(n)[:, None], idx)
-    dist = np.where(missing, np.inf, dist)
+    if missing.any():
+        idx = np.where(missing, np.arange(n)[:, None], idx)
+        dist = np.where(missing, np.inf, dist)
     kth = dist[:, k - 1]
     reach = np.full(n, RADIUS * float(np.median(kth)))
     sparse = np.flatnonzero(kth > reach)  # some of its nearest lie beyond the cloud's typical reach
