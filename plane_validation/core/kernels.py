@@ -537,10 +537,11 @@ def voxel_knn(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, star
 
 
 @numba.njit(**_JIT)
-def _turn(app: float, aqq: float, apq: float, apt: float, aqt: float
-          ) -> tuple[float, float, float, float, float, float]:
-    """One Jacobi rotation zeroing a_pq of a symmetric 3 x 3 matrix (t: the third index): (c, s, and the new a_pp,
-    a_qq, a_pt, a_qt), rounded as the product a <- J^T (a J) rounds them."""
+def _turn(app: float, aqq: float, apq: float, apt: float, aqt: float, vp0: float, vq0: float, vp1: float, vq1: float,
+          vp2: float, vq2: float) -> tuple[float, float, float, float, float, float, float, float, float, float]:
+    """One Jacobi rotation zeroing a_pq (nonzero) of a symmetric 3 x 3 matrix (t: the third index): the new a_pp, a_qq,
+    a_pt, a_qt, rounded as the product a <- J^T (a J) rounds them, and the axes' columns p and q (rows 0, 1, 2)
+    rotated."""
     theta = (aqq - app) / (2.0 * apq)
     if abs(theta) > 1e150:
         t = 0.5 / theta
@@ -552,7 +553,8 @@ def _turn(app: float, aqq: float, apq: float, apt: float, aqt: float
     s = t * c
     pp, pq = c * app - s * apq, s * app + c * apq  # a J, rows p and q of columns p and q
     qp, qq = c * apq - s * aqq, s * apq + c * aqq
-    return c, s, c * pp - s * qp, s * pq + c * qq, c * apt - s * aqt, s * apt + c * aqt
+    return (c * pp - s * qp, s * pq + c * qq, c * apt - s * aqt, s * apt + c * aqt, c * vp0 - s * vq0,
+            s * vp0 + c * vq0, c * vp1 - s * vq1, s * vp1 + c * vq1, c * vp2 - s * vq2, s * vp2 + c * vq2)
 
 
 @numba.njit(**_JIT)
@@ -591,23 +593,17 @@ def principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.
             if not off > 1e-32 * scale:
                 break
             if a01 != 0.0:  # (p, q, t) = (0, 1, 2)
-                c, s, a00, a11, a02, a12 = _turn(a00, a11, a01, a02, a12)
+                a00, a11, a02, a12, v00, v01, v10, v11, v20, v21 = _turn(a00, a11, a01, a02, a12, v00, v01, v10, v11,
+                                                                         v20, v21)
                 a01 = 0.0
-                v00, v01 = c * v00 - s * v01, s * v00 + c * v01
-                v10, v11 = c * v10 - s * v11, s * v10 + c * v11
-                v20, v21 = c * v20 - s * v21, s * v20 + c * v21
             if a02 != 0.0:  # (0, 2, 1)
-                c, s, a00, a22, a01, a12 = _turn(a00, a22, a02, a01, a12)
+                a00, a22, a01, a12, v00, v02, v10, v12, v20, v22 = _turn(a00, a22, a02, a01, a12, v00, v02, v10, v12,
+                                                                         v20, v22)
                 a02 = 0.0
-                v00, v02 = c * v00 - s * v02, s * v00 + c * v02
-                v10, v12 = c * v10 - s * v12, s * v10 + c * v12
-                v20, v22 = c * v20 - s * v22, s * v20 + c * v22
             if a12 != 0.0:  # (1, 2, 0)
-                c, s, a11, a22, a01, a02 = _turn(a11, a22, a12, a01, a02)
+                a11, a22, a01, a02, v01, v02, v11, v12, v21, v22 = _turn(a11, a22, a12, a01, a02, v01, v02, v11, v12,
+                                                                         v21, v22)
                 a12 = 0.0
-                v01, v02 = c * v01 - s * v02, s * v01 + c * v02
-                v11, v12 = c * v11 - s * v12, s * v11 + c * v12
-                v21, v22 = c * v21 - s * v22, s * v21 + c * v22
         d0, d1, d2 = a00, a11, a22
         o0, o1, o2 = 0, 1, 2  # ascending by a 3-element sort
         if d1 < d0:
