@@ -102,8 +102,9 @@ def test_spread_nearest_matches_numpy(seed, per_point):
 @SETTINGS
 @given(st.integers(0, 2**32 - 1))
 def test_knn_edges_match_numpy(seed):
-    """The pairs within reach, or among the ALWAYS_JOINED nearest at a finite distance, in the numpy order."""
-    from plane_validation.core.regions import _knn_edges, _knn_edges_numpy
+    """The graph of the pairs within reach, or among the ALWAYS_JOINED nearest at a finite distance, joined in the
+    compiled pass with other pairs, is that of the numpy pairs joined with them."""
+    from plane_validation.core.regions import _knn_edges_numpy, _neighbours, _neighbours_numpy
     rng = np.random.default_rng(seed)
     n, k = int(rng.integers(1, 200)), int(rng.integers(2, 13))
     dist = np.sort(rng.exponential(size=(n, k)), axis=1)
@@ -113,9 +114,12 @@ def test_knn_edges_match_numpy(seed):
     idx = rng.integers(0, n, (n, k))
     reach = rng.exponential(size=n)
     reach[::7] = dist[::7, k // 2]  # exactly at a neighbour's distance: joined
-    pairs = _knn_edges(dist, idx, reach)
-    np.testing.assert_array_equal(pairs, _knn_edges_numpy(dist, idx, reach).reshape(-1, 2))
-    assert pairs.dtype == np.int64
+    other = rng.integers(0, n, (int(rng.integers(0, 20)), 2))
+    graph = _neighbours(n, other, None, (dist, idx, reach))
+    ref = _neighbours_numpy(n, np.concatenate([_knn_edges_numpy(dist, idx, reach).reshape(-1, 2), other]), None)
+    np.testing.assert_array_equal(graph.edges, ref.edges)
+    for part, ref_part in zip(graph.adjacency, ref.adjacency):
+        np.testing.assert_array_equal(part, ref_part)
 
 
 @SETTINGS

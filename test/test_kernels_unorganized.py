@@ -38,34 +38,39 @@ def _voxels(index, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _voxel_nodes_numpy(index, queries: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`.kernels.voxel_nodes` by brute force: the nearest hashed point with the query's voxel (equal
-    distances: the first in the hash's order), that voxel's number, the squared distance and whether the node is
-    nearer than one voxel plus the query's gap to its nearest face."""
+    """:func:`.kernels.voxel_nodes` by brute force: among the hashed points in the query's voxel, the first in the
+    hash's order nearer than one voxel plus the query's gap to its nearest face, else the nearest (equal distances: the
+    first in the hash's order); that voxel's number, the squared distance and whether the node is that near."""
     own = _voxels(index, index.ordered)[1]  # the hashed points, voxel by voxel
     cells, keys = _voxels(index, queries)
     e = index.ordered[None, :, :] - queries[:, None, :]
     d2 = e[..., 0] * e[..., 0] + e[..., 1] * e[..., 1] + e[..., 2] * e[..., 2]
     d2 = np.where(own[None, :] == keys[:, None], d2, np.inf)
-    first = np.argmin(d2, axis=1)  # the first of equal minima: the first in the hash's order
-    best = d2[np.arange(len(queries)), first]
-    found = np.isfinite(best)
     f = (queries - index.origin) / index.cell
-    gap = np.minimum(f - cells, cells + 1 - f).min(axis=1) * index.cell
+    reach = index.cell + np.minimum(f - cells, cells + 1 - f).min(axis=1) * index.cell
+    within = d2 < (reach * reach)[:, None]
+    first = np.where(within.any(axis=1), np.argmax(within, axis=1), np.argmin(d2, axis=1))  # argmin: the first of
+    best = d2[np.arange(len(queries)), first]  # equal minima, the first in the hash's order
+    found = np.isfinite(best)
     return (np.where(found, index.grid[0][first], -1), np.where(found, np.searchsorted(index.grid[1], keys), -1),
-            best, found & (best < (index.cell + gap) ** 2))
+            best, found & (best < reach * reach))
 
 
 @SETTINGS
 @given(st.integers(0, 2**32 - 1), st.booleans())
 def test_voxel_nodes_match_numpy(seed, others):
-    """The nearest hashed point within each query's own voxel, its voxel, its squared distance and the nearness flag,
-    exactly as brute force finds them; -1 (inf) in an empty voxel."""
+    """The node within each query's own voxel (the first within reach, else the nearest), its voxel, its squared
+    distance and the nearness flag, exactly as brute force finds them; -1 (inf) in an empty voxel. The queries are
+    rows of a cloud less a center, as the search passes them."""
     rng = np.random.default_rng(seed)
     pts, queries, index = _indexed(rng, others)
     if index is None:
         return
-    got = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims, queries)
-    for a, b in zip(got, _voxel_nodes_numpy(index, queries)):
+    center = rng.normal(size=3) * rng.choice([0.0, 1.0])
+    cloud = np.concatenate([queries, rng.normal(size=(5, 3))]) + center  # rows beyond the queries: not asked
+    rows = rng.permutation(len(queries))
+    got = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims, cloud, rows, center)
+    for a, b in zip(got, _voxel_nodes_numpy(index, cloud[rows] - center)):
         np.testing.assert_array_equal(a, b)
     assert got[0].dtype == got[1].dtype == np.int64
     assert (got[0] >= 0).any() or others
@@ -75,8 +80,9 @@ def _uncertain_numpy(index, region: np.ndarray, queries: np.ndarray, node: np.nd
                      voxel: np.ndarray, near: np.ndarray, exact: np.ndarray) -> np.ndarray:
     """:func:`.kernels.uncertain_nodes` by brute force: a query not exact is uncertain when a point as near as its node
     may lie beyond the 27 voxels around its own, or when one of the 26 voxels around, no farther than the node, holds a
-    hashed point of another region than the node's."""
-    order, keys, _, _ = index.grid
+    hashed point of another region than the node's; a near query whose own voxel holds several regions first takes
+    the nearest hashed point there as its node (``node`` and ``d2`` updated)."""
+    order, keys, starts, _ = index.grid
     dims, cell = index.dims, index.cell
     own = _voxels(index, index.ordered)[1]
     coords = np.stack([own % dims[0], own // dims[0] % dims[1], own // (dims[0] * dims[1])], axis=1)
@@ -91,6 +97,11 @@ def _uncertain_numpy(index, region: np.ndarray, queries: np.ndarray, node: np.nd
         if not near[q]:
             out[q] = True
             continue
+        lo, hi = starts[voxel[q]], starts[voxel[q] + 1]
+        if len(np.unique(labels[lo:hi])) > 1:  # its voxel's nearest hashed point (the first of equals)
+            e = index.ordered[lo:hi] - queries[q]
+            e2 = e[:, 0] * e[:, 0] + e[:, 1] * e[:, 1] + e[:, 2] * e[:, 2]
+            node[q], d2[q] = order[lo + np.argmin(e2)], e2.min()
         offset = coords - c  # of each hashed point's voxel
         gap = np.where(offset < 0, below, np.where(offset > 0, above, 0.0))
         within = (np.abs(offset) <= 1).all(axis=1) & (offset != 0).any(axis=1) & ((gap ** 2).sum(axis=1) <= d2[q])
@@ -106,15 +117,18 @@ def test_uncertain_nodes_match_numpy(seed, others, regions):
     if index is None:
         return
     node, voxel, d2, near = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims,
-                                                queries)
+                                                queries, np.arange(len(queries)), np.zeros(3))
     region = rng.integers(-1, regions, len(pts))
     if rng.random() < 0.5:  # regions in slabs, as planes have them: most voxels of one region
         region = np.minimum((pts[:, 0] > np.median(pts[:, 0])).astype(np.int64), regions - 1)
     exact = (rng.random(len(queries)) < 0.2) | (voxel < 0)  # a query in no voxel has its nearest already
     rows = np.arange(len(queries))
-    got = kernels.uncertain_nodes(region, node, d2, voxel, near, exact, queries, rows, np.zeros(3), *index.grid,
-                                  index.origin, index.cell, index.dims)
+    got_node, got_d2 = node.copy(), d2.copy()
+    got = kernels.uncertain_nodes(region, got_node, got_d2, voxel, near, exact, queries, rows, np.zeros(3),
+                                  index.ordered, *index.grid, index.origin, index.cell, index.dims)
     np.testing.assert_array_equal(got, _uncertain_numpy(index, region, queries, node, d2, voxel, near, exact))
+    np.testing.assert_array_equal(got_node, node)  # the reference updated its copies as the kernel did
+    np.testing.assert_array_equal(got_d2, d2)
     assert not got[exact].any()
 
 
@@ -131,7 +145,7 @@ def test_each_point_takes_the_region_of_its_nearest_searched_point(seed, regions
         pts[0] = 3e38  # a driver's FLT_MAX row: no voxel hash
     pick = rng.random(len(pts)) < 0.3
     searched = pts[pick] if pick.any() else pts[:1]
-    nodes, index = _nearest_searched(searched, pts)
+    nodes, index = _nearest_searched(searched, pts, np.arange(len(pts)), np.zeros(3))
     rows = np.arange(len(pts))
     if index is None:
         ref = _nearest_searched_tree(searched, pts)

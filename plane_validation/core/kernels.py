@@ -27,12 +27,12 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
            'beyond_rows',
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
-           'spread_nearest', 'knn_edges', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
+           'spread_nearest', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
-           'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'warm',
-           'Warmup']
+           'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'kept_edges', 'graph_contacts', 'graph_settle',
+           'voxel_count', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -537,12 +537,12 @@ def voxel_knn(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, star
 
 
 @numba.njit(**_JIT)
-def _rotate(a: np.ndarray, v: np.ndarray, p: int, q: int) -> None:
-    """One Jacobi rotation zeroing a[p, q] of the symmetric 3 x 3 ``a``, applied to the columns of ``v`` too."""
-    apq = a[p, q]
-    if apq == 0.0:
-        return
-    theta = (a[q, q] - a[p, p]) / (2.0 * apq)
+def _turn(app: float, aqq: float, apq: float, apt: float, aqt: float, vp0: float, vq0: float, vp1: float, vq1: float,
+          vp2: float, vq2: float) -> tuple[float, float, float, float, float, float, float, float, float, float]:
+    """One Jacobi rotation zeroing a_pq (nonzero) of a symmetric 3 x 3 matrix (t: the third index): the new a_pp, a_qq,
+    a_pt, a_qt, rounded as the product a <- J^T (a J) rounds them, and the axes' columns p and q (rows 0, 1, 2)
+    rotated."""
+    theta = (aqq - app) / (2.0 * apq)
     if abs(theta) > 1e150:
         t = 0.5 / theta
     else:
@@ -551,28 +551,21 @@ def _rotate(a: np.ndarray, v: np.ndarray, p: int, q: int) -> None:
             t = -t
     c = 1.0 / np.sqrt(t * t + 1.0)
     s = t * c
-    for r in range(3):  # a <- a J (columns p, q)
-        arp, arq = a[r, p], a[r, q]
-        a[r, p], a[r, q] = c * arp - s * arq, s * arp + c * arq
-    for r in range(3):  # a <- J^T a (rows p, q)
-        apr, aqr = a[p, r], a[q, r]
-        a[p, r], a[q, r] = c * apr - s * aqr, s * apr + c * aqr
-    a[p, q] = a[q, p] = 0.0
-    for r in range(3):
-        vrp, vrq = v[r, p], v[r, q]
-        v[r, p], v[r, q] = c * vrp - s * vrq, s * vrp + c * vrq
+    pp, pq = c * app - s * apq, s * app + c * apq  # a J, rows p and q of columns p and q
+    qp, qq = c * apq - s * aqq, s * apq + c * aqq
+    return (c * pp - s * qp, s * pq + c * qq, c * apt - s * aqt, s * apt + c * aqt, c * vp0 - s * vq0,
+            s * vp0 + c * vq0, c * vp1 - s * vq1, s * vp1 + c * vq1, c * vp2 - s * vq2, s * vp2 + c * vq2)
 
 
 @numba.njit(**_JIT)
 def principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvalues (m, 3), ascending, and unit principal axes (m, 3, 3), as columns, of the scatter about their mean
     of the point sets ``points[idx[i]]`` (``points`` (n, 3) meters, ``idx`` (m, k)), by cyclic Jacobi rotations (an
-    axis' sign is arbitrary, as is the basis of equal eigenvalues)."""
+    axis' sign is arbitrary, as is the basis of equal eigenvalues). The matrices live in scalars: the rotations
+    stay in registers."""
     m, k = idx.shape
     values = np.empty((m, 3))
     axes = np.empty((m, 3, 3))
-    a = np.empty((3, 3))
-    v = np.empty((3, 3))
     for i in range(m):
         mx = my = mz = 0.0
         for j in range(k):
@@ -591,20 +584,27 @@ def principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.
             yy += y * y
             yz += y * z
             zz += z * z
-        a[0, 0], a[0, 1], a[0, 2] = xx, xy, xz
-        a[1, 0], a[1, 1], a[1, 2] = xy, yy, yz
-        a[2, 0], a[2, 1], a[2, 2] = xz, yz, zz
-        v[:] = 0.0
-        v[0, 0] = v[1, 1] = v[2, 2] = 1.0
+        a00, a01, a02, a11, a12, a22 = xx, xy, xz, yy, yz, zz
+        v00 = v11 = v22 = 1.0
+        v01 = v02 = v10 = v12 = v20 = v21 = 0.0
         scale = xx * xx + yy * yy + zz * zz + 2 * (xy * xy + xz * xz + yz * yz)
         for _ in range(32):
-            off = a[0, 1] * a[0, 1] + a[0, 2] * a[0, 2] + a[1, 2] * a[1, 2]
+            off = a01 * a01 + a02 * a02 + a12 * a12
             if not off > 1e-32 * scale:
                 break
-            _rotate(a, v, 0, 1)
-            _rotate(a, v, 0, 2)
-            _rotate(a, v, 1, 2)
-        d0, d1, d2 = a[0, 0], a[1, 1], a[2, 2]
+            if a01 != 0.0:  # (p, q, t) = (0, 1, 2)
+                a00, a11, a02, a12, v00, v01, v10, v11, v20, v21 = _turn(a00, a11, a01, a02, a12, v00, v01, v10, v11,
+                                                                         v20, v21)
+                a01 = 0.0
+            if a02 != 0.0:  # (0, 2, 1)
+                a00, a22, a01, a12, v00, v02, v10, v12, v20, v22 = _turn(a00, a22, a02, a01, a12, v00, v02, v10, v12,
+                                                                         v20, v22)
+                a02 = 0.0
+            if a12 != 0.0:  # (1, 2, 0)
+                a11, a22, a01, a02, v01, v02, v11, v12, v21, v22 = _turn(a11, a22, a12, a01, a02, v01, v02, v11, v12,
+                                                                         v21, v22)
+                a12 = 0.0
+        d0, d1, d2 = a00, a11, a22
         o0, o1, o2 = 0, 1, 2  # ascending by a 3-element sort
         if d1 < d0:
             d0, d1, o0, o1 = d1, d0, o1, o0
@@ -613,8 +613,14 @@ def principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.
         if d1 < d0:
             d0, d1, o0, o1 = d1, d0, o1, o0
         values[i, 0], values[i, 1], values[i, 2] = d0, d1, d2
-        for r in range(3):
-            axes[i, r, 0], axes[i, r, 1], axes[i, r, 2] = v[r, o0], v[r, o1], v[r, o2]
+        for col in range(3):
+            o = o0 if col == 0 else o1 if col == 1 else o2
+            if o == 0:
+                axes[i, 0, col], axes[i, 1, col], axes[i, 2, col] = v00, v10, v20
+            elif o == 1:
+                axes[i, 0, col], axes[i, 1, col], axes[i, 2, col] = v01, v11, v21
+            else:
+                axes[i, 0, col], axes[i, 1, col], axes[i, 2, col] = v02, v12, v22
     return values, axes
 
 
@@ -761,24 +767,45 @@ def patch_fits(points: np.ndarray, members: np.ndarray, starts: np.ndarray
 
 
 @numba.njit(**_JIT)
-def pair_graph(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The graph of n points joined by ``pairs`` (e, 2) (any order, repeats allowed): (edges (2, u) each joined pair
-    once, smaller index first, sorted by it then by the other; indptr (n + 1,) and indices: each point's neighbours,
-    first the larger ones ascending, then the smaller ones ascending)."""
+def _pair_rows(n: int, pairs: np.ndarray, dist: np.ndarray, idx: np.ndarray, reach: np.ndarray, always: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`pair_graph`'s pairs by their smaller end: (count (n + 1,): row i's larger ends are
+    larger[count[i]:count[i + 1]], in no order; larger)."""
     e = pairs.shape[0]
+    m, k = idx.shape
     count = np.zeros(n + 1, np.int64)
     for q in range(e):
         count[min(pairs[q, 0], pairs[q, 1]) + 1] += 1
+    for i in range(m):  # the nearest neighbours' pairs are counted and filled where they are, not gathered first
+        for j in range(1, k):
+            if dist[i, j] <= reach[i] or (j <= always and np.isfinite(dist[i, j])):
+                count[min(i, idx[i, j]) + 1] += 1
     for i in range(n):
         count[i + 1] += count[i]
     fill = count[:-1].copy()
-    larger = np.empty(e, np.int64)
+    larger = np.empty(count[n], np.int64)
     for q in range(e):
         a, b = pairs[q, 0], pairs[q, 1]
-        if b < a:
-            a, b = b, a
-        larger[fill[a]] = b
-        fill[a] += 1
+        larger[fill[min(a, b)]] = max(a, b)
+        fill[min(a, b)] += 1
+    for i in range(m):
+        for j in range(1, k):
+            if dist[i, j] <= reach[i] or (j <= always and np.isfinite(dist[i, j])):
+                a, b = i, idx[i, j]
+                larger[fill[min(a, b)]] = max(a, b)
+                fill[min(a, b)] += 1
+    return count, larger
+
+
+@numba.njit(**_JIT)
+def pair_graph(n: int, pairs: np.ndarray, dist: np.ndarray, idx: np.ndarray, reach: np.ndarray, always: int
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The graph of n points joined by ``pairs`` (e, 2) (any order, repeats allowed) and each point i to its nearest
+    neighbours ``idx[i, 1:]`` (``dist`` (n, k) meters, nearest first; the first column the point itself; (0, k): none)
+    that lie within ``reach[i]`` meters, or among its first ``always`` at a finite distance: (edges (2, u) each joined
+    pair once, smaller index first, sorted by it then by the other; indptr (n + 1,) and indices: each point's
+    neighbours, first the larger ones ascending, then the smaller ones ascending)."""
+    count, larger = _pair_rows(n, pairs, dist, idx, reach, always)
     unique = 0
     degree = np.zeros(n, np.int64)
     stop = 0
@@ -2159,27 +2186,6 @@ def spread_nearest(points: np.ndarray, rows: np.ndarray, center: np.ndarray, nea
 
 
 @numba.njit(**_JIT)
-def knn_edges(dist: np.ndarray, idx: np.ndarray, reach: np.ndarray, always: int) -> np.ndarray:
-    """The pairs (e, 2) joining each point i to its nearest neighbours ``idx[i, 1:]`` (``dist`` (n, k) meters, nearest
-    first; the first column the point itself) that lie within ``reach[i]`` meters, or among its first ``always`` at
-    a finite distance; row by row, nearest first."""
-    n, k = idx.shape
-    e = 0
-    for i in range(n):
-        for j in range(1, k):
-            if dist[i, j] <= reach[i] or (j <= always and np.isfinite(dist[i, j])):
-                e += 1
-    pairs = np.empty((e, 2), np.int64)
-    e = 0
-    for i in range(n):
-        for j in range(1, k):
-            if dist[i, j] <= reach[i] or (j <= always and np.isfinite(dist[i, j])):
-                pairs[e, 0], pairs[e, 1] = i, idx[i, j]
-                e += 1
-    return pairs
-
-
-@numba.njit(**_JIT)
 def spread_among(values: np.ndarray, idx: np.ndarray) -> np.ndarray:
     """(n,) the largest minus the smallest of ``values[idx[i]]`` (``values`` (m,), ``idx`` (n, k), k >= 1)."""
     n, k = idx.shape
@@ -2880,15 +2886,17 @@ _MIXED = -2
 
 @numba.njit(**_JIT)
 def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
-                origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """For each of ``queries`` (q, 3) meters, in one pass: (node (q,): the hashed point of :func:`voxel_grid`
-    (``points`` (m, 3): those points voxel by voxel, in its ``order``) nearest to it among those in its own voxel
-    (equal distances: the first in ``order``), as an index into the points as hashed, -1 where its voxel holds none
-    or it lies outside the grid; voxel (q,): that occupied voxel, -1 where none; d2 (q,): the node's squared
-    distance, m^2, inf where none; near (q,) bool: every hashed point at least as near as the node lies in the 27
-    voxels around the query's own)."""
-    nq = queries.shape[0]
+                origin: np.ndarray, cell: float, dims: np.ndarray, cloud: np.ndarray, rows: np.ndarray,
+                center: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For each query, the rows ``rows`` (q,) of ``cloud`` (N, 3) meters less ``center`` (3,), in one pass: (node
+    (q,): a hashed point of :func:`voxel_grid`
+    (``points`` (m, 3): those points voxel by voxel, in its ``order``) in its own voxel, the first in ``order`` nearer
+    than one voxel plus the query's gap to its voxel's nearest face, else the nearest there (equal distances: the
+    first in ``order``), as an index into the points as hashed, -1 where its voxel holds none or it lies outside the
+    grid; voxel (q,): that occupied voxel, -1 where none; d2 (q,): the node's squared distance, m^2, inf where none;
+    near (q,) bool: the node is that near, so every hashed point at least as near lies in the 27 voxels around the
+    query's own)."""
+    nq = rows.shape[0]
     node = np.full(nq, -1, np.int64)
     voxel = np.full(nq, -1, np.int64)
     d2 = np.full(nq, np.inf)
@@ -2896,7 +2904,8 @@ def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, st
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * points.shape[0])
     for q in range(nq):
-        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+        r = rows[q]
+        x, y, z = cloud[r, 0] - center[0], cloud[r, 1] - center[1], cloud[r, 2] - center[2]
         fx, fy, fz = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
         if not (0.0 <= fx < dims[0] and 0.0 <= fy < dims[1] and 0.0 <= fz < dims[2]):
             continue
@@ -2904,29 +2913,34 @@ def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, st
         v = _voxel(cell_keys, table, cx + dims[0] * (cy + dims[1] * cz), dense)
         if v < 0:
             continue
+        # a point outside those voxels lies farther than one voxel plus the gap to the nearest face
+        reach = cell + min(fx - cx, cx + 1 - fx, fy - cy, cy + 1 - fy, fz - cz, cz + 1 - fz) * cell
+        within = reach * reach
         b, bj = np.inf, -1
         for j in range(starts[v], starts[v + 1]):
             ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
             e = ex * ex + ey * ey + ez * ez
+            if e < within:  # near enough: uncertain_nodes looks for the nearest only where regions meet
+                b, bj = e, j
+                break
             if e < b:
                 b, bj = e, j
         node[q], voxel[q], d2[q] = order[bj], v, b
-        # a point outside those voxels lies farther than one voxel plus the gap to the nearest face
-        reach = cell + min(fx - cx, cx + 1 - fx, fy - cy, cy + 1 - fy, fz - cz, cz + 1 - fz) * cell
-        near[q] = b < reach * reach
+        near[q] = b < within
     return node, voxel, d2, near
 
 
 @numba.njit(**_JIT)
 def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel: np.ndarray, near: np.ndarray,
-                    exact: np.ndarray, points: np.ndarray, rows: np.ndarray, center: np.ndarray, order: np.ndarray,
-                    cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray, origin: np.ndarray, cell: float,
-                    dims: np.ndarray) -> np.ndarray:
+                    exact: np.ndarray, points: np.ndarray, rows: np.ndarray, center: np.ndarray, ordered: np.ndarray,
+                    order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
+                    origin: np.ndarray, cell: float, dims: np.ndarray) -> np.ndarray:
     """(q,) bool: the queries of :func:`voxel_nodes` (its ``node``, ``d2``, ``voxel`` and ``near``; the rows ``rows``
-    of ``points`` (N, 3) meters less ``center`` (3,)) whose nearest hashed point may lie in another region than their
-    node (``region`` (m,), by the hashed points' rows before hashing): not ``exact`` (the node known to be the
-    nearest), and not ``near``, or one of the 26 voxels around their own, no farther than the node, holds points of
-    another region than the node's (their own voxel is the node's search)."""
+    of ``points`` (N, 3) meters less ``center`` (3,); ``ordered`` its hashed points voxel by voxel) whose nearest
+    hashed point may lie in another region than their node (``region`` (m,), by the hashed points' rows before
+    hashing): not ``exact`` (the node known to be the nearest), and not ``near``, or one of the 26 voxels around their
+    own, no farther than the node, holds points of another region than the node's. A near query whose own voxel holds
+    several regions first takes the nearest point there as its node (``node`` and ``d2`` updated)."""
     nv = cell_keys.shape[0]
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * order.shape[0])
@@ -2959,6 +2973,15 @@ def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel:
         if not near[q]:
             out[q] = True
             continue
+        if label[v] == _MIXED:  # the node is one near point of its voxel: the nearest there instead
+            x, y, z = points[rows[q], 0] - center[0], points[rows[q], 1] - center[1], points[rows[q], 2] - center[2]
+            b, bj = np.inf, -1
+            for j in range(starts[v], starts[v + 1]):
+                ex, ey, ez = ordered[j, 0] - x, ordered[j, 1] - y, ordered[j, 2] - z
+                e = ex * ex + ey * ey + ez * ez
+                if e < b:
+                    b, bj = e, j
+            node[q], d2[q] = order[bj], b
         key = cell_keys[v]
         for axis in range(3):
             f = (points[rows[q], axis] - center[axis] - origin[axis]) / cell
@@ -3600,6 +3623,145 @@ def grid_batch(cols: np.ndarray, spread: np.ndarray, first: np.ndarray, scale_pi
                             best_offsets, best_counts, n_best)
 
 
+# --- plain graph: subgraphs and border settling ---
+
+
+@numba.njit(**_JIT)
+def kept_edges(edges: np.ndarray, keep: np.ndarray, n: int) -> np.ndarray:
+    """The pairs (e', 2) of ``edges`` (e, 2) of a graph of n points whose both ends are among ``keep`` (ascending
+    point indices), renumbered to positions in ``keep``, in their order."""
+    position = np.full(n, -1, np.int64)
+    for i in range(keep.shape[0]):
+        position[keep[i]] = i
+    count = 0
+    for q in range(edges.shape[0]):
+        if position[edges[q, 0]] >= 0 and position[edges[q, 1]] >= 0:
+            count += 1
+    out = np.empty((count, 2), np.int64)
+    count = 0
+    for q in range(edges.shape[0]):
+        a, b = position[edges[q, 0]], position[edges[q, 1]]
+        if a >= 0 and b >= 0:
+            out[count, 0], out[count, 1] = a, b
+            count += 1
+    return out
+
+
+@numba.njit(**_JIT)
+def graph_contacts(edges: np.ndarray, region: np.ndarray, k: int
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs of ``edges`` (e, 2) that join two of the ``k`` regions ``region`` (m,) (-1: none), in their order:
+    (src, dst, their regions a, b, each touching pair of regions once as i * k + j (i < j), ascending)."""
+    n = 0
+    for q in range(edges.shape[0]):
+        ri, rj = region[edges[q, 0]], region[edges[q, 1]]
+        if ri >= 0 and rj >= 0 and ri != rj:
+            n += 1
+    src = np.empty(n, np.int64)
+    dst = np.empty(n, np.int64)
+    a = np.empty(n, np.int64)
+    b = np.empty(n, np.int64)
+    codes = np.empty(n, np.int64)
+    n = 0
+    for q in range(edges.shape[0]):
+        i, j = edges[q, 0], edges[q, 1]
+        ri, rj = region[i], region[j]
+        if ri >= 0 and rj >= 0 and ri != rj:
+            src[n], dst[n], a[n], b[n] = i, j, ri, rj
+            codes[n] = min(ri, rj) * k + max(ri, rj)
+            n += 1
+    return src, dst, a, b, np.unique(codes)
+
+
+@numba.njit(**_JIT)
+def voxel_count(points: np.ndarray, origin: np.ndarray, cell: float, dims: np.ndarray) -> int:
+    """How many voxels :func:`voxel_grid` would find occupied by ``points`` (m, 3) with the same ``origin``, ``cell``
+    and ``dims``, counted in a hash set (no sort)."""
+    m = points.shape[0]
+    size = 1
+    while size < 2 * m + 2:
+        size *= 2
+    table = np.full(size, -1, np.int64)
+    count = 0
+    for i in range(m):
+        ix = int((points[i, 0] - origin[0]) / cell)
+        iy = int((points[i, 1] - origin[1]) / cell)
+        iz = int((points[i, 2] - origin[2]) / cell)
+        key = ix + dims[0] * (iy + dims[1] * iz)
+        s = _slot(key, size - 1)
+        while table[s] >= 0 and table[s] != key:
+            s = (s + 1) & (size - 1)
+        if table[s] < 0:
+            table[s] = key
+            count += 1
+    return count
+
+
+@numba.njit(**_JIT)
+def _offer(dst: int, src: int, d: float, cand: int, offer_d: np.ndarray, offer_src: np.ndarray,
+           offer_region: np.ndarray, offered: np.ndarray, count: int) -> int:
+    """Record the offer of region ``cand`` from ``src`` to ``dst`` at distance ``d`` when it beats the one ``dst``
+    holds (nearer; equal: from a smaller index than ``dst``, then from the largest index); returns how many points
+    hold an offer (``offered`` lists them)."""
+    held = offer_src[dst]
+    if held < 0:
+        offered[count] = dst
+        count += 1
+    elif not (d < offer_d[dst] or (d == offer_d[dst] and ((src < dst and held > dst) or
+                                                          ((src < dst) == (held < dst) and src > held)))):
+        return count
+    offer_d[dst], offer_src[dst], offer_region[dst] = d, src, cand
+    return count
+
+
+@numba.njit(**_JIT)
+def graph_settle(dist: np.ndarray, region: np.ndarray, indptr: np.ndarray, indices: np.ndarray, rounds: int
+                 ) -> np.ndarray:
+    """Border settling on a graph (adjacency ``indptr`` (m + 1,), ``indices``): ``region`` (m,) 0..k (k: none) after
+    up to ``rounds`` rounds in which each point takes, of its own region and the regions its neighbours held at the
+    round's start, the one nearest by ``dist`` (k + 1, m) (row k: inf); equal distances go to a neighbour of smaller
+    index than the point, then to the largest. Returns the regions, -1 for none (updates ``region``)."""
+    k, m = dist.shape[0] - 1, dist.shape[1]
+    best = np.empty(m)
+    for i in range(m):
+        best[i] = dist[region[i], i]
+    offer_d = np.empty(m)
+    offer_src = np.full(m, -1, np.int64)
+    offer_region = np.empty(m, np.int64)
+    offered = np.empty(m, np.int64)
+    count = 0
+    for i in range(m):  # the first round: every point, from each neighbour (only those across a border can win)
+        for q in range(indptr[i], indptr[i + 1]):
+            j = indices[q]
+            cand = region[j]
+            if cand != region[i]:
+                d = dist[cand, i]
+                if d < best[i]:
+                    count = _offer(i, j, d, cand, offer_d, offer_src, offer_region, offered, count)
+    changed = np.empty(m, np.int64)
+    for _ in range(rounds):
+        if count == 0:
+            break
+        for g in range(count):  # the offers above read the regions at the round's start
+            i = offered[g]
+            region[i], best[i] = offer_region[i], offer_d[i]
+            offer_src[i] = -1
+            changed[g] = i
+        n_changed, count = count, 0
+        for g in range(n_changed):  # their neighbours are offered the new regions
+            c = changed[g]
+            cand = region[c]
+            for q in range(indptr[c], indptr[c + 1]):
+                j = indices[q]
+                d = dist[cand, j]
+                if d < best[j]:
+                    count = _offer(j, c, d, cand, offer_d, offer_src, offer_region, offered, count)
+    out = np.empty(m, np.int64)
+    for i in range(m):
+        out[i] = region[i] if region[i] < k else -1
+    return out
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -3631,7 +3793,7 @@ def _warm_regions() -> None:
                 flags, np.ones(3))
     graph_components(4, np.zeros((1, 2), np.int64), flags)
     graph_region(np.zeros((1, 2), np.int64), pts, np.ones(3), 0.5, flags, flags, flags, np.ones(3))
-    pair_graph(4, np.zeros((1, 2), np.int64))
+    pair_graph(4, np.zeros((1, 2), np.int64), np.zeros((4, 2)), np.zeros((4, 2), np.int64), np.ones(4), 1)
 
 
 def _warm_voxel_knn() -> None:
@@ -3646,7 +3808,6 @@ def _warm_voxel_nearest() -> None:
     grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
     voxel_nearest(pts, *grid, np.zeros(3), 1.0, dims, pts, 1)
     spread_nearest(pts, index, np.zeros(3), index, index, np.zeros((1, 4)), np.ones(1))
-    knn_edges(np.zeros((4, 2)), np.zeros((4, 2), np.int64), np.ones(4), 1)
     spread_among(np.zeros(4), np.zeros((4, 2), np.int64))
 
 
@@ -3734,10 +3895,11 @@ def _warm_judge() -> None:
 def _warm_unorganized() -> None:
     pts, dims = np.zeros((4, 3)), np.ones(3, np.int64)
     order, cell_keys, starts, table = voxel_grid(pts, np.zeros(3), 1.0, dims)
-    node, voxel, d2, near = voxel_nodes(pts, order, cell_keys, starts, table, np.zeros(3), 1.0, dims, pts)
     flags, index = np.zeros(4, np.bool_), np.arange(4, dtype=np.int64)
-    uncertain_nodes(index, node, d2, voxel, near, flags, pts, index, np.zeros(3), order, cell_keys, starts, table,
-                    np.zeros(3), 1.0, dims)
+    node, voxel, d2, near = voxel_nodes(pts, order, cell_keys, starts, table, np.zeros(3), 1.0, dims, pts, index,
+                                        np.zeros(3))
+    uncertain_nodes(index, node, d2, voxel, near, flags, pts, index, np.zeros(3), pts, order, cell_keys, starts,
+                    table, np.zeros(3), 1.0, dims)
     first_across(index, index.reshape(2, 2), pts, pts, np.zeros(4), flags, 1, 0.5, 0.01)
 
 
@@ -3785,13 +3947,21 @@ def _warm_organized_batch() -> None:
                0)
 
 
+def _warm_plain_graph() -> None:
+    edges, index = np.zeros((1, 2), np.int64), np.arange(4, dtype=np.int64)
+    kept_edges(edges, index, 4)
+    graph_contacts(edges, index, 2)
+    voxel_count(np.zeros((4, 3)), np.zeros(3), 1.0, np.ones(3, np.int64))
+    graph_settle(np.zeros((3, 4)), np.zeros(4, np.int64), np.zeros(5, np.int64), np.zeros(0, np.int64), 6)
+
+
 #: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The
 #: first is short: it tells whether the cache is cold. The longest compiles come next, so that processes compiling
 #: the rest in parallel end together.
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_indices, _warm_planes,
                _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect, _warm_frame_ids,
-               _warm_beyond_rows, _warm_organized_batch)
+               _warm_beyond_rows, _warm_organized_batch, _warm_plain_graph)
 
 
 def _compiles() -> int:
@@ -3847,8 +4017,9 @@ _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
             cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
             beyond_counts, beyond_rows, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
-            voxel_nearest, spread_nearest, knn_edges, spread_among, score_hypotheses, spread_test, fit_members,
+            voxel_nearest, spread_nearest, spread_among, score_hypotheses, spread_test, fit_members,
             fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
             read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
-            merge_pair, relabel_rows, grid_spread, strided_rows, columns_at, grid_batch)
+            merge_pair, relabel_rows, grid_spread, strided_rows, columns_at, grid_batch, kept_edges, graph_contacts,
+            graph_settle, voxel_count)

@@ -86,6 +86,7 @@ VOXEL_SPAN = 1 << 20
 
 _NO_POINTS = np.empty((0, 3))
 _NO_FLAGS = np.empty(0, bool)
+_NO_DIST, _NO_IDX, _NO_REACH = np.empty((0, 1)), np.empty((0, 1), np.int64), np.empty(0)
 
 #: Searchers (voxel indices, or kd-trees) over coordinates and over every ACROSS_FAR_STRIDE-th of them, each built on
 #: first use, the coordinates and how many nearest candidates a search looks at: (tree(), far(), coordinates (n, 3),
@@ -238,13 +239,17 @@ class VoxelIndex:
         return dist, idx
 
 
-def voxel_index(points: np.ndarray, span: np.ndarray | None = None) -> VoxelIndex | None:
+def voxel_index(points: np.ndarray, span: np.ndarray | tuple[np.ndarray, np.ndarray] | None = None
+                ) -> VoxelIndex | None:
     """A :class:`VoxelIndex` of ``points`` (m, 3) meters, m >= 1, finite, with about VOXEL_POINTS points per
-    occupied voxel; ``span`` (q, 3): the queries, when others than ``points``. None when the voxels would span more
-    than VOXEL_SPAN along an axis, or no voxel size gives about that many (far-out coordinates: use a kd-tree)."""
+    occupied voxel; ``span`` (q, 3): the queries, when others than ``points``, or their smallest and largest
+    coordinates ((3,), (3,)). None when the voxels would span more than VOXEL_SPAN along an axis, or no voxel size
+    gives about that many (far-out coordinates: use a kd-tree)."""
     points = kernels.c_array(points, np.float64)
     lo, hi = kernels.coordinate_bounds(points)
-    if span is not None and len(span):
+    if isinstance(span, tuple):
+        lo, hi = np.minimum(lo, span[0]), np.maximum(hi, span[1])
+    elif span is not None and len(span):
         span_lo, span_hi = kernels.coordinate_bounds(kernels.c_array(span, np.float64))
         lo, hi = np.minimum(lo, span_lo), np.maximum(hi, span_hi)
     extent = hi - lo
@@ -257,10 +262,11 @@ def voxel_index(points: np.ndarray, span: np.ndarray | None = None) -> VoxelInde
             return None
         # one voxel more than the extent needs: the kernels' (p - lo) / cell may round up to extent // cell + 1
         dims = (extent // cell).astype(np.int64) + 2
-        grid = kernels.voxel_grid(points, lo, cell, dims)
-        per_voxel = len(points) / len(grid[1])
-        if per_voxel <= 2 * VOXEL_POINTS and (per_voxel >= VOXEL_POINTS / 2 or len(grid[1]) == len(points)):
-            return VoxelIndex(points=points, origin=lo, cell=cell, dims=dims, grid=grid)
+        occupied = kernels.voxel_count(points, lo, cell, dims)  # the grid is built for the size chosen only
+        per_voxel = len(points) / occupied
+        if per_voxel <= 2 * VOXEL_POINTS and (per_voxel >= VOXEL_POINTS / 2 or occupied == len(points)):
+            return VoxelIndex(points=points, origin=lo, cell=cell, dims=dims,
+                              grid=kernels.voxel_grid(points, lo, cell, dims))
         cell *= float(np.clip(np.sqrt(VOXEL_POINTS / per_voxel), 0.25, 4.0))  # a surface: points grow as cell^2
     return None  # the points' spacing varies beyond what one voxel size serves (far-out coordinates)
 
@@ -298,8 +304,9 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
     if merge_copies and np.any(dist[:, 1] == 0):  # copies would fill the neighbour lists (stacked scans)
         return _with_copies(points, viewpoint)
     missing = idx >= n  # far-out coordinates (a driver's FLT_MAX rows) find no neighbour
-    idx = np.where(missing, np.arange(n)[:, None], idx)
-    dist = np.where(missing, np.inf, dist)
+    if missing.any():
+        idx = np.where(missing, np.arange(n)[:, None], idx)
+        dist = np.where(missing, np.inf, dist)
     kth = dist[:, k - 1]
     reach = np.full(n, RADIUS * float(np.median(kth)))
     sparse = np.flatnonzero(kth > reach)  # some of its nearest lie beyond the cloud's typical reach
@@ -307,7 +314,7 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
         around = kth[idx[sparse]]
         local = np.partition(np.where(np.isfinite(around), around, 0.0), k // 2, axis=1)[:, k // 2]
         reach[sparse] = np.maximum(reach[sparse], RADIUS * local)
-    edges = [_knn_edges(dist, idx, reach)]
+    edges = [np.empty((0, 2), np.int64)]  # and the pairs within reach (_neighbours)
     normals = None
     if k >= 4:  # local normals: the smallest principal axis of each point's neighbourhood
         values, vectors = _principal_axes(points, idx)
@@ -345,19 +352,13 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
         normals[rows_s] = _normals(*_principal_axes(points, np.concatenate([idx[rows_s], idx[target]], axis=1)))
         rows_l, target = search(np.flatnonzero(line), vectors[:, :, 2], False, True)
         edges.append(np.column_stack([rows_l, target]))
-    return _neighbours(n, np.concatenate(edges), normals)
-
-
-def _knn_edges(dist: np.ndarray, idx: np.ndarray, reach: np.ndarray) -> np.ndarray:
-    """The pairs (e, 2) joining each point to those of its nearest (``dist``, ``idx`` (n, k), the point itself first)
-    within its ``reach`` (n,) meters, and to its ALWAYS_JOINED nearest: :func:`.kernels.knn_edges`
-    (:func:`_knn_edges_numpy` is its reference)."""
-    return kernels.knn_edges(kernels.c_array(dist, np.float64), kernels.c_array(idx, np.int64),
-                             kernels.c_array(reach, np.float64), ALWAYS_JOINED)
+    return _neighbours(n, np.concatenate(edges), normals, (dist, idx, reach))
 
 
 def _knn_edges_numpy(dist: np.ndarray, idx: np.ndarray, reach: np.ndarray) -> np.ndarray:
-    """:func:`_knn_edges` in numpy."""
+    """The pairs (e, 2) joining each point to those of its nearest (``dist``, ``idx`` (n, k), the point itself first)
+    within its ``reach`` (n,) meters, and to its ALWAYS_JOINED nearest, in numpy (:func:`_neighbours` joins them in
+    its compiled pass)."""
     n, k = idx.shape
     near = dist[:, 1:k] <= reach[:, None]
     near[:, :ALWAYS_JOINED] |= np.isfinite(dist[:, 1:1 + ALWAYS_JOINED])
@@ -415,9 +416,15 @@ def _with_copies(points: np.ndarray, viewpoint: np.ndarray) -> GraphNeighbours:
     return _neighbours(n, edges, None if distinct.normals is None else distinct.normals[inverse])
 
 
-def _neighbours(n: int, edges: np.ndarray, normals: np.ndarray | None) -> GraphNeighbours:
-    """The graph form of :class:`Neighbours` from joined pairs ``edges`` (e, 2), in any order, repeats allowed."""
-    unique, indptr, indices = kernels.pair_graph(n, kernels.c_array(edges.reshape(-1, 2), np.int64))
+def _neighbours(n: int, edges: np.ndarray, normals: np.ndarray | None,
+                knn: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> GraphNeighbours:
+    """The graph form of :class:`Neighbours` from joined pairs ``edges`` (e, 2), in any order, repeats allowed, and
+    with ``knn`` (dist, idx (n, k), reach (n,)) each point joined to those of its nearest within its reach and to its
+    ALWAYS_JOINED nearest (:func:`_knn_edges_numpy` is the reference of those pairs)."""
+    dist, idx, reach = (_NO_DIST, _NO_IDX, _NO_REACH) if knn is None else knn
+    unique, indptr, indices = kernels.pair_graph(n, kernels.c_array(edges.reshape(-1, 2), np.int64),
+                                                 kernels.c_array(dist, np.float64), kernels.c_array(idx, np.int64),
+                                                 kernels.c_array(reach, np.float64), ALWAYS_JOINED)
     return GraphNeighbours(n=n, edges=unique.T, normals=normals, adjacency=(indptr, indices))
 
 

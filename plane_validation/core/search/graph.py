@@ -52,12 +52,13 @@ class SearchGraph:
 class VoxelNodes:
     """Which searched point each valid point of an unorganized cloud takes its region from: the nearest one. Found
     through ``index``, a voxel hash of the searched points, in one pass (:func:`.kernels.voxel_nodes`): ``node``
-    (n,) the searched point (its position in search_idx) nearest to each point within its own voxel, or the nearest
-    of all where ``exact`` (n,) bool; ``voxel`` (n,) that voxel (-1: none, ``exact``), ``d2`` (n,) the node's
-    squared distance, m^2, ``near`` (n,) bool: the nearest lies in the 27 voxels around. Where no searched point of
-    another region can lie as near in those voxels, the node's region is the nearest's, so only the others need a
-    nearest-point query (:meth:`for_regions`); ``node`` and ``exact`` cache those answers across the calls of a
-    tolerance sweep. ``index`` None: every node is the nearest (far-out coordinates)."""
+    (n,) a searched point (its position in search_idx) in each point's own voxel, near enough that the nearest lies in
+    the 27 voxels around (else the nearest in its voxel), or the nearest of all where ``exact`` (n,) bool; ``voxel``
+    (n,) that voxel (-1: none, ``exact``), ``d2`` (n,) the node's squared distance, m^2, ``near`` (n,) bool: the
+    nearest lies in the 27 voxels around. Where no searched point of another region can lie as near in those voxels,
+    the node's region is the nearest's, so only the others need a nearest-point query (:meth:`for_regions`); ``node``
+    and ``exact`` cache those answers across the calls of a tolerance sweep. ``index`` None: every node is the nearest
+    (far-out coordinates)."""
 
     index: VoxelIndex | None
     node: np.ndarray
@@ -75,7 +76,8 @@ class VoxelNodes:
         index, c_array = self.index, kernels.c_array
         doubt = np.flatnonzero(kernels.uncertain_nodes(
             c_array(region, np.int64), self.node, self.d2, self.voxel, self.near, self.exact, c_array(pts, np.float64),
-            c_array(rows, np.int64), c_array(center, np.float64), *index.grid, index.origin, index.cell, index.dims))
+            c_array(rows, np.int64), c_array(center, np.float64), index.ordered, *index.grid, index.origin, index.cell,
+            index.dims))
         if len(doubt):  # kept: later calls on this graph (a sweep over one prebuilt graph) need not ask again
             self.node[doubt] = self.index.query(pts[rows[doubt]] - center, 1)[1][:, 0]
             self.exact[doubt] = True
@@ -143,28 +145,32 @@ def build_search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, in
         searched = pts[search_idx] - center
         index = None
         if len(search_idx) < n_valid:
-            every = pts if n_valid == len(pts) else pts[valid_idx]  # all valid: no copy
-            nearest, index = _nearest_searched(searched, every - center)
+            nearest, index = _nearest_searched(searched, pts, valid_idx, center)
         neighbours = graph_neighbours(searched, viewpoint=viewpoint - center, index=index)
     return SearchGraph(n_points=len(pts), search_idx=search_idx, step=step, center=center, neighbours=neighbours,
                        shape=shape, ransac_points=ransac_points, n_valid=n_valid, nearest=nearest,
                        viewpoint=tuple(viewpoint.tolist()), grid_points=grid_points)
 
 
-def _nearest_searched(searched: np.ndarray, points: np.ndarray) -> tuple[VoxelNodes, VoxelIndex | None]:
-    """The :class:`VoxelNodes` of ``points`` (n, 3) among ``searched`` (m, 3) and the voxel index of ``searched``
-    they use (None for far-out coordinates: then every node is the nearest, by a kd-tree)."""
-    index = voxel_index(searched, span=points)
-    if index is None:
-        node = _nearest_searched_tree(searched, points)
+def _nearest_searched(searched: np.ndarray, cloud: np.ndarray, rows: np.ndarray, center: np.ndarray
+                      ) -> tuple[VoxelNodes, VoxelIndex | None]:
+    """The :class:`VoxelNodes` of the points ``cloud[rows] - center`` (``cloud`` (N, 3) meters, ``rows`` (n,),
+    ``center`` (3,)) among ``searched`` (m, 3) and the voxel index of ``searched`` they use (None for far-out
+    coordinates: then every node is the nearest, by a kd-tree)."""
+    every = cloud if len(rows) == len(cloud) else cloud[rows]  # all valid: no copy
+    lo, hi = kernels.coordinate_bounds(kernels.c_array(every, np.float64))
+    index = voxel_index(searched, span=(lo - center, hi - center))  # the bounds of every - center (rounding is
+    if index is None:  # monotonic): that array is not built
+        node = _nearest_searched_tree(searched, every - center)
         none = np.zeros(len(node), bool)
         return VoxelNodes(None, node, np.full(len(node), -1), np.zeros(len(node)), none, ~none), None
     node, voxel, d2, near = kernels.voxel_nodes(index.ordered, *index.grid, index.origin, index.cell, index.dims,
-                                            kernels.c_array(points, np.float64))
+                                                kernels.c_array(cloud, np.float64), kernels.c_array(rows, np.int64),
+                                                kernels.c_array(center, np.float64))
     exact = voxel < 0  # no searched point in its voxel: the nearest, now
     alone = np.flatnonzero(exact)
     if len(alone):
-        node[alone] = index.query(points[alone], 1)[1][:, 0]
+        node[alone] = index.query(every[alone] - center, 1)[1][:, 0]
     return VoxelNodes(index, node, voxel, d2, near, exact), index
 
 

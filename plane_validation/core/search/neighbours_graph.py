@@ -9,6 +9,7 @@ import numpy as np
 
 from .. import kernels
 from .neighbours import (
+    COMPETE_ROUNDS,
     NEARBY_SCALES,
     NORMAL_MIN_COS,
     REGION_RULES,
@@ -78,9 +79,20 @@ class GraphNeighbours(Neighbours):
         """(n + 1,) where each point's edges to larger indices start in ``edges``."""
         return row_starts(self.edges[:, 0], self.n)
 
+    @functools.cached_property
+    def c_edges(self) -> np.ndarray:
+        """``edges`` as a C-ordered (e, 2) int64 array, what the compiled kernels take."""
+        return kernels.c_array(self.edges, np.int64)
+
     def subgraph(self, keep: np.ndarray) -> GraphNeighbours:
-        """The neighbourhood of the points ``keep`` (ascending indices), renumbered 0..len(keep)-1.
-        Components of points among them are the same as in the whole graph."""
+        """The neighbourhood of the points ``keep`` (ascending indices), renumbered 0..len(keep)-1, in one compiled
+        pass (:func:`.kernels.kept_edges`; :meth:`subgraph_numpy` is its reference). Components of points among
+        them are the same as in the whole graph."""
+        edges = kernels.kept_edges(self.c_edges, kernels.c_array(keep, np.int64), self.n)
+        return GraphNeighbours(n=len(keep), edges=edges, normals=None if self.normals is None else self.normals[keep])
+
+    def subgraph_numpy(self, keep: np.ndarray) -> GraphNeighbours:
+        """:meth:`subgraph` in numpy."""
         position = np.full(self.n, -1, dtype=np.int64)
         position[keep] = np.arange(len(keep))
         pairs = position[self.edges.T]  # (2, e)
@@ -155,6 +167,13 @@ class GraphNeighbours(Neighbours):
         start = np.repeat(indptr[nodes] - np.cumsum(degree) + degree, degree)
         return np.repeat(nodes, degree), indices[start + np.arange(len(start))]
 
+    def contacts(self, region: np.ndarray, k: int
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """One compiled pass (:func:`.kernels.graph_contacts`; :meth:`.neighbours.Neighbours.contacts` is its
+        reference)."""
+        contacts = kernels.graph_contacts(self.c_edges, kernels.c_array(region, np.int64), k)
+        return contacts if len(contacts[0]) else None
+
     def bordering(self, region: np.ndarray) -> np.ndarray:
         src, dst = self.edges.T
         differ = region[src] != region[dst]
@@ -167,7 +186,11 @@ class GraphNeighbours(Neighbours):
         return (-src, src > dst)
 
     def settle(self, dist: np.ndarray, region: np.ndarray) -> np.ndarray:
-        return settle_numpy(dist, region, self)
+        """:func:`.neighbours.settle_numpy` (its reference) in one compiled call (:func:`.kernels.graph_settle`)."""
+        if self.adjacency is None:  # no edges: nothing to settle
+            return settle_numpy(dist, region, self)
+        return kernels.graph_settle(kernels.c_array(dist, np.float64), kernels.c_array(region, np.int64),
+                                    *self.adjacency, COMPETE_ROUNDS)
 
 
 @dataclass(frozen=True, eq=False)
@@ -180,8 +203,7 @@ class _GraphRemaining(Remaining):
 
     @classmethod
     def of(cls, local: GraphNeighbours) -> _GraphRemaining:
-        return cls(local, kernels.c_array(local.edges, np.int64), _NO_NORMALS if local.normals is None else
-                   local.normals)
+        return cls(local, local.c_edges, _NO_NORMALS if local.normals is None else local.normals)
 
     def keep(self, mask: np.ndarray, normal: np.ndarray, support: np.ndarray, above: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray]:
