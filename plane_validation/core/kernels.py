@@ -31,7 +31,7 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
-           'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'facets_fit', 'warm',
+           'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'warm',
            'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
@@ -3590,103 +3590,6 @@ def grid_batch(cols: np.ndarray, spread: np.ndarray, first: np.ndarray, scale_pi
                             best_offsets, best_counts, n_best)
 
 
-# --- verdict: facets ---
-# A plane's residuals as the lowest (or the highest) of a few planes: the faces of a hip roof found as one plane.
-
-
-@numba.njit(**_JIT)
-def facets_fit(u: np.ndarray, v: np.ndarray, w: np.ndarray, pieces: int, rounds: int) -> float:
-    """The smallest mean squared residual (m^2) of w as the lowest of up to ``pieces`` planes a + b u + c v (a peak, a
-    ridge or a hip roof) or as the highest (a valley), over in-plane coordinates (u, v) (m,) and residuals ``w`` (m,),
-    all meters. Fitted by alternation: the points start in ``pieces`` equal sectors about their mean (twice: the
-    second start turned by half a sector); each round fits each piece to its points by least squares (a piece on
-    fewer than 3 points, or on a line, drops out) and gives each point to the lowest (highest) piece at it; up to
-    ``rounds`` rounds, fewer once no point moves; the best round of the four runs counts. NaN for fewer than
-    3 * ``pieces`` points."""
-    m = u.shape[0]
-    if m < 3 * pieces:
-        return np.nan
-    mu, mv = u.mean(), v.mean()
-    group = np.empty(m, np.int64)
-    coef = np.empty((pieces, 3))
-    active = np.empty(pieces, np.bool_)
-    best = np.inf
-    for sign in (1.0, -1.0):
-        for start in range(2):
-            turn = np.pi * start / pieces
-            for i in range(m):
-                angle = np.arctan2(v[i] - mv, u[i] - mu) + np.pi + turn
-                group[i] = int(np.floor(angle / (2 * np.pi) * pieces)) % pieces
-            for _ in range(rounds):
-                _facet_planes(u, v, w, group, coef, active)
-                total, moved = _facet_assign(u, v, w, sign, group, coef, active)
-                if not total >= 0.0:  # every piece dropped out
-                    break
-                best = min(best, total / m)
-                if not moved:
-                    break
-    return best
-
-
-@numba.njit(**_JIT)
-def _facet_planes(u: np.ndarray, v: np.ndarray, w: np.ndarray, group: np.ndarray, coef: np.ndarray,
-                  active: np.ndarray) -> None:
-    """Fit each piece's plane w = a + b u + c v to its points (``group`` (m,)) by least squares about their mean into
-    ``coef`` (pieces, 3); ``active`` (pieces,): whether it is determined (3 points or more, not on a line)."""
-    pieces = coef.shape[0]
-    sums = np.zeros((pieces, 9))
-    for i in range(u.shape[0]):
-        g = group[i]
-        sums[g, 0] += 1.0
-        sums[g, 1] += u[i]
-        sums[g, 2] += v[i]
-        sums[g, 3] += w[i]
-    for g in range(pieces):
-        if sums[g, 0] > 0:
-            sums[g, 1:4] /= sums[g, 0]
-    for i in range(u.shape[0]):  # second moments about each piece's mean
-        g = group[i]
-        du, dv, dw = u[i] - sums[g, 1], v[i] - sums[g, 2], w[i] - sums[g, 3]
-        sums[g, 4] += du * du
-        sums[g, 5] += du * dv
-        sums[g, 6] += dv * dv
-        sums[g, 7] += du * dw
-        sums[g, 8] += dv * dw
-    for g in range(pieces):
-        suu, suv, svv = sums[g, 4], sums[g, 5], sums[g, 6]
-        det = suu * svv - suv * suv
-        active[g] = sums[g, 0] >= 3 and det > 1e-12 * suu * svv
-        if active[g]:
-            b = (svv * sums[g, 7] - suv * sums[g, 8]) / det
-            c = (suu * sums[g, 8] - suv * sums[g, 7]) / det
-            coef[g, 0], coef[g, 1], coef[g, 2] = sums[g, 3] - b * sums[g, 1] - c * sums[g, 2], b, c
-
-
-@numba.njit(**_JIT)
-def _facet_assign(u: np.ndarray, v: np.ndarray, w: np.ndarray, sign: float, group: np.ndarray, coef: np.ndarray,
-                  active: np.ndarray) -> tuple[float, bool]:
-    """Give each point to the active piece lowest at it (highest with ``sign`` -1): (the sum of squared residuals of
-    w from that envelope (m^2; NaN when no piece is active), whether any point moved)."""
-    pieces = coef.shape[0]
-    total = 0.0
-    moved = False
-    for i in range(u.shape[0]):
-        pick, low = -1, np.inf
-        for g in range(pieces):
-            if active[g]:
-                at = sign * (coef[g, 0] + coef[g, 1] * u[i] + coef[g, 2] * v[i])
-                if at < low:
-                    pick, low = g, at
-        if pick < 0:
-            return np.nan, False
-        r = w[i] - sign * low
-        total += r * r
-        if pick != group[i]:
-            group[i] = pick
-            moved = True
-    return total, moved
-
-
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -3859,10 +3762,6 @@ def _warm_beyond_rows() -> None:
     beyond_rows(np.zeros((4, 3)), 2, np.array([0, -1, 0, 1], np.int32))
 
 
-def _warm_facets() -> None:
-    facets_fit(np.zeros(12), np.zeros(12), np.zeros(12), 4, 2)
-
-
 def _warm_organized_batch() -> None:
     pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
     lines = np.zeros(2, np.int64)
@@ -3881,7 +3780,7 @@ def _warm_organized_batch() -> None:
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_indices, _warm_planes,
                _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect, _warm_frame_ids,
-               _warm_beyond_rows, _warm_organized_batch, _warm_facets)
+               _warm_beyond_rows, _warm_organized_batch)
 
 
 def _compiles() -> int:
@@ -3941,4 +3840,4 @@ _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components
             fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
             read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
-            merge_pair, relabel_rows, grid_spread, strided_rows, columns_at, grid_batch, facets_fit)
+            merge_pair, relabel_rows, grid_spread, strided_rows, columns_at, grid_batch)

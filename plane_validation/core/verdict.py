@@ -19,7 +19,7 @@ __all__ = ['judge', 'surface_failures', 'plane_tilt', 'MAX_TILT', 'plane_thickne
            'plane_lack_of_fit', 'MAX_LACK_OF_FIT', 'plane_layering', 'plane_beyond', 'MAX_FILL', 'MAX_LAYERING',
            'EXACT_LAYERS', 'MAX_BEYOND', 'MAX_ROUNDNESS', 'RELIABLE_PS', 'RELIABLE_GS_PLANES', 'MAX_THICKNESS',
            'MIN_CURVATURE', 'SINGLE_PLANE_THICKNESS', 'seed_agreement', 'MIN_SEED_AGREEMENT', 'STABILITY_RESEEDS',
-           'MIN_PLANE_POINTS', 'coordinate_step', 'plane_fold', 'FOLD_LACK', 'FOLD_FIT', 'plane_facets', 'FACETS_LACK']
+           'MIN_PLANE_POINTS', 'coordinate_step', 'plane_fold', 'FOLD_LACK', 'FOLD_FIT', 'plane_tent', 'TENT_LACK']
 
 #: Below this plane silhouette (PS, core/plane_silhouette.py) the planes are not reported as
 #: reliable. Calibrated on benchmarks/quality.py and the Kinect frames (benchmarks/README.md): good
@@ -154,17 +154,17 @@ FOLD_OFFSETS = 15
 FOLD_INNER = 0.7
 #: ... searched on at most this many of the plane's sampled inliers (every so many-th): about 0.2 ms a plane.
 FOLD_POINTS = 1024
-#: A plane whose lack of fit is at least FACETS_LACK (below MAX_LACK_OF_FIT), that is no ridge, and that falls to
-#: FOLD_FIT or less as the lowest (or highest) of FACETS planes (kernels.facets_fit, FACETS_ROUNDS rounds, on the fold's
-#: points), which fit it better than a quadric surface does, holds the faces of a hip roof or a pyramid: the residuals
-#: form a tent in two in-plane directions, which one fold line leaves half explained. Chosen on the tuning seeds of
+#: A plane whose lack of fit is at least TENT_LACK (below MAX_LACK_OF_FIT), that is no ridge, and that falls to FOLD_FIT
+#: or less when its residuals rise (or fall) evenly with the distance from the edges of its points' bounding box (a
+#: tent: w = a + b min(distances to the four edges), the box turned through TENT_ANGLES directions on the fold's
+#: points), which fits it better than a quadric surface does, holds the faces of a hip roof or a pyramid: residuals that
+#: form a V in two in-plane directions, which one fold line leaves half explained. Chosen on the tuning seeds of
 #: benchmarks/quality.py's families (indoor_depth 0-40, lidar_scan 0-20, aerial_roof 0-60 and the labelled clouds;
-#: benchmarks/README.md): merged hip roofs of 2-5 degrees read a lack of fit of 1.20-1.70 and 0.93-1.01 with four
-#: facets (a quadric: 0.99-1.24; one fold: 1.02-1.51); of the planes on one true plane holding 2 % of the points or
-#: more, 4 of 333 fail it, none in a scene whose auto-tuned result is good with 10 % of the planes' points or more.
-FACETS_LACK = 1.15
-FACETS = 4
-FACETS_ROUNDS = 10
+#: benchmarks/README.md): the merged hip roofs of 2-5 degrees read a lack of fit of 1.20-1.70, 0.94-1.04 as a tent (a
+#: quadric: 0.99-1.24; one fold: 1.02-1.51). No other plane of those scenes with its lack of fit in the window fits a
+#: tent better than a quadric, nor does any plane of the reliable Kinect frames (at their tuned t or at 1 cm).
+TENT_LACK = 1.15
+TENT_ANGLES = 12
 
 
 #: _distinct compares up to this many points pairwise (compiled); more are sorted (np.unique).
@@ -326,30 +326,36 @@ def _fold(pca, tolerance: float, local: float | None = None, ridge_only: bool = 
     return fold, _quadric(u, v, w, local)
 
 
-def plane_facets(points: np.ndarray, seg: Segmentation) -> np.ndarray:
-    """Per plane its lack of fit (see plane_lack_of_fit) with the lowest or highest of FACETS planes in place of one
-    (kernels.facets_fit: a peak, a ridge or a hip roof; a valley) and with a quadric surface, (k, 2): about 1 and more
-    on the faces of a hip roof found as one plane, whose lack of fit with one plane is larger; NaN where there are too
-    few inliers. ``points`` (N, 3) meters."""
+def plane_tent(points: np.ndarray, seg: Segmentation) -> np.ndarray:
+    """Per plane its lack of fit (see plane_lack_of_fit) with a tent in place of one plane (residuals rising evenly
+    with the distance from the edges of its points' bounding box, the best of TENT_ANGLES turns of the box) and with a
+    quadric surface, (k, 2): about 1 and more on the faces of a hip roof found as one plane, whose lack of fit with one
+    plane is larger; NaN where there are too few inliers. ``points`` (N, 3) meters."""
     out = []
     for inl in _samples(as_points(points), seg):
         pca = _pca(inl)
-        out.append(_facets(pca, None if pca is None else _patch_noise(pca, _tolerance(inl, seg))))
+        out.append(_tent(pca, None if pca is None else _patch_noise(pca, _tolerance(inl, seg))))
     return np.array(out).reshape(-1, 2)
 
 
-def _facets(pca, local: float | None, quadric: float = np.nan) -> tuple[float, float]:
-    """:func:`plane_facets` of one plane from its sampled inliers' :func:`_pca` and its :func:`_patch_noise`
-    ``local``; the ``quadric``'s lack of fit when known (else fitted)."""
+def _tent(pca, local: float | None, quadric: float = np.nan) -> tuple[float, float]:
+    """:func:`plane_tent` of one plane from its sampled inliers' :func:`_pca` and its :func:`_patch_noise` ``local``
+    (m^2); the ``quadric``'s lack of fit when known (else fitted)."""
     if local is None:
         return float('nan'), float('nan')
     centred = pca[1][::-(-len(pca[1]) // FOLD_POINTS)]
     w, u, v = (centred @ pca[3]).T
-    facets = kernels.facets_fit(np.ascontiguousarray(u), np.ascontiguousarray(v), np.ascontiguousarray(w), FACETS,
-                                FACETS_ROUNDS)
+    turn = np.pi / 2 * np.arange(TENT_ANGLES) / TENT_ANGLES  # a box turned by a quarter turn is the same box
+    cos, sin = np.cos(turn)[:, None], np.sin(turn)[:, None]
+    edge = np.inf
+    for a in (u * cos + v * sin, v * cos - u * sin):  # (angles, m) along each side of the turned box
+        edge = np.minimum(edge, np.minimum(a - a.min(axis=1, keepdims=True), a.max(axis=1, keepdims=True) - a))
+    edge -= edge.mean(axis=1, keepdims=True)
+    rise = (edge @ (w - w.mean())) / np.maximum(np.einsum('ij,ij->i', edge, edge), np.finfo(float).tiny)
+    tent = float(np.min(np.mean((w - w.mean() - rise[:, None] * edge) ** 2, axis=1)))
     if np.isnan(quadric):
         quadric = _quadric(u, v, w, local)
-    return float(np.sqrt(facets / local)), float(quadric)
+    return float(np.sqrt(tent / local)), float(quadric)
 
 
 def _quadric(u: np.ndarray, v: np.ndarray, w: np.ndarray, local: float) -> float:
@@ -665,11 +671,10 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     folds = np.array([_fold(pca, np.nan, local, ridge_only=True) if FOLD_LACK <= x < MAX_LACK_OF_FIT
                       else (np.nan, np.nan) for pca, local, x in zip(frames, noise, lack)]).reshape(-1, 2)
     ridge = (folds[:, 0] <= FOLD_FIT) & (folds[:, 0] < folds[:, 1])  # NaN: not judged
-    # the facets only where a shallower misfit is no ridge (about 0.1 ms a plane)
-    facets = np.array([_facets(pca, local, quadric) if FACETS_LACK <= x < MAX_LACK_OF_FIT and not r
-                       else (np.nan, np.nan)
-                       for pca, local, x, r, quadric in zip(frames, noise, lack, ridge, folds[:, 1])]).reshape(-1, 2)
-    tent = (facets[:, 0] <= FOLD_FIT) & (facets[:, 0] < facets[:, 1])  # NaN: not judged
+    # the tent only where a shallower misfit is no ridge (about 0.1 ms a plane)
+    tents = np.array([_tent(pca, local, quadric) if TENT_LACK <= x < MAX_LACK_OF_FIT and not r else (np.nan, np.nan)
+                      for pca, local, x, r, quadric in zip(frames, noise, lack, ridge, folds[:, 1])]).reshape(-1, 2)
+    tent = (tents[:, 0] <= FOLD_FIT) & (tents[:, 0] < tents[:, 1])  # NaN: not judged
     distinct = np.array([_distinct(pts, p.inliers) for p in seg.planes])
     failures = []  # every test that fails, so that fixing one cause does not reveal another
     tiny = distinct < MIN_PLANE_POINTS
@@ -685,7 +690,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
         (FailureKind.TILTED_PATCHES, tilt >= MAX_TILT, tilt, MAX_TILT, np.full(len(tilt), TILT_DEG)),  # NaN: not judged
         (FailureKind.SURFACES_MERGED, lack >= MAX_LACK_OF_FIT, lack, MAX_LACK_OF_FIT, None),  # NaN: not judged
         (FailureKind.RIDGE, ridge, lack, FOLD_LACK, folds[:, 0]),
-        (FailureKind.FACETS, tent, lack, FACETS_LACK, facets[:, 0]),
+        (FailureKind.TENT, tent, lack, TENT_LACK, tents[:, 0]),
         (FailureKind.TWO_LAYERS, layering >= MAX_LAYERING, layering, MAX_LAYERING, fill),
     )
     for kind, failed, value, limit, other in per_plane:
