@@ -124,7 +124,8 @@ def test_a_bowed_surface_is_not_a_ridge():
     assert FailureKind.RIDGE not in judge(bowl, seg, pv.validity_indices(bowl, seg.labels, seed=0)).kinds
 
 
-def _hip(seed: int, n: int, length: float, width: float, pitch_deg: float, noise: float) -> tuple[np.ndarray, np.ndarray]:
+def _hip(seed: int, n: int, length: float, width: float, pitch_deg: float,
+         noise: float) -> tuple[np.ndarray, np.ndarray]:
     """(n, 3) meters of a hip roof over the rectangle [-length/2, length/2] x [-width/2, width/2], each face rising at
     ``pitch_deg`` from its eave, with Gaussian noise in z, and (n,) the face each point lies on (0-3)."""
     rng = np.random.default_rng(seed)

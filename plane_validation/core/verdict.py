@@ -156,13 +156,13 @@ FOLD_INNER = 0.7
 FOLD_POINTS = 1024
 #: A plane whose lack of fit is at least TENT_LACK (below MAX_LACK_OF_FIT), that is no ridge, and that falls to FOLD_FIT
 #: or less when its residuals rise (or fall) evenly with the distance from the edges of its points' bounding box (a
-#: tent: w = a + b min(distances to the four edges), the box turned through TENT_ANGLES directions on the fold's
-#: points), which fits it better than a quadric surface does, holds the faces of a hip roof or a pyramid: residuals that
-#: form a V in two in-plane directions, which one fold line leaves half explained. Chosen on the tuning seeds of
-#: benchmarks/quality.py's families (indoor_depth 0-40, lidar_scan 0-20, aerial_roof 0-60 and the labelled clouds;
-#: benchmarks/README.md): the merged hip roofs of 2-5 degrees read a lack of fit of 1.20-1.70, 0.94-1.04 as a tent (a
-#: quadric: 0.99-1.24; one fold: 1.02-1.51). No other plane of those scenes with its lack of fit in the window fits a
-#: tent better than a quadric, nor does any plane of the reliable Kinect frames (at their tuned t or at 1 cm).
+#: tent: w = a + b min(distances to the four edges); kernels.tent_fit, the box turned through TENT_ANGLES directions,
+#: on the fold's points), which fits it better than a quadric surface does, holds the faces of a hip roof or a
+#: pyramid: residuals that form a V in two in-plane directions, which one fold line leaves half explained. Chosen on
+#: tuning seeds only (benchmarks/quality.py's families: indoor_depth 0-40, lidar_scan 0-20, aerial_roof 0-60, and the
+#: labelled clouds): the merged hip roofs of 2-5 degrees read a lack of fit of 1.20-1.70 and 0.94-1.04 as a tent (a
+#: quadric: 0.99-1.24; one fold: 1.02-1.51). No other plane of those scenes with a lack of fit in the window fits a
+#: tent better than a quadric, nor does any plane of the reliable Kinect frames (at their tuned t or at t = 1 cm).
 TENT_LACK = 1.15
 TENT_ANGLES = 12
 
@@ -338,24 +338,19 @@ def plane_tent(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     return np.array(out).reshape(-1, 2)
 
 
-def _tent(pca, local: float | None, quadric: float = np.nan) -> tuple[float, float]:
+def _tent(pca, local: float | None, quadric: float = np.nan, ridge_only: bool = False) -> tuple[float, float]:
     """:func:`plane_tent` of one plane from its sampled inliers' :func:`_pca` and its :func:`_patch_noise` ``local``
-    (m^2); the ``quadric``'s lack of fit when known (else fitted)."""
+    (m^2); the ``quadric``'s lack of fit when known (else fitted). With ``ridge_only`` the quadric is fitted only where
+    the tent fits FOLD_FIT or less (judge compares the two only there), NaN elsewhere."""
     if local is None:
         return float('nan'), float('nan')
     centred = pca[1][::-(-len(pca[1]) // FOLD_POINTS)]
     w, u, v = (centred @ pca[3]).T
-    turn = np.pi / 2 * np.arange(TENT_ANGLES) / TENT_ANGLES  # a box turned by a quarter turn is the same box
-    cos, sin = np.cos(turn)[:, None], np.sin(turn)[:, None]
-    edge = np.inf
-    for a in (u * cos + v * sin, v * cos - u * sin):  # (angles, m) along each side of the turned box
-        edge = np.minimum(edge, np.minimum(a - a.min(axis=1, keepdims=True), a.max(axis=1, keepdims=True) - a))
-    edge -= edge.mean(axis=1, keepdims=True)
-    rise = (edge @ (w - w.mean())) / np.maximum(np.einsum('ij,ij->i', edge, edge), np.finfo(float).tiny)
-    tent = float(np.min(np.mean((w - w.mean() - rise[:, None] * edge) ** 2, axis=1)))
-    if np.isnan(quadric):
+    tent = float(np.sqrt(kernels.tent_fit(np.ascontiguousarray(u), np.ascontiguousarray(v), np.ascontiguousarray(w),
+                                          TENT_ANGLES) / local))
+    if np.isnan(quadric) and not (ridge_only and not tent <= FOLD_FIT):
         quadric = _quadric(u, v, w, local)
-    return float(np.sqrt(tent / local)), float(quadric)
+    return tent, float(quadric)
 
 
 def _quadric(u: np.ndarray, v: np.ndarray, w: np.ndarray, local: float) -> float:
@@ -671,8 +666,9 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     folds = np.array([_fold(pca, np.nan, local, ridge_only=True) if FOLD_LACK <= x < MAX_LACK_OF_FIT
                       else (np.nan, np.nan) for pca, local, x in zip(frames, noise, lack)]).reshape(-1, 2)
     ridge = (folds[:, 0] <= FOLD_FIT) & (folds[:, 0] < folds[:, 1])  # NaN: not judged
-    # the tent only where a shallower misfit is no ridge (about 0.1 ms a plane)
-    tents = np.array([_tent(pca, local, quadric) if TENT_LACK <= x < MAX_LACK_OF_FIT and not r else (np.nan, np.nan)
+    # the tent only where a shallower misfit is no ridge (about 0.05 ms a plane)
+    tents = np.array([_tent(pca, local, quadric, True) if TENT_LACK <= x < MAX_LACK_OF_FIT and not r
+                      else (np.nan, np.nan)
                       for pca, local, x, r, quadric in zip(frames, noise, lack, ridge, folds[:, 1])]).reshape(-1, 2)
     tent = (tents[:, 0] <= FOLD_FIT) & (tents[:, 0] < tents[:, 1])  # NaN: not judged
     distinct = np.array([_distinct(pts, p.inliers) for p in seg.planes])
