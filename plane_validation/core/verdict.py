@@ -639,10 +639,10 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     residuals are at least MIN_CURVATURE explained by curvature, see :func:`plane_curvature`, hold less
     than MINOR_SHARE of their points), surfaces (planes cut out of a volume, MAX_BEYOND, see
     :func:`plane_beyond`, planes across several surfaces, MAX_TILT and MAX_LACK_OF_FIT, see :func:`plane_tilt` and
-    :func:`plane_lack_of_fit`, the two sides of a ridge, FOLD_LACK and FOLD_FIT, see :func:`plane_fold`, and
-    planes whose points lie on two layers that fill their band, MAX_LAYERING and MAX_FILL, see
-    :func:`plane_layering` and :func:`plane_fill`, each hold less than MINOR_SHARE of their
-    points) and a plane silhouette PS >= RELIABLE_PS: the points lie on their planes and clear of the
+    :func:`plane_lack_of_fit`, the two sides of a ridge, FOLD_LACK and FOLD_FIT, see :func:`plane_fold`, the faces of a
+    hip roof, TENT_LACK, see :func:`plane_tent`, and planes whose points lie on two layers that fill their band,
+    MAX_LAYERING and MAX_FILL, see :func:`plane_layering` and :func:`plane_fill`, each hold less than MINOR_SHARE of
+    their points) and a plane silhouette PS >= RELIABLE_PS: the points lie on their planes and clear of the
     other regions. On plane-free clouds (sphere, bunny) the "planes" are thick slabs or patches whose
     points lie near their neighbours' planes. With ``agreement`` (see :func:`seed_agreement`;
     tune_tolerance gives it) it must also reach MIN_SEED_AGREEMENT: other RANSAC seeds find the same
