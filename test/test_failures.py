@@ -111,14 +111,62 @@ def test_a_shallow_gable_found_as_one_plane_is_a_ridge():
         assert FailureKind.RIDGE not in kinds and FailureKind.SURFACES_MERGED not in kinds
 
 
-def test_a_bowed_surface_is_not_a_ridge():
+def test_a_bowed_surface_is_neither_a_ridge_nor_a_tent():
     """A surface bent smoothly (a bowl, as a depth camera's correlated error bends a wall) fits a quadric better than
-    two planes: it may fit one plane worse than its patches, but it is no ridge."""
+    two planes or a tent: it may fit one plane worse than its patches, but it is no ridge and no hip roof."""
     rng = np.random.default_rng(6)
     x, y = rng.uniform(-4, 4, 4000), rng.uniform(-4, 4, 4000)
     bowl = np.column_stack([x, y, 0.006 * (x * x + y * y) + rng.normal(0, 0.02, 4000)])
     seg = pv.detect_planes(bowl, 0.2, seed=0, max_planes=1)
-    folds = verdict_module.plane_fold(bowl, seg)
-    assert verdict_module.plane_lack_of_fit(bowl, seg)[0] >= verdict_module.FOLD_LACK  # a misfit ...
-    assert folds[0, 0] > folds[0, 1]  # ... that a quadric explains better than a fold
-    assert FailureKind.RIDGE not in judge(bowl, seg, pv.validity_indices(bowl, seg.labels, seed=0)).kinds
+    folds, tents = verdict_module.plane_fold(bowl, seg), verdict_module.plane_tent(bowl, seg)
+    lack = verdict_module.plane_lack_of_fit(bowl, seg)[0]
+    assert lack >= verdict_module.FOLD_LACK >= verdict_module.TENT_LACK  # a misfit ...
+    assert folds[0, 0] > folds[0, 1] and tents[0, 0] > tents[0, 1]  # ... that a quadric explains better
+    kinds = judge(bowl, seg, pv.validity_indices(bowl, seg.labels, seed=0)).kinds
+    assert FailureKind.RIDGE not in kinds and FailureKind.TENT not in kinds
+
+
+def _hip(seed: int, n: int, length: float, width: float, pitch_deg: float,
+         noise: float) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 3) meters of a hip roof over the rectangle [-length/2, length/2] x [-width/2, width/2], each face rising at
+    ``pitch_deg`` from its eave, with Gaussian noise in z, and (n,) the face each point lies on (0-3)."""
+    rng = np.random.default_rng(seed)
+    x, y = rng.uniform(-length / 2, length / 2, n), rng.uniform(-width / 2, width / 2, n)
+    rise = np.stack([width / 2 - y, width / 2 + y, length / 2 - x, length / 2 + x], axis=1)
+    face = np.argmin(rise, axis=1)
+    z = rise[np.arange(n), face] * math.tan(math.radians(pitch_deg)) + rng.normal(0, noise, n)
+    return np.column_stack([x, y, z]), face
+
+
+def test_a_shallow_hip_roof_found_as_one_plane_is_a_tent():
+    """A 3 degree hip roof (its four faces 0.2 m above the eaves at the ridge, 7 x its 3 cm noise) found as one plane:
+    a lack of fit below the 2 of steep merges that one fold explains only in part (no RIDGE), but residuals rising
+    from every edge: TENT, with both numbers."""
+    from plane_validation.core.verdict import FOLD_FIT, TENT_LACK
+    roof, _ = _hip(seed=2, n=2048, length=12, width=8, pitch_deg=3, noise=0.03)
+    seg = pv.detect_planes(roof, 0.25, seed=0, max_planes=1)
+    verdict = judge(roof, seg, pv.validity_indices(roof, seg.labels, seed=0))
+    tent = [f for f in verdict.failures if f.kind is FailureKind.TENT]
+    assert seg.n_planes == 1 and not verdict.reliable and len(tent) == 1 and tent[0].plane == 0, verdict
+    assert TENT_LACK <= tent[0].value < MAX_LACK_OF_FIT and tent[0].other <= FOLD_FIT
+    assert FailureKind.RIDGE not in verdict.kinds and FailureKind.SURFACES_MERGED not in verdict.kinds
+    assert 'form a tent' in str(tent[0]) and 'hip roof' in str(tent[0])
+    tents = verdict_module.plane_tent(roof, seg)
+    assert tents.shape == (1, 2) and tents[0, 0] == pytest.approx(tent[0].other) and tents[0, 0] < tents[0, 1]
+
+
+def test_a_hip_roof_found_face_by_face_is_no_tent():
+    """The same roof steeper (20 degrees), found as its four faces at a t near its noise: reliable, each plane fits its
+    points as well as its patches do (nothing for a tent to explain), and each face alone is no tent either."""
+    roof, face = _hip(seed=2, n=4096, length=12, width=8, pitch_deg=20, noise=0.03)
+    seg = pv.detect_planes(roof, 0.08, seed=0, max_planes=6)
+    verdict = judge(roof, seg, pv.validity_indices(roof, seg.labels, seed=0))
+    assert seg.n_planes == 4 and verdict.reliable, verdict
+    lack = verdict_module.plane_lack_of_fit(roof, seg)
+    # each face fits its plane: no misfit for a tent to explain (NaN: too few patches to judge)
+    assert np.count_nonzero(np.isfinite(lack)) >= 3 and not np.any(lack >= verdict_module.TENT_LACK), lack
+    for k in range(4):
+        one_face = roof[face == k]
+        one = pv.detect_planes(one_face, 0.08, seed=0, max_planes=1)
+        assert FailureKind.TENT not in judge(one_face, one, pv.validity_indices(one_face, one.labels, seed=0)).kinds
+

@@ -1,6 +1,7 @@
-"""The per-frame verdict and index kernels (core/kernels.py, the 'verdict and indices per frame', 'verdict' and
-'verdict 5' blocks) against plain-numpy references: each must give numpy's values exactly, as the verdict's and the
-indices' figures depend on them bit for bit."""
+"""The per-frame verdict and index kernels (core/kernels.py, the 'verdict and indices per frame', 'verdict',
+'verdict 5' and 'verdict: tent' blocks) against plain-numpy references: each must give numpy's values exactly, as the
+verdict's and the indices' figures depend on them bit for bit (the tent's least squares up to rounding: the verdict
+compares it with a limit only)."""
 from __future__ import annotations
 
 import numpy as np
@@ -116,3 +117,42 @@ def test_beyond_rows_are_numpys_strided_finite_rows(seed, n, step, holes):
         finite = np.isfinite(pts[::step].sum(axis=1))
     np.testing.assert_array_equal(cloud, pts[::step][finite])
     np.testing.assert_array_equal(kept, labels[::step][finite])
+
+
+def _tent_fit_numpy(u, v, w, angles):
+    """tent_fit by np.linalg.lstsq: w = a + b d, d the distance to the nearest edge of the turned bounding box."""
+    best = np.inf
+    for k in range(angles):
+        theta = 0.5 * np.pi * k / angles
+        a, b = u * np.cos(theta) + v * np.sin(theta), v * np.cos(theta) - u * np.sin(theta)
+        d = np.minimum(np.minimum(a - a.min(), a.max() - a), np.minimum(b - b.min(), b.max() - b))
+        design = np.column_stack([np.ones_like(d), d])
+        coef, *_ = np.linalg.lstsq(design, w, rcond=None)
+        best = min(best, float(np.mean((w - design @ coef) ** 2)))
+    return best
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(3, 400), st.integers(1, 16), st.booleans())
+def test_tent_fit_matches_least_squares(seed, n, angles, tent):
+    rng = np.random.default_rng(seed)
+    u, v = rng.uniform(-6, 6, n), rng.uniform(-4, 4, n)
+    w = rng.normal(0, 0.02, n) + (0.05 * np.minimum(6 - np.abs(u), 4 - np.abs(v)) if tent else 0.0)
+    np.testing.assert_allclose(kernels.tent_fit(u, v, w, angles), _tent_fit_numpy(u, v, w, angles), rtol=1e-7,
+                               atol=1e-14)
+
+
+def test_tent_fit_finds_a_hip_roof_and_not_a_ridge_or_a_plane():
+    """A hip roof turned by 30 degrees (a box direction the fit tries) is a tent up to its noise; a gable (one ridge)
+    and a plane are not: their fit explains little more than their mean."""
+    rng = np.random.default_rng(0)
+    x, y = rng.uniform(-6, 6, 2000), rng.uniform(-4, 4, 2000)
+    noise = rng.normal(0, 0.01, 2000)
+    hip = 0.05 * np.minimum(6 - np.abs(x), 4 - np.abs(y)) + noise
+    turn = np.radians(30.0)
+    u, v = x * np.cos(turn) - y * np.sin(turn), x * np.sin(turn) + y * np.cos(turn)
+    assert kernels.tent_fit(u, v, hip, 12) < 1.1 * np.var(noise) < 0.2 * np.var(hip)
+    gable = 0.05 * (4 - np.abs(y)) + noise
+    assert kernels.tent_fit(x, y, gable, 12) > 0.3 * np.var(gable)
+    assert kernels.tent_fit(x, y, noise, 12) > 0.99 * np.var(noise)
+    assert np.isnan(kernels.tent_fit(u[:2], v[:2], hip[:2], 12))

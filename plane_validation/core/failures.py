@@ -25,6 +25,8 @@ class FailureKind(enum.Enum):
     SURFACES_MERGED = 'surfaces_merged'      #: RMS distance / patches' RMS thickness (lack of fit) >= limit
     RIDGE = 'ridge'                          #: lack of fit >= limit, which two planes meeting at a line bring
     #: down to ``other``: the two sides of a ridge or a fold as one plane
+    TENT = 'tent'                            #: lack of fit >= limit, which residuals rising evenly from the edges
+    #: of the plane's points bring down to ``other``: the faces of a hip roof as one plane
     TWO_LAYERS = 'two_layers'                #: share of residual variance the step between two layers >= limit;
     #: ``other``: RMS distance / t
     LOW_SILHOUETTE = 'low_silhouette'        #: plane silhouette PS < limit; ``other``: share of the points in no
@@ -135,6 +137,10 @@ _SENTENCES = {
                                   f'{_up(f.value)} times worse than its patches fit theirs (>= {f.limit:g}), two '
                                   f'planes meeting at that line {_down(f.other)} times: the two sides of a ridge or a '
                                   'fold found as one plane'),
+    FailureKind.TENT: lambda f: (f'plane {f.plane}\'s residuals form a tent, rising from every edge of its points: it '
+                                 f'fits its points {_up(f.value)} times worse than its patches fit theirs (>= '
+                                 f'{f.limit:g}), the tent {_down(f.other)} times: the faces of a hip roof found as one '
+                                 'plane'),
     FailureKind.TWO_LAYERS: lambda f: (f'plane {f.plane}\'s points lie on two parallel layers near the edges of its '
                                        f'band of +-t ({f.value:.0%} of its residual variance is the step between '
                                        f'them, >= {f.limit:.0%}; RMS distance {_up(f.other)} t): two surfaces '

@@ -32,7 +32,7 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
            'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'kept_edges', 'graph_contacts', 'graph_settle',
-           'voxel_count', 'warm', 'Warmup']
+           'voxel_count', 'tent_fit', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -3762,6 +3762,47 @@ def graph_settle(dist: np.ndarray, region: np.ndarray, indptr: np.ndarray, indic
     return out
 
 
+# --- verdict: tent ---
+
+
+@numba.njit(**_JIT)
+def tent_fit(u: np.ndarray, v: np.ndarray, w: np.ndarray, angles: int) -> float:
+    """The smallest mean squared residual (m^2) of least-squares fits w = a + b d to points at in-plane coordinates
+    (u, v) (m,) with residuals ``w`` (m,), all meters, where d is a point's distance to the nearest edge of the points'
+    bounding box (a tent: the faces of a hip roof rising evenly from its eaves), the box turned through ``angles``
+    directions theta = (pi / 2) k / angles. NaN for fewer than 3 points."""
+    m = u.shape[0]
+    if m < 3:
+        return np.nan
+    mw = w.mean()
+    sww = 0.0
+    for i in range(m):
+        sww += (w[i] - mw) * (w[i] - mw)
+    best = np.inf
+    d = np.empty(m)
+    for k in range(angles):
+        theta = 0.5 * np.pi * k / angles
+        c, s = np.cos(theta), np.sin(theta)
+        lo_a = lo_b = np.inf
+        hi_a = hi_b = -np.inf
+        for i in range(m):
+            a, b = u[i] * c + v[i] * s, v[i] * c - u[i] * s
+            lo_a, hi_a, lo_b, hi_b = min(lo_a, a), max(hi_a, a), min(lo_b, b), max(hi_b, b)
+        md = 0.0
+        for i in range(m):
+            a, b = u[i] * c + v[i] * s, v[i] * c - u[i] * s
+            d[i] = min(min(a - lo_a, hi_a - a), min(b - lo_b, hi_b - b))
+            md += d[i]
+        md /= m
+        sdd = sdw = 0.0
+        for i in range(m):
+            sdd += (d[i] - md) * (d[i] - md)
+            sdw += (d[i] - md) * (w[i] - mw)
+        rest = sww - sdw * sdw / sdd if sdd > 0.0 else sww
+        best = min(best, max(rest, 0.0) / m)
+    return best
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -3935,6 +3976,10 @@ def _warm_beyond_rows() -> None:
     beyond_rows(np.zeros((4, 3)), 2, np.array([0, -1, 0, 1], np.int32))
 
 
+def _warm_tent() -> None:
+    tent_fit(np.zeros(4), np.zeros(4), np.zeros(4), 2)
+
+
 def _warm_organized_batch() -> None:
     pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
     lines = np.zeros(2, np.int64)
@@ -3961,7 +4006,7 @@ def _warm_plain_graph() -> None:
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_indices, _warm_planes,
                _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect, _warm_frame_ids,
-               _warm_beyond_rows, _warm_organized_batch, _warm_plain_graph)
+               _warm_beyond_rows, _warm_organized_batch, _warm_plain_graph, _warm_tent)
 
 
 def _compiles() -> int:
@@ -4022,4 +4067,4 @@ _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
             read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
             merge_pair, relabel_rows, grid_spread, strided_rows, columns_at, grid_batch, kept_edges, graph_contacts,
-            graph_settle, voxel_count)
+            graph_settle, voxel_count, tent_fit)

@@ -19,7 +19,7 @@ __all__ = ['judge', 'surface_failures', 'plane_tilt', 'MAX_TILT', 'plane_thickne
            'plane_lack_of_fit', 'MAX_LACK_OF_FIT', 'plane_layering', 'plane_beyond', 'MAX_FILL', 'MAX_LAYERING',
            'EXACT_LAYERS', 'MAX_BEYOND', 'MAX_ROUNDNESS', 'RELIABLE_PS', 'RELIABLE_GS_PLANES', 'MAX_THICKNESS',
            'MIN_CURVATURE', 'SINGLE_PLANE_THICKNESS', 'seed_agreement', 'MIN_SEED_AGREEMENT', 'STABILITY_RESEEDS',
-           'MIN_PLANE_POINTS', 'coordinate_step', 'plane_fold', 'FOLD_LACK', 'FOLD_FIT']
+           'MIN_PLANE_POINTS', 'coordinate_step', 'plane_fold', 'FOLD_LACK', 'FOLD_FIT', 'plane_tent', 'TENT_LACK']
 
 #: Below this plane silhouette (PS, core/plane_silhouette.py) the planes are not reported as
 #: reliable. Calibrated on benchmarks/quality.py and the Kinect frames (benchmarks/README.md): good
@@ -154,6 +154,17 @@ FOLD_OFFSETS = 15
 FOLD_INNER = 0.7
 #: ... searched on at most this many of the plane's sampled inliers (every so many-th): about 0.2 ms a plane.
 FOLD_POINTS = 1024
+#: A plane whose lack of fit is at least TENT_LACK (below MAX_LACK_OF_FIT), that is no ridge, and that falls to FOLD_FIT
+#: or less when its residuals rise (or fall) evenly with the distance from the edges of its points' bounding box (a
+#: tent: w = a + b min(distances to the four edges); kernels.tent_fit, the box turned through TENT_ANGLES directions,
+#: on the fold's points), which fits it better than a quadric surface does, holds the faces of a hip roof or a
+#: pyramid: residuals that form a V in two in-plane directions, which one fold line leaves half explained. Chosen on
+#: tuning seeds only (benchmarks/quality.py's families: indoor_depth 0-40, lidar_scan 0-20, aerial_roof 0-60, and the
+#: labelled clouds): the merged hip roofs of 2-5 degrees read a lack of fit of 1.20-1.70 and 0.94-1.04 as a tent (a
+#: quadric: 0.99-1.24; one fold: 1.02-1.51). No other plane of those scenes with a lack of fit in the window fits a
+#: tent better than a quadric, nor does any plane of the reliable Kinect frames (at their tuned t or at t = 1 cm).
+TENT_LACK = 1.15
+TENT_ANGLES = 12
 
 
 #: _distinct compares up to this many points pairwise (compiled); more are sorted (np.unique).
@@ -312,10 +323,42 @@ def _fold(pca, tolerance: float, local: float | None = None, ridge_only: bool = 
     fold = float(np.sqrt(fold / local))
     if ridge_only and not fold <= FOLD_FIT:
         return fold, float('nan')
+    return fold, _quadric(u, v, w, local)
+
+
+def plane_tent(points: np.ndarray, seg: Segmentation) -> np.ndarray:
+    """Per plane its lack of fit (see plane_lack_of_fit) with a tent in place of one plane (residuals rising evenly
+    with the distance from the edges of its points' bounding box, the best of TENT_ANGLES turns of the box) and with a
+    quadric surface, (k, 2): about 1 and more on the faces of a hip roof found as one plane, whose lack of fit with one
+    plane is larger; NaN where there are too few inliers. ``points`` (N, 3) meters."""
+    out = []
+    for inl in _samples(as_points(points), seg):
+        pca = _pca(inl)
+        out.append(_tent(pca, None if pca is None else _patch_noise(pca, _tolerance(inl, seg))))
+    return np.array(out).reshape(-1, 2)
+
+
+def _tent(pca, local: float | None, quadric: float = np.nan, ridge_only: bool = False) -> tuple[float, float]:
+    """:func:`plane_tent` of one plane from its sampled inliers' :func:`_pca` and its :func:`_patch_noise` ``local``
+    (m^2); the ``quadric``'s lack of fit when known (else fitted). With ``ridge_only`` the quadric is fitted only where
+    the tent fits FOLD_FIT or less (judge compares the two only there), NaN elsewhere."""
+    if local is None:
+        return float('nan'), float('nan')
+    centred = pca[1][::-(-len(pca[1]) // FOLD_POINTS)]
+    w, u, v = (centred @ pca[3]).T
+    tent = float(np.sqrt(kernels.tent_fit(np.ascontiguousarray(u), np.ascontiguousarray(v), np.ascontiguousarray(w),
+                                          TENT_ANGLES) / local))
+    if np.isnan(quadric) and not (ridge_only and not tent <= FOLD_FIT):
+        quadric = _quadric(u, v, w, local)
+    return tent, float(quadric)
+
+
+def _quadric(u: np.ndarray, v: np.ndarray, w: np.ndarray, local: float) -> float:
+    """The lack of fit of residuals ``w`` (m,) with a quadric surface over in-plane coordinates (u, v) (m,), all
+    meters, against the patches' mean squared thickness ``local`` (m^2)."""
     design = np.column_stack([u * u, u * v, v * v, u, v, np.ones_like(u)])
     coef, *_ = np.linalg.lstsq(design, w, rcond=None)
-    quadric = float(np.mean((w - design @ coef) ** 2))
-    return fold, float(np.sqrt(quadric / local))
+    return float(np.sqrt(np.mean((w - design @ coef) ** 2) / local))
 
 
 def plane_thickness(points: np.ndarray, seg: Segmentation) -> np.ndarray:
@@ -596,10 +639,10 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     residuals are at least MIN_CURVATURE explained by curvature, see :func:`plane_curvature`, hold less
     than MINOR_SHARE of their points), surfaces (planes cut out of a volume, MAX_BEYOND, see
     :func:`plane_beyond`, planes across several surfaces, MAX_TILT and MAX_LACK_OF_FIT, see :func:`plane_tilt` and
-    :func:`plane_lack_of_fit`, the two sides of a ridge, FOLD_LACK and FOLD_FIT, see :func:`plane_fold`, and
-    planes whose points lie on two layers that fill their band, MAX_LAYERING and MAX_FILL, see
-    :func:`plane_layering` and :func:`plane_fill`, each hold less than MINOR_SHARE of their
-    points) and a plane silhouette PS >= RELIABLE_PS: the points lie on their planes and clear of the
+    :func:`plane_lack_of_fit`, the two sides of a ridge, FOLD_LACK and FOLD_FIT, see :func:`plane_fold`, the faces of a
+    hip roof, TENT_LACK, see :func:`plane_tent`, and planes whose points lie on two layers that fill their band,
+    MAX_LAYERING and MAX_FILL, see :func:`plane_layering` and :func:`plane_fill`, each hold less than MINOR_SHARE of
+    their points) and a plane silhouette PS >= RELIABLE_PS: the points lie on their planes and clear of the
     other regions. On plane-free clouds (sphere, bunny) the "planes" are thick slabs or patches whose
     points lie near their neighbours' planes. With ``agreement`` (see :func:`seed_agreement`;
     tune_tolerance gives it) it must also reach MIN_SEED_AGREEMENT: other RANSAC seeds find the same
@@ -623,6 +666,11 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     folds = np.array([_fold(pca, np.nan, local, ridge_only=True) if FOLD_LACK <= x < MAX_LACK_OF_FIT
                       else (np.nan, np.nan) for pca, local, x in zip(frames, noise, lack)]).reshape(-1, 2)
     ridge = (folds[:, 0] <= FOLD_FIT) & (folds[:, 0] < folds[:, 1])  # NaN: not judged
+    # the tent only where a shallower misfit is no ridge (about 0.05 ms a plane)
+    tents = np.array([_tent(pca, local, quadric, True) if TENT_LACK <= x < MAX_LACK_OF_FIT and not r
+                      else (np.nan, np.nan)
+                      for pca, local, x, r, quadric in zip(frames, noise, lack, ridge, folds[:, 1])]).reshape(-1, 2)
+    tent = (tents[:, 0] <= FOLD_FIT) & (tents[:, 0] < tents[:, 1])  # NaN: not judged
     distinct = np.array([_distinct(pts, p.inliers) for p in seg.planes])
     failures = []  # every test that fails, so that fixing one cause does not reveal another
     tiny = distinct < MIN_PLANE_POINTS
@@ -638,6 +686,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
         (FailureKind.TILTED_PATCHES, tilt >= MAX_TILT, tilt, MAX_TILT, np.full(len(tilt), TILT_DEG)),  # NaN: not judged
         (FailureKind.SURFACES_MERGED, lack >= MAX_LACK_OF_FIT, lack, MAX_LACK_OF_FIT, None),  # NaN: not judged
         (FailureKind.RIDGE, ridge, lack, FOLD_LACK, folds[:, 0]),
+        (FailureKind.TENT, tent, lack, TENT_LACK, tents[:, 0]),
         (FailureKind.TWO_LAYERS, layering >= MAX_LAYERING, layering, MAX_LAYERING, fill),
     )
     for kind, failed, value, limit, other in per_plane:
