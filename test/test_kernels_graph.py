@@ -101,7 +101,7 @@ def test_spread_nearest_matches_numpy(seed, per_point):
 
 @SETTINGS
 @given(st.integers(0, 2**32 - 1))
-def test_knn_edges_match_numpy(seed):
+def test_pair_graph_joins_the_knn_pairs_as_numpy(seed):
     """The graph of the pairs within reach, or among the ALWAYS_JOINED nearest at a finite distance, joined in the
     compiled pass with other pairs, is that of the numpy pairs joined with them."""
     from plane_validation.core.regions import _knn_edges_numpy, _neighbours, _neighbours_numpy

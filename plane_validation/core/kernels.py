@@ -20,7 +20,7 @@ import numpy as np
 __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'graph_components', 'graph_region', 'finite_mask',
            'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
-           'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_fit', 'fold_line',
+           'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_line',
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
            'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
@@ -1085,19 +1085,14 @@ def _solve4(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
 
 
 @numba.njit(**_JIT)
-def fold_fit(u: np.ndarray, v: np.ndarray, w: np.ndarray, angles: int, offsets: int, inner: float) -> float:
-    """The smallest mean squared residual (m^2) of least-squares fits w = a + b u + c v + d |s - s0| to points at
-    in-plane coordinates (u, v) (m,) with residuals ``w`` (m,), all meters: two planes meeting at a line (a ridge or a
-    fold), s = u cos(theta) + v sin(theta) across it, over ``angles`` directions theta in [0, pi) and ``offsets`` lines
-    s0 per direction at evenly spaced quantiles of s within its middle ``inner`` share. NaN for fewer than 5 points."""
-    return fold_line(u, v, w, angles, offsets, inner)[0]
-
-
-@numba.njit(**_JIT)
 def fold_line(u: np.ndarray, v: np.ndarray, w: np.ndarray, angles: int, offsets: int, inner: float
               ) -> tuple[float, float, float]:
-    """:func:`fold_fit` and the line of its best fit: (mean squared residual (m^2), theta (rad), s0 (m)); (NaN, NaN,
-    NaN) for fewer than 5 points, and theta and s0 NaN where no line's fit could be solved."""
+    """The best least-squares fit w = a + b u + c v + d |s - s0| to points at in-plane coordinates (u, v) (m,) with
+    residuals ``w`` (m,), all meters: two planes meeting at a line (a ridge or a fold), s = u cos(theta) + v sin(theta)
+    across it, over ``angles`` directions theta in [0, pi) and ``offsets`` lines s0 per direction at evenly spaced
+    quantiles of s within its middle ``inner`` share. Returns (its mean squared residual (m^2), theta (rad), s0 (m, in
+    the same coordinates as u and v)): (NaN, NaN, NaN) for fewer than 5 points, (inf, NaN, NaN) where no line's fit
+    could be solved."""
     m = u.shape[0]
     if m < 5:
         return np.nan, np.nan, np.nan
@@ -2593,7 +2588,7 @@ _BUCKET_MOST = 32
 def sorted_order(values: np.ndarray) -> np.ndarray:
     """The order (m,) int64 that sorts ``values`` (m,) float64 without NaN ascending, equal values in their order
     (as np.argsort's stable sort). Spread evenly over buckets by value (a monotone map: no bucket holds a value larger
-    than a later bucket's), each bucket insertion-sorted: a few passes where values spread out, as fold_fit's do.
+    than a later bucket's), each bucket insertion-sorted: a few passes where values spread out, as fold_line's do.
     Where a bucket would hold more than _BUCKET_MOST values: an LSD radix sort of the floats' bits, a byte a pass,
     skipping the bytes all keys share (both several times faster than a comparison sort on a thousand values)."""
     m = values.shape[0]
@@ -2888,14 +2883,13 @@ _MIXED = -2
 def voxel_nodes(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
                 origin: np.ndarray, cell: float, dims: np.ndarray, cloud: np.ndarray, rows: np.ndarray,
                 center: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """For each query, the rows ``rows`` (q,) of ``cloud`` (N, 3) meters less ``center`` (3,), in one pass: (node
-    (q,): a hashed point of :func:`voxel_grid`
-    (``points`` (m, 3): those points voxel by voxel, in its ``order``) in its own voxel, the first in ``order`` nearer
-    than one voxel plus the query's gap to its voxel's nearest face, else the nearest there (equal distances: the
-    first in ``order``), as an index into the points as hashed, -1 where its voxel holds none or it lies outside the
-    grid; voxel (q,): that occupied voxel, -1 where none; d2 (q,): the node's squared distance, m^2, inf where none;
-    near (q,) bool: the node is that near, so every hashed point at least as near lies in the 27 voxels around the
-    query's own)."""
+    """For each query, the rows ``rows`` (q,) of ``cloud`` (N, 3) meters less ``center`` (3,), in one pass: (node (q,):
+    a hashed point of :func:`voxel_grid` (``points`` (m, 3): those points voxel by voxel, in its ``order``) in its own
+    voxel, the first in ``order`` nearer than one voxel plus the query's gap to its voxel's nearest face, else the
+    nearest there (equal distances: the first in ``order``), as an index into the points as hashed, -1 where its voxel
+    holds none or it lies outside the grid; voxel (q,): that occupied voxel, -1 where none; d2 (q,): the node's squared
+    distance, m^2, inf where none; near (q,) bool: the node is that near, so every hashed point at least as near lies in
+    the 27 voxels around the query's own)."""
     nq = rows.shape[0]
     node = np.full(nq, -1, np.int64)
     voxel = np.full(nq, -1, np.int64)
@@ -3856,7 +3850,6 @@ def _warm_patches() -> None:
     pts, index = np.zeros((4, 3)), np.arange(4, dtype=np.int64)
     patch_fits(pts, index, np.array([0, 4]))
     plane_patches(pts, np.eye(3)[:, :2].copy(), 2, 1)
-    fold_fit(np.arange(6.0), np.ones(6), np.ones(6), 2, 2, 0.5)
     fold_line(np.arange(6.0), np.ones(6), np.ones(6), 2, 2, 0.5)
     patch_eigenvalues(np.zeros((1, 3, 3)))
 
@@ -4057,7 +4050,7 @@ def warm(jobs: int = 1) -> Warmup:
 _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components,
             grid_region, graph_components, graph_region, coordinate_bounds,
             voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, widen_xyz,
-            valid_rows, frame_pass, plane_patches, fold_fit, fold_line, grid_sample, grid_edges, grid_usable,
+            valid_rows, frame_pass, plane_patches, fold_line, grid_sample, grid_edges, grid_usable,
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
             cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,

@@ -422,6 +422,9 @@ def _neighbours(n: int, edges: np.ndarray, normals: np.ndarray | None,
     with ``knn`` (dist, idx (n, k), reach (n,)) each point joined to those of its nearest within its reach and to its
     ALWAYS_JOINED nearest (:func:`_knn_edges_numpy` is the reference of those pairs)."""
     dist, idx, reach = (_NO_DIST, _NO_IDX, _NO_REACH) if knn is None else knn
+    if len(idx) not in (0, n) or dist.shape != idx.shape or len(reach) != len(idx) or \
+            (idx.size and not 0 <= int(idx.min()) <= int(idx.max()) < n):
+        raise ValueError(f'the nearest-neighbour lists must hold a row per point (of {n}) with indices below it')
     unique, indptr, indices = kernels.pair_graph(n, kernels.c_array(edges.reshape(-1, 2), np.int64),
                                                  kernels.c_array(dist, np.float64), kernels.c_array(idx, np.int64),
                                                  kernels.c_array(reach, np.float64), ALWAYS_JOINED)

@@ -19,7 +19,8 @@ __all__ = ['judge', 'surface_failures', 'plane_tilt', 'MAX_TILT', 'plane_thickne
            'plane_lack_of_fit', 'MAX_LACK_OF_FIT', 'plane_layering', 'plane_beyond', 'MAX_FILL', 'MAX_LAYERING',
            'EXACT_LAYERS', 'MAX_BEYOND', 'MAX_ROUNDNESS', 'RELIABLE_PS', 'RELIABLE_GS_PLANES', 'MAX_THICKNESS',
            'MIN_CURVATURE', 'SINGLE_PLANE_THICKNESS', 'seed_agreement', 'MIN_SEED_AGREEMENT', 'STABILITY_RESEEDS',
-           'MIN_PLANE_POINTS', 'coordinate_step', 'plane_fold', 'FOLD_LACK', 'FOLD_FIT', 'plane_tent', 'TENT_LACK']
+           'MIN_PLANE_POINTS', 'coordinate_step', 'plane_fold', 'fold_line', 'is_ridge', 'FOLD_LACK', 'FOLD_FIT',
+           'plane_tent', 'TENT_LACK']
 
 #: Below this plane silhouette (PS, core/plane_silhouette.py) the planes are not reported as
 #: reliable. Calibrated on benchmarks/quality.py and the Kinect frames (benchmarks/README.md): good
@@ -138,7 +139,7 @@ EXACT_PATCH = 1e-4
 #: or a real wall's bow seen by a precise sensor) are not several surfaces. At a good t the noise is t / 2 or more.
 LACK_OF_FIT_FLOOR = 8.0
 #: A plane whose lack of fit is at least FOLD_LACK (below MAX_LACK_OF_FIT) and falls to FOLD_FIT or less with two
-#: planes meeting at a line (kernels.fold_fit: FOLD_ANGLES directions, FOLD_OFFSETS lines each within the middle
+#: planes meeting at a line (kernels.fold_line: FOLD_ANGLES directions, FOLD_OFFSETS lines each within the middle
 #: FOLD_INNER of the points), which fit it better than a quadric surface does, holds the two sides of a ridge or a
 #: fold: the residuals of one in-plane direction form a V. Chosen on the tuning split of benchmarks/quality.py (its
 #: scenes and 74 more tuning seeds; benchmarks/README.md): it fails 2 of 660 planes on one true plane and 31 % of the
@@ -301,7 +302,7 @@ def _patch_noise(pca, tolerance: float, cells: tuple | None = None) -> float | N
 
 def plane_fold(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     """Per plane its lack of fit (see plane_lack_of_fit) with two planes meeting at a line in place of one (the best
-    of kernels.fold_fit's lines) and with a quadric surface, (k, 2): about 1 and more on the two sides of a ridge
+    of kernels.fold_line's lines) and with a quadric surface, (k, 2): about 1 and more on the two sides of a ridge
     found as one plane, whose lack of fit with one plane is larger; NaN where there are too few inliers. ``points``
     (N, 3) meters."""
     samples = _samples(as_points(points), seg)
@@ -312,18 +313,32 @@ def _fold(pca, tolerance: float, local: float | None = None, ridge_only: bool = 
     """:func:`plane_fold` of one plane from its sampled inliers' :func:`_pca` and its ``tolerance`` (m); ``local``:
     its :func:`_patch_noise` when known. With ``ridge_only`` the quadric is fitted only where the fold could make a
     ridge (FOLD_FIT or less; judge compares the two only there), NaN elsewhere."""
+    return fold_line(pca, tolerance, local, ridge_only)[:2]
+
+
+def fold_line(pca, tolerance: float, local: float | None = None, ridge_only: bool = False
+              ) -> tuple[float, float, float, float]:
+    """:func:`_fold` of one plane and the line of its best fold (:func:`.kernels.fold_line`): (fold, quadric, theta
+    (rad), s0 (m)), the line at s0 along (cos theta, sin theta) in the plane's in-plane principal axes (``pca[3]``'s
+    columns 1 and 2) from its sampled inliers' centre ``pca[0]``; NaN where not judged."""
     if local is None and pca is not None:
         local = _patch_noise(pca, tolerance)
     if local is None:
-        return float('nan'), float('nan')
+        return float('nan'), float('nan'), float('nan'), float('nan')
     centred = pca[1][::-(-len(pca[1]) // FOLD_POINTS)]
     w, u, v = (centred @ pca[3]).T
-    fold = kernels.fold_fit(np.ascontiguousarray(u), np.ascontiguousarray(v), np.ascontiguousarray(w), FOLD_ANGLES,
-                            FOLD_OFFSETS, FOLD_INNER)
-    fold = float(np.sqrt(fold / local))
-    if ridge_only and not fold <= FOLD_FIT:
-        return fold, float('nan')
-    return fold, _quadric(u, v, w, local)
+    mse, theta, s0 = kernels.fold_line(np.ascontiguousarray(u), np.ascontiguousarray(v), np.ascontiguousarray(w),
+                                       FOLD_ANGLES, FOLD_OFFSETS, FOLD_INNER)
+    fold = float(np.sqrt(mse / local))
+    quadric = float('nan') if ridge_only and not fold <= FOLD_FIT else _quadric(u, v, w, local)
+    return fold, quadric, float(theta), float(s0)
+
+
+def is_ridge(lack: float, fold: float, quadric: float) -> bool:
+    """Whether a plane of lack of fit ``lack`` whose fold and quadric fit it to ``fold`` and ``quadric`` (see
+    :func:`fold_line`) holds the two sides of a ridge: ``lack`` at least FOLD_LACK, the fold FOLD_FIT or less and
+    better than the quadric (judge fails it below MAX_LACK_OF_FIT; above, as surfaces merged)."""
+    return bool(lack >= FOLD_LACK and fold <= FOLD_FIT and fold < quadric)
 
 
 def plane_tent(points: np.ndarray, seg: Segmentation) -> np.ndarray:
@@ -665,7 +680,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     # only planes that could be a ridge and are not failed as merged already (the fold search costs ~0.2 ms a plane)
     folds = np.array([_fold(pca, np.nan, local, ridge_only=True) if FOLD_LACK <= x < MAX_LACK_OF_FIT
                       else (np.nan, np.nan) for pca, local, x in zip(frames, noise, lack)]).reshape(-1, 2)
-    ridge = (folds[:, 0] <= FOLD_FIT) & (folds[:, 0] < folds[:, 1])  # NaN: not judged
+    ridge = np.array([is_ridge(x, *fold) for x, fold in zip(lack, folds)], dtype=bool)  # NaN: not judged
     # the tent only where a shallower misfit is no ridge (about 0.05 ms a plane)
     tents = np.array([_tent(pca, local, quadric, True) if TENT_LACK <= x < MAX_LACK_OF_FIT and not r
                       else (np.nan, np.nan)

@@ -1,6 +1,6 @@
 """The connected-regions search (``connectivity=True``): sequential RANSAC over a neighbourhood, then each
 region refitted, the borders between regions settled, touching regions of one surface merged (and coplanar ones
-apart where the part between them is hidden, :mod:`.occluded`), regions holding a ridge split at it
+apart where the part between them is hidden, :mod:`.occluded`), regions holding a ridge split at it once
 (:mod:`.folds`), and every valid point labelled from the searched ones."""
 from __future__ import annotations
 
@@ -54,8 +54,7 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
     if len(found) < searched:
         reason += f'; merged {searched - len(found)} region(s) into another region of the same surface'
     merged = len(found)
-    region, found = split_folds(search, region, found, float(np.median(search_tolerance)), max_planes, search_min,
-                                allows)
+    region, found = split_folds(search, region, found, search_tolerance, max_planes, search_min, allows)
     if len(found) > merged:
         reason += f'; split {len(found) - merged} region(s) at a ridge or fold into the two surfaces meeting there'
     if step:

@@ -159,8 +159,9 @@ def _nearest_searched(searched: np.ndarray, cloud: np.ndarray, rows: np.ndarray,
     coordinates: then every node is the nearest, by a kd-tree)."""
     every = cloud if len(rows) == len(cloud) else cloud[rows]  # all valid: no copy
     lo, hi = kernels.coordinate_bounds(kernels.c_array(every, np.float64))
-    index = voxel_index(searched, span=(lo - center, hi - center))  # the bounds of every - center (rounding is
-    if index is None:  # monotonic): that array is not built
+    # the bounds of every - center, that array not built (rounding is monotonic)
+    index = voxel_index(searched, span=(lo - center, hi - center))
+    if index is None:
         node = _nearest_searched_tree(searched, every - center)
         none = np.zeros(len(node), bool)
         return VoxelNodes(None, node, np.full(len(node), -1), np.zeros(len(node)), none, ~none), None
