@@ -276,7 +276,12 @@ def _tolerance(inl: np.ndarray, seg: Segmentation, scale: np.ndarray | None | bo
 def _lack_of_fit(pca, tolerance: float, cells: tuple | None = None) -> float:
     """:func:`plane_lack_of_fit` of one plane from its sampled inliers' :func:`_pca` (and its :func:`_cells` when
     known) and its ``tolerance`` (m)."""
-    local = _patch_noise(pca, tolerance, cells)
+    return _lack(pca, _patch_noise(pca, tolerance, cells))
+
+
+def _lack(pca, local: float | None) -> float:
+    """The lack of fit of one plane from its sampled inliers' :func:`_pca` and its :func:`_patch_noise` ``local``
+    (m^2); NaN where not judged (``local`` None)."""
     return float(np.sqrt(max(float(pca[2][0]), 0.0) / len(pca[1]) / local)) if local is not None else float('nan')
 
 
@@ -325,13 +330,18 @@ def fold_line(pca, tolerance: float, local: float | None = None, ridge_only: boo
         local = _patch_noise(pca, tolerance)
     if local is None:
         return float('nan'), float('nan'), float('nan'), float('nan')
-    centred = pca[1][::-(-len(pca[1]) // FOLD_POINTS)]
-    w, u, v = (centred @ pca[3]).T
-    mse, theta, s0 = kernels.fold_line(np.ascontiguousarray(u), np.ascontiguousarray(v), np.ascontiguousarray(w),
-                                       FOLD_ANGLES, FOLD_OFFSETS, FOLD_INNER)
+    u, v, w = _fold_points(pca)
+    mse, theta, s0 = kernels.fold_line(u, v, w, FOLD_ANGLES, FOLD_OFFSETS, FOLD_INNER)
     fold = float(np.sqrt(mse / local))
     quadric = float('nan') if ridge_only and not fold <= FOLD_FIT else _quadric(u, v, w, local)
     return fold, quadric, float(theta), float(s0)
+
+
+def _fold_points(pca) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The points the fold and the tent are fitted to, every so many-th of one plane's sampled inliers (its
+    :func:`_pca`; at most FOLD_POINTS): their in-plane coordinates u, v and residuals w (m,), meters, C-ordered."""
+    w, u, v = (pca[1][::-(-len(pca[1]) // FOLD_POINTS)] @ pca[3]).T
+    return np.ascontiguousarray(u), np.ascontiguousarray(v), np.ascontiguousarray(w)
 
 
 def is_ridge(lack: float, fold: float, quadric: float) -> bool:
@@ -359,10 +369,8 @@ def _tent(pca, local: float | None, quadric: float = np.nan, ridge_only: bool = 
     the tent fits FOLD_FIT or less (judge compares the two only there), NaN elsewhere."""
     if local is None:
         return float('nan'), float('nan')
-    centred = pca[1][::-(-len(pca[1]) // FOLD_POINTS)]
-    w, u, v = (centred @ pca[3]).T
-    tent = float(np.sqrt(kernels.tent_fit(np.ascontiguousarray(u), np.ascontiguousarray(v), np.ascontiguousarray(w),
-                                          TENT_ANGLES) / local))
+    u, v, w = _fold_points(pca)
+    tent = float(np.sqrt(kernels.tent_fit(u, v, w, TENT_ANGLES) / local))
     if np.isnan(quadric) and not (ridge_only and not tent <= FOLD_FIT):
         quadric = _quadric(u, v, w, local)
     return tent, float(quadric)
@@ -675,8 +683,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     beyond, layering, fill, tilt = _surface(pts, seg, samples, frames, scales, cells)
     noise = [None if pca is None else _patch_noise(pca, _tolerance(inl, seg, scale), c)
              for pca, inl, scale, c in zip(frames, samples, scales, cells)]
-    lack = np.array([np.nan if local is None else np.sqrt(max(float(pca[2][0]), 0.0) / len(pca[1]) / local)
-                     for pca, local in zip(frames, noise)])
+    lack = np.array([_lack(pca, local) for pca, local in zip(frames, noise)])
     # only planes that could be a ridge and are not failed as merged already (the fold search costs ~0.2 ms a plane)
     folds = np.array([_fold(pca, np.nan, local, ridge_only=True) if FOLD_LACK <= x < MAX_LACK_OF_FIT
                       else (np.nan, np.nan) for pca, local, x in zip(frames, noise, lack)]).reshape(-1, 2)

@@ -55,10 +55,8 @@ def _fold_halves(search: np.ndarray, rows: np.ndarray, tolerance: float, min_cou
     cols = search[:, rows]
     pca = verdict._pca(np.ascontiguousarray(cols.T[verdict._sample_rows(np.arange(len(rows)))]))
     local = verdict._patch_noise(pca, tolerance)
-    if local is None:
-        return None
-    lack = float(np.sqrt(max(float(pca[2][0]), 0.0) / len(pca[1]) / local))
-    if not lack >= verdict.FOLD_LACK:
+    lack = verdict._lack(pca, local)
+    if not lack >= verdict.FOLD_LACK:  # NaN: not judged
         return None
     fold, quadric, theta, s0 = verdict.fold_line(pca, tolerance, local, ridge_only=True)
     if not verdict.is_ridge(lack, fold, quadric):
@@ -69,10 +67,10 @@ def _fold_halves(search: np.ndarray, rows: np.ndarray, tolerance: float, min_cou
     if first is None:
         return None
     distance = [np.abs(normal @ cols + offset) for normal, offset in first]
-    planes = _sides(cols, distance[1] < distance[0], least)  # each point to the nearer plane, both refitted
+    side = distance[1] < distance[0]  # each point to the nearer plane, both refitted
+    planes = _sides(cols, side, least)
     if planes is None or not all(allows_normal(allows, normal) for normal, _ in planes):
         return None
-    side = distance[1] < distance[0]
     return (rows[~side], planes[0]), (rows[side], planes[1])
 
 
