@@ -1,0 +1,60 @@
+"""The search sets aside a surface whose points within t hold no region (sequential.SET_ASIDE) and goes on."""
+import numpy as np
+import pytest
+
+import plane_validation as pv
+from plane_validation.core.search import sequential
+
+
+def _noisy_wall_and_near_patch(seed: int = 0, h: int = 120, w: int = 160):
+    """An organized (h * w, 3) frame: a wall 4 m away with 5 cm depth noise (its normals scatter) and, nearer, a
+    tilted patch of 17 % of the pixels with 1 mm noise; labels (h * w,) 0 wall, 1 patch."""
+    rng = np.random.default_rng(seed)
+    f = w / (2 * np.tan(np.radians(29)))
+    v, u = np.mgrid[0:h, 0:w]
+    rays = np.stack([(u - w / 2) / f, (v - h / 2) / f, np.ones((h, w))], -1).reshape(-1, 3)
+    patch = (np.abs(rays[:, 0]) < 0.25) & (rays[:, 1] > 0.1)
+    normal = np.array([0.0, -0.9, -0.436]) / np.linalg.norm([0.0, -0.9, -0.436])
+    depth = np.where(patch, 1.5 * normal[2] / (rays @ normal), 4.0)
+    depth = depth + rng.normal(0.0, 1.0, h * w) * np.where(patch, 0.001, 0.05)
+    return rays * depth[:, None], patch.astype(int), (h, w)
+
+
+@pytest.mark.parametrize('t', [0.06, 0.08])
+def test_a_near_patch_is_found_behind_a_scattered_wall(t):
+    points, labels, shape = _noisy_wall_and_near_patch()
+    seg = pv.detect_planes(points, t, shape=shape, seed=0, max_planes=5, min_inliers=0.02)
+    found = seg.labels[labels == 1]
+    assert (found >= 0).mean() > 0.95
+    patch_plane = seg.planes[int(np.bincount(found[found >= 0]).argmax())]
+    tilt = np.array([0.0, -0.9, -0.436])
+    assert abs(patch_plane.normal @ tilt) > 0.999 * np.linalg.norm(tilt)
+    assert 'set aside' in seg.reason
+
+
+def test_without_setting_aside_the_search_stops_at_the_wall(monkeypatch):
+    points, labels, shape = _noisy_wall_and_near_patch()
+    monkeypatch.setattr(sequential, 'SET_ASIDE', 0)
+    seg = pv.detect_planes(points, 0.08, shape=shape, seed=0, max_planes=5, min_inliers=0.02)
+    assert (seg.labels[labels == 1] >= 0).mean() < 0.05
+    assert 'set aside' not in seg.reason
+
+
+def test_a_surface_whose_normals_agree_is_not_set_aside(monkeypatch):
+    points, labels, shape = _noisy_wall_and_near_patch()
+    monkeypatch.setattr(sequential, 'SCATTERED_AGREE', 0.0)  # as if every scattered wall's normals agreed
+    seg = pv.detect_planes(points, 0.08, shape=shape, seed=0, max_planes=5, min_inliers=0.02)
+    assert 'set aside' not in seg.reason and (seg.labels[labels == 1] >= 0).mean() < 0.05
+
+
+def test_infinite_planes_never_set_aside():
+    points, _, shape = _noisy_wall_and_near_patch()
+    seg = pv.detect_planes(points, 0.08, shape=shape, seed=0, max_planes=5, min_inliers=0.02, connectivity=False)
+    assert 'set aside' not in seg.reason
+
+
+def test_setting_aside_stops_after_set_aside_times(monkeypatch):
+    points, labels, shape = _noisy_wall_and_near_patch()
+    monkeypatch.setattr(sequential, 'SET_ASIDE', 1)
+    seg = pv.detect_planes(points, 0.06, shape=shape, seed=0, max_planes=5, min_inliers=0.02)
+    assert 'set aside 1 surface' in seg.reason
