@@ -596,13 +596,14 @@ def test_noisy_normals_of_a_lidar_image_are_unknown_not_wrong(monkeypatch):
     # 3 cm range noise in a 2.4 m corridor: a normal over one ring is noise, and such normals cut the floor
     # and walls apart (0/8 correct, F1 0.41, where only the inliers connect a region, and the pieces are not
     # joined again); unknown, they let any plane keep the point
-    from plane_validation.core.search import connected, hypotheses, neighbours_grid
+    from plane_validation.core.search import connected, hypotheses, neighbours_grid, sequential
     scan = scenes.lidar(**{**scenes.VLP16_CORRIDOR, 'sigma': 0.03}, seed=1, organized=True)
     seg = pv.detect_planes(scan.points, 0.05, seed=0, shape=scan.shape)
     assert segmentation_quality(seg.labels, scan.labels).f1 > 0.9
     monkeypatch.setattr(neighbours_grid, 'LIDAR_BEND', np.inf)  # no normal unknown for noise
     monkeypatch.setattr(hypotheses, 'SUPPORT', 1.0)
     monkeypatch.setattr(connected, 'merge_occluded', lambda search, region, found, *args: (region, found))
+    monkeypatch.setattr(sequential, 'SET_ASIDE', 0)  # nor a scattered surface joined whatever its normals
     seg = pv.detect_planes(scan.points, 0.05, seed=0, shape=scan.shape)
     assert segmentation_quality(seg.labels, scan.labels).f1 < 0.6
 

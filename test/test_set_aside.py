@@ -1,9 +1,12 @@
-"""The search sets aside a surface whose points within t hold no region (sequential.SET_ASIDE) and goes on."""
+"""A surface whose points within t hold no region because its noise scatters their normals does not end the search:
+its largest connected piece becomes the plane, or it is set aside (sequential.SET_ASIDE, SCATTERED_AGREE)."""
 import numpy as np
 import pytest
 
 import plane_validation as pv
 from plane_validation.core.search import sequential
+
+TILT = np.array([0.0, -0.9, -0.436]) / np.linalg.norm([0.0, -0.9, -0.436])
 
 
 def _noisy_wall_and_near_patch(seed: int = 0, h: int = 120, w: int = 160):
@@ -14,21 +17,41 @@ def _noisy_wall_and_near_patch(seed: int = 0, h: int = 120, w: int = 160):
     v, u = np.mgrid[0:h, 0:w]
     rays = np.stack([(u - w / 2) / f, (v - h / 2) / f, np.ones((h, w))], -1).reshape(-1, 3)
     patch = (np.abs(rays[:, 0]) < 0.25) & (rays[:, 1] > 0.1)
-    normal = np.array([0.0, -0.9, -0.436]) / np.linalg.norm([0.0, -0.9, -0.436])
-    depth = np.where(patch, 1.5 * normal[2] / (rays @ normal), 4.0)
+    depth = np.where(patch, 1.5 * TILT[2] / (rays @ TILT), 4.0)
     depth = depth + rng.normal(0.0, 1.0, h * w) * np.where(patch, 0.001, 0.05)
     return rays * depth[:, None], patch.astype(int), (h, w)
 
 
-@pytest.mark.parametrize('t', [0.06, 0.08])
-def test_a_near_patch_is_found_behind_a_scattered_wall(t):
+def _shares(seg, labels):
+    """(share of the patch in a plane whose normal is the patch's, share of the wall in its largest plane)."""
+    out = []
+    for g in (1, 0):
+        got = seg.labels[labels == g]
+        if not (got >= 0).any():
+            out.append(0.0)
+            continue
+        plane = int(np.bincount(got[got >= 0]).argmax())
+        out.append(float(np.mean(got == plane)))
+        if g == 1:
+            assert abs(seg.planes[plane].normal @ TILT) > 0.999
+    return tuple(out)
+
+
+@pytest.mark.parametrize('t', [0.08, 0.12])
+def test_a_scattered_wall_becomes_a_plane_and_the_patch_before_it_is_found(t):
     points, labels, shape = _noisy_wall_and_near_patch()
     seg = pv.detect_planes(points, t, shape=shape, seed=0, max_planes=5, min_inliers=0.02)
-    found = seg.labels[labels == 1]
-    assert (found >= 0).mean() > 0.95
-    patch_plane = seg.planes[int(np.bincount(found[found >= 0]).argmax())]
-    tilt = np.array([0.0, -0.9, -0.436])
-    assert abs(patch_plane.normal @ tilt) > 0.999 * np.linalg.norm(tilt)
+    patch, wall = _shares(seg, labels)
+    assert patch > 0.95 and wall > 0.85
+    assert sum(abs(p.normal[2]) > 0.99 for p in seg.planes) == 1  # the wall is one plane, facing the camera
+
+
+def test_a_scattered_wall_without_a_piece_of_min_inliers_is_set_aside(monkeypatch):
+    points, labels, shape = _noisy_wall_and_near_patch()
+    monkeypatch.setattr(sequential, '_joined', lambda *args: None)
+    seg = pv.detect_planes(points, 0.08, shape=shape, seed=0, max_planes=5, min_inliers=0.02)
+    patch, wall = _shares(seg, labels)
+    assert patch > 0.95 and wall < 0.5
     assert 'set aside' in seg.reason
 
 
@@ -54,7 +77,8 @@ def test_infinite_planes_never_set_aside():
 
 
 def test_setting_aside_stops_after_set_aside_times(monkeypatch):
-    points, labels, shape = _noisy_wall_and_near_patch()
+    points, _, shape = _noisy_wall_and_near_patch()
+    monkeypatch.setattr(sequential, '_joined', lambda *args: None)
     monkeypatch.setattr(sequential, 'SET_ASIDE', 1)
     seg = pv.detect_planes(points, 0.06, shape=shape, seed=0, max_planes=5, min_inliers=0.02)
     assert 'set aside 1 surface' in seg.reason
