@@ -82,3 +82,25 @@ def test_setting_aside_stops_after_set_aside_times(monkeypatch):
     monkeypatch.setattr(sequential, 'SET_ASIDE', 1)
     seg = pv.detect_planes(points, 0.06, shape=shape, seed=0, max_planes=5, min_inliers=0.02)
     assert 'set aside 1 surface' in seg.reason
+
+
+def _layered_wall(seed: int = 0, h: int = 120, w: int = 160, step: float = 0.07):
+    """An organized (h * w, 3) frame of a wall 5 m away facing the camera, its depth with 8 cm noise in steps of
+    ``step`` meters: layers of exactly equal depth, their normals scattered."""
+    rng = np.random.default_rng(seed)
+    f = w / (2 * np.tan(np.radians(29)))
+    v, u = np.mgrid[0:h, 0:w]
+    rays = np.stack([(u - w / 2) / f, (v - h / 2) / f, np.ones((h, w))], -1).reshape(-1, 3)
+    depth = np.round((5.0 + rng.normal(0.0, 0.08, h * w)) / step) * step
+    return rays * depth[:, None], (h, w)
+
+
+def test_layers_of_a_stepped_depth_are_not_a_scattered_surface(monkeypatch):
+    """At t below the depth step each layer lies exactly on a plane (no spread over the band within t): neither
+    joined nor set aside, the search ends there."""
+    points, shape = _layered_wall()
+    seg = pv.detect_planes(points, 0.01, shape=shape, seed=0, max_planes=8, min_inliers=0.02)
+    assert 'set aside' not in seg.reason and not seg.planes
+    monkeypatch.setattr(sequential, 'SCATTERED_SPREAD', 0.0)
+    seg = pv.detect_planes(points, 0.01, shape=shape, seed=0, max_planes=8, min_inliers=0.02)
+    assert 'set aside' in seg.reason
