@@ -3554,6 +3554,10 @@ def grid_spread(points: np.ndarray, valid: np.ndarray, pixel: np.ndarray, region
     best = np.empty(h * w)  # the distance of each labelled pixel to its plane
     counts = np.zeros(k + 1, np.int64)
     run, run_length = -1, 0  # labels come in runs: counted through a local counter
+    # the plane of the last nearest sub-grid region in locals (neighbouring pixels share it): loaded again only when
+    # that region changes, not after each store of a label (which, for all the compiler knows, might change it)
+    held, pa, pb, pc, pd = -1, 0.0, 0.0, 0.0, 0.0
+    tol = tolerance[0]
     for r in range(h):
         row_cell = (near_r[r] + 1) * wide + 1
         for c in range(w):
@@ -3561,12 +3565,15 @@ def grid_spread(points: np.ndarray, valid: np.ndarray, pixel: np.ndarray, region
             out = -1
             if valid[i]:
                 x, y, z = points[i, 0], points[i, 1], points[i, 2]
-                tol = tolerance[i] if per_point else tolerance[0]
+                if per_point:
+                    tol = tolerance[i]
                 cell = row_cell + near_c[c]
                 lab = sub[cell]
                 nearest = np.inf
                 if lab < k:
-                    d = abs(planes[lab, 0] * x + planes[lab, 1] * y + planes[lab, 2] * z + planes[lab, 3])
+                    if lab != held:
+                        held, pa, pb, pc, pd = lab, planes[lab, 0], planes[lab, 1], planes[lab, 2], planes[lab, 3]
+                    d = abs(pa * x + pb * y + pc * z + pd)
                     if d <= tol:
                         out, nearest = lab, d
                 if out < 0:
