@@ -959,11 +959,9 @@ def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_i
             if lab != run:
                 if run >= 0:
                     _keep_run(run, q, sx, sy, sz, run_best, run_extreme, count, sums, best, extreme)
-                run, q = lab, count[lab]
-                sx, sy, sz = sums[lab, 0], sums[lab, 1], sums[lab, 2]
-                for e in range(d):
-                    run_best[e], run_extreme[e] = best[lab, e], extreme[lab, e]
-                    ax[e], ay[e], az[e] = directions[lab, e, 0], directions[lab, e, 1], directions[lab, e, 2]
+                run = lab
+                q, sx, sy, sz = _start_run(lab, count, sums, best, extreme, directions, run_best, run_extreme,
+                                           ax, ay, az)
             sx += x
             sy += y
             sz += z
@@ -985,6 +983,18 @@ def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_i
             for a in range(3):
                 centroid[j, a] = sums[j, a] / count[j]
     return count, centroid, extreme, seg_dense, obs_dense, max(big_x, max(big_y, big_z))
+
+
+@numba.njit(**_JIT)
+def _start_run(lab: int, count: np.ndarray, sums: np.ndarray, best: np.ndarray, extreme: np.ndarray,
+               directions: np.ndarray, run_best: np.ndarray, run_extreme: np.ndarray, ax: np.ndarray, ay: np.ndarray,
+               az: np.ndarray) -> tuple[int, float, float, float]:
+    """:func:`frame_pass`' statistics of label ``lab`` so far, as a run of its rows starts: its extremes and directions
+    into the run's arrays; returns (its rows so far, its sums of x, y, z)."""
+    for e in range(run_best.shape[0]):
+        run_best[e], run_extreme[e] = best[lab, e], extreme[lab, e]
+        ax[e], ay[e], az[e] = directions[lab, e, 0], directions[lab, e, 1], directions[lab, e, 2]
+    return count[lab], sums[lab, 0], sums[lab, 1], sums[lab, 2]
 
 
 @numba.njit(**_JIT)
