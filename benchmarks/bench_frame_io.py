@@ -46,12 +46,7 @@ def main() -> None:
     print('| frame | whole frame, CPU (ms) | without search (ms) | without search, indices, verdict (ms) '
           '| reading the message (ms) | frame_messages (ms) |')
     print('|---|--:|--:|--:|--:|--:|')
-    for path in args.clouds:
-        points, shape = load_cloud(path)
-        if shape != (480, 640):
-            continue
-        msg = cloud_message(points, *shape)
-        frames = pipeline.FramePipeline(pipeline.PipelineConfig(**SETTINGS))
+    for path, msg, frames in organized_frames(args.clouds):
         whole, outside, rest, reading, messages = [], [], [], [], []
         for i in range(args.repeat + 1):
             msg.header.stamp.sec = i + 1
@@ -73,6 +68,14 @@ def main() -> None:
               f'{statistics.median(rest):.1f} | {statistics.median(reading):.1f} | {statistics.median(messages):.1f} |',
               flush=True)
     print(f'targets: without search <= {WITHOUT_SEARCH_MS:g} ms; without search, indices and verdict <= {REST_MS:g} ms')
+
+
+def organized_frames(clouds: list[str]):
+    """(path, its rclpy PointCloud2, a new FramePipeline with SETTINGS) of each 640 x 480 frame of ``clouds``."""
+    for path in clouds:
+        points, shape = load_cloud(path)
+        if shape == (480, 640):
+            yield path, cloud_message(points, *shape), pipeline.FramePipeline(pipeline.PipelineConfig(**SETTINGS))
 
 
 def _timed(function, spent: list[float]):

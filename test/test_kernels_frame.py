@@ -93,6 +93,29 @@ def test_frame_pass_agrees_with_centroids_and_extremes_on_ties():
     np.testing.assert_array_equal(centroid, want_centroid)
 
 
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(1, 40), st.integers(1, 4))
+def test_frame_pass_sums_each_plane_in_row_order_across_runs(seed, runs, k):
+    """Labels in runs that come back to a plane after others (as an image's rows cross it): each plane's centroid
+    and extremes are exactly those of the kernel of plane_outlines, which sums its rows in order."""
+    rng = np.random.default_rng(seed)
+    labels = np.repeat(rng.integers(-1, k, runs), rng.integers(1, 30, runs)).astype(np.int32)
+    pts = rng.normal(scale=3, size=(len(labels), 3)) + rng.normal(scale=50, size=3)
+    pts[rng.random(len(pts)) < 0.05] = np.nan  # holes, unlabelled
+    labels[np.isnan(pts[:, 0])] = -1
+    normals = rng.normal(size=(k, 3))
+    directions = outline_directions([plane_basis(normal / np.linalg.norm(normal)) for normal in normals])
+    rows, bounds = kernels.group_by_label(labels, k)
+    want_centroid, want_extreme = kernels.centroids_and_extremes(pts, rows, bounds, directions)
+    count, centroid, extreme, *_ = kernels.frame_pass(
+        pts, labels, np.ones(len(pts), bool), np.append(np.arange(k), -1).astype(np.int32), np.zeros(k + 1, np.uint32),
+        directions, np.zeros(20 * len(pts), np.uint8), np.zeros(12 * len(pts), np.uint8), False)
+    np.testing.assert_array_equal(count, np.diff(bounds))
+    np.testing.assert_array_equal(extreme, want_extreme)
+    np.testing.assert_array_equal(centroid, want_centroid)  # NaN for a plane without rows
+
+
 @SETTINGS
 @given(st.integers(0, 2**32 - 1), st.integers(0, 300))
 def test_valid_rows_matches_numpy(seed, n):

@@ -44,7 +44,8 @@ def _words(seed: int, n: int, width: int, view: np.ndarray) -> tuple[np.ndarray,
 def test_read_rows_matches_numpy(seed, n, width, marks, at_origin):
     view = np.zeros(3) if at_origin else np.array([0.5, -1.25, 2.0])
     words, columns = _words(seed, n, width, view)
-    points, finite, valid, infinite, marked = kernels.read_rows(words, columns, view, AT_VIEWPOINT, marks)
+    points, finite, valid, infinite, marked, largest = kernels.read_rows(words, columns, view, AT_VIEWPOINT,
+                                                                          marks)
 
     wide = words[:, columns].astype(np.float64)
     ref_points, ref_marked = no_returns_as_nan(wide, view) if marks else (wide, 0)
@@ -53,6 +54,11 @@ def test_read_rows_matches_numpy(seed, n, width, marks, at_origin):
     np.testing.assert_array_equal(finite, ref_finite)
     np.testing.assert_array_equal(valid, ref_valid)
     assert (infinite, marked) == (ref_infinite, ref_marked)
+    magnitudes = np.abs(ref_points[~np.isnan(ref_points)])  # inf counts, NaN does not
+    if len(magnitudes):
+        assert largest == magnitudes.max()
+    else:
+        assert np.isnan(largest)
     if marks and n:
         assert marked > 0  # the first row is at the mark
 

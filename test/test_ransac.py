@@ -158,6 +158,28 @@ def test_nan_rows_are_ignored_and_labelled_unassigned():
     assert seg.labels.dtype == np.int32
 
 
+
+def test_an_extent_given_by_the_caller_is_used_and_checked():
+    """detect_planes with the finite rows and largest coordinate its caller found gives what it finds itself; a
+    given extent is what it checks the magnitude against, and finite rows of another shape or type are refused."""
+    scene = scenes.corner(3000, 1.0, seed=2)
+    pts = scene.points.copy()
+    pts[::17] = np.nan
+    finite = np.isfinite(pts).all(axis=1)
+    largest = float(np.abs(pts[finite]).max())
+    own = pv.detect_planes(pts, 2.5, seed=0)
+    given = pv.detect_planes(pts, 2.5, seed=0, extent=(finite, largest))
+    np.testing.assert_array_equal(given.labels, own.labels)
+    assert [p.coefficients.tolist() for p in given.planes] == [p.coefficients.tolist() for p in own.planes]
+    far = pts.copy()
+    far[5, 1] = 1e160  # beyond MAX_COORDINATE: refused with the extent that says so
+    with pytest.raises(ValueError, match='reaches'):
+        pv.detect_planes(far, 2.5, seed=0, extent=(np.isfinite(far).all(axis=1), 1e160))
+    with pytest.raises(ValueError, match='extent'):
+        pv.detect_planes(pts, 2.5, seed=0, extent=(finite[1:], largest))
+    with pytest.raises(ValueError, match='extent'):
+        pv.detect_planes(pts, 2.5, seed=0, extent=(finite.astype(np.int8), largest))
+
 @pytest.mark.parametrize('points, why', [
     (np.empty((0, 3)), 'fewer than 3'),
     (np.array([[0.0, 0, 0], [1, 1, 1]]), 'fewer than 3'),

@@ -357,7 +357,7 @@ class FramePipeline:
         except ValueError as exc:
             return _failed(ERROR, f'bad input: {exc}', start, self.current_tolerance())
         cfg = self.config
-        pts, no_returns, finite, valid, infinite = _frame_rows(given, words, cfg)
+        pts, no_returns, finite, valid, infinite, largest = _frame_rows(given, words, cfg)
         n_input = len(pts)
         image = shape if shape is not None and shape[0] * shape[1] == n_input else None  # kept in the outputs
         if shape is not None and (cfg.voxel_size > 0 or not cfg.connectivity or shape[0] * shape[1] != n_input):
@@ -397,7 +397,10 @@ class FramePipeline:
                 else:
                     work, inverse = (voxel_downsample(valid, cfg.voxel_size) if cfg.voxel_size > 0 else (valid, None))
                 seed = frame_seed(cfg.seed, stamp_ns)
-                seg = detect_planes(work, tolerance, seed=seed, shape=cloud_shape, **cfg.search.kwargs())
+                # the organized rows' extent as reading the message found it (no second pass over them)
+                extent = None if largest is None or work is not pts else (finite, largest)
+                seg = detect_planes(work, tolerance, seed=seed, shape=cloud_shape, extent=extent,
+                                    **cfg.search.kwargs())
                 if inverse is not None:  # each point its voxel's (pixel's) plane, if it lies within t of it
                     labels = within_planes(valid, seg.labels[inverse], seg)
                 else:
@@ -451,17 +454,17 @@ class FramePipeline:
 
 
 def _frame_rows(points: np.ndarray | None, words: tuple[np.ndarray, np.ndarray] | None, cfg: PipelineConfig
-                ) -> tuple[np.ndarray, int, np.ndarray, np.ndarray, int]:
+                ) -> tuple[np.ndarray, int, np.ndarray, np.ndarray, int, float | None]:
     """A frame's rows (N, 3) meters (with ``zero_is_no_return`` its "no return" marks NaN) and how many were marks,
-    which rows are valid (N,) bool, they themselves (n, 3) and how many other rows have an infinite coordinate: of
-    ``points`` (N, 3), else of a PointCloud2's float32 ``words`` and x, y, z columns (:func:`.xyz_words`) in one
-    compiled pass."""
+    which rows are valid (N,) bool, they themselves (n, 3), how many other rows have an infinite coordinate, and the
+    rows' largest |coordinate| not NaN (None when not found here): of ``points`` (N, 3), else of a PointCloud2's
+    float32 ``words`` and x, y, z columns (:func:`.xyz_words`) in one compiled pass."""
     if words is not None:
-        pts, finite, valid, infinite, marked = kernels.read_rows(*words, check_viewpoint(cfg.viewpoint), AT_VIEWPOINT,
-                                                                 cfg.zero_is_no_return)
-        return pts, marked, finite, valid, infinite
+        pts, finite, valid, infinite, marked, largest = kernels.read_rows(*words, check_viewpoint(cfg.viewpoint),
+                                                                          AT_VIEWPOINT, cfg.zero_is_no_return)
+        return pts, marked, finite, valid, infinite, float(largest)
     pts, no_returns = _no_returns_as_nan(points, cfg.viewpoint) if cfg.zero_is_no_return else (points, 0)
-    return (pts, no_returns, *_valid_rows(pts))
+    return (pts, no_returns, *_valid_rows(pts), None)
 
 
 def _no_returns_as_nan(points: np.ndarray, viewpoint) -> tuple[np.ndarray, int]:

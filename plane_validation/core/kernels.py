@@ -911,29 +911,32 @@ def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_i
     sums = np.zeros((k, 3))
     extreme = np.full((k, d), -1, np.int64)
     best = np.full((k, d), -np.inf)
-    along = np.empty((k, 3, d))  # the directions' components side by side: the d projections then vectorize
-    for j in range(k):
-        for e in range(d):
-            for a in range(3):
-                along[j, a, e] = directions[j, e, a]
     seg_dense = obs_dense = True
-    largest = 0.0
+    big_x = big_y = big_z = 0.0  # a running maximum per coordinate: no chain through one
     kept = valid = 0  # obstacle records written, finite rows passed
     nan = np.float32(np.nan)
+    # the statistics of the label of the current run of rows in locals (labels come in runs), kept in the arrays
+    # between runs: the arrays' loads and stores (which the compiler cannot keep in registers, as they might share
+    # memory with the records written) then happen once a run instead of once a row; the same sums in the same order
+    run = -1
+    q = 0  # rows of the run's label so far
+    sx = sy = sz = 0.0
+    run_best = np.empty(d)
+    run_extreme = np.empty(d, np.int64)
+    ax, ay, az = np.empty(d), np.empty(d), np.empty(d)  # the run's directions, component by component
     for i in range(n):
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
-        finite = True
-        for v in (x, y, z):
-            if np.isfinite(v):
-                largest = max(largest, abs(v))
-            else:
-                finite = False
+        finite = np.isfinite(x) & np.isfinite(y) & np.isfinite(z)  # no branch per coordinate
         lab = labels[i]
         j = lab if 0 <= lab < last else last
         base = 5 * i
         if finite:  # a finite coordinate is never NaN as float32 (at most inf)
             fx, fy, fz = np.float32(x), np.float32(y), np.float32(z)
+            big_x, big_y, big_z = max(big_x, abs(x)), max(big_y, abs(y)), max(big_z, abs(z))
         else:
+            for v in (x, y, z):  # a row's finite coordinates count too
+                if np.isfinite(v):
+                    big_x = max(big_x, abs(v))
             fx = fy = fz = nan
             seg_dense = False
         seg_f[base], seg_f[base + 1], seg_f[base + 2] = fx, fy, fz
@@ -953,26 +956,55 @@ def frame_pass(points: np.ndarray, labels: np.ndarray, keep: np.ndarray, plane_i
             obs_f[3 * i] = obs_f[3 * i + 1] = obs_f[3 * i + 2] = nan
             obs_dense = False
         if 0 <= lab < k:
-            q = count[lab]
-            sums[lab, 0] += x
-            sums[lab, 1] += y
-            sums[lab, 2] += z
+            if lab != run:
+                if run >= 0:
+                    _keep_run(run, q, sx, sy, sz, run_best, run_extreme, count, sums, best, extreme)
+                run = lab
+                q, sx, sy, sz = _start_run(lab, count, sums, best, extreme, directions, run_best, run_extreme,
+                                           ax, ay, az)
+            sx += x
+            sy += y
+            sz += z
             beyond = q == 0  # a label's first point is its first extreme in every direction
             for e in range(d):
-                beyond |= along[lab, 0, e] * x + along[lab, 1, e] * y + along[lab, 2, e] * z > best[lab, e]
+                beyond |= ax[e] * x + ay[e] * y + az[e] * z > run_best[e]
             if beyond:  # rare after a label's first points: the projections again, the same products and sums
                 for e in range(d):
-                    value = along[lab, 0, e] * x + along[lab, 1, e] * y + along[lab, 2, e] * z
-                    if value > best[lab, e] or q == 0:
-                        best[lab, e] = value
-                        extreme[lab, e] = q
-            count[lab] = q + 1
+                    value = ax[e] * x + ay[e] * y + az[e] * z
+                    if value > run_best[e] or q == 0:
+                        run_best[e] = value
+                        run_extreme[e] = q
+            q += 1
+    if run >= 0:
+        _keep_run(run, q, sx, sy, sz, run_best, run_extreme, count, sums, best, extreme)
     centroid = np.full((k, 3), np.nan)
     for j in range(k):
         if count[j]:
             for a in range(3):
                 centroid[j, a] = sums[j, a] / count[j]
-    return count, centroid, extreme, seg_dense, obs_dense, largest
+    return count, centroid, extreme, seg_dense, obs_dense, max(big_x, max(big_y, big_z))
+
+
+@numba.njit(**_JIT)
+def _start_run(lab: int, count: np.ndarray, sums: np.ndarray, best: np.ndarray, extreme: np.ndarray,
+               directions: np.ndarray, run_best: np.ndarray, run_extreme: np.ndarray, ax: np.ndarray, ay: np.ndarray,
+               az: np.ndarray) -> tuple[int, float, float, float]:
+    """:func:`frame_pass`' statistics of label ``lab`` so far, as a run of its rows starts: its extremes and directions
+    into the run's arrays; returns (its rows so far, its sums of x, y, z)."""
+    for e in range(run_best.shape[0]):
+        run_best[e], run_extreme[e] = best[lab, e], extreme[lab, e]
+        ax[e], ay[e], az[e] = directions[lab, e, 0], directions[lab, e, 1], directions[lab, e, 2]
+    return count[lab], sums[lab, 0], sums[lab, 1], sums[lab, 2]
+
+
+@numba.njit(**_JIT)
+def _keep_run(lab: int, q: int, sx: float, sy: float, sz: float, run_best: np.ndarray, run_extreme: np.ndarray,
+              count: np.ndarray, sums: np.ndarray, best: np.ndarray, extreme: np.ndarray) -> None:
+    """:func:`frame_pass`' statistics of label ``lab`` at the end of a run of its rows, back into its arrays."""
+    count[lab] = q
+    sums[lab, 0], sums[lab, 1], sums[lab, 2] = sx, sy, sz
+    for e in range(run_best.shape[0]):
+        best[lab, e], extreme[lab, e] = run_best[e], run_extreme[e]
 
 
 # --- verdict ---
@@ -2839,12 +2871,14 @@ def grid_triples(first: np.ndarray, scale_pick: np.ndarray, row_share: np.ndarra
 
 @numba.njit(**_JIT)
 def read_rows(words: np.ndarray, columns: np.ndarray, view: np.ndarray, within: float, marks: bool
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int, float]:
     """One pass over a PointCloud2's points, the float32 ``words`` (N, w) with x, y, z at ``columns`` (3,): the rows
     (N, 3) float64, with NaN where ``marks`` and a row lies at a driver's "no return" mark (as :func:`marked_rows`
     finds it: exactly (0, 0, 0) when ``view`` (3,) is the origin, else within ``within`` meters of ``view`` in each
     coordinate); which rows have three finite coordinates (N,) bool and they themselves, in order ((n, 3), the
-    start of an (N, 3) buffer); how many other rows have an infinite coordinate, and how many were marked."""
+    start of an (N, 3) buffer); how many other rows have an infinite coordinate, how many were marked, and the
+    rows' largest |coordinate| that is not NaN (inf counts; NaN when none is), as :func:`finite_extent` gives it:
+    the search then needs no pass of its own over the rows."""
     n = words.shape[0]
     points = np.empty((n, 3))
     finite = np.empty(n, np.bool_)
@@ -2852,6 +2886,7 @@ def read_rows(words: np.ndarray, columns: np.ndarray, view: np.ndarray, within: 
     a, b, c = columns[0], columns[1], columns[2]
     origin = view[0] == 0.0 and view[1] == 0.0 and view[2] == 0.0
     m = infinite = marked = 0
+    big_x = big_y = big_z = -1.0  # as finite_extent: a running maximum per coordinate; NaN never compares greater
     for i in range(n):
         x, y, z = np.float64(words[i, a]), np.float64(words[i, b]), np.float64(words[i, c])
         if marks:
@@ -2863,6 +2898,10 @@ def read_rows(words: np.ndarray, columns: np.ndarray, view: np.ndarray, within: 
                 x = y = z = np.nan
                 marked += 1
         points[i, 0], points[i, 1], points[i, 2] = x, y, z
+        ax, ay, az = abs(x), abs(y), abs(z)
+        big_x = ax if ax > big_x else big_x
+        big_y = ay if ay > big_y else big_y
+        big_z = az if az > big_z else big_z
         ok = np.isfinite(x) and np.isfinite(y) and np.isfinite(z)
         finite[i] = ok
         if ok:
@@ -2870,7 +2909,8 @@ def read_rows(words: np.ndarray, columns: np.ndarray, view: np.ndarray, within: 
             m += 1
         elif np.isinf(x) or np.isinf(y) or np.isinf(z):
             infinite += 1
-    return points, finite, valid[:m], infinite, marked
+    largest = max(big_x, max(big_y, big_z))
+    return points, finite, valid[:m], infinite, marked, (largest if largest >= 0 else np.nan)
 
 
 # --- unorganized clouds ---
@@ -3524,6 +3564,10 @@ def grid_spread(points: np.ndarray, valid: np.ndarray, pixel: np.ndarray, region
     best = np.empty(h * w)  # the distance of each labelled pixel to its plane
     counts = np.zeros(k + 1, np.int64)
     run, run_length = -1, 0  # labels come in runs: counted through a local counter
+    # the plane of the last nearest sub-grid region in locals (neighbouring pixels share it): loaded again only when
+    # that region changes, not after each store of a label (which, for all the compiler knows, might change it)
+    held, pa, pb, pc, pd = -1, 0.0, 0.0, 0.0, 0.0
+    tol = tolerance[0]
     for r in range(h):
         row_cell = (near_r[r] + 1) * wide + 1
         for c in range(w):
@@ -3531,12 +3575,15 @@ def grid_spread(points: np.ndarray, valid: np.ndarray, pixel: np.ndarray, region
             out = -1
             if valid[i]:
                 x, y, z = points[i, 0], points[i, 1], points[i, 2]
-                tol = tolerance[i] if per_point else tolerance[0]
+                if per_point:
+                    tol = tolerance[i]
                 cell = row_cell + near_c[c]
                 lab = sub[cell]
                 nearest = np.inf
                 if lab < k:
-                    d = abs(planes[lab, 0] * x + planes[lab, 1] * y + planes[lab, 2] * z + planes[lab, 3])
+                    if lab != held:
+                        held, pa, pb, pc, pd = lab, planes[lab, 0], planes[lab, 1], planes[lab, 2], planes[lab, 3]
+                    d = abs(pa * x + pb * y + pc * z + pd)
                     if d <= tol:
                         out, nearest = lab, d
                 if out < 0:

@@ -35,7 +35,8 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX
                   ransac_points: int | None = RANSAC_POINTS, shape: tuple[int, int] | None = None,
                   connectivity: bool = True, graph: SearchGraph | None = None, noise_model: str = 'constant',
                   noise_reference: float = NOISE_REFERENCE, viewpoint: Viewpoint = None,
-                  grid_points: int | None = GRID_POINTS, orientation: Orientation | None = None) -> Segmentation:
+                  grid_points: int | None = GRID_POINTS, orientation: Orientation | None = None,
+                  extent: tuple[np.ndarray, float] | None = None) -> Segmentation:
     """Find planes one by one with RANSAC, removing each plane's points before the next search.
 
     With ``connectivity`` (the default) a plane is a connected planar region: each candidate's
@@ -72,6 +73,9 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX
         those that tell whether coplanar regions apart are one surface hidden between them (:mod:`.occluded`).
     orientation: an :class:`.orientation.Orientation` (from :func:`.orientation.orientation`): only planes whose
         normal satisfies it are searched for, refitted and merged (None: any plane).
+    extent: (finite rows (N,) bool, the largest |coordinate| not NaN, inf counting; NaN when none) of ``points``
+        when the caller's own pass over them already found them (:func:`.kernels.read_rows` of a frame): what
+        :func:`.checks.finite_extent` would find, which then does not read the points again. None: found here.
 
     Without connectivity, each plane found is then refitted by least squares on the searched points
     nearest to it (within ``tolerance``), and every valid point is labelled with the nearest plane
@@ -99,7 +103,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX
     check_search_size('grid_points', grid_points)
     if shape is not None:
         shape = check_shape(shape, len(pts))
-    finite, largest = finite_extent(pts)
+    finite, largest = finite_extent(pts) if extent is None else _given_extent(extent, len(pts))
     check_magnitude(pts, largest)
     view = check_viewpoint(viewpoint)
     if orientation is not None and not isinstance(orientation, Orientation):
@@ -117,6 +121,15 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX
         seg = detect_infinite(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
                               ransac_points, allows)
     return _facing_away(dataclasses.replace(seg, tolerance=tolerance, **model), view)
+
+
+def _given_extent(extent: tuple[np.ndarray, float], n: int) -> tuple[np.ndarray, float]:
+    """``extent`` as detect_planes takes it, checked against ``n`` rows."""
+    finite, largest = extent
+    if not isinstance(finite, np.ndarray) or finite.dtype != np.bool_ or finite.shape != (n,):
+        raise ValueError(f'extent: its finite rows must be a ({n},) bool array, got '
+                         f'{getattr(finite, "dtype", type(finite).__name__)} {getattr(finite, "shape", "")}')
+    return finite, float(largest)
 
 
 #: A plane passes through the viewpoint when the viewpoint lies within this many times the RMS residual of
