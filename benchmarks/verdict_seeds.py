@@ -127,8 +127,9 @@ def main() -> None:
                 'GOOD-NOT' if r['good'] and not r['verdict'].reliable else '')
         if args.detail or flag:
             q = r['q']
-            print(f'{cloud.name}: {q.correct}/{q.true_planes} F1 {q.f1:.3f} ratio {r["ratio"]:.3f} t {1000 * r["t"]:.1f} '
-                  f'mm (noise {1000 * r["noise"]:.2f} mm) {"reliable" if r["verdict"].reliable else kinds} {flag}',
+            print(f'{cloud.name}: {q.correct}/{q.true_planes} F1 {q.f1:.3f} ratio {r["ratio"]:.3f} '
+                  f't {1000 * r["t"]:.1f} mm (noise {1000 * r["noise"]:.2f} mm) '
+                  f'{"reliable" if r["verdict"].reliable else kinds} {flag}',
                   flush=True)
             if flag == 'BAD-RELIABLE' or args.detail:
                 for line in r['missed']:
@@ -144,7 +145,8 @@ def main() -> None:
     print(f'all: {len(rows)} scenes; bad called reliable {sum(r["bad"] and r["verdict"].reliable for r in rows)}/'
           f'{sum(r["bad"] for r in rows)}, good called not reliable '
           f'{sum(r["good"] and not r["verdict"].reliable for r in rows)}/{sum(r["good"] for r in rows)}, agreement '
-          f'{np.mean([r["good"] == r["verdict"].reliable for r in rows]):.3f} ({time.process_time() - start:.0f} s CPU)')
+          f'{np.mean([r["good"] == r["verdict"].reliable for r in rows]):.3f} '
+          f'({time.process_time() - start:.0f} s CPU)')
 
 
 if __name__ == '__main__':
