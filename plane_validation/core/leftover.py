@@ -25,9 +25,9 @@ __all__ = ['Leftover', 'leftover_plane', 'leftover_rows_numpy', 'leftover_best_n
 #: beyond t are not a surface left behind (the rest of a coplanar surface beyond its extent may be).
 COVER = 2.0
 #: The cloud is read every so many rows, about this many of them (the share is a sample's estimate) ...
-ROWS = 8000
+ROWS = 4000
 #: ... and RANSAC runs on at most this many of the uncovered points among them (every so many-th), ...
-SAMPLE = 1000
+SAMPLE = 500
 #: ... with this many planes through a point and two of its NEIGHBOURS nearest (a surface's points lie together:
 #: triples of nearby points find it in a few tries where random ones across clutter would not).
 HYPOTHESES = 64
