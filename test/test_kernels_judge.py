@@ -9,6 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from plane_validation.core import kernels
+from plane_validation.core.leftover import _row_args, leftover_best_numpy, leftover_rows_numpy
+from plane_validation.core.ransac import Plane, Segmentation
 
 SETTINGS = settings(max_examples=80, deadline=None)
 
@@ -156,3 +158,56 @@ def test_tent_fit_finds_a_hip_roof_and_not_a_ridge_or_a_plane():
     assert kernels.tent_fit(x, y, gable, 12) > 0.3 * np.var(gable)
     assert kernels.tent_fit(x, y, noise, 12) > 0.99 * np.var(noise)
     assert np.isnan(kernels.tent_fit(u[:2], v[:2], hip[:2], 12))
+
+
+def _segmentation(rng: np.random.Generator, n: int, k: int, quadratic: bool) -> Segmentation:
+    """k random planes (unit normals) labelling random rows of n (others -1), t 0.05-0.5 m, either noise model."""
+    normals = rng.normal(size=(k, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    labels = rng.integers(-1, k, n).astype(np.int32) if k else np.full(n, -1, np.int32)
+    planes = tuple(Plane(normal=normals[j], offset=float(rng.normal()), inliers=np.flatnonzero(labels == j), rms=0.0)
+                   for j in range(k))
+    return Segmentation(labels, planes, float(rng.uniform(0.05, 0.5)), n, 'test',
+                        noise_model='depth_quadratic' if quadratic else 'constant',
+                        noise_reference=float(rng.uniform(0.5, 2.0)), viewpoint=tuple(rng.normal(size=3)))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 400), st.integers(1, 30), st.integers(0, 4), st.booleans(),
+       st.booleans(), st.floats(0, 1))
+def test_leftover_rows_are_numpys(seed, n, stride, k, quadratic, boxed, holes):
+    """The strided finite rows in no plane and not within COVER t of a plane (inside its box when given), as numpy."""
+    rng = np.random.default_rng(seed)
+    points = rng.normal(size=(n, 3)) * 2.0
+    points[rng.random(n) < holes * 0.3] = np.nan
+    seg = _segmentation(rng, n, k, quadratic)
+    extents = None
+    if boxed:
+        centre = rng.normal(size=2 * k)
+        extents = (rng.normal(size=(3, 2 * k)), centre - rng.uniform(0, 2, 2 * k), centre + rng.uniform(-0.5, 2, 2 * k))
+    want = leftover_rows_numpy(points, seg.labels, stride, seg, extents)
+    got = kernels.leftover_rows(points, seg.labels, stride, *_row_args(seg, extents))
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_allclose(got[1], want[1], rtol=1e-14)  # the squared range summed in one order or einsum's
+    assert got[2:] == want[2:]
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(3, 300), st.integers(1, 40), st.integers(1, 12), st.booleans())
+def test_leftover_best_is_numpys(seed, m, hypotheses, neighbours, rounded):
+    """The best plane through nearby triples, as numpy's stable argsort picks the neighbours (rounded coordinates: many
+    ties of distance, and degenerate triples)."""
+    rng = np.random.default_rng(seed)
+    sample = rng.normal(size=(m, 3))
+    sample[:, 2] *= rng.uniform(0, 0.2)
+    if rounded:
+        sample = np.round(sample * 2) / 2
+    t = rng.uniform(0, 0.3, m)
+    size = min(neighbours + 1, m)
+    first = rng.integers(0, m, hypotheses)
+    picks = rng.integers(0, size, (hypotheses, 2))
+    normal, offset, count = kernels.leftover_best(sample, t, first, picks, neighbours)
+    want = leftover_best_numpy(sample, t, first, picks, neighbours)
+    assert count == want[2]
+    np.testing.assert_array_equal(normal, want[0])
+    np.testing.assert_array_equal(offset, want[1])

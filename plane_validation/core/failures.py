@@ -29,6 +29,8 @@ class FailureKind(enum.Enum):
     #: of the plane's points bring down to ``other``: the faces of a hip roof as one plane
     TWO_LAYERS = 'two_layers'                #: share of residual variance the step between two layers >= limit;
     #: ``other``: RMS distance / t
+    LEFTOVER_PLANE = 'leftover_plane'        #: share of the valid points on the largest plane among the points no
+    #: plane covers >= limit; ``other``: share of the valid points in no plane
     LOW_SILHOUETTE = 'low_silhouette'        #: plane silhouette PS < limit; ``other``: share of the points in no
     #: plane when the search stopped at max_planes (else None)
     COORDINATE_STEPS = 'coordinate_steps'    #: step of the coordinates along the normal (m) > limit, t (m)
@@ -145,6 +147,9 @@ _SENTENCES = {
                                        f'band of +-t ({f.value:.0%} of its residual variance is the step between '
                                        f'them, >= {f.limit:.0%}; RMS distance {_up(f.other)} t): two surfaces '
                                        'found as one'),
+    FailureKind.LEFTOVER_PLANE: lambda f: (f'a plane of {_up(100 * f.value)}% of the points lies among the points no '
+                                           f'plane covers (>= {100 * f.limit:g}%; {f.other:.0%} of the points are in '
+                                           'no plane): a surface the search did not find'),
     FailureKind.LOW_SILHOUETTE: _silhouette,
     FailureKind.COORDINATE_STEPS: lambda f: (f'plane {f.plane}\'s points come in steps of {f.value:.3g} m along its '
                                              f'normal (float32 coordinates), coarser than t = {f.limit:.3g} m: the '

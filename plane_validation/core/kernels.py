@@ -32,7 +32,7 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
            'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'kept_edges', 'graph_contacts', 'graph_settle',
-           'voxel_count', 'tent_fit', 'warm', 'Warmup']
+           'voxel_count', 'tent_fit', 'leftover_rows', 'leftover_best', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -3844,6 +3844,94 @@ def tent_fit(u: np.ndarray, v: np.ndarray, w: np.ndarray, angles: int) -> float:
     return best
 
 
+# --- verdict: leftover ---
+
+
+@numba.njit(**_JIT)
+def leftover_rows(points: np.ndarray, labels: np.ndarray, stride: int, coefficients: np.ndarray, tolerance: float,
+                  quadratic: bool, reference: float, viewpoint: np.ndarray, max_scale: float, cover: float,
+                  axes: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """Every ``stride``-th row of ``points`` (N, 3) meters that is finite, in no plane (``labels`` (N,) < 0) and not
+    within ``cover`` t of a plane of ``coefficients`` (k, 4) whose extent holds it (its in-plane coordinates along
+    ``axes`` (3, 2k) columns 2j, 2j + 1 within ``lo``, ``hi`` (2k,)): (those points (m, 3), their t (m,): ``tolerance``
+    times, when ``quadratic``, the squared range from ``viewpoint`` (3,) over ``reference`` squared clipped to [1,
+    ``max_scale``]; and how many of the rows read were finite, and of those in no plane)."""
+    n, k = points.shape[0], coefficients.shape[0]
+    size = (n + stride - 1) // stride
+    out, out_t = np.empty((size, 3)), np.empty(size)
+    m = valid = free = 0
+    for i in range(0, n, stride):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
+            continue
+        valid += 1
+        if labels[i] >= 0:
+            continue
+        free += 1
+        t = tolerance
+        if quadratic:
+            dx, dy, dz = x - viewpoint[0], y - viewpoint[1], z - viewpoint[2]
+            t = tolerance * min(max((dx * dx + dy * dy + dz * dz) / (reference * reference), 1.0), max_scale)
+        covered = False
+        for j in range(k):
+            if abs(x * coefficients[j, 0] + y * coefficients[j, 1] + z * coefficients[j, 2]
+                   + coefficients[j, 3]) <= cover * t:
+                u = x * axes[0, 2 * j] + y * axes[1, 2 * j] + z * axes[2, 2 * j]
+                v = x * axes[0, 2 * j + 1] + y * axes[1, 2 * j + 1] + z * axes[2, 2 * j + 1]
+                if lo[2 * j] <= u <= hi[2 * j] and lo[2 * j + 1] <= v <= hi[2 * j + 1]:
+                    covered = True
+                    break
+        if not covered:
+            out[m, 0], out[m, 1], out[m, 2] = x, y, z
+            out_t[m] = t
+            m += 1
+    return out[:m], out_t[:m], valid, free
+
+
+@numba.njit(**_JIT)
+def leftover_best(sample: np.ndarray, t: np.ndarray, first: np.ndarray, picks: np.ndarray,
+                  neighbours: int) -> tuple[np.ndarray, float, int]:
+    """The plane through each point ``first`` (h,) of ``sample`` (m, 3) meters and two of its ``neighbours`` + 1
+    nearest (itself among them; ties by row), those at ``picks`` (h, 2) in their order by distance, that most points
+    of ``sample`` lie within ``t`` (m,) of: (unit normal (3,), offset m, its count); (NaN, NaN, 0) when every
+    triple is degenerate."""
+    m = sample.shape[0]
+    size = min(neighbours + 1, m)
+    near, dist = np.empty(size, np.int64), np.empty(size)
+    best_normal, best_offset, best = np.full(3, np.nan), np.nan, 0
+    for q in range(first.shape[0]):
+        s = first[q]
+        filled = 0
+        for j in range(m):
+            dx, dy, dz = sample[j, 0] - sample[s, 0], sample[j, 1] - sample[s, 1], sample[j, 2] - sample[s, 2]
+            d2 = dx * dx + dy * dy + dz * dz
+            if filled == size and not d2 < dist[size - 1]:
+                continue
+            pos = filled if filled < size else size - 1
+            while pos > 0 and d2 < dist[pos - 1]:  # after equal distances: the earlier row stays first
+                near[pos], dist[pos] = near[pos - 1], dist[pos - 1]
+                pos -= 1
+            near[pos], dist[pos] = j, d2
+            filled = min(filled + 1, size)
+        a, b = near[picks[q, 0]], near[picks[q, 1]]
+        ax, ay, az = sample[a, 0] - sample[s, 0], sample[a, 1] - sample[s, 1], sample[a, 2] - sample[s, 2]
+        bx, by, bz = sample[b, 0] - sample[s, 0], sample[b, 1] - sample[s, 1], sample[b, 2] - sample[s, 2]
+        nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+        length = np.sqrt(nx * nx + ny * ny + nz * nz)
+        if not length > 0.0:
+            continue
+        nx, ny, nz = nx / length, ny / length, nz / length
+        offset = -(nx * sample[s, 0] + ny * sample[s, 1] + nz * sample[s, 2])
+        count = 0
+        for j in range(m):
+            if abs(nx * sample[j, 0] + ny * sample[j, 1] + nz * sample[j, 2] + offset) <= t[j]:
+                count += 1
+        if count > best:
+            best_normal[0], best_normal[1], best_normal[2] = nx, ny, nz
+            best_offset, best = offset, count
+    return best_normal, best_offset, best
+
+
 @dataclass(frozen=True)
 class Warmup:
     """How long :func:`warm` took, seconds, and whether any kernel had to be compiled (a cold cache)."""
@@ -4020,6 +4108,12 @@ def _warm_tent() -> None:
     tent_fit(np.zeros(4), np.zeros(4), np.zeros(4), 2)
 
 
+def _warm_leftover() -> None:
+    leftover_rows(np.zeros((4, 3)), np.array([0, -1, 0, 1], np.int32), 1, np.zeros((1, 4)), 1.0, True, 1.0, np.zeros(3),
+                  100.0, 2.0, np.zeros((3, 2)), np.zeros(2), np.zeros(2))
+    leftover_best(np.zeros((4, 3)), np.ones(4), np.zeros(1, np.int64), np.ones((1, 2), np.int64), 2)
+
+
 def _warm_organized_batch() -> None:
     pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
     lines = np.zeros(2, np.int64)
@@ -4046,7 +4140,7 @@ def _warm_plain_graph() -> None:
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_indices, _warm_planes,
                _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect, _warm_frame_ids,
-               _warm_beyond_rows, _warm_organized_batch, _warm_plain_graph, _warm_tent)
+               _warm_beyond_rows, _warm_organized_batch, _warm_plain_graph, _warm_tent, _warm_leftover)
 
 
 def _compiles() -> int:
@@ -4107,4 +4201,4 @@ _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
             read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
             merge_pair, relabel_rows, grid_spread, strided_rows, columns_at, grid_batch, kept_edges, graph_contacts,
-            graph_settle, voxel_count, tent_fit)
+            graph_settle, voxel_count, tent_fit, leftover_rows, leftover_best)
