@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import kernels
-from .fit import allows_normal, degeneracy, fit_columns, tolerance_at, within_plane
+from .fit import allows_normal, degeneracy, fit_columns, plane_distances, tolerance_at
 from .hypotheses import best_plane
 from .neighbours import NORMAL_MIN_COS, Neighbours
 from .types import Allows, Tolerance
@@ -70,7 +70,8 @@ def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, m
         count = int(np.count_nonzero(inliers))
         left, kept = ~taken, count >= min_count
         if not kept:
-            scattered = _scattered(rest, rest_normals, normal, offset, tolerance, min_count, set_aside, neighbours)
+            scattered = None if rest_normals is None or set_aside >= SET_ASIDE else \
+                _scattered(rest, rest_normals, normal, offset, tolerance, min_count)
             if scattered is None:
                 reason = f'best remaining plane has {count} < min_inliers={min_count} points' + \
                     ('' if n == n_total else f' (in a sample of {n} of {n_total} points)')
@@ -98,23 +99,19 @@ def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, m
     return found, reason, region, len(found) == max_planes > 0 and rest.shape[1] >= min_count
 
 
-def _scattered(rest: np.ndarray, rest_normals: np.ndarray | None, normal: np.ndarray, offset: float,
-               tolerance: Tolerance, min_count: int, set_aside: int, neighbours: Neighbours | None
-               ) -> np.ndarray | None:
+def _scattered(rest: np.ndarray, rest_normals: np.ndarray, normal: np.ndarray, offset: float, tolerance: Tolerance,
+               min_count: int) -> np.ndarray | None:
     """(r,) bool: the points ``rest`` (3, r) within ``tolerance`` of the plane (``normal`` (3,), ``offset`` m) when
     they are a scattered surface (at least ``min_count`` of them, fewer than SCATTERED_AGREE with a normal
-    (``rest_normals`` (3, r), NaN: none) that agrees, spread over SCATTERED_SPREAD of the band, and ``set_aside``
-    below SET_ASIDE); else None."""
-    if neighbours is None or rest_normals is None or set_aside >= SET_ASIDE:
-        return None
-    near = within_plane(rest, normal, offset, tolerance)
+    (``rest_normals`` (3, r), NaN: none) that agrees, spread over SCATTERED_SPREAD of the band); else None."""
+    dist = plane_distances(rest, normal[None, :], np.array([offset]))[0]
+    near = dist <= tolerance
     if np.count_nonzero(near) < min_count:
         return None
     agree = ~(np.abs(normal @ rest_normals[:, near]) < NORMAL_MIN_COS)  # NaN (unknown) agrees, as in coherence
     if not float(np.mean(agree)) < SCATTERED_AGREE:
         return None
-    cols = np.compress(near, rest, axis=1)
-    spread = np.sqrt(np.mean((normal @ cols + offset) ** 2))
+    spread = np.sqrt(np.mean(dist[near] ** 2))
     return near if spread >= SCATTERED_SPREAD * float(np.median(tolerance_at(tolerance, near))) else None
 
 
