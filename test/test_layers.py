@@ -135,10 +135,13 @@ def test_the_search_functions_default_to_the_parameter_table_s_search():
 
     from plane_validation.core.ransac import detect_planes, search_graph
     from plane_validation.core.tuning import select_plane_count, tune_tolerance
-    table = PipelineConfig().search.kwargs()
-    del table['viewpoint']
-    for function, least in ((detect_planes, set(table)), (search_graph, {'ransac_points', 'grid_points'}),
-                            (tune_tolerance, set(table)), (select_plane_count, {'max_planes', 'min_inliers'})):
+    search = PipelineConfig().search
+    tuned, at_t = search.kwargs(), search.at_tolerance()  # a search at a given t runs auto's noise model as constant
+    del tuned['viewpoint'], at_t['viewpoint']
+    for function, table, least in ((detect_planes, at_t, set(at_t)),
+                                   (search_graph, at_t, {'ransac_points', 'grid_points'}),
+                                   (tune_tolerance, tuned, set(tuned)),
+                                   (select_plane_count, at_t, {'max_planes', 'min_inliers', 'noise_model'})):
         defaults = {name: p.default for name, p in inspect.signature(function).parameters.items() if name in table}
         assert least <= set(defaults), (function.__name__, least - set(defaults))
         differ = {name: (value, table[name]) for name, value in defaults.items() if value != table[name]}

@@ -76,7 +76,8 @@ def test_tuning_with_the_depth_model_recovers_the_camera_noise():
     assert result.noise_model == 'depth_quadratic' and result.segmentation.noise_model == 'depth_quadratic'
     assert result.noise_coefficient == pytest.approx(scene.noise, rel=0.3)
     assert segmentation_quality(result.segmentation.labels, scene.labels).correct >= 6
-    constant = pv.tune_tolerance(scene.points, seed=0, shape=scene.shape, max_planes=12, min_inliers=0.005)
+    constant = pv.tune_tolerance(scene.points, seed=0, shape=scene.shape, max_planes=12, min_inliers=0.005,
+                                 noise_model='constant')
     assert np.isnan(constant.noise_coefficient)
     assert result.tolerance < constant.tolerance  # t0 holds up to 1 m; the room is 2-6 m away
 
@@ -115,8 +116,8 @@ def test_a_far_out_row_is_no_inlier_and_the_frame_still_works():
 def test_a_tuning_range_the_model_cannot_honour_is_an_error():
     rng = np.random.default_rng(0)
     wall = np.column_stack([rng.uniform(-2, 2, 3000), rng.uniform(-1, 1, 3000), 6 + rng.normal(0, 0.01, 3000)])
-    with pytest.raises(ValueError, match='t_min'):
-        pv.tune_tolerance(wall, count=6, noise_model='depth_quadratic', t_min=0.01, seed=0)
+    with pytest.raises(ValueError, match='t_min'):  # 50 cm at 1 m: above the sweep's top, 5 sigmas of 1 cm noise
+        pv.tune_tolerance(wall, count=6, noise_model='depth_quadratic', t_min=0.5, seed=0)
 
 
 def test_depth_quadratic_ranges_are_measured_from_the_viewpoint():
@@ -130,3 +131,30 @@ def test_depth_quadratic_ranges_are_measured_from_the_viewpoint():
     assert np.array_equal(own.labels, moved.labels)
     assert noise_coefficient(pts + v, moved.labels, moved.coefficients, v) == pytest.approx(
         noise_coefficient(pts, own.labels, own.coefficients), rel=1e-6)
+
+
+def test_auto_is_the_tuner_s_and_a_given_t_searches_constant():
+    from plane_validation import detect_planes
+    from plane_validation.app.config import PipelineConfig
+    from plane_validation.core.noise import searched_model
+    pts = np.random.default_rng(0).uniform(0, 1, (200, 3))
+    with pytest.raises(ValueError, match='auto is chosen by tune_tolerance'):
+        detect_planes(pts, 0.01, noise_model='auto')
+    assert searched_model('auto') == 'constant' and searched_model('auto', 'depth_quadratic') == 'depth_quadratic'
+    assert searched_model('depth_quadratic') == 'depth_quadratic' == searched_model('depth_quadratic', 'constant')
+    search = PipelineConfig().search
+    assert search.noise_model == 'auto' and search.kwargs()['noise_model'] == 'auto'
+    assert search.at_tolerance()['noise_model'] == 'constant'
+    assert search.at_tolerance('depth_quadratic')['noise_model'] == 'depth_quadratic'
+
+
+def test_the_node_searches_frames_with_the_model_its_sweep_chose():
+    scene = scenes.depth_camera('room', width=320, height=240, seed=3)  # sigma(z) = 0.0015 z^2
+    pipeline = FramePipeline(PipelineConfig(max_planes=12, min_inliers=0.005))  # noise_model auto
+    first = dict(pipeline.process(scene.points, 1, shape=scene.shape).values)
+    assert pipeline.last_tuning.noise_model == pipeline.last_model == 'depth_quadratic'
+    later = dict(pipeline.process(scene.points, 2, shape=scene.shape).values)
+    assert first['noise_model'] == later['noise_model'] == 'depth_quadratic'
+    assert later['tolerance_source'].startswith('tuned') and 'noise_coefficient' in later
+    fixed = FramePipeline(PipelineConfig(auto_tune=False, tolerance=0.02, max_planes=12, min_inliers=0.005))
+    assert dict(fixed.process(scene.points, 1, shape=scene.shape).values)['noise_model'] == 'constant'

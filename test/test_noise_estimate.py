@@ -111,3 +111,34 @@ def test_noise_free_cloud_is_not_bounded():
     result = tune_tolerance(np.vstack([a, b]) + (0, 0.5, 2), seed=0)
     assert np.isnan(result.noise_level) and np.isnan(result.noise_ratio)
     assert len(result.tolerances) >= 12 and result.segmentation.n_planes == 2
+
+
+def test_auto_noise_model_follows_the_measured_noise():
+    # noise growing with range (a depth camera) calls for depth_quadratic; the same at every range, for constant
+    depth = scene_families.indoor_depth(1, noise=(0.0005, 0.003), quantum=0)
+    assert estimate_noise(depth.points, depth.shape, seed=0).model(depth.points) == 'depth_quadratic'
+    flat_noise = scene_families.indoor_depth(1, noise=(0.01, 0.0), quantum=0)
+    assert estimate_noise(flat_noise.points, flat_noise.shape, seed=0).model(flat_noise.points) == 'constant'
+    lidar = scene_families.lidar_scan(1)
+    assert estimate_noise(lidar.points, seed=0).model(lidar.points) == 'constant'
+    roof = scene_families.aerial_roof(0)  # seen edge-on: no range term at all
+    assert estimate_noise(roof.points, seed=0).model(roof.points) == 'constant'
+    rng = np.random.default_rng(0)
+    flat = np.column_stack([rng.uniform(-1, 1, (5000, 2)), np.full(5000, 3.0)])
+    assert estimate_noise(flat, seed=0).model(flat) == 'constant'  # no estimate: the paper's single t
+
+
+def test_auto_sweeps_depth_quadratic_from_one_to_the_bound_s_sigmas():
+    scene = scene_families.indoor_depth(2, noise=(0.0005, 0.003), quantum=0)
+    opts = dict(seed=0, max_planes=12, min_inliers=200)
+    auto = tune_tolerance(scene.points, shape=scene.shape, **opts)
+    sigma = auto.sensor_noise.sigma_reference
+    assert auto.noise_model == auto.segmentation.noise_model == 'depth_quadratic'
+    assert auto.tolerances.min() == pytest.approx(sigma) and auto.tolerances.max() <= NOISE_BOUND * sigma * (1 + 1e-9)
+    assert auto.tolerances.max() == pytest.approx(NOISE_BOUND * sigma)
+    given = tune_tolerance(scene.points, shape=scene.shape, noise_model='depth_quadratic', **opts)
+    assert given.tolerance == auto.tolerance and np.array_equal(given.segmentation.labels, auto.segmentation.labels)
+    constant = tune_tolerance(scene.points, shape=scene.shape, noise_model='constant', **opts)
+    assert constant.noise_model == 'constant' and constant.tolerances.min() != pytest.approx(sigma)
+    with pytest.raises(ValueError, match='noise_model'):
+        tune_tolerance(scene.points, shape=scene.shape, noise_model='quadratic', **opts)

@@ -10,7 +10,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..core.noise import NOISE_MODELS, NOISE_REFERENCE
+from ..core.noise import AUTO, NOISE_REFERENCE, TUNED_NOISE_MODELS
 from ..core.orientation import AXIS_MODES, Orientation, orientation
 from ..core.params import (
     GRID_POINTS,
@@ -138,9 +138,11 @@ class PipelineConfig:
                               'and other spinning-lidar drivers) is laid out as its range image (rings x azimuth steps '
                               'about z, from the viewpoint) and searched as an organized cloud, 5-6 times faster than '
                               'the neighbourhood graph (docs/performance.md); false = the graph')
-    noise_model: str = _p('constant', 'how t grows with range r from the sensor: constant, or depth_quadratic '
+    noise_model: str = _p(AUTO, 'how t grows with range r from the sensor: constant, or depth_quadratic '
                           '(t * max(1, (r / noise_reference)^2), a depth camera; t is then the tolerance up to '
-                          'noise_reference)', choices=NOISE_MODELS)
+                          'noise_reference), or auto: the auto-tune chooses one from the noise it measures '
+                          '(depth_quadratic where it grows with range) and a fixed t is constant',
+                          choices=TUNED_NOISE_MODELS)
     noise_reference: float = _p(NOISE_REFERENCE, 'range up to which depth_quadratic keeps t', low=0.01, high=100.0,
                                 unit='m')
     viewpoint_x: float = _p(0.0, 'where the sensor is in the cloud\'s frame, x (0, 0, 0 = its origin, as a driver '

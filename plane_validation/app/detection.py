@@ -116,7 +116,7 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, search: Search
     connectivity), and its planes carried back to the points.
 
     Equivalent Python API calls (same results without ``ring``): fixed t -> ``detect_planes(points, t,
-    seed=seed, **search.kwargs())`` and ``validity_indices(points, labels, seed=seed)``; auto ->
+    seed=seed, **search.at_tolerance())`` and ``validity_indices(points, labels, seed=seed)``; auto ->
     ``tune_tolerance(points, seed=seed, **search.kwargs())``.
     """
     pts = as_points(points)
@@ -131,7 +131,7 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, search: Search
                          seconds=time.perf_counter() - start, tuning=tuned, ring_image=note)
     laid, note = _laid(pts, ring, shape, organize_rings, search.connectivity, search.viewpoint)
     cloud, cloud_shape = (laid[0], laid[1]) if laid else (pts, shape)
-    seg = detect_planes(cloud, tolerance, seed=seed, shape=cloud_shape, **search.kwargs())
+    seg = detect_planes(cloud, tolerance, seed=seed, shape=cloud_shape, **search.at_tolerance())
     if laid is not None:
         seg = carried(seg, pts, laid[2])
     scores = validity_indices(pts, seg.labels, seed=seed)

@@ -104,11 +104,11 @@ def run_case(case: Case, out: Path, *, grid: np.ndarray, seed: int = 0, points: 
     start = time.perf_counter()
     scene = case.make(seed, points)
     # the paper's method: every point within t of an infinite plane (no connected regions)
-    # and the paper's search: every candidate stops at max_planes, over the derived range
+    # and the paper's search: every candidate stops at max_planes, over the derived range, with one t everywhere
     sweep = tune_tolerance(scene.points, tolerances=grid, criterion='gs_planes', seed=seed, connectivity=False,
-                           sweep_planes=0)
+                           sweep_planes=0, noise_model='constant')
     auto = tune_tolerance(scene.points, criterion='gs_planes', seed=seed, connectivity=False, sweep_planes=0,
-                          extend=0)
+                          extend=0, noise_model='constant')
     counts = select_plane_count(scene.points, sweep.tolerance, max_planes=case.max_planes, seed=seed,
                                 connectivity=False)
     title = f'{case.scene}, e = {case.noise:g} {UNIT}, {len(scene.points)} points'

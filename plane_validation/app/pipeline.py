@@ -167,6 +167,7 @@ class FramePipeline:
     tuned_stamp: float | None = None     # that frame's header stamp (s), as said in tolerance_source
     last_tuning: TuningResult | None = None
     last_good: float | None = None       # the last tuned tolerance, kept across reconfiguration
+    last_model: str | None = None        # the noise model the sweep behind last_good chose
     quick: float | None = None           # quick_tolerance of a frame, until a sweep succeeds
     tune_error: str | None = None        # why the last sweep failed (None after a success)
     failed_at: float | None = None       # clock (s) of the frame the last failed or unreliable sweep ran on
@@ -195,22 +196,25 @@ class FramePipeline:
         the last tuned value, the quick estimate, or the parameter until a sweep succeeds."""
         return self._tolerance_and_sweep(tuning_failed)[:2]
 
-    def _tolerance_and_sweep(self, tuning_failed: bool = False) -> tuple[float, str, TuningResult | None]:
-        """current_tolerance and, when it is the tuned value, the sweep that chose it (read together:
-        a background retune may replace both at any time)."""
+    def _tolerance_and_sweep(self, tuning_failed: bool = False
+                             ) -> tuple[float, str, TuningResult | None, str | None]:
+        """current_tolerance, the sweep that chose it when it is the tuned value, and the noise model a sweep chose
+        for it (None: not a tuned t); read together: a background retune may replace them at any time."""
         with self._lock:
             if not self.config.auto_tune:
-                return self.config.tolerance, 'fixed', None
+                return self.config.tolerance, 'fixed', None, None
             if self.tolerance is not None and not tuning_failed:
                 doubt = '' if self.last_tuning is None or self.last_tuning.reliable else \
                     ' (its sweep was not reliable: tuned again on a later frame)'
-                return self.tolerance, f'tuned at t={self.tuned_stamp:.3f}s{doubt}', self.last_tuning
+                return (self.tolerance, f'tuned at t={self.tuned_stamp:.3f}s{doubt}', self.last_tuning,
+                        self.last_model)
             why = 'tuning failed' if tuning_failed else 'sweep pending'
             if self.last_good is not None:
-                return self.last_good, f'last tuned ({why})', None
+                return self.last_good, f'last tuned ({why})', None, self.last_model
             if self.quick is not None:
-                return self.quick, f'quick estimate ({why})', None
-            return self.config.tolerance, f'parameter ({"tuning failed" if tuning_failed else "not tuned yet"})', None
+                return self.quick, f'quick estimate ({why})', None, None
+            return (self.config.tolerance, f'parameter ({"tuning failed" if tuning_failed else "not tuned yet"})',
+                    None, None)
 
     def _clock(self, stamp_ns: int) -> tuple[float, bool]:
         """A frame's time for retune timing (s) from its header stamp (ns), and whether the stamp
@@ -290,7 +294,7 @@ class FramePipeline:
             if generation == self._generation:  # a parameter change during the sweep voids it
                 self.tolerance, self.tuned_at, self.last_tuning = result.tolerance, stamp, result
                 self.tuned_stamp = header_s
-                self.last_good, self.tune_error = result.tolerance, None
+                self.last_good, self.last_model, self.tune_error = result.tolerance, result.noise_model, None
                 self.failed_at, self.failures = (None, 0) if result.reliable else (stamp, self.failures + 1)
         return result
 
@@ -385,7 +389,8 @@ class FramePipeline:
             self.quick = float(np.clip(quick, cfg.tune_min or quick, cfg.tune_max or quick))
         if tune_problem is None and self.tune_error is not None:
             tune_problem = f'cannot tune: {self.tune_error}'  # the last sweep (maybe in the background) failed
-        tolerance, source, sweep = self._tolerance_and_sweep(tuning_failed=tune_problem is not None)
+        tolerance, source, sweep, chosen = self._tolerance_and_sweep(tuning_failed=tune_problem is not None)
+        search = cfg.search.at_tolerance(chosen)
         # the sweep behind a tuned t: were its planes stable under other seeds? (NaN: not measured)
         agreement = None if sweep is None or np.isnan(sweep.seed_agreement) else sweep.seed_agreement
         try:
@@ -400,7 +405,7 @@ class FramePipeline:
                 # the organized rows' extent as reading the message found it (no second pass over them)
                 extent = None if largest is None or work is not pts else (finite, largest)
                 seg = detect_planes(work, tolerance, seed=seed, shape=cloud_shape, extent=extent,
-                                    **cfg.search.kwargs())
+                                    **search)
                 if inverse is not None:  # each point its voxel's (pixel's) plane, if it lies within t of it
                     labels = within_planes(valid, seg.labels[inverse], seg)
                 else:
@@ -533,11 +538,11 @@ def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_
               ('silhouette', fmt(scores.silhouette)), ('silhouette_se', fmt(scores.silhouette_se)),
               ('plane_silhouette', fmt(scores.plane_silhouette)),
               ('index_sample_size', str(scores.sample_size)), ('dunn_db_points', str(scores.separation_size)),
-              ('noise_model', cfg.noise_model), ('noise_estimate', fmt(noise)),
+              ('noise_model', seg.noise_model), ('noise_estimate', fmt(noise)),
               ('stop_reason', seg.reason), ('plane_ids', ' '.join(map(str, ids)))]
     if any(cfg.viewpoint):
         values.append(('viewpoint', ' '.join(fmt(c) for c in cfg.viewpoint)))
-    if cfg.noise_model == 'depth_quadratic':  # sigma(r) = c r^2
+    if seg.noise_model == 'depth_quadratic':  # sigma(r) = c r^2
         values.append(('noise_coefficient', fmt(noise_coefficient(work, seg.labels, seg.coefficients,
                                                                   seg.viewpoint))))
     for k, plane in enumerate(seg.planes):  # keyed by track id

@@ -277,16 +277,16 @@ def cmd_planes(args: argparse.Namespace) -> int:
     from ..core.tuning import DEFAULT_CRITERION, MIN_PLANE_SILHOUETTE, select_plane_count
 
     _check_outputs(args, 'plot')
-    tolerance, source = args.tolerance, 'fixed'
+    tolerance, source, chosen = args.tolerance, 'fixed', None
     with _about(args.cloud):
         points, shape, ring, _ = _load(args)
         search = _config(args).search
         if tolerance is None:  # as detect tunes it (a lidar scan on its ring image)
             with progress_bar('tuning t', quiet=args.json) as progress:
-                tolerance = tune_scan(points, search=search, ring=ring, organize_rings=args.organize_rings,
-                                      shape=shape, seed=args.seed, progress=progress, jobs=args.tune_jobs)[0].tolerance
-            source = 'auto'
-        result = select_plane_count(points, tolerance, seed=args.seed, shape=shape, **search.kwargs())
+                tuned = tune_scan(points, search=search, ring=ring, organize_rings=args.organize_rings,
+                                  shape=shape, seed=args.seed, progress=progress, jobs=args.tune_jobs)[0]
+            tolerance, source, chosen = tuned.tolerance, 'auto', tuned.noise_model
+        result = select_plane_count(points, tolerance, seed=args.seed, shape=shape, **search.at_tolerance(chosen))
     written = []
     if args.plot:
         from ..app.plot import plot_plane_count

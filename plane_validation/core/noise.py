@@ -5,6 +5,9 @@
   r (meters, from the sensor: the origin of the cloud's frame, or the ``viewpoint`` given) is an inlier within
   t(r) = t0 * max(1, (r / reference)^2). The tolerance ``t`` that :func:`~.ransac.detect_planes`
   and the tuner take is then t0, the tolerance up to ``reference`` meters.
+* ``auto`` (the tuner's, :func:`~.tuning.tune_tolerance`): one of the two, chosen from the noise the cloud shows
+  (:meth:`.noise_estimate.NoiseEstimate.model`). A search at a given t takes it as ``constant``: that t is then the
+  tolerance everywhere, as given (:func:`searched_model`).
 
 Pure numpy, no ROS import.
 """
@@ -14,10 +17,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ['NOISE_MODELS', 'NOISE_REFERENCE', 'MAX_SCALE', 'check_noise_model', 'tolerance_scale',
+__all__ = ['NOISE_MODELS', 'AUTO', 'TUNED_NOISE_MODELS', 'NOISE_REFERENCE', 'MAX_SCALE', 'check_noise_model',
+           'searched_model', 'tolerance_scale',
            'noise_coefficient']
 
 NOISE_MODELS = ('constant', 'depth_quadratic')
+#: The tuner's choice between them, and every model a tuner (and the parameter table) takes.
+AUTO = 'auto'
+TUNED_NOISE_MODELS = (AUTO, *NOISE_MODELS)
 #: Range (meters) up to which depth_quadratic keeps t0; beyond it the tolerance grows as range^2.
 NOISE_REFERENCE = 1.0
 #: ... up to this factor (10 reference ranges): a depth camera sees no farther, and a far-out row (a
@@ -25,16 +32,24 @@ NOISE_REFERENCE = 1.0
 MAX_SCALE = 100.0
 
 
-def check_noise_model(noise_model: str, reference: float) -> float:
-    """The reference range as a float (meters); ValueError on an unknown model or a reference range that is
+def check_noise_model(noise_model: str, reference: float, models: tuple[str, ...] = NOISE_MODELS) -> float:
+    """The reference range as a float (meters); ValueError on a model not in ``models`` or a reference range that is
     not a distance > 0."""
     from .ransac import check_number  # ransac imports this module
-    if noise_model not in NOISE_MODELS:
-        raise ValueError(f'unknown noise_model {noise_model!r}; choose one of {", ".join(NOISE_MODELS)}')
+    if noise_model not in models:
+        why = '; auto is chosen by tune_tolerance: a search at a given t takes constant or depth_quadratic' \
+            if noise_model == AUTO else ''
+        raise ValueError(f'unknown noise_model {noise_model!r}; choose one of {", ".join(models)}{why}')
     number = check_number('noise_reference', reference, 'a finite range > 0 m')
     if number <= 0:
         raise ValueError(f'noise_reference must be a finite range > 0 m, got {reference!r}')
     return number
+
+
+def searched_model(noise_model: str, chosen: str | None = None) -> str:
+    """The model a search at a given t runs with: ``noise_model`` itself, or for ``auto`` the model a sweep
+    ``chosen`` (None: no sweep chose the t, which is then ``constant``)."""
+    return (chosen or NOISE_MODELS[0]) if noise_model == AUTO else noise_model
 
 
 def tolerance_scale(points: np.ndarray, noise_model: str = 'constant',

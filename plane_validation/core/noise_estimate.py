@@ -25,7 +25,7 @@ from scipy.optimize import nnls
 from scipy.special import gammaincinv
 
 from . import kernels
-from .noise import NOISE_REFERENCE
+from .noise import NOISE_MODELS, NOISE_REFERENCE
 from .ransac import as_points, check_viewpoint, finite_rows, generator
 
 __all__ = ['NoiseEstimate', 'estimate_noise', 'PATCHES', 'NEIGHBOURS']
@@ -61,6 +61,10 @@ RESOLUTION = 1e-6
 #: Without a residual above it on at least this share of the neighbourhoods (a Kinect frame as a plain array: 62 %),
 #: the rest are edges: no estimate.
 MEASURABLE = 0.5
+#: ``auto`` takes a cloud as a depth camera's (``depth_quadratic``) when the part of sigma growing with range is at
+#: least this share of sigma at the median range. On the tuning split the depth frames read 0.75-1.0 (a
+#: Kinect-like b r^2 dominates), the lidar scans, roofs and SynPEB 0-0.02.
+QUADRATIC_SHARE = 0.5
 #: NoiseEstimate.level takes the ranges of about this many points.
 LEVEL_POINTS = 20_000
 #: At most this many points of an unorganized cloud are hashed into voxels (a random probe).
@@ -90,17 +94,30 @@ class NoiseEstimate:
         """sigma (m) at range ``r`` (m), any shape."""
         return self.a + self.b * np.square(r)
 
+    def model(self, points: np.ndarray, viewpoint=None) -> str:
+        """The noise model (:mod:`.noise`) this estimate calls for: ``depth_quadratic`` when the residuals run along
+        the rays and the part growing with range, b r^2, is at least QUADRATIC_SHARE of sigma at the median range of
+        ``points`` (N, 3) m from ``viewpoint``; else ``constant`` (also without an estimate)."""
+        ranges = _ranges(points, viewpoint) if self.patches and self.along_ray and self.b > 0 else np.empty(0)
+        if not len(ranges):
+            return NOISE_MODELS[0]
+        r = float(np.median(ranges))
+        return NOISE_MODELS[1] if self.b * r * r >= QUADRATIC_SHARE * self.sigma(r) else NOISE_MODELS[0]
+
     def level(self, points: np.ndarray, viewpoint=None, quantile: float = 0.5) -> float:
         """The ``quantile`` of sigma over the finite rows of ``points`` (N, 3) m (every n-th of them beyond
         LEVEL_POINTS): the noise a constant tolerance meets (NaN without an estimate or points)."""
-        if not self.patches:
-            return float('nan')
-        pts = as_points(points)
-        pts = pts[::max(1, len(pts) // LEVEL_POINTS)]
-        pts = pts[finite_rows(pts)] - check_viewpoint(viewpoint)
-        if not len(pts):
-            return float('nan')
-        return float(np.quantile(self.sigma(np.sqrt(np.einsum('ij,ij->i', pts, pts))), quantile))
+        ranges = _ranges(points, viewpoint) if self.patches else np.empty(0)
+        return float(np.quantile(self.sigma(ranges), quantile)) if len(ranges) else float('nan')
+
+
+def _ranges(points: np.ndarray, viewpoint) -> np.ndarray:
+    """Ranges (m) from ``viewpoint`` of the finite rows of ``points`` (N, 3) m, every n-th of them beyond
+    LEVEL_POINTS."""
+    pts = as_points(points)
+    pts = pts[::max(1, len(pts) // LEVEL_POINTS)]
+    pts = pts[finite_rows(pts)] - check_viewpoint(viewpoint)
+    return np.sqrt(np.einsum('ij,ij->i', pts, pts))
 
 
 def _image_patches(valid: np.ndarray, shape: tuple[int, int], count: int, rng: np.random.Generator

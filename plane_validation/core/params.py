@@ -2,7 +2,7 @@
 (:class:`SearchParams`) and of :func:`.tuning.tune_tolerance`'s sweep (:class:`TuneParams`) but the cloud's own.
 
 Built once from the parameter table (``PipelineConfig.search``, ``PipelineConfig.tune``) and passed on as keywords
-(``detect_planes(points, t, seed=..., shape=..., **search.kwargs())``; ``tune_tolerance(points, seed=...,
+(``detect_planes(points, t, seed=..., shape=..., **search.at_tolerance())``; ``tune_tolerance(points, seed=...,
 **search.kwargs(), **tune.kwargs())``; :func:`.tuning.select_plane_count` takes the search's keywords), so that the
 node, replay and every command search and tune alike. The public functions keep their keyword arguments and
 defaults for API users.
@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from .noise import searched_model
 from .orientation import Orientation
 
 __all__ = ['SearchParams', 'TuneParams', 'MAX_PLANES', 'MIN_INLIERS', 'PROBABILITY', 'MAX_ITERATIONS', 'RANSAC_POINTS',
@@ -53,8 +54,13 @@ class SearchParams:
     orientation: Orientation | None
 
     def kwargs(self) -> dict[str, object]:
-        """The fields as keyword arguments of :func:`.ransac.detect_planes`."""
+        """The fields as keyword arguments of :func:`.tuning.tune_tolerance` (``noise_model`` may be ``auto``)."""
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+    def at_tolerance(self, chosen: str | None = None) -> dict[str, object]:
+        """The fields as keyword arguments of :func:`.ransac.detect_planes` and :func:`.tuning.select_plane_count`
+        at a t: ``auto`` becomes the noise model the sweep behind that t ``chosen`` (``constant`` for a t given)."""
+        return dict(self.kwargs(), noise_model=searched_model(self.noise_model, chosen))
 
 
 @dataclass(frozen=True)

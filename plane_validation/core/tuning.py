@@ -25,7 +25,7 @@ from scipy.spatial import cKDTree
 from .blas import single_blas_thread
 from .failures import Verdict
 from .indices import ValidityIndices, validity_indices
-from .noise import NOISE_REFERENCE, noise_coefficient, tolerance_scale
+from .noise import AUTO, NOISE_REFERENCE, TUNED_NOISE_MODELS, check_noise_model, noise_coefficient, tolerance_scale
 from .noise_estimate import NoiseEstimate, estimate_noise
 from .orientation import Orientation
 from .params import GRID_POINTS, MAX_ITERATIONS, MAX_PLANES, MIN_INLIERS, PROBABILITY, RANSAC_POINTS
@@ -354,7 +354,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                    seed: int | None = None, progress: Callable[[int, int], None] | None = None,
                    ransac_points: int | None = RANSAC_POINTS, sampled_separation: bool | None = None,
                    shape: tuple[int, int] | None = None, connectivity: bool = True,
-                   noise_model: str = 'constant', noise_reference: float = NOISE_REFERENCE,
+                   noise_model: str = 'auto', noise_reference: float = NOISE_REFERENCE,
                    viewpoint: Viewpoint = None, jobs: int = 1, sweep_planes: int = SWEEP_MAX_PLANES,
                    extend: int = TUNE_EXTEND, grid_points: int | None = GRID_POINTS,
                    orientation: Orientation | None = None, noise_bound: float = NOISE_BOUND) -> TuningResult:
@@ -385,9 +385,12 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     shape, connectivity: to :func:`detect_planes` (an organized cloud is swept on a regular
     sub-grid of about ``tune_points`` pixels, which keeps it organized).
     orientation: to :func:`detect_planes` (the sweep's planes satisfy it too).
-    noise_model, noise_reference, viewpoint: to :func:`detect_planes`; with ``depth_quadratic`` the
-    candidates are t0, the tolerance up to the reference range (derived bounds are divided by the
-    median tolerance factor of the cloud).
+    noise_model, noise_reference, viewpoint: to :func:`detect_planes`; ``auto`` (the default) is ``depth_quadratic``
+    where the sensor's noise grows with range, else ``constant`` (:meth:`.noise_estimate.NoiseEstimate.model`; the
+    result's ``noise_model`` says which). With ``depth_quadratic`` the candidates are t0, the tolerance up to the
+    reference range; derived bounds (with ``connectivity`` and a noise estimate) run from one sigma of the noise at
+    the reference range to ``noise_bound`` sigmas, else from the derived tolerances divided by the median tolerance
+    factor of the cloud.
     jobs: processes the candidates (and the reseeded reruns, beside the final detection) run in,
     this one and ``jobs`` - 1 worker processes that stay WORKER_IDLE_S for the next sweep; 1 = this
     process only, 0 = one per CPU core, and never more than the cores. The result is the same for
@@ -422,21 +425,28 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     check_magnitude(finite)
     rng = generator(seed)
     view = check_viewpoint(viewpoint)
+    check_noise_model(noise_model, noise_reference, TUNED_NOISE_MODELS)
+    shape = None if shape is None else check_shape(shape, len(pts))
+    # a fixed seed: the estimate is the cloud's, and the sweep's random stream stays as it was without it
+    sensor = estimate_noise(pts, shape, viewpoint=view, reference=noise_reference, seed=0)
+    if noise_model == AUTO:
+        noise_model = sensor.model(finite, view)
     scale = tolerance_scale(finite, noise_model, noise_reference, view)
     factor = 1.0 if scale is None else float(np.median(scale))
     # with a noise model a given t_min is a t0: checked against the derived top once that is one too
     given_lo = t_min if scale is None or t_max is not None else None
     cand = default_tolerances(finite, count, lo=given_lo, hi=t_max, seed=rng) if tolerances is None else tolerances
-    if scale is not None and tolerances is None:  # the derived bounds are tolerances at typical range
-        lo = cand[0] / factor if t_min is None else float(t_min)
-        hi = cand[-1] / factor if t_max is None else cand[-1]
+    if scale is not None and tolerances is None:
+        # t0 from one sigma of the noise at the reference range to the bound's sigmas (the cloud's extent says little
+        # of a depth camera's noise, which grows 10-fold over its range); without an estimate, the derived bounds
+        # are tolerances at typical range
+        anchored = connectivity and noise_bound > 0 and sensor.sigma_reference > 0
+        lo = (sensor.sigma_reference if anchored else cand[0] / factor) if t_min is None else float(t_min)
+        hi = (noise_bound * sensor.sigma_reference if anchored else cand[-1] / factor) if t_max is None else cand[-1]
         if hi <= lo:
             raise ValueError(f'the smallest candidate {lo:g} m (t_min, the node\'s tune_min) is not below the '
                              f'largest t0 derived from this cloud, {hi:.3g} m: lower it or give t_max too')
         cand = np.geomspace(lo, hi, len(cand))
-    shape = None if shape is None else check_shape(shape, len(pts))
-    # a fixed seed: the estimate is the cloud's, and the sweep's random stream stays as it was without it
-    sensor = estimate_noise(pts, shape, viewpoint=view, reference=noise_reference, seed=0)
     noise_level = sensor.sigma_reference if scale is not None else \
         sensor.level(finite, view, NOISE_LEVEL_QUANTILE)
     bound = noise_bound * noise_level if connectivity and noise_bound and tolerances is None and t_max is None \
