@@ -142,3 +142,11 @@ def test_auto_sweeps_depth_quadratic_from_one_to_the_bound_s_sigmas():
     assert constant.noise_model == 'constant' and constant.tolerances.min() != pytest.approx(sigma)
     with pytest.raises(ValueError, match='noise_model'):
         tune_tolerance(scene.points, shape=scene.shape, noise_model='quadratic', **opts)
+
+
+def test_a_range_term_fitted_on_few_bins_chooses_no_model():
+    # a corridor's neighbourhoods in two range bins, the far one on grazing walls: b from one outlier bin
+    scene = scene_families.lidar_scan(22)
+    est = estimate_noise(scene.points, seed=0)
+    assert len(est.ranges) < 4 and est.b > 0
+    assert est.model(scene.points) == 'constant'

@@ -65,6 +65,10 @@ MEASURABLE = 0.5
 #: least this share of sigma at the median range. On the tuning split the depth frames read 0.75-1.0 (a
 #: Kinect-like b r^2 dominates), the lidar scans, roofs and SynPEB 0-0.02.
 QUADRATIC_SHARE = 0.5
+#: ... and only from a fit over at least this many range bins, twice the fit's parameters: a lidar corridor's
+#: neighbourhoods fall in two bins, the far one grazing walls (lidar_scan_corridor_22 and _40 of the tuning seeds:
+#: 11 and 167 mm, a range term from one outlier); the depth frames fill all BINS.
+MODEL_BINS = 4
 #: NoiseEstimate.level takes the ranges of about this many points.
 LEVEL_POINTS = 20_000
 #: At most this many points of an unorganized cloud are hashed into voxels (a random probe).
@@ -96,9 +100,11 @@ class NoiseEstimate:
 
     def model(self, points: np.ndarray, viewpoint=None) -> str:
         """The noise model (:mod:`.noise`) this estimate calls for: ``depth_quadratic`` when the residuals run along
-        the rays and the part growing with range, b r^2, is at least QUADRATIC_SHARE of sigma at the median range of
-        ``points`` (N, 3) m from ``viewpoint``; else ``constant`` (also without an estimate)."""
-        ranges = _ranges(points, viewpoint) if self.patches and self.along_ray and self.b > 0 else np.empty(0)
+        the rays, fitted over MODEL_BINS range bins or more, and the part growing with range, b r^2, is at least
+        QUADRATIC_SHARE of sigma at the median range of ``points`` (N, 3) m from ``viewpoint``; else ``constant``
+        (also without an estimate)."""
+        fitted = self.patches and self.along_ray and self.b > 0 and len(self.ranges) >= MODEL_BINS
+        ranges = _ranges(points, viewpoint) if fitted else np.empty(0)
         if not len(ranges):
             return NOISE_MODELS[0]
         r = float(np.median(ranges))
