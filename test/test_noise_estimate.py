@@ -117,6 +117,9 @@ def test_auto_noise_model_follows_the_measured_noise():
     # noise growing with range (a depth camera) calls for depth_quadratic; the same at every range, for constant
     depth = scene_families.indoor_depth(1, noise=(0.0005, 0.003), quantum=0)
     assert estimate_noise(depth.points, depth.shape, seed=0).model(depth.points) == 'depth_quadratic'
+    # within sqrt(2) reference ranges (the room is 2.4-3.6 m away) the two models differ little: constant
+    near = estimate_noise(depth.points, depth.shape, seed=0, reference=3.0)
+    assert near.b > 0 and near.model(depth.points) == 'constant'
     flat_noise = scene_families.indoor_depth(1, noise=(0.01, 0.0), quantum=0)
     assert estimate_noise(flat_noise.points, flat_noise.shape, seed=0).model(flat_noise.points) == 'constant'
     lidar = scene_families.lidar_scan(1)

@@ -69,6 +69,11 @@ QUADRATIC_SHARE = 0.5
 #: neighbourhoods fall in two bins, the far one grazing walls (lidar_scan_corridor_22 and _40 of the tuning seeds:
 #: 11 and 167 mm, a range term from one outlier); the depth frames fill all BINS.
 MODEL_BINS = 4
+#: ... and only for a cloud whose median point is at least this factor's range beyond the reference range, where
+#: depth_quadratic's tolerance is that many times constant's. Within it the two differ little, and the constant
+#: sweep's range reaches the surfaces' own roughness where that is above the sensor's noise: milk_cartoon's carton
+#: fronts (0.6-0.8 m, 1 mm of noise) became planes at 16 mm, and at no t0 within 5 sigmas.
+MIN_FACTOR = 2.0
 #: NoiseEstimate.level takes the ranges of about this many points.
 LEVEL_POINTS = 20_000
 #: At most this many points of an unorganized cloud are hashed into voxels (a random probe).
@@ -100,15 +105,16 @@ class NoiseEstimate:
 
     def model(self, points: np.ndarray, viewpoint=None) -> str:
         """The noise model (:mod:`.noise`) this estimate calls for: ``depth_quadratic`` when the residuals run along
-        the rays, fitted over MODEL_BINS range bins or more, and the part growing with range, b r^2, is at least
-        QUADRATIC_SHARE of sigma at the median range of ``points`` (N, 3) m from ``viewpoint``; else ``constant``
-        (also without an estimate)."""
+        the rays, fitted over MODEL_BINS range bins or more, and at the median range r of ``points`` (N, 3) m from
+        ``viewpoint`` the part growing with range, b r^2, is at least QUADRATIC_SHARE of sigma and r^2 is at least
+        MIN_FACTOR reference^2; else ``constant`` (also without an estimate)."""
         fitted = self.patches and self.along_ray and self.b > 0 and len(self.ranges) >= MODEL_BINS
         ranges = _ranges(points, viewpoint) if fitted else np.empty(0)
         if not len(ranges):
             return NOISE_MODELS[0]
         r = float(np.median(ranges))
-        return NOISE_MODELS[1] if self.b * r * r >= QUADRATIC_SHARE * self.sigma(r) else NOISE_MODELS[0]
+        beyond = r * r >= MIN_FACTOR * self.reference ** 2  # where depth_quadratic's t differs from constant's
+        return NOISE_MODELS[1] if beyond and self.b * r * r >= QUADRATIC_SHARE * self.sigma(r) else NOISE_MODELS[0]
 
     def level(self, points: np.ndarray, viewpoint=None, quantile: float = 0.5) -> float:
         """The ``quantile`` of sigma over the finite rows of ``points`` (N, 3) m (every n-th of them beyond
