@@ -35,14 +35,17 @@ SCATTERED_SPREAD = 0.2
 
 def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_count: int, probability: float,
                       max_iterations: int, rng: np.random.Generator, n_total: int,
-                      neighbours: Neighbours | None = None, allows: Allows = None
+                      neighbours: Neighbours | None = None, allows: Allows = None, start: np.ndarray | None = None
                       ) -> tuple[list, str, np.ndarray | None, bool]:
     """Sequential RANSAC on the points ``cols`` (3, n): the planes [(normal, offset)] in
     extraction order, why the search stopped, with ``neighbours`` the region of each point
-    (n,) (-1: none), and whether it stopped at ``max_planes`` with ``min_count`` points left."""
+    (n,) (-1: none), and whether it stopped at ``max_planes`` with ``min_count`` points left. ``start``: the points
+    (indices into ``cols``) the search may use, of those ``neighbours`` can search (None: all)."""
     n = cols.shape[1]
     rest = cols
     rest_idx = np.arange(n) if neighbours is None else neighbours.searchable()  # the points that can join a region
+    if start is not None:
+        rest_idx = np.intersect1d(rest_idx, start)
     if len(rest_idx) < n:
         rest = cols.take(rest_idx, axis=1)
         tolerance = tolerance_at(tolerance, rest_idx)
