@@ -104,3 +104,26 @@ def test_layers_of_a_stepped_depth_are_not_a_scattered_surface(monkeypatch):
     monkeypatch.setattr(sequential, 'SCATTERED_SPREAD', 0.0)
     seg = pv.detect_planes(points, 0.01, shape=shape, seed=0, max_planes=8, min_inliers=0.02)
     assert 'set aside' in seg.reason
+
+
+def test_a_search_whose_regions_merged_goes_on_for_the_planes_it_had_no_room_for(monkeypatch):
+    # a room whose far walls' noise (3 cm at 3.5 m) cuts them into pieces: the pieces take the max_planes, merge into
+    # their walls afterwards, and the boxes in front were never searched
+    from plane_validation.core import scene_families
+    from plane_validation.core.scoring import segmentation_quality
+    from plane_validation.core.search import connected
+    scene = scene_families.indoor_depth(13)
+    truth = scene.labels.astype(np.int64)
+
+    def run():
+        seg = pv.detect_planes(scene.points, 0.0087, seed=0, shape=scene.shape, noise_model='depth_quadratic',
+                               max_planes=18, min_inliers=211)
+        return seg, segmentation_quality(seg.labels, truth, points=scene.points, pred_planes=seg.coefficients)
+
+    seg, quality = run()
+    monkeypatch.setattr(connected, 'RESUME_ROUNDS', 0)
+    stopped, before = run()
+    assert stopped.reason.startswith('reached max_planes=18') and stopped.n_planes <= 6
+    assert seg.n_planes > stopped.n_planes and seg.n_planes <= 18
+    assert quality.correct >= before.correct + 3 and quality.f1 > before.f1
+    assert 'merged' in seg.reason and not seg.reason.startswith('reached max_planes')

@@ -57,9 +57,9 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
         more, more_reason, more_region, capped = sequential_search(
             search, search_tolerance, max_planes - len(found), search_min, probability, max_iterations, rng,
             n_total=n_valid, neighbours=neighbours, allows=allows, start=np.flatnonzero(region < 0))
+        reason, searched = more_reason, searched + len(more)
         if not more:
             break
-        reason, searched = more_reason, searched + len(more)
         region = np.where(more_region >= 0, more_region + len(found), region)
         region, found = _settled(search, region, found + more, search_tolerance, neighbours, viewpoint - center,
                                  allows)
