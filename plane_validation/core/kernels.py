@@ -31,6 +31,7 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
+           'labels_where',
            'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'kept_edges', 'graph_contacts', 'graph_settle',
            'voxel_count', 'tent_fit', 'leftover_rows', 'leftover_best', 'seeded_draws', 'warm', 'Warmup']
 
@@ -3476,6 +3477,19 @@ def relabel_rows(labels: np.ndarray, finite: np.ndarray, rank: np.ndarray) -> tu
     return rows, points[:m]
 
 
+
+@numba.njit(**_JIT)
+def labels_where(labels: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """np.compress(keep, labels): the int32 ``labels`` (N,) at the rows ``keep`` (N,) bool marks, in order ((n,), the
+    start of an (N,) buffer). Each row is written and the end moves on by its flag, without a branch: the marks of an
+    image's valid pixels come in runs, but a branch per row still costs more than numpy's copy."""
+    out = np.empty(labels.shape[0], np.int32)
+    m = 0
+    for i in range(labels.shape[0]):
+        out[m] = labels[i]
+        m += keep[i]
+    return out[:m]
+
 # --- verdict: the beyond test's rows ---
 
 
@@ -4214,6 +4228,7 @@ def _warm_organized_detect() -> None:
 
 def _warm_frame_ids() -> None:
     relabel_rows(np.array([0, -1, 0, 1], np.int32), np.ones(4, np.bool_), np.array([1, 0, -1], np.int32))
+    labels_where(np.array([0, -1, 0, 1], np.int32), np.ones(4, np.bool_))
 
 
 def _warm_beyond_rows() -> None:
@@ -4317,5 +4332,6 @@ _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components
             fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
             read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
-            merge_pair, relabel_rows, grid_spread, strided_rows, columns_at, grid_batch, kept_edges, graph_contacts,
+            merge_pair, relabel_rows, labels_where, grid_spread, strided_rows, columns_at, grid_batch, kept_edges,
+            graph_contacts,
             graph_settle, voxel_count, tent_fit, leftover_rows, leftover_best, seeded_draws)
