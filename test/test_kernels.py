@@ -395,14 +395,3 @@ def test_seeded_draws_are_numpys_draws_seeded_by_m(m, count):
     got = kernels.seeded_draws(m, count)
     assert got.dtype == np.int64
     np.testing.assert_array_equal(got, expected)
-
-
-@SETTINGS
-@given(st.integers(0, 2**31), st.integers(0, 400), st.floats(0.0, 1.0))
-def test_labels_where_is_numpys_compress(seed, n, share):
-    rng = np.random.default_rng(seed)
-    labels = rng.integers(-1, 6, n).astype(np.int32)
-    keep = rng.random(n) < share
-    got = kernels.labels_where(labels, keep)
-    assert got.dtype == np.int32
-    np.testing.assert_array_equal(got, np.compress(keep, labels))
