@@ -385,3 +385,13 @@ def test_fold_line_finds_a_ridge_and_not_a_plane():
     assert mse < 1.1 * np.var(noise) < np.var(ridge)
     assert theta == 0.0 and abs(s0) < 0.3  # the ridge runs along v at u = 0
     assert np.isnan(kernels.fold_line(u[:4], v[:4], noise[:4], 18, 15, 0.7)).all()
+
+
+@SETTINGS
+@given(st.one_of(st.integers(1, 5000), st.integers(1, 2**32 + 5), st.integers(2**32 - 5, 2**63 - 1)),
+       st.integers(0, 3000))
+def test_seeded_draws_are_numpys_draws_seeded_by_m(m, count):
+    expected = np.random.default_rng(m).integers(0, m, count)
+    got = kernels.seeded_draws(m, count)
+    assert got.dtype == np.int64
+    np.testing.assert_array_equal(got, expected)

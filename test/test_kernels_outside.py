@@ -190,3 +190,15 @@ def test_relabel_rows_matches_numpy(seed, n, k):
     np.testing.assert_array_equal(rows, rank[labels])
     np.testing.assert_array_equal(points, np.compress(finite, rank[labels]))
     assert rows.dtype == points.dtype == np.int32
+
+
+@SETTINGS
+@given(st.integers(0, 2**31), st.integers(0, 400), st.floats(0.0, 1.0))
+def test_labels_where_is_numpys_compress(seed, n, share):
+    """The labels of an organized frame's valid points: np.compress of the rows' labels by the finite rows."""
+    rng = np.random.default_rng(seed)
+    labels = rng.integers(-1, 6, n).astype(np.int32)
+    keep = rng.random(n) < share
+    got = kernels.labels_where(labels, keep)
+    assert got.dtype == np.int32
+    np.testing.assert_array_equal(got, np.compress(keep, labels))

@@ -409,7 +409,8 @@ class FramePipeline:
                 if inverse is not None:  # each point its voxel's (pixel's) plane, if it lies within t of it
                     labels = within_planes(valid, seg.labels[inverse], seg)
                 else:
-                    labels = np.compress(finite, seg.labels) if shape else seg.labels
+                    labels = kernels.labels_where(kernels.c_array(seg.labels, np.int32), finite) if shape else \
+                        seg.labels
                 # an organized frame's indices from its valid rows: the same values, no second NaN filter
                 scored = (valid, labels) if shape is not None or laid is not None else (work, seg.labels)
                 scores = validity_indices(*scored, sample_size=cfg.index_sample_size, seed=seed,

@@ -74,7 +74,7 @@ def hull_polygon(local: np.ndarray, max_points: int = HULL_POINTS) -> np.ndarray
 
 def _hull_candidates(extremes: np.ndarray, m: int, max_points: int) -> np.ndarray:
     """The points of m that :func:`hull_polygon` takes the hull of: the ``extremes`` (8,) and its fixed sample."""
-    return np.concatenate([extremes, np.random.default_rng(m).integers(0, m, max_points)])  # Qhull merges repeats
+    return np.concatenate([extremes, kernels.seeded_draws(m, max_points)])  # Qhull merges repeats
 
 
 def _hull(local: np.ndarray) -> np.ndarray:

@@ -31,8 +31,9 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
+           'labels_where',
            'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'kept_edges', 'graph_contacts', 'graph_settle',
-           'voxel_count', 'tent_fit', 'leftover_rows', 'leftover_best', 'warm', 'Warmup']
+           'voxel_count', 'tent_fit', 'leftover_rows', 'leftover_best', 'seeded_draws', 'warm', 'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -3476,6 +3477,19 @@ def relabel_rows(labels: np.ndarray, finite: np.ndarray, rank: np.ndarray) -> tu
     return rows, points[:m]
 
 
+
+@numba.njit(**_JIT)
+def labels_where(labels: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """np.compress(keep, labels): the int32 ``labels`` (N,) at the rows ``keep`` (N,) bool marks, in order ((n,), the
+    start of an (N,) buffer). Each row is written and the end moves on by its flag, without a branch: the marks of an
+    image's valid pixels come in runs, but a branch per row still costs more than numpy's copy."""
+    out = np.empty(labels.shape[0], np.int32)
+    m = 0
+    for i in range(labels.shape[0]):
+        out[m] = labels[i]
+        m += keep[i]
+    return out[:m]
+
 # --- verdict: the beyond test's rows ---
 
 
@@ -4032,6 +4046,122 @@ def _warm_silhouette() -> None:
     plane_silhouette_sum(pts, codes[[0, 2, 3, 3]], centroids, scatter, np.zeros((2, 2)), np.zeros((2, 2)), np.ones(2))
 
 
+# -- numpy's default_rng(m).integers(0, m, count), compiled (SeedSequence, PCG64, Lemire's bounded draws) --------
+# A fixed subset of m rows seeded by m, drawn as numpy draws it, without building a Generator (about 90 us a call)
+
+_MASK32 = np.uint64(0xFFFFFFFF)
+_U32 = np.uint64(32)
+_U16 = np.uint64(16)
+_SEED_INIT_A, _SEED_MULT_A = np.uint64(0x43b0d7e5), np.uint64(0x931e8875)
+_SEED_INIT_B, _SEED_MULT_B = np.uint64(0x8b51f9dd), np.uint64(0x58f38ded)
+_MIX_L, _MIX_R = np.uint64(0xca01f9dd), np.uint64(0x4973f715)
+_PCG_MULT_HIGH, _PCG_MULT_LOW = np.uint64(2549297995355413924), np.uint64(4865540595714422341)
+
+
+@numba.njit(**_JIT)
+def _hashmix(value: np.uint64, const: np.ndarray) -> np.uint64:
+    """SeedSequence's hashmix of a 32-bit ``value`` (in a uint64); ``const`` (1,) uint64 its running constant."""
+    value = (value ^ const[0]) & _MASK32
+    const[0] = (const[0] * _SEED_MULT_A) & _MASK32
+    value = (value * const[0]) & _MASK32
+    return value ^ (value >> _U16)
+
+
+@numba.njit(**_JIT)
+def _mix(x: np.uint64, y: np.uint64) -> np.uint64:
+    result = ((_MIX_L * x) - (_MIX_R * y)) & _MASK32
+    return result ^ (result >> _U16)
+
+
+@numba.njit(**_JIT)
+def _mul_high(a: np.uint64, b: np.uint64) -> np.uint64:
+    """The high 64 bits of the 128-bit product a * b."""
+    a_lo, a_hi, b_lo, b_hi = a & _MASK32, a >> _U32, b & _MASK32, b >> _U32
+    cross = (a_lo * b_lo >> _U32) + (a_hi * b_lo & _MASK32) + (a_lo * b_hi)
+    return a_hi * b_hi + (a_hi * b_lo >> _U32) + (cross >> _U32)
+
+
+@numba.njit(**_JIT)
+def _pcg_step(state: np.ndarray) -> None:
+    """PCG64's step of ``state`` (4,) uint64 (high, low, inc high, inc low): state * multiplier + inc, mod 2^128."""
+    high, low = state[0], state[1]
+    product_low = low * _PCG_MULT_LOW
+    product_high = _mul_high(low, _PCG_MULT_LOW) + low * _PCG_MULT_HIGH + high * _PCG_MULT_LOW
+    new_low = product_low + state[3]
+    state[0] = product_high + state[2] + (np.uint64(1) if new_low < product_low else np.uint64(0))
+    state[1] = new_low
+
+
+@numba.njit(**_JIT)
+def _pcg_next64(state: np.ndarray) -> np.uint64:
+    """PCG64's next output (XSL RR of the stepped state)."""
+    _pcg_step(state)
+    turn = state[0] >> np.uint64(58)
+    value = state[0] ^ state[1]
+    return (value >> turn) | (value << ((np.uint64(64) - turn) & np.uint64(63)))
+
+
+@numba.njit(**_JIT)
+def seeded_draws(m: int, count: int) -> np.ndarray:
+    """(count,) int64 equal to ``np.random.default_rng(m).integers(0, m, count)`` for 1 <= m < 2^63: numpy's
+    SeedSequence(m), PCG64 seeded from it and Lemire's bounded draws (32-bit ones, low half of an output first,
+    while m <= 2^32), in one compiled call."""
+    entropy = np.empty(2, np.uint64)
+    entropy[0], entropy[1] = np.uint64(m) & _MASK32, np.uint64(m) >> _U32
+    words = 1 if entropy[1] == 0 else 2
+    const = np.full(1, _SEED_INIT_A, np.uint64)
+    pool = np.empty(4, np.uint64)
+    for i in range(4):
+        pool[i] = _hashmix(entropy[i] if i < words else np.uint64(0), const)
+    for source in range(4):
+        for target in range(4):
+            if source != target:
+                pool[target] = _mix(pool[target], _hashmix(pool[source], const))
+    seed = np.empty(8, np.uint64)  # generate_state(4, uint64): 8 words, paired low word first
+    hash_b = _SEED_INIT_B
+    for i in range(8):
+        value = (pool[i % 4] ^ hash_b) & _MASK32
+        hash_b = (hash_b * _SEED_MULT_B) & _MASK32
+        value = (value * hash_b) & _MASK32
+        seed[i] = value ^ (value >> _U16)
+    state = np.zeros(4, np.uint64)  # srandom(initstate, initseq): inc = initseq << 1 | 1, step, += initstate, step
+    state[2] = ((seed[5] << _U32 | seed[4]) << np.uint64(1)) | ((seed[7] << _U32 | seed[6]) >> np.uint64(63))
+    state[3] = ((seed[7] << _U32 | seed[6]) << np.uint64(1)) | np.uint64(1)
+    _pcg_step(state)
+    init_high, init_low = seed[1] << _U32 | seed[0], seed[3] << _U32 | seed[2]
+    low = state[1] + init_low
+    state[0] = state[0] + init_high + (np.uint64(1) if low < init_low else np.uint64(0))
+    state[1] = low
+    _pcg_step(state)
+    out = np.zeros(count, np.int64)
+    span = np.uint64(m)  # rng + 1 of numpy's bounded draws
+    if m == 1:
+        return out
+    if m <= 0xFFFFFFFF + 1:
+        threshold = ((_MASK32 - (span - np.uint64(1))) & _MASK32) % span
+        spare, has_spare = np.uint64(0), False
+        for i in range(count):
+            while True:
+                if has_spare:
+                    word, has_spare = spare, False
+                else:
+                    full = _pcg_next64(state)
+                    word, spare, has_spare = full & _MASK32, full >> _U32, True
+                product = word * span
+                if (product & _MASK32) >= threshold:
+                    break
+            out[i] = np.int64(product >> _U32)
+        return out
+    threshold = (np.uint64(0) - span) % span  # (2^64 - 1 - rng) % span
+    for i in range(count):
+        while True:
+            word = _pcg_next64(state)
+            if word * span >= threshold:
+                break
+        out[i] = np.int64(_mul_high(word, span))
+    return out
+
+
 def _warm_outside() -> None:
     pts, index = np.zeros((4, 3)), np.arange(4, dtype=np.int64)
     labels = np.array([0, -1, 0, 1], np.int32)
@@ -4098,6 +4228,7 @@ def _warm_organized_detect() -> None:
 
 def _warm_frame_ids() -> None:
     relabel_rows(np.array([0, -1, 0, 1], np.int32), np.ones(4, np.bool_), np.array([1, 0, -1], np.int32))
+    labels_where(np.array([0, -1, 0, 1], np.int32), np.ones(4, np.bool_))
 
 
 def _warm_beyond_rows() -> None:
@@ -4112,6 +4243,7 @@ def _warm_leftover() -> None:
     leftover_rows(np.zeros((4, 3)), np.array([0, -1, 0, 1], np.int32), 1, np.zeros((1, 4)), 1.0, True, 1.0, np.zeros(3),
                   100.0, 2.0, np.zeros((3, 2)), np.zeros(2), np.zeros(2))
     leftover_best(np.zeros((4, 3)), np.ones(4), np.zeros(1, np.int64), np.ones((1, 2), np.int64), 2)
+    seeded_draws(5, 2)
 
 
 def _warm_organized_batch() -> None:
@@ -4200,5 +4332,6 @@ _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components
             fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
             read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
-            merge_pair, relabel_rows, grid_spread, strided_rows, columns_at, grid_batch, kept_edges, graph_contacts,
-            graph_settle, voxel_count, tent_fit, leftover_rows, leftover_best)
+            merge_pair, relabel_rows, labels_where, grid_spread, strided_rows, columns_at, grid_batch, kept_edges,
+            graph_contacts,
+            graph_settle, voxel_count, tent_fit, leftover_rows, leftover_best, seeded_draws)

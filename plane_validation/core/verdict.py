@@ -631,7 +631,7 @@ def _inlier_sample(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
 def _sample_rows(rows: np.ndarray) -> np.ndarray:
     """The rows (m,) of a plane's inlier ``rows`` its shape is judged on."""
     if len(rows) > THICKNESS_POINTS:  # a fixed random subset: the ratios are robust statistics
-        rows = rows[np.random.default_rng(len(rows)).integers(0, len(rows), THICKNESS_POINTS)]
+        rows = rows[kernels.seeded_draws(len(rows), THICKNESS_POINTS)]  # default_rng(m).integers(0, m, ...)
     return rows
 
 

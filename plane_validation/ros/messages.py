@@ -72,6 +72,12 @@ def obstacle_cloud(header, result: FrameResult) -> sensor_msgs.msg.PointCloud2:
     return _frame_pass(header, result).obstacles
 
 
+#: The records of the segmented and the obstacle cloud (built once: a dtype takes a tenth of a millisecond).
+_SEGMENTED_LAYOUT = record_layout({'x': np.float32, 'y': np.float32, 'z': np.float32, 'plane_id': np.int32,
+                                   'rgb': np.float32})
+_OBSTACLE_LAYOUT = record_layout({'x': np.float32, 'y': np.float32, 'z': np.float32})
+
+
 @dataclass(frozen=True, eq=False)
 class _FramePass:
     """What the one compiled pass over a frame's rows gives: both output clouds and the planes' outlines."""
@@ -97,9 +103,7 @@ def _frame_pass(header, result: FrameResult) -> _FramePass:
     packed = pack_rgb(palette[:, 0], palette[:, 1], palette[:, 2])
     rotations = [] if seg is None else plane_bases(seg)
     kept = len(rows) if image else int(np.count_nonzero(keep))
-    seg_layout = record_layout({'x': np.float32, 'y': np.float32, 'z': np.float32, 'plane_id': np.int32,
-                                'rgb': np.float32})
-    obs_layout = record_layout({'x': np.float32, 'y': np.float32, 'z': np.float32})
+    seg_layout, obs_layout = _SEGMENTED_LAYOUT, _OBSTACLE_LAYOUT
     seg_data = cloud_buffer(len(rows) * seg_layout.itemsize, sensor_msgs.msg)
     obs_data = cloud_buffer(kept * obs_layout.itemsize, sensor_msgs.msg)
     _, centroids, extremes, seg_dense, obs_dense, largest = frame_pass(

@@ -87,7 +87,7 @@ def _spread_points(n: int) -> np.ndarray:
     in an organized cloud a stride can pick one image column, which lies on a line), seeded by n: deterministic."""
     if n <= SPREAD_POINTS:
         return np.arange(n)
-    return np.random.default_rng(n).integers(0, n, SPREAD_POINTS)
+    return kernels.seeded_draws(n, SPREAD_POINTS)  # np.random.default_rng(n).integers(0, n, SPREAD_POINTS)
 
 
 def degeneracy_numpy(cols: np.ndarray) -> str | None:
