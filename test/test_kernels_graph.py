@@ -71,6 +71,28 @@ def test_voxel_nearest_matches_brute_force_and_voxel_knn(seed, others):
 
 
 @SETTINGS
+@given(st.integers(0, 2**32 - 1))
+def test_voxel_nearest_in_empty_voxels_matches_brute_force(seed):
+    """Queries in voxels holding no point (a plane's points, the queries off it and in its holes) are answered voxel by
+    voxel as well: each certain one gets the brute-force nearest (ties by voxel order), and most are certain."""
+    rng = np.random.default_rng(seed)
+    pts = np.column_stack([rng.uniform(0, 1, (400, 2)), np.zeros(400)])
+    pts[:, :2] = np.round(pts[:, :2] * rng.choice([10, 20, 1000])) / 20  # sometimes equal distances
+    index = voxel_index(pts, span=(np.array([0.0, 0.0, -1.0]), np.array([1.0, 1.0, 1.0])))
+    queries = np.column_stack([rng.uniform(0, 1, (300, 2)), rng.uniform(-2, 2, 300) * index.cell])  # to 2 voxels off
+    args = (index.ordered, *index.grid, index.origin, index.cell, index.dims, queries)
+    voxel = ((queries - index.origin) // index.cell).astype(np.int64)
+    keys = voxel[:, 0] + index.dims[0] * (voxel[:, 1] + index.dims[1] * voxel[:, 2])
+    in_empty = ~np.isin(keys, index.grid[1])
+    dist, idx, exact = kernels.voxel_nearest(*args, VOXEL_RINGS)
+    ref_dist, ref_idx = _knn_numpy(index.ordered, index.grid[0], queries, 1)
+    np.testing.assert_array_equal(dist[exact], ref_dist[exact])
+    np.testing.assert_array_equal(idx[exact], ref_idx[exact])
+    np.testing.assert_array_equal(exact, kernels.voxel_knn(*args, 1, VOXEL_RINGS)[2])
+    assert np.count_nonzero(exact & in_empty) > 0.25 * np.count_nonzero(in_empty) > 0
+
+
+@SETTINGS
 @given(st.integers(0, 2**32 - 1), st.booleans())
 def test_spread_nearest_matches_numpy(seed, per_point):
     """Labels exactly as the numpy reference gives them, and each labelled point's distance to its plane."""

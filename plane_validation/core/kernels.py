@@ -538,32 +538,96 @@ def voxel_knn(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, star
 
 
 @numba.njit(**_JIT)
-def _turn(app: float, aqq: float, apq: float, apt: float, aqt: float, vp0: float, vq0: float, vp1: float, vq1: float,
-          vp2: float, vq2: float) -> tuple[float, float, float, float, float, float, float, float, float, float]:
-    """One Jacobi rotation zeroing a_pq (nonzero) of a symmetric 3 x 3 matrix (t: the third index): the new a_pp, a_qq,
-    a_pt, a_qt, rounded as the product a <- J^T (a J) rounds them, and the axes' columns p and q (rows 0, 1, 2)
-    rotated."""
-    theta = (aqq - app) / (2.0 * apq)
-    if abs(theta) > 1e150:
-        t = 0.5 / theta
+def _longest_cross(r0x: float, r0y: float, r0z: float, r1x: float, r1y: float, r1z: float, r2x: float, r2y: float,
+                   r2z: float) -> tuple[float, float, float]:
+    """The longest of the pairwise cross products of three rows, as a unit vector; (1, 0, 0) when all vanish (the
+    rows span at most a line: then any axis serves)."""
+    ax, ay, az = r0y * r1z - r0z * r1y, r0z * r1x - r0x * r1z, r0x * r1y - r0y * r1x
+    bx, by, bz = r0y * r2z - r0z * r2y, r0z * r2x - r0x * r2z, r0x * r2y - r0y * r2x
+    cx, cy, cz = r1y * r2z - r1z * r2y, r1z * r2x - r1x * r2z, r1x * r2y - r1y * r2x
+    a, b, c = ax * ax + ay * ay + az * az, bx * bx + by * by + bz * bz, cx * cx + cy * cy + cz * cz
+    if b > a:
+        ax, ay, az, a = bx, by, bz, b
+    if c > a:
+        ax, ay, az, a = cx, cy, cz, c
+    if not a > 0.0:
+        return 1.0, 0.0, 0.0
+    s = 1.0 / np.sqrt(a)
+    return ax * s, ay * s, az * s
+
+
+@numba.njit(**_JIT)
+def _eigen2(m00: float, m01: float, m11: float) -> tuple[float, float, float, float]:
+    """The eigenvalues (smaller, larger) of the symmetric 2 x 2 matrix [[m00, m01], [m01, m11]] and the smaller one's
+    unit eigenvector (c0, c1), each from the row without cancellation; (1, 0) for a multiple of the identity."""
+    mean, half = 0.5 * (m00 + m11), 0.5 * (m00 - m11)
+    r = np.sqrt(half * half + m01 * m01)
+    if not r > 0.0:
+        return mean, mean, 1.0, 0.0
+    if half >= 0.0:  # the row (half + r, m01) of M - smaller I sends (-m01, half + r) to zero
+        c0, c1 = -m01, half + r
+    else:  # the row (m01, r - half)
+        c0, c1 = r - half, -m01
+    n = 1.0 / np.sqrt(c0 * c0 + c1 * c1)
+    return mean - r, mean + r, c0 * n, c1 * n
+
+
+@numba.njit(**_JIT)
+def _eigen3(a00: float, a01: float, a02: float, a11: float, a12: float, a22: float
+            ) -> tuple[float, float, float, float, float, float, float, float, float, float, float, float]:
+    """Eigenvalues, ascending and at least 0, and unit eigenvectors (x, y, z of the smallest's, the middle one's and the
+    largest's axis) of a positive semi-definite symmetric 3 x 3 matrix, in closed form: the eigenvalue farthest from
+    the other two (a simple root) by the trigonometric solution of the characteristic cubic, its axis as the longest
+    cross product of two rows of (A - lambda I) and its value as that axis' Rayleigh quotient; the other two, close
+    or not, from the 2 x 2 problem in the plane normal to it (accurate where the cubic's angle is not). Scaled by the
+    largest entry first (no overflow or underflow); an identity basis for a multiple of the identity."""
+    big = max(abs(a00), abs(a01), abs(a02), abs(a11), abs(a12), abs(a22))
+    if not big > 0.0:
+        return 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
+    inv = 1.0 / big
+    a00, a01, a02, a11, a12, a22 = a00 * inv, a01 * inv, a02 * inv, a11 * inv, a12 * inv, a22 * inv
+    q = (a00 + a11 + a22) / 3.0
+    b00, b11, b22 = a00 - q, a11 - q, a22 - q
+    p2 = (b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * (a01 * a01 + a02 * a02 + a12 * a12)) / 6.0
+    if not p2 > 0.0:
+        v = max(q * big, 0.0)
+        return v, v, v, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
+    p = np.sqrt(p2)
+    half_det = (b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02) + a02 * (a01 * a12 - b11 * a02)) \
+        / (2.0 * p2 * p)
+    cos_a = np.cos(np.arccos(min(1.0, max(-1.0, half_det))) / 3.0)  # the angle in [0, pi / 3]
+    if half_det >= 0.0:  # the largest lies farther from the middle one than the smallest does
+        first = q + 2.0 * p * cos_a
+    else:  # 2 p cos(angle + 2 pi / 3)
+        first = q + p * (-cos_a - np.sqrt(3.0) * np.sqrt(max(0.0, 1.0 - cos_a * cos_a)))
+    ux, uy, uz = _longest_cross(a00 - first, a01, a02, a01, a11 - first, a12, a02, a12, a22 - first)
+    if abs(ux) > abs(uy):  # (s, t): an orthonormal basis of the plane normal to u
+        n = 1.0 / np.sqrt(ux * ux + uz * uz)
+        sx, sy, sz = -uz * n, 0.0, ux * n
     else:
-        t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
-        if theta < 0:
-            t = -t
-    c = 1.0 / np.sqrt(t * t + 1.0)
-    s = t * c
-    pp, pq = c * app - s * apq, s * app + c * apq  # a J, rows p and q of columns p and q
-    qp, qq = c * apq - s * aqq, s * apq + c * aqq
-    return (c * pp - s * qp, s * pq + c * qq, c * apt - s * aqt, s * apt + c * aqt, c * vp0 - s * vq0,
-            s * vp0 + c * vq0, c * vp1 - s * vq1, s * vp1 + c * vq1, c * vp2 - s * vq2, s * vp2 + c * vq2)
+        n = 1.0 / np.sqrt(uy * uy + uz * uz)
+        sx, sy, sz = 0.0, uz * n, -uy * n
+    tx, ty, tz = uy * sz - uz * sy, uz * sx - ux * sz, ux * sy - uy * sx
+    asx, asy, asz = a00 * sx + a01 * sy + a02 * sz, a01 * sx + a11 * sy + a12 * sz, a02 * sx + a12 * sy + a22 * sz
+    atx, aty, atz = a00 * tx + a01 * ty + a02 * tz, a01 * tx + a11 * ty + a12 * tz, a02 * tx + a12 * ty + a22 * tz
+    low, high, c0, c1 = _eigen2(sx * asx + sy * asy + sz * asz, sx * atx + sy * aty + sz * atz,
+                                tx * atx + ty * aty + tz * atz)
+    lx, ly, lz = c0 * sx + c1 * tx, c0 * sy + c1 * ty, c0 * sz + c1 * tz  # the smaller one's axis, then the larger's
+    hx, hy, hz = c0 * tx - c1 * sx, c0 * ty - c1 * sy, c0 * tz - c1 * sz
+    ru = (ux * (a00 * ux + a01 * uy + a02 * uz) + uy * (a01 * ux + a11 * uy + a12 * uz) +
+          uz * (a02 * ux + a12 * uy + a22 * uz))
+    if half_det >= 0.0:  # u the largest's axis
+        return (max(low * big, 0.0), max(high * big, 0.0), max(max(ru, high) * big, 0.0), lx, ly, lz, hx, hy, hz,
+                ux, uy, uz)
+    return max(min(ru, low) * big, 0.0), max(low * big, 0.0), max(high * big, 0.0), ux, uy, uz, lx, ly, lz, hx, hy, hz
 
 
 @numba.njit(**_JIT)
 def principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvalues (m, 3), ascending, and unit principal axes (m, 3, 3), as columns, of the scatter about their mean
-    of the point sets ``points[idx[i]]`` (``points`` (n, 3) meters, ``idx`` (m, k)), by cyclic Jacobi rotations (an
-    axis' sign is arbitrary, as is the basis of equal eigenvalues). The matrices live in scalars: the rotations
-    stay in registers."""
+    of the point sets ``points[idx[i]]`` (``points`` (n, 3) meters, ``idx`` (m, k)), in closed form (:func:`_eigen3`;
+    an axis' sign is arbitrary, as is the basis of equal eigenvalues): the eigenvalues within about 1e-14 of the
+    largest of those of a Jacobi solve, at about half its time."""
     m, k = idx.shape
     values = np.empty((m, 3))
     axes = np.empty((m, 3, 3))
@@ -585,43 +649,8 @@ def principal_axes(points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.
             yy += y * y
             yz += y * z
             zz += z * z
-        a00, a01, a02, a11, a12, a22 = xx, xy, xz, yy, yz, zz
-        v00 = v11 = v22 = 1.0
-        v01 = v02 = v10 = v12 = v20 = v21 = 0.0
-        scale = xx * xx + yy * yy + zz * zz + 2 * (xy * xy + xz * xz + yz * yz)
-        for _ in range(32):
-            off = a01 * a01 + a02 * a02 + a12 * a12
-            if not off > 1e-32 * scale:
-                break
-            if a01 != 0.0:  # (p, q, t) = (0, 1, 2)
-                a00, a11, a02, a12, v00, v01, v10, v11, v20, v21 = _turn(a00, a11, a01, a02, a12, v00, v01, v10, v11,
-                                                                         v20, v21)
-                a01 = 0.0
-            if a02 != 0.0:  # (0, 2, 1)
-                a00, a22, a01, a12, v00, v02, v10, v12, v20, v22 = _turn(a00, a22, a02, a01, a12, v00, v02, v10, v12,
-                                                                         v20, v22)
-                a02 = 0.0
-            if a12 != 0.0:  # (1, 2, 0)
-                a11, a22, a01, a02, v01, v02, v11, v12, v21, v22 = _turn(a11, a22, a12, a01, a02, v01, v02, v11, v12,
-                                                                         v21, v22)
-                a12 = 0.0
-        d0, d1, d2 = a00, a11, a22
-        o0, o1, o2 = 0, 1, 2  # ascending by a 3-element sort
-        if d1 < d0:
-            d0, d1, o0, o1 = d1, d0, o1, o0
-        if d2 < d1:
-            d1, d2, o1, o2 = d2, d1, o2, o1
-        if d1 < d0:
-            d0, d1, o0, o1 = d1, d0, o1, o0
-        values[i, 0], values[i, 1], values[i, 2] = d0, d1, d2
-        for col in range(3):
-            o = o0 if col == 0 else o1 if col == 1 else o2
-            if o == 0:
-                axes[i, 0, col], axes[i, 1, col], axes[i, 2, col] = v00, v10, v20
-            elif o == 1:
-                axes[i, 0, col], axes[i, 1, col], axes[i, 2, col] = v01, v11, v21
-            else:
-                axes[i, 0, col], axes[i, 1, col], axes[i, 2, col] = v02, v12, v22
+        (values[i, 0], values[i, 1], values[i, 2], axes[i, 0, 0], axes[i, 1, 0], axes[i, 2, 0], axes[i, 0, 1],
+         axes[i, 1, 1], axes[i, 2, 1], axes[i, 0, 2], axes[i, 1, 2], axes[i, 2, 2]) = _eigen3(xx, xy, xz, yy, yz, zz)
     return values, axes
 
 
@@ -2107,9 +2136,9 @@ def _faces(face: np.ndarray, f: np.ndarray, c: np.ndarray, cell: float) -> float
 def _nearest_in_voxel(points: np.ndarray, starts: np.ndarray, v: int, around: np.ndarray, offset: np.ndarray, m: int,
                       queries: np.ndarray, rows: np.ndarray, origin: np.ndarray, cell: float, c: np.ndarray,
                       found: np.ndarray, d2: np.ndarray) -> None:
-    """:func:`voxel_nearest` for the queries ``rows`` in the occupied voxel ``v`` (at ``c`` (3,), with the
-    ``m`` occupied voxels ``around`` it at ``offset``): each one's nearest point (position in the hashed order) into
-    ``found`` and its squared distance into ``d2``, -1 where it is not certain within them."""
+    """:func:`voxel_nearest` for the queries ``rows`` in the voxel at ``c`` (3,), the occupied voxel ``v`` (-1: an empty
+    one), with the ``m`` occupied voxels ``around`` it at ``offset``: each one's nearest point (position in the hashed
+    order) into ``found`` and its squared distance into ``d2``, -1 where it is not certain within them."""
     face = np.zeros((3, 3))
     f = np.empty(3)
     for g in range(rows.shape[0]):
@@ -2118,7 +2147,8 @@ def _nearest_in_voxel(points: np.ndarray, starts: np.ndarray, v: int, around: np
         f[0], f[1], f[2] = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
         margin = _faces(face, f, c, cell)
         b, bj = np.inf, -1
-        for j in range(starts[v], starts[v + 1]):  # ascending: the first of equal distances stays
+        # its own voxel's points (none in an empty one) ascending: the first of equal distances stays
+        for j in range(starts[v] if v >= 0 else 0, starts[v + 1] if v >= 0 else 0):
             ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
             e = ex * ex + ey * ey + ez * ez
             if e < b:
@@ -2139,13 +2169,38 @@ def _nearest_in_voxel(points: np.ndarray, starts: np.ndarray, v: int, around: np
 
 
 @numba.njit(**_JIT)
+def _nearest_of_voxel(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray,
+                      table: np.ndarray, origin: np.ndarray, cell: float, dims: np.ndarray, dense: bool,
+                      queries: np.ndarray, rows: np.ndarray, key: int, v: int, rest: np.ndarray, left: int,
+                      found: np.ndarray, d2: np.ndarray, dist: np.ndarray, idx: np.ndarray, exact: np.ndarray,
+                      around: np.ndarray, offset: np.ndarray, c: np.ndarray) -> int:
+    """:func:`voxel_nearest` for its queries ``rows`` in the voxel of ``key`` (the occupied voxel ``v``, -1: an empty
+    one): each certain one's distance, point and True into ``dist``, ``idx``, ``exact``; the others appended to
+    ``rest`` from ``left``. Returns how many ``rest`` holds then. ``around`` (26,), ``offset`` (26, 3), ``c`` (3,):
+    room for :func:`_occupied_around`'s answer and the voxel's coordinates."""
+    c[0], c[1], c[2] = key % dims[0], (key // dims[0]) % dims[1], key // (dims[0] * dims[1])
+    m = _occupied_around(cell_keys, table, dims, dense, c[0], c[1], c[2], around, offset)
+    _nearest_in_voxel(points, starts, v, around, offset, m, queries, rows, origin, cell, c, found, d2)
+    for g in range(rows.shape[0]):
+        q = rows[g]
+        if found[g] < 0:
+            rest[left] = q
+            left += 1
+        else:
+            exact[q] = True
+            dist[q, 0], idx[q, 0] = np.sqrt(d2[g]), order[found[g]]
+    return left
+
+
+@numba.njit(**_JIT)
 def voxel_nearest(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
                   origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray, max_ring: int
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`voxel_knn` with k = 1, the same answer, with the queries taken voxel by voxel: the occupied voxels
-    around each query voxel are looked up once for all its queries, which mostly find their nearest within them; the
-    others (in an empty voxel, or with the nearest farther out) are answered by :func:`voxel_knn`. (For more than
-    the nearest, the k-th often lies beyond the voxels around: query by query is as fast.)"""
+    """:func:`voxel_knn` with k = 1, the same answer, with the queries taken voxel by voxel (an occupied voxel's, then
+    an empty one's): the occupied voxels around each query voxel are looked up once for all its queries, which mostly
+    find their nearest within them; the others (outside the grid, or with the nearest farther out) are answered by
+    :func:`voxel_knn`. (For more than the nearest, the k-th often lies beyond the voxels around: query by query is as
+    fast.)"""
     nq, n_voxels = queries.shape[0], cell_keys.shape[0]
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * points.shape[0])
@@ -2160,25 +2215,37 @@ def voxel_nearest(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, 
     c = np.empty(3, np.int64)
     left = 0  # the queries not answered here, moved to the front of grouped
     for v in range(n_voxels):
-        lo, hi = bounds[v], bounds[v + 1]
-        if hi == lo:
-            continue
-        key = cell_keys[v]
-        c[0], c[1], c[2] = key % dims[0], (key // dims[0]) % dims[1], key // (dims[0] * dims[1])
-        m = _occupied_around(cell_keys, table, dims, dense, c[0], c[1], c[2], around, offset)
-        rows = grouped[lo:hi]
-        _nearest_in_voxel(points, starts, v, around, offset, m, queries, rows, origin, cell, c, found, d2)
-        for g in range(hi - lo):
-            q = rows[g]
-            if found[g] < 0:
-                grouped[left] = q
-                left += 1
-            else:
-                exact[q] = True
-                dist[q, 0], idx[q, 0] = np.sqrt(d2[g]), order[found[g]]
-    for g in range(bounds[n_voxels], nq):
-        grouped[left] = grouped[g]
-        left += 1
+        if bounds[v + 1] > bounds[v]:
+            left = _nearest_of_voxel(points, order, cell_keys, starts, table, origin, cell, dims, dense, queries,
+                                     grouped[bounds[v]:bounds[v + 1]], cell_keys[v], v, grouped, left, found, d2, dist,
+                                     idx, exact, around, offset, c)
+    empty = grouped[bounds[n_voxels]:nq].copy()  # in no occupied voxel: grouped by their empty voxel's key
+    keys = np.full(empty.shape[0], -1, np.int64)
+    for g in range(empty.shape[0]):
+        q = empty[g]
+        fx = (queries[q, 0] - origin[0]) / cell
+        fy = (queries[q, 1] - origin[1]) / cell
+        fz = (queries[q, 2] - origin[2]) / cell
+        if 0.0 <= fx < dims[0] and 0.0 <= fy < dims[1] and 0.0 <= fz < dims[2]:
+            keys[g] = int(fx) + dims[0] * (int(fy) + dims[1] * int(fz))
+    by_key = np.argsort(keys, kind='mergesort')
+    empty, keys = empty[by_key], keys[by_key]
+    found = np.empty(max(1, empty.shape[0]), np.int64)
+    d2 = np.empty(found.shape[0])
+    lo = 0
+    while lo < empty.shape[0]:
+        key = keys[lo]
+        hi = lo + 1
+        while hi < empty.shape[0] and keys[hi] == key:
+            hi += 1
+        if key >= 0:
+            left = _nearest_of_voxel(points, order, cell_keys, starts, table, origin, cell, dims, dense, queries,
+                                     empty[lo:hi], key, -1, grouped, left, found, d2, dist, idx, exact, around,
+                                     offset, c)
+        else:  # outside the grid: voxel_knn's
+            grouped[left:left + hi - lo] = empty[lo:hi]
+            left += hi - lo
+        lo = hi
     if left:
         rest = grouped[:left]
         far_dist, far_idx, far_exact = voxel_knn(points, order, cell_keys, starts, table, origin, cell, dims,
