@@ -73,7 +73,8 @@ def test_voxel_nodes_match_numpy(seed, others):
     for a, b in zip(got, _voxel_nodes_numpy(index, cloud[rows] - center)):
         np.testing.assert_array_equal(a, b)
     assert got[0].dtype == got[1].dtype == np.int64
-    assert (got[0] >= 0).any() or others
+    # some query found its node, unless the cloud is one point: (p + center) - center may then round out of its grid
+    assert (got[0] >= 0).any() or others or len(pts) == 1
 
 
 def _uncertain_numpy(index, region: np.ndarray, queries: np.ndarray, node: np.ndarray, d2: np.ndarray,
