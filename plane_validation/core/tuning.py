@@ -354,7 +354,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
                    seed: int | None = None, progress: Callable[[int, int], None] | None = None,
                    ransac_points: int | None = RANSAC_POINTS, sampled_separation: bool | None = None,
                    shape: tuple[int, int] | None = None, connectivity: bool = True,
-                   noise_model: str = 'auto', noise_reference: float = NOISE_REFERENCE,
+                   noise_model: str = AUTO, noise_reference: float = NOISE_REFERENCE,
                    viewpoint: Viewpoint = None, jobs: int = 1, sweep_planes: int = SWEEP_MAX_PLANES,
                    extend: int = TUNE_EXTEND, grid_points: int | None = GRID_POINTS,
                    orientation: Orientation | None = None, noise_bound: float = NOISE_BOUND) -> TuningResult:
