@@ -30,6 +30,17 @@ def test_constant_noise_has_no_range_term():
         np.testing.assert_allclose(est.sigma(np.array(est.ranges)), scene.noise, rtol=0.15)
 
 
+def test_corridor_walls_at_grazing_angles_give_the_range_noise():
+    # most of a corridor's wall runs away from the sensor: fewer than half its neighbourhoods face it, and the
+    # others' thickness is only the range noise times |cos|; those facing it still measure the range noise
+    for seed in (17, 37):
+        scene = scene_families.lidar_scan(seed)
+        assert scene.name.startswith('lidar_scan_corridor')
+        est = estimate_noise(scene.points, seed=0)
+        assert est.along_ray
+        assert est.a == pytest.approx(scene.noise, rel=0.15)
+
+
 def test_roof_from_its_own_centre_is_perpendicular_noise():
     # a roof centred on its mean: the origin sees it edge-on, its noise is vertical, not along any ray
     for seed in (0, 2, 5, 6):
