@@ -554,11 +554,11 @@ def _pid_after(seconds: float) -> int:
 
 @needs_two_cores
 def test_this_process_makes_the_first_calls_while_the_workers_make_the_last():
-    from plane_validation.core.tuning import _in_order, _workers
-    with _workers(2) as run:
+    from plane_validation.core.workers import in_order, parallel_calls
+    with parallel_calls(2) as run:
         pairs = list(run(_pid_after, [(0.2,)] * 10))
         assert sorted(i for i, _ in pairs) == list(range(10))
-        pids = list(_in_order(iter(pairs)))
+        pids = list(in_order(iter(pairs)))
     assert pids[0] == os.getpid() and pids[-1] != os.getpid()  # the workers take the last call first
     assert pids.count(os.getpid()) < 10
 
@@ -569,21 +569,21 @@ def _pid_and_sum(shared: np.ndarray, offset: int) -> tuple[int, float]:
 
 @needs_two_cores
 def test_the_shared_arguments_reach_every_call_and_are_sent_to_a_worker_once():
-    from plane_validation.core import tuning
+    from plane_validation.core import workers
     shared = np.arange(10.0)
     sent = []
-    real = tuning._Carrier.submit
+    real = workers._Carrier.submit
 
     def spy(self, executor, func, args):
         sent.append(self.first > 0)  # whether this call carries them
         return real(self, executor, func, args)
-    tuning._Carrier.submit = spy
+    workers._Carrier.submit = spy
     try:
-        with tuning._workers(2, (shared,)) as run:
+        with workers.parallel_calls(2, (shared,)) as run:
             first = dict(run(_pid_and_sum, [(0.0,)] + [(i,) for i in range(1, 8)]))
             again = dict(run(_pid_and_sum, [(100,), (200,)]))  # a later run of the same sweep: not sent again
     finally:
-        tuning._Carrier.submit = real
+        workers._Carrier.submit = real
     assert {i: s for i, (_, s) in first.items()} == {i: 45.0 + i for i in range(8)}
     assert {i: s for i, (_, s) in again.items()} == {0: 145.0, 1: 245.0}
     assert sent.count(True) == 1 and len(sent) >= 2  # one worker: only its first call carried them
@@ -594,13 +594,13 @@ def test_the_shared_arguments_reach_every_call_and_are_sent_to_a_worker_once():
 def test_a_worker_handed_a_call_without_the_shared_arguments_it_lacks_is_answered_here():
     from joblib.externals.loky import get_reusable_executor
 
-    from plane_validation.core import tuning
-    with tuning._workers(2, (np.arange(10.0),)) as run:  # the worker keeps an earlier sweep's arguments
+    from plane_validation.core import workers
+    with workers.parallel_calls(2, (np.arange(10.0),)) as run:  # the worker keeps an earlier sweep's arguments
         assert sorted(s for _, (_, s) in run(_pid_and_sum, [(0,), (0,)])) == [45.0, 45.0]
     # the sweeps' pool, as _workers gets it (other settings would start a new one)
-    executor = get_reusable_executor(max_workers=1, timeout=tuning.WORKER_IDLE_S,
-                                     initializer=tuning._worker_ignores_sigint)
-    carrier = tuning._Carrier((np.arange(4.0),), workers=0)  # as if another call had taken the worker's first one
+    executor = get_reusable_executor(max_workers=1, timeout=workers.WORKER_IDLE_S,
+                                     initializer=workers._worker_ignores_sigint)
+    carrier = workers._Carrier((np.arange(4.0),), workers=0)  # as if another call had taken the worker's first one
     future = carrier.submit(executor, _pid_and_sum, (1,))
     pid, total = carrier.result(future, _pid_and_sum, (1,))
     assert (pid, total) == (os.getpid(), 7.0)  # the worker held another sweep's: made here
@@ -619,12 +619,12 @@ def test_after_a_worker_lacked_the_shared_arguments_the_next_calls_carry_them_at
     this process is busy with one of its own."""
     from joblib.externals.loky import get_reusable_executor
 
-    from plane_validation.core import tuning
-    executor = get_reusable_executor(max_workers=1, timeout=tuning.WORKER_IDLE_S,
-                                     initializer=tuning._worker_ignores_sigint)
+    from plane_validation.core import workers
+    executor = get_reusable_executor(max_workers=1, timeout=workers.WORKER_IDLE_S,
+                                     initializer=workers._worker_ignores_sigint)
     executor.submit(os.getpid).result()  # started
-    share = tuning._Shared(executor, _pid_after_sum, [(1.0,)] + [(0.05,)] * 7, 1,
-                           tuning._Carrier((np.arange(4.0),), workers=0))
+    share = workers._Shared(executor, _pid_after_sum, [(1.0,)] + [(0.05,)] * 7, 1,
+                           workers._Carrier((np.arange(4.0),), workers=0))
     answers = list(share.results())
     assert sorted(i for i, _ in answers) == list(range(8)) and {s for _, (_, s) in answers} == {6.0}
     assert sum(pid == os.getpid() for _, (pid, _) in answers) <= 2  # its own first call, and the one that failed
@@ -635,11 +635,11 @@ def test_another_thread_resizing_the_worker_pool_during_a_sweep_does_not_hang_it
     """loky's thread reports a call's end while another thread, holding loky's lock, waits for it."""
     from joblib.externals.loky import get_reusable_executor
 
-    from plane_validation.core.tuning import _workers
+    from plane_validation.core.workers import parallel_calls
     done = {}
 
     def sweep():
-        with _workers(2) as run:
+        with parallel_calls(2) as run:
             done['sweep'] = len(list(run(_pid_after, [(0.1,)] * 20)))
 
     def other():
@@ -662,8 +662,8 @@ def test_worker_processes_ignore_ctrl_c_themselves():
 
     import psutil
 
-    from plane_validation.core.tuning import _workers
-    with _workers(2) as run:
+    from plane_validation.core.workers import parallel_calls
+    with parallel_calls(2) as run:
         pids = {pid for _, pid in run(_pid_after, [(0.2,)] * 6)} - {os.getpid()}
     assert pids
     for pid in pids:
@@ -681,9 +681,9 @@ def _exit_unless_in(pid: int) -> None:
 
 @needs_two_cores
 def test_a_worker_process_that_dies_is_a_clear_error_and_later_sweeps_start_new_ones():
-    from plane_validation.core.tuning import TuningWorkerError, _workers
+    from plane_validation.core.workers import TuningWorkerError, parallel_calls
     with pytest.raises(TuningWorkerError, match='worker process died'):
-        with _workers(2) as run:  # this process makes the calls that are still queued: only a worker exits
+        with parallel_calls(2) as run:  # this process makes the calls that are still queued: only a worker exits
             list(run(_exit_unless_in, [(os.getpid(),)] * 8))
     scene = scenes.corner(1500, 1.0, seed=2)
     assert pv.tune_tolerance(scene.points, seed=0, jobs=2).segmentation.n_planes == 3
@@ -772,7 +772,7 @@ PARALLEL_SWEEP = '''
 import sys
 import plane_validation as pv
 from plane_validation.core import scenes
-from plane_validation.core.tuning import workers_ignore_sigint
+from plane_validation.core.workers import workers_ignore_sigint
 cube = scenes.cube(30000, 0.005, side=1.0, seed=1)
 def progress(done, total):
     if done == 1:
@@ -789,7 +789,7 @@ def test_a_ctrl_c_inside_a_kernel_load_leaves_the_block_as_a_keyboard_interrupt(
     """numba turns a KeyboardInterrupt raised while it unpickles a cached kernel into a SystemError caused by it
     (a Ctrl-C in a sweep's first second); the block that manages Ctrl-C for sweeps raises the interrupt itself.
     Other SystemErrors pass unchanged."""
-    from plane_validation.core.tuning import workers_ignore_sigint
+    from plane_validation.core.workers import workers_ignore_sigint
     with pytest.raises(KeyboardInterrupt):
         with workers_ignore_sigint():
             raise SystemError('returned a result with an exception set') from KeyboardInterrupt()
@@ -836,16 +836,16 @@ def test_the_library_leaves_sigint_alone_unless_asked(monkeypatch):
     command line that asks (workers_ignore_sigint) has SIGINT ignored while workers start."""
     import signal
 
-    from plane_validation.core import tuning
+    from plane_validation.core import workers
     calls = []
     real = signal.signal
     monkeypatch.setattr(signal, 'signal', lambda sig, handler: calls.append((sig, handler)) or real(sig, handler))
     before = signal.getsignal(signal.SIGINT)
-    with tuning._sigint_ignored():
+    with workers._sigint_ignored():
         assert signal.getsignal(signal.SIGINT) is before
     assert calls == []
     terminate = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGHUP)}
-    with tuning.workers_ignore_sigint(), tuning._sigint_ignored():
+    with workers.workers_ignore_sigint(), workers._sigint_ignored():
         assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
     assert [h for sig, h in calls if sig == signal.SIGINT] == [signal.SIG_IGN, before]
     assert signal.getsignal(signal.SIGINT) is before

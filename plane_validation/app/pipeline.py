@@ -33,8 +33,9 @@ from ..core.ransac import (
     no_returns_note,
     within_planes,
 )
-from ..core.tuning import TuningResult, TuningWorkerError, noise_from_segmentation, quick_tolerance, tune_tolerance
+from ..core.tuning import TuningResult, noise_from_segmentation, quick_tolerance, tune_tolerance
 from ..core.verdict import judge
+from ..core.workers import TuningWorkerError
 from ..formats.pointcloud2 import ring_array, trailing_bytes, xyz_array, xyz_words
 from .config import PipelineConfig
 from .detection import ring_layout

@@ -833,7 +833,7 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         _resolve_seed(args)
         from ..app.pipeline import limit_blas_threads
-        from ..core.tuning import TuningWorkerError, stop_workers, workers_ignore_sigint
+        from ..core.workers import TuningWorkerError, stop_workers, workers_ignore_sigint
         limit_blas_threads()  # small matrix products; spinning BLAS threads only slow a busy machine down
     except KeyboardInterrupt:  # while they load (threadpoolctl opens the BLAS libraries)
         return 130
