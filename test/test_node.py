@@ -699,7 +699,8 @@ def test_a_signal_during_the_first_compile_stops_the_node_cleanly(tmp_path):
     folder = next(cache.glob('*'))  # where numba keeps this module's cache under NUMBA_CACHE_DIR
     recompiled = tuple(f'kernels.{name}-' for name in ('marked_rows', 'voxel_grid', 'voxel_knn', 'principal_axes',
                                                            'pair_graph'))
-    for path in (Path(kernels.__file__).parent / '__pycache__').glob('kernels.*.nb*'):
+    # this process's cache: __pycache__ beside the module, or under its own NUMBA_CACHE_DIR when one is set
+    for path in Path(kernels.finite_mask._cache._cache_path).glob('kernels.*.nb*'):
         if not path.name.startswith(recompiled):
             shutil.copy(path, folder / path.name)
     copied = set(folder.glob('*.nbi'))
