@@ -86,3 +86,17 @@ def test_a_large_tolerance_at_far_points_does_not_read_as_the_sensor_on_the_plan
     found = [(np.array([0.0, 0.0, 1.0]), 1.0)] * 2
     merged, planes = occluded.merge_occluded(search, region.copy(), found, tolerance, np.zeros(3), 0.95, 1.5)
     assert len(planes) == 1 and (merged[:6000] == 0).all()
+
+
+def test_a_far_floor_between_a_lidars_rings_is_out_of_its_view():
+    # the floor ahead of and behind a spinning lidar, seen at a t of two sigmas: far out, its rings are strips metres
+    # apart, and between them no ray points at the floor; that gap is not missing floor but unseen
+    scene = scene_families.lidar_scan(15)
+    assert scene.name.startswith('lidar_scan_corridor')
+    seg = pv.detect_planes(scene.points, 0.0383, seed=0, max_planes=17, min_inliers=160)
+    floor = scene.labels == int(np.argmax(np.abs(scene.planes[:, 2])))  # the true plane facing up
+    values, counts = np.unique(seg.labels[floor], return_counts=True)
+    assert counts[values >= 0].max() >= 0.95 * np.count_nonzero(floor)
+    view = occluded._view(np.array([[5.0, 5.0], [0.0, 0.0], [0.0, -1.0]]), np.zeros(3))  # rays at 0 and -11.3 deg
+    unseen = occluded._unseen(np.radians([0.0, -5.0, -11.3, -40.0]), np.radians([0.5, 0.5, 0.5, 0.5]), view)
+    assert unseen.tolist() == [False, True, False, True]

@@ -4,7 +4,8 @@ A corridor's floor seen by a spinning lidar lies ahead of and behind the sensor,
 ring; a wall behind a pole is cut in two. Their regions do not touch, so the merge of touching regions
 (:func:`.connected._merge_coplanar`) leaves them apart. Two coplanar regions are one surface when, between them, no
 ray of the sensor passes through their joint plane, and at least half of the plane there is hidden behind points in
-front of it, holds other points on it, or lies outside the directions the sensor sees. Two tables of one height are
+front of it, holds other points on it, or lies outside the directions the sensor sees (beyond its lowest or highest
+ray, or between two of a spinning lidar's rings, whose far floor is strips metres apart). Two tables of one height are
 not: the floor seen between them lies behind their plane; nor are they when nothing tells why the part between them
 is missing (a cropped cloud).
 """
@@ -105,13 +106,23 @@ def merge_occluded(search: np.ndarray, region: np.ndarray, found: list, toleranc
     return renumber[region], [found[j] for j in kept]
 
 
-def _view(search: np.ndarray, viewpoint: np.ndarray) -> tuple[float, float]:
+def _view(search: np.ndarray, viewpoint: np.ndarray) -> tuple[float, float, np.ndarray]:
     """The elevations (low, high), radians about z at ``viewpoint`` (3,), of the points ``search`` (3, m), widened
-    by VIEW_MARGIN_DEG: the directions the sensor sees."""
+    by VIEW_MARGIN_DEG, and every point's elevation, sorted (m,): the directions the sensor sees."""
     rays = search - viewpoint[:, None]
-    elevation = np.arctan2(rays[2], np.hypot(rays[0], rays[1]))
+    elevation = np.sort(np.arctan2(rays[2], np.hypot(rays[0], rays[1])))
     margin = np.radians(VIEW_MARGIN_DEG)
-    return float(elevation.min()) - margin, float(elevation.max()) + margin
+    return float(elevation[0]) - margin, float(elevation[-1]) + margin, elevation
+
+
+def _unseen(elevation: np.ndarray, reach: np.ndarray, view: tuple[float, float, np.ndarray]) -> np.ndarray:
+    """(c,) whether no ray of the sensor points at cells of elevations ``elevation`` (c,) radians, each spanning
+    ``reach`` (c,) radians either side: outside ``view``'s (low, high), or no point's elevation within the span (between
+    two rings of a spinning lidar)."""
+    low, high, rays = view
+    first = np.searchsorted(rays, elevation - reach)
+    hit = (first < len(rays)) & (rays[np.minimum(first, len(rays) - 1)] <= elevation + reach)
+    return (elevation < low) | (elevation > high) | ~hit
 
 
 def _near(search: np.ndarray, rows: np.ndarray, plane: tuple[np.ndarray, float], tolerance: Tolerance) -> bool:
@@ -139,12 +150,12 @@ def _coplanar(search: np.ndarray, joint: np.ndarray, rows_i: np.ndarray, rows_j:
 
 
 def _apart(search: np.ndarray, joint: np.ndarray, plane: tuple[np.ndarray, float], tolerance: Tolerance,
-           viewpoint: np.ndarray, view: tuple[float, float]) -> bool:
+           viewpoint: np.ndarray, view: tuple[float, float, np.ndarray]) -> bool:
     """Whether two coplanar regions (their rows ``joint``) stay apart: the sensor at ``viewpoint`` (3,) lies on their
     ``plane``; or, in the cells of the plane inside the convex hull of their points and clear of both (the gap), rays
     cross the plane in CROSS_CELLS cells or more, or less than EXPLAINED of the gap is hidden behind points before
-    the plane, holds other points on it, or is out of view (its elevation about z at the sensor outside ``view``
-    (low, high), radians)."""
+    the plane, holds other points on it, or is out of view (:func:`_unseen`: no ray of ``view`` at its elevation about
+    z at the sensor)."""
     normal, offset = plane
     side = float(normal @ viewpoint + offset)
     if abs(side) <= float(np.min(tolerance_at(tolerance, joint))):
@@ -194,7 +205,7 @@ def _apart(search: np.ndarray, joint: np.ndarray, plane: tuple[np.ndarray, float
     known = binary_dilation(known.reshape(shape), full, iterations=EVIDENCE_REACH).reshape(-1)
     at = basis.T @ centres[:, gap] - (offset * normal)[:, None] - viewpoint[:, None]  # the gap's cells, from the sensor
     elevation = np.arctan2(at[2], np.hypot(at[0], at[1]))
-    unseen = (elevation < view[0]) | (elevation > view[1])
+    unseen = _unseen(elevation, 0.5 * cell / np.maximum(np.linalg.norm(at, axis=0), cell), view)
     return np.count_nonzero(known[gap] | unseen) < EXPLAINED * np.count_nonzero(gap)
 
 
