@@ -101,6 +101,13 @@ def test_warm_loads_every_kernel_and_says_whether_it_compiled():
         assert kernel.signatures, kernel  # each has a compiled signature
 
 
+def test_warm_probe_tells_a_warm_cache_and_warm_takes_a_cold_probe_s_word():
+    kernels.warm()
+    probe = kernels.warm_probe()
+    assert probe.compiled is False and probe.seconds >= 0
+    assert kernels.warm(cold=True).compiled is True  # after a probe that compiled: the others compile in jobs
+
+
 def test_cache_dir_is_used_and_a_second_process_loads_from_it(tmp_path):
     """With NUMBA_CACHE_DIR (what a read-only install sets; numba otherwise falls back from an unwritable
     package folder to its user-wide cache by itself) the first process compiles into it and the next loads."""

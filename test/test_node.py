@@ -439,6 +439,66 @@ def test_node_process_stops_cleanly_on_signal(ros, sig):
     assert 'Traceback' not in err + out
 
 
+def test_a_node_started_as_ros2_run_starts_it_says_its_kernels_are_ready_before_its_first_answer(ros, tmp_path):
+    """Through the entry point (plane_validation.ros:main) and this process's warm kernel cache, the node loads the
+    kernels once its subscription exists, says how long that took, and only then answers a frame."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.qos import qos_profile_sensor_data
+    log = tmp_path / 'node.log'
+    with open(log, 'w') as out:
+        proc = subprocess.Popen([sys.executable, '-c', 'import sys; from plane_validation.ros import main; '
+                                 'sys.exit(main())', '--ros-args', '-p', 'auto_tune:=false'], stdout=out,
+                                stderr=subprocess.STDOUT, env=dict(os.environ, PYTHONUNBUFFERED='1'),
+                                start_new_session=True)
+    probe = rclpy.create_node('start_probe')
+    answers: list[str] = []  # the log as it was when each answer came
+    probe.create_subscription(DiagnosticArray, '/diagnostics', lambda msg: answers.append(log.read_text()), 10)
+    pub = probe.create_publisher(PointCloud2, '/cloud', qos_profile_sensor_data)
+    try:
+        deadline, stamp = time.monotonic() + 90, 10**12
+        while not answers and proc.poll() is None and time.monotonic() < deadline:
+            stamp += 100_000_000
+            pub.publish(xyz_cloud(corner_points(0.1), stamp))
+            rclpy.spin_once(probe, timeout_sec=0.1)
+    finally:
+        probe.destroy_node()
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGINT)
+            proc.wait(timeout=15)
+    assert answers, log.read_text()
+    assert 'compiled kernels ready in' in answers[0] and '(loaded from the cache)' in answers[0], answers[0]
+
+
+def test_the_collector_the_entry_point_turns_off_comes_back_on_with_the_start_frozen():
+    from plane_validation.ros.node import _collect_from_now
+    gc.disable()
+    try:
+        _collect_from_now()
+        assert gc.isenabled() and gc.get_freeze_count() > 0
+    finally:
+        gc.unfreeze()
+        gc.enable()
+    _collect_from_now()  # an in-process node's (the collector on): nothing frozen
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+
+
+def test_the_node_module_loads_without_the_scipy_parts_a_first_frame_does_not_use():
+    """scipy.optimize and scipy.ndimage (0.1-0.2 s each to import) load when a sweep, the tracker or a search needs
+    them, not when the node starts."""
+    import subprocess
+    import sys
+    script = ('import sys; import plane_validation.ros.node; '
+              'print(sorted(m for m in ("scipy.optimize", "scipy.ndimage") if m in sys.modules))')
+    run = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == '[]'
+
+
 def test_spin_ends_when_the_context_shuts_down_without_waking_the_executor():
     """An outside probe: about 1 in 6 SIGTERMs during a parallel sweep shut the context down but left rclpy.spin
     waiting forever (no wake-up reached its wait); spin looks at the context every SPIN_CHECK_S."""

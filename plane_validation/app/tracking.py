@@ -10,7 +10,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from ..core.kernels import c_array, group_by_label, near_count
 
@@ -96,6 +95,7 @@ class PlaneTracker:
                 cost[i, j] = self._cost(track, coeff, sample)
         ids = [-1] * len(coefficients)
         if cost.size:
+            from scipy.optimize import linear_sum_assignment  # here: a first frame has nothing to match
             for i, j in zip(*linear_sum_assignment(cost)):
                 if cost[i, j] < _REFUSED:
                     track = self._tracks[i]

@@ -57,6 +57,6 @@ def single_blas_thread(func: F) -> F:
 
 def limit_blas_threads(threads: int = 1) -> None:
     """Limit BLAS to ``threads`` threads for the rest of the process (the node and the command
-    line call this at start; the library's own limit then has nothing left to do)."""
-    from threadpoolctl import threadpool_limits
-    threadpool_limits(limits=threads, user_api='blas')
+    line call this at start; the library's own limit then has nothing left to do). The libraries found here are
+    kept for that limit: a node's first frame does not scan them again (about 15 ms)."""
+    _controller().limit(limits=threads, user_api='blas')

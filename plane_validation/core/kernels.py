@@ -33,7 +33,8 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
            'labels_where',
            'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'kept_edges', 'graph_contacts', 'graph_settle',
-           'voxel_count', 'tent_fit', 'leftover_rows', 'leftover_best', 'seeded_draws', 'warm', 'Warmup']
+           'voxel_count', 'tent_fit', 'leftover_rows', 'leftover_best', 'seeded_draws', 'warm', 'warm_probe',
+           'Warmup']
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -4361,10 +4362,10 @@ def _hold_signals() -> None:
         signal.signal(sig, signal.SIG_IGN)
 
 
-def _warm(steps: tuple, jobs: int) -> bool:
-    """Run ``steps``, the first alone and, when it compiled (a cold cache), the others first in ``jobs`` processes;
-    whether anything was compiled."""
-    compiled = _run(steps[0])
+def _warm(steps: tuple, jobs: int, cold: bool = False) -> bool:
+    """Run ``steps``, the first alone and, when it compiled or ``cold`` (a cold cache), the others first in ``jobs``
+    processes; whether anything was compiled."""
+    compiled = _run(steps[0]) or cold
     if compiled and jobs > 1 and len(steps) > 2:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
@@ -4377,13 +4378,23 @@ def _warm(steps: tuple, jobs: int) -> bool:
     return compiled
 
 
-def warm(jobs: int = 1) -> Warmup:
+def warm_probe() -> Warmup:
+    """Run :func:`warm`'s first, short step alone: how long it took and whether it compiled (a cold cache; else the
+    other kernels load from the cache in about 0.5 s). The node starts with it: a cold cache is compiled whole before
+    the node appears on the graph, a warm one loads while its subscription is being discovered."""
+    start = time.perf_counter()
+    compiled = _run(_WARM_STEPS[0])
+    return Warmup(time.perf_counter() - start, compiled)
+
+
+def warm(jobs: int = 1, *, cold: bool = False) -> Warmup:
     """Compile (or load from the cache) every kernel for the argument types the package calls it with.
 
-    jobs: processes to compile in when the cache is cold (the first step compiled something); a warm cache
-    loads in this process alone. A cold compile takes about 1 / jobs of its time on as many cores."""
+    jobs: processes to compile in when the cache is cold (the first step compiled something, or ``cold``: the
+    caller's :func:`warm_probe` did); a warm cache loads in this process alone. A cold compile takes about
+    1 / jobs of its time on as many cores."""
     start = time.perf_counter()
-    compiled = _warm(_WARM_STEPS, jobs)
+    compiled = _warm(_WARM_STEPS, jobs, cold)
     return Warmup(time.perf_counter() - start, compiled)
 
 

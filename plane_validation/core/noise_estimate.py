@@ -21,8 +21,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import nnls
-from scipy.special import gammaincinv
 
 from . import kernels
 from .noise import NOISE_MODELS, NOISE_REFERENCE
@@ -210,6 +208,7 @@ def _fit(ranges: np.ndarray, sigmas: np.ndarray, counts: np.ndarray) -> tuple[fl
     """a, b >= 0 of sigma = a + b r^2 through the bins' (ranges, sigmas) m: least squares in error relative to the
     model (each bin's sigma has about the same relative spread; relative to the data a bin of near zero, a wall on one
     depth step, would pull the fit to it), twice, then again without bins off the model by more than OFF_FIT."""
+    from scipy.optimize import nnls  # here: a node answers its first frame without scipy.optimize (0.1-0.2 s)
     keep = np.ones(len(ranges), bool)
     model = np.full(len(ranges), float(np.median(sigmas)))
     for step in range(3):
@@ -279,6 +278,7 @@ def estimate_noise(points: np.ndarray, shape: tuple[int, int] | None = None, *, 
     nu = int(np.median(dof[ok])) if ok.any() else 1
     # the quantile of a variance over nu dof, over its mean: the chi-square quantile, 2 P^-1(nu / 2, q) (scipy.special,
     # not scipy.stats: importing that took a second of a node's start)
+    from scipy.special import gammaincinv  # here: as nnls (_fit)
     correction = 2 * gammaincinv(nu / 2, QUANTILE) / nu
     if not along_ray or len(variances) < 2 * MIN_BIN:
         if not len(variances):

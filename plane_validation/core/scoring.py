@@ -13,7 +13,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 __all__ = ['Quality', 'segmentation_quality', 'HOOVER_OVERLAP']
 
@@ -94,6 +93,8 @@ def segmentation_quality(pred: np.ndarray, truth: np.ndarray, *, points: np.ndar
     matched = 0.0
     pairs: list[tuple[int, int]] = []
     if counts.size:
+        # imported here: scipy.optimize takes 0.1-0.2 s to import and a node's first frame does not use it
+        from scipy.optimize import linear_sum_assignment
         rows, cols = linear_sum_assignment(-counts)
         keep = counts[rows, cols] > 0
         pairs = list(zip(rows[keep], cols[keep]))

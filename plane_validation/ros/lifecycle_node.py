@@ -19,11 +19,11 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from sensor_msgs.msg import PointCloud2
 
 from ..app.pipeline import FramePipeline
-from ..core.kernels import warm
+from ..core.kernels import Warmup
 from .messages import status_name
 from .node import main as run_node
 from .parameters import apply_parameters, declare, set_requests_whole
-from .worker import FrameWorker, input_qos, output_publishers
+from .worker import FrameWorker, input_qos, output_publishers, warm_kernels
 
 __all__ = ['PlaneValidationLifecycleNode', 'main']
 
@@ -33,8 +33,10 @@ SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FA
 class PlaneValidationLifecycleNode(LifecycleNode):
     """The node's topics and parameters, brought up by lifecycle transitions."""
 
-    def __init__(self, name: str = 'plane_validation', **kwargs) -> None:
+    def __init__(self, name: str = 'plane_validation', *, warmup: Warmup | None = None, **kwargs) -> None:
+        """warmup: what main() did to the compiled kernels before the node existed (as the plain node's)."""
         super().__init__(name, **kwargs)
+        self._warmup = warmup
         self.pipeline: FramePipeline | None = None
         self.worker: FrameWorker | None = None
         self.options = None
@@ -64,7 +66,9 @@ class PlaneValidationLifecycleNode(LifecycleNode):
             self.get_logger().error(f'configure refused: {exc}')
             return FAILURE
         self.options = options
-        warm()  # main() did it before the node existed; an in-process node compiles or loads them here
+        if self._warmup is None or not self._warmup.compiled:  # a cold cache: main() compiled them all
+            warm_kernels(self.get_logger(), self._warmup)
+        self._warmup = None  # a later configure finds them loaded
         self.pipeline = FramePipeline(config)
         self._pubs = output_publishers(self.create_lifecycle_publisher)
         self.worker = FrameWorker(self, self.pipeline, self._publish, status_name(self.get_name()),

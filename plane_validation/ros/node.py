@@ -9,6 +9,7 @@ thread runs the shared pipeline and publishes every output; tolerance sweeps run
 """
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import sys
@@ -20,7 +21,7 @@ from sensor_msgs.msg import PointCloud2
 
 from ..app.config import PARAMETERS
 from ..app.pipeline import FramePipeline, limit_blas_threads
-from ..core.kernels import warm
+from ..core.kernels import Warmup, warm_probe
 from ..core.tuning import stop_workers
 from .messages import OUTPUTS, status_name
 from .parameters import NODE_PARAMETERS, apply_parameters, declare, descriptor, params_yaml, set_requests_whole
@@ -37,10 +38,11 @@ class PlaneValidationNode(Node):
     """Subscribes ``cloud``; publishes ``~/segmented``, ``~/planes``, ``~/plane_poses``,
     ``~/plane_coefficients`` and ``/diagnostics``."""
 
-    def __init__(self, name: str = 'plane_validation', **kwargs) -> None:
+    def __init__(self, name: str = 'plane_validation', *, warmup: Warmup | None = None, **kwargs) -> None:
+        """warmup: what main() did to the compiled kernels before the node existed: None (nothing), the probe of a warm
+        cache (the other kernels load here), or the compile of a cold one (all done)."""
         super().__init__(name, **kwargs)
         config, self.options = declare(self)
-        warm()  # main() did it before the node existed; an in-process node compiles or loads them here
         self.pipeline = FramePipeline(config)
         self.worker = None
         self.add_on_set_parameters_callback(lambda params: apply_parameters(self, params))
@@ -49,6 +51,9 @@ class PlaneValidationNode(Node):
         self.worker = FrameWorker(self, self.pipeline, lambda key, msg: pubs[key].publish(msg),
                                   status_name(self.get_name()), min_output_rate_hz=self.options.min_output_rate_hz)
         self.create_subscription(PointCloud2, 'cloud', self.worker.offer, input_qos(self.options.reliability))
+        # the kernels load once the subscription exists, while DDS discovers it (in its own threads) and the first
+        # cloud travels: no frame is answered before the node spins
+        self.warmup = warmup if warmup is not None and warmup.compiled else warm_kernels(self.get_logger(), warmup)
 
     def wait_for_sweep(self, timeout: float | None = None) -> bool:
         """Wait until no tolerance sweep is running (True) or ``timeout`` seconds pass (False)."""
@@ -86,19 +91,35 @@ def usage() -> str:
     return '\n'.join(lines)
 
 
-def _warm_first() -> bool:
-    """Compile or load the kernels before rclpy starts, holding SIGINT, SIGTERM and SIGHUP meanwhile (numba's
-    compiler swallows the KeyboardInterrupt a Ctrl-C raises inside it, so a node stopped during a first, cold compile
-    went on starting). Returns whether such a signal came: the node then does not start."""
+def _warm_first() -> tuple[bool, Warmup]:
+    """Before rclpy starts, tell whether the kernel cache is cold (:func:`~..core.kernels.warm_probe`) and if so
+    compile every kernel, holding SIGINT, SIGTERM and SIGHUP meanwhile (numba's compiler swallows the
+    KeyboardInterrupt a Ctrl-C raises inside it, so a node stopped during a first, cold compile went on starting):
+    the node appears on the graph ready to answer. A warm cache's other kernels load in the node (its subscription
+    is being discovered meanwhile). Returns whether such a signal came (the node then does not start), and what
+    was done."""
     caught: list[int] = []
     held = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
     previous = {sig: signal.signal(sig, lambda signum, _frame: caught.append(signum)) for sig in held}
     try:
-        warm_kernels(rclpy.logging.get_logger('plane_validation'))
+        done = warm_probe()
+        if done.compiled:
+            gc.enable()  # compiling makes garbage cycles (numba's IR): collected as usual
+            done = warm_kernels(rclpy.logging.get_logger('plane_validation'), done)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    return bool(caught)
+    return bool(caught), done
+
+
+def _collect_from_now() -> None:
+    """Turn the garbage collector back on where the ``plane_validation_node`` entry point (``ros.main``) turned it
+    off for the start, with every object so far frozen (``gc.freeze``): the modules, kernels and node live as long as
+    the process, and a full collection through them took 0.05-0.3 s of the start each time (three before the first
+    answer) and would stall a frame later. They make almost no garbage cycles (about a thousand objects)."""
+    if not gc.isenabled():
+        gc.freeze()
+        gc.enable()
 
 
 def main(args: list[str] | None = None, node_class: type | None = None, prog: str = 'plane_validation_node') -> int:
@@ -111,7 +132,8 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
     if '-h' in own or '--help' in own:  # rclpy would ignore them and start the node
         print(usage())
         return 0
-    if _warm_first():
+    stopped, warmup = _warm_first()
+    if stopped:
         return 0
     try:
         limit_blas_threads()
@@ -128,16 +150,20 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
         print(f'{prog}: cannot start: {exc}', file=sys.stderr)
         return 2
     try:
-        node = node_class()
+        node = node_class(warmup=warmup)
+        _collect_from_now()
     except KeyboardInterrupt:  # Ctrl-C while starting: as quiet as while spinning
         rclpy.try_shutdown()
         return 0
     except Exception as exc:  # invalid parameters (range, type, consistency): say which and exit
+        if not rclpy.ok():  # a signal shut rclpy down while kernels missing from the cache compiled (numba's compiler
+            return 0        # turns the KeyboardInterrupt into another error): as quiet as Ctrl-C
         print(f'{prog}: cannot start: {exc}', file=sys.stderr)
         rclpy.try_shutdown()
         return 2
     try:
-        spin(node)
+        if node.context.ok():  # else a SIGTERM came while the kernels loaded (an executor on it would not start)
+            spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RuntimeError:  # rclpy's RCLError "context is not valid": a signal shut it down as spin began

@@ -22,7 +22,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from ..app.diagnostics import Level, fmt
 from ..app.pipeline import FramePipeline, FrameResult, header_stamp_ns
 from ..app.rates import RateMeter
-from ..core.kernels import warm
+from ..core.kernels import Warmup, warm
 from .messages import OUTPUTS, frame_messages, node_values
 
 __all__ = ['FrameWorker', 'input_qos', 'output_publishers', 'LOG_THROTTLE_S', 'SWEEP_STOP_S', 'RATE_WINDOW_S']
@@ -50,12 +50,16 @@ def output_publishers(create) -> dict[str, object]:
             for key, cls in OUTPUTS.items()}
 
 
-def warm_kernels(logger) -> None:
-    """Compile or load the compiled kernels and say how long it took on ``logger`` (an rclpy logger): before a node
-    exists, so that it appears on the graph ready to answer its first frame without waiting for a compiler."""
-    ready = warm(jobs=os.cpu_count() or 1)
-    logger.info(f'compiled kernels ready in {ready.seconds:.2f} s ' + (
+def warm_kernels(logger, started: Warmup | None = None) -> Warmup:
+    """Compile or load the compiled kernels and say how long it took on ``logger`` (an rclpy logger), counting
+    ``started``: what ``kernels.warm_probe()`` did before (when it compiled, the cache is cold: the others are
+    compiled on every core). A node calls this before it answers its first frame."""
+    cold = started is not None and started.compiled
+    ready = warm(jobs=os.cpu_count() or 1, cold=cold)
+    seconds = ready.seconds + (started.seconds if started is not None else 0.0)
+    logger.info(f'compiled kernels ready in {seconds:.2f} s ' + (
         '(compiled now and cached: later starts load them)' if ready.compiled else '(loaded from the cache)'))
+    return Warmup(seconds, ready.compiled)
 
 
 class FrameWorker:

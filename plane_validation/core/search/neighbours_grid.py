@@ -12,7 +12,6 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from .. import kernels
 from .neighbours import (
@@ -96,6 +95,7 @@ class GridNeighbours(Neighbours):
         image = np.zeros(self.shape[0] * self.shape[1], bool)
         image[self.pixel[mask]] = True
         image &= self.usable
+        from scipy import ndimage  # here: scipy.ndimage takes about 0.1 s to import, and few frames need it
         labelled, count = ndimage.label(image.reshape(self.shape))
         labelled = labelled.reshape(-1)
         if count > 1 and self.bridges is not None and len(self.bridges):

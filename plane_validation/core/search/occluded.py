@@ -12,7 +12,6 @@ is missing (a cropped cloud).
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import binary_dilation
 from scipy.spatial import ConvexHull, QhullError
 
 from .. import kernels
@@ -185,6 +184,7 @@ def _apart(search: np.ndarray, joint: np.ndarray, plane: tuple[np.ndarray, float
     full = np.ones((3, 3), bool)
     occupied = np.zeros(int(shape.prod()), bool)
     occupied[_cell_of(uv, lo, cell, shape)] = True
+    from scipy.ndimage import binary_dilation  # here: scipy.ndimage takes about 0.1 s to import
     occupied = binary_dilation(occupied.reshape(shape), full).reshape(-1)
     if crossing.shape[1] >= CROSS_CELLS:
         crossed = np.unique(_cell_of(crossing, lo, cell, shape))
