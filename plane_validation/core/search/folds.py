@@ -159,7 +159,7 @@ def settle_folds(search: np.ndarray, region: np.ndarray, found: list, tolerance:
     normals lie within NORMAL_ANGLE_DEG of each other (steeper folds have a band about t wide, which border settling
     handles), each holding FOLD_SIDE of their points, is a fold when each keeps FOLD_SEPARATE of its points on its own
     side of the line and at most FOLD_BAND of them within ``tolerance`` (m, one or (m,)) of the other's plane (judged
-    first on every FOLD_STRIDE-th point, then on all); then each point of either within t of the other's plane, on the
+    first on about FOLD_SAMPLE points, then on all); then each point of either within t of the other's plane, on the
     other's side and beside the part of the line where they touch (``neighbours``) goes to the other, and both planes
     are refitted (kept where ``allows`` refuses a normal), FOLD_ROUNDS times. The inputs are left as they were."""
     region, found = region.copy(), list(found)
@@ -194,14 +194,14 @@ def settle_folds(search: np.ndarray, region: np.ndarray, found: list, tolerance:
     return region, found
 
 
-#: settle_folds first judges the pairs of regions on every so many-th searched point, and looks up which touch only
-#: where a pair reads as a fold there (a fraction of a millisecond on a depth frame's 30,000 sub-grid points).
-FOLD_STRIDE = 16
+#: settle_folds first judges the pairs of regions on about this many of the searched points (every so many-th), and
+#: looks up which touch only where a pair reads as a fold there (a depth frame's 30,000 sub-grid points: every 14th).
+FOLD_SAMPLE = 2048
 
 
 def _fold_pairs(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance) -> np.ndarray:
     """The pairs i < j (as i * k + j, ascending) of the k ``found`` planes of the regions ``region`` (m,) of ``search``
-    (3, m) that read as the two faces of a fold (:func:`_fold_sides`) on every FOLD_STRIDE-th point. Each region's
+    (3, m) that read as the two faces of a fold (:func:`_fold_sides`) on about FOLD_SAMPLE of the points. Each region's
     mean must lie on the same side of the other's plane first (both under it: a ridge; over it: a valley; a step
     between parallel surfaces has one over, the other under), which most pairs fail."""
     k = len(found)
@@ -210,14 +210,16 @@ def _fold_pairs(search: np.ndarray, region: np.ndarray, found: list, tolerance: 
     shallow = np.triu(np.abs(cosines) >= NORMAL_MIN_COS, 1)
     if not shallow.any():
         return np.flatnonzero(shallow)
-    label, cols = region[::FOLD_STRIDE], search[:, ::FOLD_STRIDE]
+    stride = max(1, len(region) // FOLD_SAMPLE)
+    label, cols = region[::stride], search[:, ::stride]
     members = (label == np.arange(k)[:, None]).astype(np.float64)  # (k, s)
-    over = (normals @ cols + np.array([offset for _, offset in found])[:, None]) @ members.T  # [i, j]: j's points over i
+    # [i, j]: how far region j's sampled points lie over plane i, summed
+    over = (normals @ cols + np.array([offset for _, offset in found])[:, None]) @ members.T
     shallow &= np.sign(cosines) * over * over.T > 0
     if not shallow.any():
         return np.flatnonzero(shallow)
     members = members.astype(bool)
-    tol = tolerance_at(tolerance, slice(None, None, FOLD_STRIDE))
+    tol = tolerance_at(tolerance, slice(None, None, stride))
     return np.array([i * k + j for i, j in zip(*np.nonzero(shallow))
                      if _fold_sides(cols, np.flatnonzero(members[i]), np.flatnonzero(members[j]), found[i], found[j],
                                     tol) is not None], dtype=np.int64)

@@ -18,8 +18,8 @@ from .types import Allows
 
 __all__ = ['tent_faces', 'TENT_ROUNDS']
 
-#: Rounds of the refinement (each point to its face of the envelope, each face refitted); on the tuning roofs the
-#: faces settle in 3-6.
+#: At most this many rounds of the refinement (each point to its face of the envelope, each face refitted); it stops
+#: sooner where no point changes face.
 TENT_ROUNDS = 10
 
 
@@ -27,8 +27,8 @@ def tent_faces(cols: np.ndarray, pca, local: float, least: float, allows: Allows
                ) -> tuple[np.ndarray, list] | None:
     """The faces of the tent in the region's points ``cols`` (3, r) meters (its sample's :func:`.verdict._pca`
     ``pca``, the patches' mean squared thickness ``local`` m^2): (each point's face (r,) 0..f-1, the f >= 2 faces'
-    (normal, offset) planes), or None where the faces fit no better than FOLD_FIT of the noise, fewer than two keep
-    ``least`` points, or ``allows`` refuses one's normal."""
+    (normal, offset) planes), or None where the faces fit no better than FOLD_FIT of the noise, a face keeps fewer than
+    ``least`` points (those left out along the way: fewer than two faces left), or ``allows`` refuses one's normal."""
     from .. import verdict  # the verdict imports the search's types: importing it with the module is a cycle
     centre, axes = pca[0], pca[3]
     w, u, v = ((cols.T - centre) @ axes).T
@@ -50,8 +50,7 @@ def tent_faces(cols: np.ndarray, pca, local: float, least: float, allows: Allows
     face = np.argmin(sign * (design @ coef.T), axis=1)
     residual = w - np.take_along_axis(design @ coef.T, face[:, None], axis=1)[:, 0]
     counts = np.bincount(face, minlength=len(coef))
-    if not np.sqrt(np.mean(residual ** 2) / local) <= verdict.FOLD_FIT or np.count_nonzero(counts >= least) < 2 \
-            or not (counts >= least).all():
+    if not np.sqrt(np.mean(residual ** 2) / local) <= verdict.FOLD_FIT or len(coef) < 2 or counts.min() < least:
         return None
     planes = [fit_columns(np.ascontiguousarray(cols[:, face == k])) for k in range(len(coef))]
     if not all(allows_normal(allows, normal) for normal, _ in planes):
