@@ -49,18 +49,18 @@ def _one_region(points: np.ndarray):
 def test_split_folds_splits_a_ridge_unless_a_side_is_too_small_or_its_plane_not_allowed():
     points, side = _gable(1, ridge=1.0)  # sides of about 1,250 and 750 points
     search, region, found = _one_region(points)
-    got, planes = split_folds(search, region, found, 0.1, 4, 50)
+    got, planes, _ = split_folds(search, region, found, 0.1, 4, 50)
     assert len(planes) == 2 and set(np.unique(got)) == {0, 1}
     for j, (normal, offset) in enumerate(planes):  # each label goes with its own plane
         assert np.sqrt(np.mean((normal @ search[:, got == j] + offset) ** 2)) < 0.03
         assert np.bincount(side[got == j], minlength=2).max() > 0.9 * np.count_nonzero(got == j)
     assert region.max() == 0 and len(found) == 1  # the inputs are left as they were
-    kept, same = split_folds(search, region, found, 0.1, 4, 800)  # the smaller side would keep under 800
+    kept, same, _ = split_folds(search, region, found, 0.1, 4, 800)  # the smaller side would keep under 800
     assert len(same) == 1 and np.array_equal(kept, region)
     level_only = lambda normals: np.abs(normals[:, 2]) > 0.99999  # noqa: E731 (no 2-degree face is level)
-    kept, same = split_folds(search, region, found, 0.1, 4, 50, level_only)
+    kept, same, _ = split_folds(search, region, found, 0.1, 4, 50, level_only)
     assert len(same) == 1 and np.array_equal(kept, region)
-    kept, same = split_folds(search, region, found, 0.1, 1, 50)  # at max_planes already
+    kept, same, _ = split_folds(search, region, found, 0.1, 1, 50)  # at max_planes already
     assert len(same) == 1 and np.array_equal(kept, region)
 
 

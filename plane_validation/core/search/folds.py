@@ -1,20 +1,28 @@
-"""Regions that hold the two sides of a shallow ridge or fold, split at its line.
+"""Regions that hold the two sides of a shallow ridge or fold, split at its line; the faces of a shallow hip roof
+(:mod:`.tents`); and the points near such a line settled on its sides.
 
 Two surfaces meeting at a shallow angle (a gable roof of a few degrees, a ramp meeting a floor) can lie within t of
 one plane and join one connected region, whose residuals across the line then form a V. A region whose lack of fit
 is FOLD_LACK or more and that two planes meeting at a line bring down to FOLD_FIT, better than a quadric surface
 (the verdict's ridge test, :func:`.verdict.is_ridge`, without its upper bound: a larger lack of fit, which the verdict
 fails as surfaces merged, is split too), is split at that line: each side gets a plane, each of the region's points
-goes to the nearer of the two, and both planes are refitted to their points.
+goes to the nearer of the two, and both planes are refitted. A region that reads better as a tent than as one fold
+is split into the tent's faces instead (:func:`.tents.tent_faces`).
+
+Near a shallow fold found as two regions, both planes lie within t of the points of a band along the line, where
+the nearer plane is the one the noise favours: :func:`settle_folds` gives each such point to the face on its side.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from .. import kernels
 from .fit import allows_normal, fit_columns, tolerance_at
+from .neighbours import NORMAL_MIN_COS, Neighbours
+from .tents import tent_faces
 from .types import Allows, Tolerance
 
-__all__ = ['split_folds', 'FOLD_SIDE']
+__all__ = ['split_folds', 'settle_folds', 'FOLD_SIDE']
 
 #: A region is split only where each side holds at least this share of its points (a fold near the region's edge is
 #: a lip or a bent border, not a second surface).
@@ -22,40 +30,84 @@ FOLD_SIDE = 0.15
 
 
 def split_folds(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance, max_planes: int,
-                min_count: int, allows: Allows = None) -> tuple[np.ndarray, list]:
+                min_count: int, allows: Allows = None) -> tuple[np.ndarray, list, tuple[int, int]]:
     """``region`` (m,) (-1: none) and ``found`` (normal, offset) planes of the centred points ``search`` (3, m)
-    meters, with each region that holds a ridge split once in two (the new plane numbered last) while there are
-    fewer than ``max_planes`` and each side keeps ``min_count`` searched points. ``tolerance``: t (m) at each
-    searched point (m,) or for all; its median over a region sets the floor of the noise the ridge test measures
-    (:func:`.verdict._patch_noise`). ``allows``: the normals a plane may have (None: any). Returns the new region
-    labels and planes; the inputs are left as they were."""
+    meters, with each region that holds a ridge split once in two, or that holds a tent into its faces (the new planes
+    numbered last), while there are fewer than ``max_planes`` and each side or face keeps ``min_count`` searched
+    points. ``tolerance``: t (m) at each searched point (m,) or for all; its median over a region sets the floor of the
+    noise the ridge and tent tests measure (:func:`.verdict._patch_noise`). ``allows``: the normals a plane may have
+    (None: any). Returns the new region labels and planes, and how many regions were split (at a ridge, into a tent's
+    faces); the inputs are left as they were."""
     region, found = region.copy(), list(found)
+    ridges = tents = 0
     for j in range(len(found)):
         if len(found) >= max_planes:
             break
         rows = np.flatnonzero(region == j)
-        halves = _fold_halves(search, rows, float(np.median(tolerance_at(tolerance, rows))) if len(rows) else 0.0,
-                              min_count, allows)
+        tol = float(np.median(tolerance_at(tolerance, rows))) if len(rows) else 0.0
+        shape = _region_shape(search, rows, tol, min_count)
+        if shape is None:
+            continue
+        faces = _tent_split(shape, min_count, allows, max_planes - len(found) + 1)
+        if faces is not None:
+            face, planes = faces
+            found[j] = planes[0]
+            for k in range(1, len(planes)):
+                region[rows[face == k]] = len(found)
+                found.append(planes[k])
+            tents += 1
+            continue
+        halves = _fold_halves(shape, rows, min_count, allows)
         if halves is not None:
             (_, plane), (move, other) = halves
             region[move] = len(found)
             found[j] = plane
             found.append(other)
-    return region, found
+            ridges += 1
+    return region, found, (ridges, tents)
 
 
-def _fold_halves(search: np.ndarray, rows: np.ndarray, tolerance: float, min_count: int, allows: Allows):
-    """The two sides of the region of ``rows`` (r,) of ``search`` (3, m) at its best fold, each as (its rows (a,),
-    its (normal, offset) plane), or None where the region holds no ridge (see the module), a side would keep fewer
-    than ``min_count`` points or FOLD_SIDE of the region's, or ``allows`` refuses a side's normal. ``tolerance``: the
-    region's t (m)."""
+def _region_shape(search: np.ndarray, rows: np.ndarray, tolerance: float, min_count: int) -> tuple | None:
+    """What the ridge and tent tests need of the region of ``rows`` (r,) of ``search`` (3, m) at its t ``tolerance``
+    (m): (its points (3, r), its sample's :func:`.verdict._pca`, the patches' noise (m^2), its lack of fit, t); None
+    where it is too small to judge or its noise unknown."""
     from .. import verdict  # the verdict imports the search's types: importing it with the module is a cycle
     if len(rows) < max(2 * min_count, 2 * verdict.TILT_NEIGHBOURS):
         return None
     cols = search[:, rows]
     pca = verdict._pca(np.ascontiguousarray(cols.T[verdict._sample_rows(np.arange(len(rows)))]))
     local = verdict._patch_noise(pca, tolerance)
-    lack = verdict._lack(pca, local)
+    if local is None:
+        return None
+    return cols, pca, local, verdict._lack(pca, local), tolerance
+
+
+def _tent_split(shape: tuple, min_count: int, allows: Allows, room: int) -> tuple[np.ndarray, list] | None:
+    """The faces (:func:`.tents.tent_faces`) of a region of :func:`_region_shape` ``shape`` where it reads as a tent
+    (the verdict's tent test, but from a lack of fit of FOLD_FIT, the fit the faces must reach, rather than TENT_LACK:
+    the tent FOLD_FIT or less and better than a quadric) that fits better than one fold, each of ``min_count``
+    points, at most ``room`` of them; else None. The lower bound takes the part of a 2-degree hip roof with 4.5 cm
+    noise that RANSAC finds at 8 cm (tuning seed aerial_roof 14: lack of fit 1.14; the faces at 19 cm: 0 -> 4 of 4
+    planes correct auto-tuned)."""
+    from .. import verdict
+    cols, pca, local, lack, tolerance = shape
+    if not lack >= verdict.FOLD_FIT or room < 2:
+        return None
+    tent, quadric = verdict._tent(pca, local, ridge_only=True)
+    if not (tent <= verdict.FOLD_FIT and tent < quadric):
+        return None
+    if verdict.fold_line(pca, tolerance, local, ridge_only=True)[0] <= tent:
+        return None
+    faces = tent_faces(cols, pca, local, max(min_count, 3), allows)
+    return faces if faces is not None and len(faces[1]) <= room else None
+
+
+def _fold_halves(shape: tuple, rows: np.ndarray, min_count: int, allows: Allows):
+    """The two sides of the region of ``rows`` (r,) (its :func:`_region_shape` ``shape``) at its best fold, each as
+    (its rows (a,), its (normal, offset) plane), or None where the region holds no ridge (see the module), a side
+    would keep fewer than ``min_count`` points or FOLD_SIDE of the region's, or ``allows`` refuses a side's normal."""
+    from .. import verdict
+    cols, pca, local, lack, tolerance = shape
     if not lack >= verdict.FOLD_LACK:  # NaN: not judged
         return None
     fold, quadric, theta, s0 = verdict.fold_line(pca, tolerance, local, ridge_only=True)
@@ -80,3 +132,138 @@ def _sides(cols: np.ndarray, side: np.ndarray, least: float) -> list | None:
     if min(np.count_nonzero(side), np.count_nonzero(~side)) < least:
         return None
     return [fit_columns(np.ascontiguousarray(cols[:, part])) for part in (~side, side)]
+
+
+#: Two touching regions are the two faces of one fold when at least this share of each one's points lies on its own side
+#: of the plane through the line where their planes meet (see :func:`settle_folds`; chance gives about half). On the
+#: tuning roofs (aerial_roof 0-99) the faces of shallow gables found by RANSAC read 0.88-0.99 before their band is
+#: settled.
+FOLD_SEPARATE = 0.75
+#: ... and when at most this share of each one's points lies within t of the other's plane: two pieces of one surface
+#: lie within t of each other's planes, the two faces of a fold part beyond t over most of them.
+FOLD_BAND = 0.5
+#: Rounds of settle_folds (each pair's band moved and both planes refitted, then the pairs again): the refitted planes
+#: move the line, and the band with it; on the tuning roofs the moves stop after two.
+FOLD_ROUNDS = 3
+
+
+def settle_folds(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance, neighbours: Neighbours,
+                 allows: Allows = None) -> tuple[np.ndarray, list]:
+    """``region`` (m,) (-1: none) and ``found`` (normal, offset) planes of the centred points ``search`` (3, m)
+    meters after each point near a shallow fold between two touching regions goes to the face on its side.
+
+    Near a fold of angle a, both planes lie within t of the points of a band 2 t / sin(a) wide, and the nearer plane
+    there is the one the noise favours. The face a point lies on is the one whose plane is farther on the point's
+    outer side: the lower envelope of a ridge's two faces, the upper of a valley's. Noise moves a point across both
+    planes alike where their normals are close, so which face that is does not depend on it. A pair of regions whose
+    normals lie within NORMAL_ANGLE_DEG of each other (steeper folds have a band about t wide, which border settling
+    handles), each holding FOLD_SIDE of their points, is a fold when each keeps FOLD_SEPARATE of its points on its own
+    side of the line and at most FOLD_BAND of them within ``tolerance`` (m, one or (m,)) of the other's plane (judged
+    first on about FOLD_SAMPLE points, then on all); then each point of either within t of the other's plane, on the
+    other's side and beside the part of the line where they touch (``neighbours``) goes to the other, and both planes
+    are refitted (kept where ``allows`` refuses a normal), FOLD_ROUNDS times. The inputs are left as they were."""
+    region, found = region.copy(), list(found)
+    folds = _fold_pairs(search, region, found, tolerance)
+    if not len(folds):
+        return region, found  # (most frames: walls, floors and table tops; no neighbours looked up)
+    for _ in range(FOLD_ROUNDS):
+        touching = neighbours.contacts(region, len(found))
+        if touching is None:
+            break
+        src, dst, at_src, at_dst, pairs = touching
+        rows, bounds = kernels.group_by_label(kernels.c_array(region, np.int64), len(found))
+        members = [rows[bounds[j]:bounds[j + 1]] for j in range(len(found))]  # kept up to date as points move
+        moved = False
+        for i, j in zip(*np.divmod(np.intersect1d(pairs, folds), len(found))):
+            a, b = members[i], members[j]
+            touch = (at_src == i) & (at_dst == j) | (at_src == j) & (at_dst == i)
+            moves = _fold_moves(search, a, b, found[i], found[j], tolerance, np.concatenate([src[touch], dst[touch]]))
+            if moves is None:
+                continue
+            to_b, to_a = moves
+            a, b = np.union1d(np.setdiff1d(a, to_b), to_a), np.union1d(np.setdiff1d(b, to_a), to_b)
+            fits = [fit_columns(np.ascontiguousarray(search[:, part])) for part in (a, b)]
+            if not all(allows_normal(allows, normal) for normal, _ in fits):
+                continue
+            region[to_b], region[to_a] = j, i
+            members[i], members[j] = a, b
+            found[i], found[j] = fits
+            moved = True
+        if not moved:
+            break
+    return region, found
+
+
+#: settle_folds first judges the pairs of regions on about this many of the searched points (every so many-th), and
+#: looks up which touch only where a pair reads as a fold there (a depth frame's 30,000 sub-grid points: every 14th).
+FOLD_SAMPLE = 2048
+
+
+def _fold_pairs(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance) -> np.ndarray:
+    """The pairs i < j (as i * k + j, ascending) of the k ``found`` planes of the regions ``region`` (m,) of ``search``
+    (3, m) that read as the two faces of a fold (:func:`_fold_sides`) on about FOLD_SAMPLE of the points. Each region's
+    mean must lie on the same side of the other's plane first (both under it: a ridge; over it: a valley; a step
+    between parallel surfaces has one over, the other under), which most pairs fail."""
+    k = len(found)
+    normals = np.array([normal for normal, _ in found]).reshape(k, 3)
+    cosines = normals @ normals.T
+    shallow = np.triu(np.abs(cosines) >= NORMAL_MIN_COS, 1)
+    if not shallow.any():
+        return np.flatnonzero(shallow)
+    stride = max(1, len(region) // FOLD_SAMPLE)
+    label, cols = region[::stride], search[:, ::stride]
+    members = (label == np.arange(k)[:, None]).astype(np.float64)  # (k, s)
+    # [i, j]: how far region j's sampled points lie over plane i, summed
+    over = (normals @ cols + np.array([offset for _, offset in found])[:, None]) @ members.T
+    shallow &= np.sign(cosines) * over * over.T > 0
+    if not shallow.any():
+        return np.flatnonzero(shallow)
+    members = members.astype(bool)
+    tol = tolerance_at(tolerance, slice(None, None, stride))
+    return np.array([i * k + j for i, j in zip(*np.nonzero(shallow))
+                     if _fold_sides(cols, np.flatnonzero(members[i]), np.flatnonzero(members[j]), found[i], found[j],
+                                    tol) is not None], dtype=np.int64)
+
+
+def _fold_sides(cols: np.ndarray, a: np.ndarray, b: np.ndarray, plane_a: tuple, plane_b: tuple, tolerance: Tolerance
+                ) -> tuple | None:
+    """Whether the points ``a`` and ``b`` (indices into ``cols`` (3, n) meters) with planes ``plane_a``, ``plane_b``
+    (normal, offset) are the two faces of a fold (see :func:`settle_folds`; ``tolerance``: t, one or (n,)): (the
+    points of a, then b, (len(a) + len(b),) bool, on their own side; within t of a's plane; of b's), else None."""
+    if min(len(a), len(b)) < max(3, FOLD_SIDE * (len(a) + len(b))):
+        return None
+    (na, oa), (nb, ob) = plane_a, plane_b
+    if na @ nb < 0:
+        nb, ob = -nb, -ob
+    if na @ nb < NORMAL_MIN_COS:
+        return None
+    both = np.concatenate([a, b])
+    pts = cols[:, both]
+    da, db = na @ pts + oa, nb @ pts + ob
+    side = da > db  # a's side of the line: where a's plane lies farther, or nearer, on the points' side
+    if np.count_nonzero(side[:len(a)]) < len(a) / 2:
+        side = ~side
+    side[len(a):] = ~side[len(a):]
+    if np.mean(side[:len(a)]) < FOLD_SEPARATE or np.mean(side[len(a):]) < FOLD_SEPARATE:
+        return None
+    tol = tolerance_at(tolerance, both)
+    near_a, near_b = np.abs(da) <= tol, np.abs(db) <= tol
+    if np.mean(near_b[:len(a)]) > FOLD_BAND or np.mean(near_a[len(a):]) > FOLD_BAND:
+        return None
+    return side, near_a, near_b
+
+
+def _fold_moves(search: np.ndarray, a: np.ndarray, b: np.ndarray, plane_a: tuple, plane_b: tuple,
+                tolerance: Tolerance, contact: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """(the points of ``a`` (indices into ``search`` (3, m)) that go to b, those of ``b`` that go to a) where the two
+    regions with planes ``plane_a``, ``plane_b`` (normal, offset) are the faces of a fold (see :func:`settle_folds`;
+    ``contact``: their points where they touch), else None."""
+    sides = _fold_sides(search, a, b, plane_a, plane_b, tolerance)
+    if sides is None:
+        return None
+    own, near_a, near_b = sides
+    line = np.cross(plane_a[0], plane_b[0])
+    along, reach = line @ search[:, np.concatenate([a, b])], line @ search[:, contact]
+    beside = (along >= reach.min()) & (along <= reach.max())
+    moves = (a[~own[:len(a)] & near_b[:len(a)] & beside[:len(a)]], b[~own[len(a):] & near_a[len(a):] & beside[len(a):]])
+    return moves if len(moves[0]) or len(moves[1]) else None
