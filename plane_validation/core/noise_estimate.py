@@ -37,12 +37,12 @@ MIN_VOXEL_POINTS, VOXEL_REFINE = 10, 4
 #: quantisation's and the sub-pixel structure's scale, still small against a surface).
 PATCH_SIDE, PATCH_STRIDE = 5, 2
 #: The viewpoint is taken as the sensor when the median |cos| between a neighbourhood's normal and its ray is at
-#: least this (depth frames and lidar scans: 0.5-0.9; roofs seen from their own centre: under 0.2), or when at least
-#: MIN_BIN neighbourhoods face it that closely, enough for one range bin of the fit along the rays: a lidar
-#: corridor's walls run away from the sensor at grazing angles, where a neighbourhood's thickness is only the range
-#: noise times |cos| (tuning seeds: 36-49 % of a corridor's 83-145 neighbourhoods face it, 47-71 of them, against
-#: 2-32 of a roof's 57-90 but steep hips', which face their centre by the median too). Neighbourhoods seen at a
-#: smaller |cos| are then left out.
+#: least this (depth frames and lidar scans: 0.5-0.9; roofs seen from their own centre: under 0.2), or, in an
+#: unorganized cloud, when at least MIN_BIN neighbourhoods face it that closely, enough for one range bin of the fit
+#: along the rays: a lidar corridor's walls run away from the sensor at grazing angles, where a neighbourhood's
+#: thickness is only the range noise times |cos| (tuning seeds: 36-49 % of a corridor's 83-145 neighbourhoods face
+#: it, 47-71 of them, against 2-32 of a roof's 57-90 but steep hips', which face their centre by the median too).
+#: Neighbourhoods seen at a smaller |cos| are then left out.
 FACING_COS = 0.3
 #: A neighbourhood is thin, its smallest principal axis its plane's normal, when the smallest eigenvalue of its
 #: scatter is at most this share of the middle one (its thickness a third of its width).
@@ -263,17 +263,19 @@ def estimate_noise(points: np.ndarray, shape: tuple[int, int] | None = None, *, 
     plate = (flatness <= FLAT) & (breadth >= BROAD)
     facing = np.where(plate, plane_facing, ray_facing)
     faced = facing >= FACING_COS
-    along_ray = bool(np.nanmedian(facing) >= FACING_COS or faced.sum() >= MIN_BIN) \
-        if np.any(np.isfinite(facing)) else False
+    along_ray = bool(np.nanmedian(facing) >= FACING_COS) if np.any(np.isfinite(facing)) else False
+    # a minority facing the viewpoint tells only of an unorganized cloud's nearest points: an image's window spans a
+    # lidar ring image's rings (8 of 16: no one surface), and depth frames face their camera by the median
+    grazing = not along_ray and shape is None and int(faced.sum()) >= MIN_BIN
+    along_ray = along_ray or grazing
     variances = ray_var if along_ray else np.where(plate, perp_var, np.nan)
     # residuals at the coordinates' own precision say nothing about the noise: one step of a quantized depth (a
     # Kinect's at 3 m is 2.6 cm: a third of the voxels of a frame lie on one), a noise-free render
     ok = variances > (RESOLUTION * ranges) ** 2
-    measurable = int(ok.sum())
     if along_ray:  # at a grazing angle a range residual is the thickness over |cos|: of noise across the surface too
         ok &= faced
-    if measurable < MEASURABLE * len(ok) or ok.sum() < MIN_BIN:  # what is left is edges: the noise is below the
-        return _empty(reference, along_ray)                       # precision
+    if ok.sum() < max(MIN_BIN, MEASURABLE * (faced.sum() if grazing else len(ok))):  # what is left is edges: the
+        return _empty(reference, along_ray)                                            # noise is below the precision
     variances, ranges = variances[ok], ranges[ok]
     nu = int(np.median(dof[ok])) if ok.any() else 1
     # the quantile of a variance over nu dof, over its mean: the chi-square quantile, 2 P^-1(nu / 2, q) (scipy.special,
