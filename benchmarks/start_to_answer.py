@@ -121,6 +121,7 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as logs:
             for run in range(args.runs):
                 if args.cache:
+                    Path(args.cache).mkdir(parents=True, exist_ok=True)  # a new one: the first start is cold
                     start(run, args.cache, 'warm' if any(Path(args.cache).iterdir()) else 'cold', logs)
                     continue
                 with tempfile.TemporaryDirectory() as cache:
