@@ -248,7 +248,7 @@ def test_a_failed_tune_detects_with_the_last_tuned_tolerance():
 
 def test_a_dead_sweep_worker_is_a_failed_tune_not_an_exception(monkeypatch):
     from plane_validation.app import pipeline as pipeline_module
-    from plane_validation.core.tuning import TuningWorkerError
+    from plane_validation.core.workers import TuningWorkerError
 
     def dies(*args, **kwargs):
         raise TuningWorkerError('a tuning worker process died (killed)')

@@ -49,12 +49,11 @@ from .verdict import (
     seed_agreement,
     surface_failures,
 )
-from .workers import TuningWorkerError, in_order, parallel_calls, stop_workers
+from .workers import in_order, parallel_calls
 
 __all__ = ['CRITERIA', 'DEFAULT_CRITERION', 'TUNE_CANDIDATES', 'TUNE_POINTS',
            'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
-           'select_plane_count', 'noise_from_segmentation', 'local_noise', 'quick_tolerance', 'MIN_PLANE_SILHOUETTE',
-           'TuningWorkerError', 'stop_workers']
+           'select_plane_count', 'noise_from_segmentation', 'local_noise', 'quick_tolerance', 'MIN_PLANE_SILHOUETTE']
 
 #: Default number of tuning candidates and the subsample a sweep runs on (points).
 TUNE_CANDIDATES = 12

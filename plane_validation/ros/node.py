@@ -22,7 +22,7 @@ from sensor_msgs.msg import PointCloud2
 from ..app.config import PARAMETERS
 from ..app.pipeline import FramePipeline, limit_blas_threads
 from ..core.kernels import Warmup, warm_probe
-from ..core.tuning import stop_workers
+from ..core.workers import stop_workers
 from .messages import OUTPUTS, status_name
 from .parameters import NODE_PARAMETERS, apply_parameters, declare, descriptor, params_yaml, set_requests_whole
 from .worker import LOG_THROTTLE_S, SWEEP_STOP_S, FrameWorker, input_qos, output_publishers, warm_kernels
