@@ -22,18 +22,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from pvbench import open3d_ref  # noqa: E402
+from pvbench.frame_calls import frame_calls  # noqa: E402
 from pvbench.node_e2e import cloud_message  # noqa: E402
 
-from plane_validation import detect_planes  # noqa: E402
-from plane_validation.app.pipeline import FramePipeline, PipelineConfig  # noqa: E402
 from plane_validation.core.blas import limit_blas_threads  # noqa: E402
 from plane_validation.core.kernels import warm  # noqa: E402
 from plane_validation.formats.files import load_cloud  # noqa: E402
-from plane_validation.ros.messages import frame_messages  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / 'shared' / 'data'
-#: The steady-state settings of benchmarks/suite.py: t = 1 cm, up to 5 planes, indices on 2,000 points.
-SETTINGS = dict(auto_tune=False, tolerance=0.01, max_planes=5, index_sample_size=2000, min_inliers=0.01)
 ORGANIZED_MS, ORGANIZED_RATIO, PLAIN_RATIO = 25.0, 0.10, 0.25
 
 
@@ -59,12 +55,8 @@ def _frame(path: str, points: np.ndarray, shape: tuple[int, int], repeat: int) -
     """One table row: the medians of ``repeat`` runs of each, one after another, after a warm-up run."""
     msg = cloud_message(points, *shape)
     valid = points[np.isfinite(points).all(axis=1)]
-    organized = FramePipeline(PipelineConfig(**SETTINGS))
-    infinite = FramePipeline(PipelineConfig(**SETTINGS, connectivity=False))
+    calls = frame_calls('plane_validation', msg, points, shape)
     cloud = open3d_ref.to_cloud(valid) if open3d_ref.available() else None
-    calls = {'organized': lambda i: frame_messages(msg.header, organized.process_cloud(msg), 'pv'),
-             'plain': lambda i: detect_planes(valid, 0.01, max_planes=5, min_inliers=0.01, seed=i),
-             'infinite': lambda i: infinite.process(points, 10**9 * (i + 1), shape=shape)}
     if cloud is not None:
         calls['open3d'] = lambda i: open3d_ref.sequential_planes(cloud, len(valid), 0.01, planes=5, seed=i)
     times: dict[str, list[float]] = {name: [] for name in calls}

@@ -15,7 +15,8 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_frame import DATA, SETTINGS  # noqa: E402
+from bench_frame import DATA  # noqa: E402
+from pvbench.frame_calls import SETTINGS  # noqa: E402
 from pvbench.node_e2e import cloud_message  # noqa: E402
 
 from plane_validation.app import pipeline  # noqa: E402

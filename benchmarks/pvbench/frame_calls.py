@@ -1,0 +1,34 @@
+"""The steady-state frame's three calls on one real frame, for any importable copy of the package.
+
+``frame_calls('plane_validation', ...)`` times the working tree; ``ab_frame.py`` passes a renamed copy of
+another revision, so that both run call by call in one process. The settings are benchmarks/suite.py's:
+t = 1 cm, up to 5 planes, indices on 2,000 points.
+"""
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+
+import numpy as np
+
+SETTINGS = dict(auto_tune=False, tolerance=0.01, max_planes=5, index_sample_size=2000, min_inliers=0.01)
+
+
+def frame_calls(package: str, msg, points: np.ndarray, shape: tuple[int, int]
+                ) -> dict[str, Callable[[int], object]]:
+    """Per name, a call of run ``i`` (its seed) on one frame, with the package ``package``:
+
+    - organized: ``msg`` (an organized PointCloud2) to planes, indices, verdict and the five output messages;
+    - plain: the valid rows of ``points`` (N x 3, meters) through ``detect_planes`` with regions;
+    - infinite: the paper's infinite planes (``connectivity=False``) through the pipeline.
+
+    The caller advances ``msg.header.stamp`` between runs (the node's frames have fresh stamps)."""
+    top = importlib.import_module(package)
+    pipeline = importlib.import_module(f'{package}.app.pipeline')
+    frame_messages = importlib.import_module(f'{package}.ros.messages').frame_messages
+    valid = points[np.isfinite(points).all(axis=1)]
+    organized = pipeline.FramePipeline(pipeline.PipelineConfig(**SETTINGS))
+    infinite = pipeline.FramePipeline(pipeline.PipelineConfig(**SETTINGS, connectivity=False))
+    return {'organized': lambda i: frame_messages(msg.header, organized.process_cloud(msg), 'pv'),
+            'plain': lambda i: top.detect_planes(valid, 0.01, max_planes=5, min_inliers=0.01, seed=i),
+            'infinite': lambda i: infinite.process(points, 10**9 * (i + 1), shape=shape)}
