@@ -7,9 +7,10 @@ import dataclasses
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_kernels import _grid_case
+from test_kernels import _graph_case, _grid_case
 
 from plane_validation.core import kernels
+from plane_validation.core.regions import _neighbours_numpy
 from plane_validation.core.search.checks import finite_extent, finite_rows, largest_magnitude_numpy
 from plane_validation.core.search.neighbours import Neighbours
 from plane_validation.core.search.neighbours_grid import GridNeighbours
@@ -78,12 +79,18 @@ def test_label_rows_match_numpy(seed, dtype):
     assert bounds[k] == len(rows) == np.count_nonzero((labels >= 0) & (labels < k))
 
 
+def _graph_with_walks(seed: int):
+    case = _graph_case(seed)[0]
+    return _neighbours_numpy(case.n, case.edges, case.normals)  # with its adjacency, which the walks take
+
+
 @SETTINGS
-@given(st.integers(0, 2**32 - 1), st.integers(0, 70))
-def test_grid_sampler_matches_numpy(seed, count):
-    """The grid's triples of nearby points: the same draws from the generator, the same triples, as the numpy form
-    (windows off the image, on holes or on points no longer searched: -1)."""
-    neighbours, _, _ = _grid(seed)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 70), st.sampled_from(['grid', 'graph']))
+def test_samplers_match_numpy(seed, count, form):
+    """The triples of nearby points of the grid (windows off the image or on holes: -1) and of the graph (walks; a
+    point without neighbours stays put): the same draws from the generator, the same triples, as the numpy form
+    (points no longer searched: -1)."""
+    neighbours = _grid(seed)[0] if form == 'grid' else _graph_with_walks(seed)
     rng = np.random.default_rng(seed)
     rest_idx = np.flatnonzero(rng.random(neighbours.n) < 0.8)
     if len(rest_idx) == 0:

@@ -31,7 +31,7 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
-           'labels_where',
+           'labels_where', 'graph_triples',
            'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'kept_edges', 'graph_contacts', 'graph_settle',
            'voxel_count', 'tent_fit', 'leftover_rows', 'leftover_best', 'seeded_draws', 'warm', 'warm_probe',
            'Warmup']
@@ -2935,6 +2935,27 @@ def grid_triples(first: np.ndarray, scale_pick: np.ndarray, row_share: np.ndarra
     return out
 
 
+
+@numba.njit(**_JIT)
+def graph_triples(first: np.ndarray, scale_pick: np.ndarray, steps: np.ndarray, scales: np.ndarray, rest: np.ndarray,
+                  position: np.ndarray, indptr: np.ndarray, indices: np.ndarray, degrees: np.ndarray) -> np.ndarray:
+    """(c, 3) triples of nearby points of a graph (adjacency ``indptr`` (n + 1,), ``indices``, with ``degrees`` (n,)
+    >= 1: a loop at a point without neighbours) as positions among its points ``rest`` (r,) (``position`` (n + 1,):
+    each point's, -1 for none): each of ``first`` (c,) (positions) with the ends of two random walks from it, the 2c
+    walks ``scales[scale_pick]`` (2c,) hops long, hop h of walk q to the neighbour at share ``steps[h, q]`` in [0, 1)
+    of the point's list (the first c walks give the second point, the next c the third), as
+    ``GraphNeighbours.nearby`` walks them."""
+    c = first.shape[0]
+    out = np.empty((c, 3), np.int64)
+    for q in range(2 * c):
+        at = rest[first[q % c]]
+        for hop in range(scales[scale_pick[q]]):
+            at = indices[indptr[at] + np.int64(steps[hop, q] * degrees[at])]
+        out[q % c, 1 + q // c] = position[at]
+    for q in range(c):
+        out[q, 0] = first[q]
+    return out
+
 # --- frame input and outlines ---
 
 
@@ -4332,6 +4353,7 @@ def _warm_plain_graph() -> None:
     graph_contacts(edges, index, 2)
     voxel_count(np.zeros((4, 3)), np.zeros(3), 1.0, np.ones(3, np.int64))
     graph_settle(np.zeros((3, 4)), np.zeros(4, np.int64), np.zeros(5, np.int64), np.zeros(0, np.int64), 6)
+    graph_triples(index[:2], index % 2, np.zeros((1, 4)), np.ones(2, np.int64), index, index, index, index, index)
 
 
 #: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The
@@ -4409,7 +4431,7 @@ _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components
             voxel_nearest, spread_nearest, spread_among, score_hypotheses, spread_test, fit_members,
             fit_mask, fit_regions, plane_samples,
             sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
-            read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
+            graph_triples, read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
             merge_pair, relabel_rows, labels_where, grid_spread, strided_rows, columns_at, grid_batch, kept_edges,
             graph_contacts,
             graph_settle, voxel_count, tent_fit, leftover_rows, leftover_best, seeded_draws)

@@ -19,13 +19,15 @@ from .neighbours import (
     row_starts,
     settle_numpy,
 )
+from .types import Sampler
 
-__all__ = ['GraphNeighbours', 'graph_region', 'graph_region_numpy', 'COMPACT_SHARE']
+__all__ = ['GraphNeighbours', 'GraphSampler', 'graph_region', 'graph_region_numpy', 'COMPACT_SHARE']
 
 #: Components of a mask of up to this share of the points come from the graph of its points alone;
 #: of a larger one, from the whole graph with the edges leaving it cut (faster then).
 COMPACT_SHARE = 0.5
 _NO_NORMALS = np.empty((0, 3))
+_SCALES = np.array(NEARBY_SCALES, np.int64)
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -51,6 +53,16 @@ class GraphNeighbours(Neighbours):
             step = indptr[at] + (draws[hop] * degrees[at]).astype(np.int64)
             at = np.where(walking[hop], indices[step], at)
         return at
+
+    def sampler(self, rest_idx: np.ndarray) -> Sampler:
+        """The same draws and triples as :meth:`.neighbours.Neighbours.sampler` (its reference), the walks in one
+        compiled call (:func:`.kernels.graph_triples`)."""
+        if self.adjacency is None:  # no edges: every walk stays where it starts
+            return super().sampler(rest_idx)
+        position = np.full(self.n + 1, -1, dtype=np.int64)  # [-1] stays -1
+        position[rest_idx] = np.arange(len(rest_idx))
+        indptr, indices, degrees = (kernels.c_array(a, np.int64) for a in self._walk)
+        return GraphSampler((kernels.c_array(rest_idx, np.int64), position, indptr, indices, degrees))
 
     @functools.cached_property
     def _walk(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -191,6 +203,23 @@ class GraphNeighbours(Neighbours):
             return settle_numpy(dist, region, self)
         return kernels.graph_settle(kernels.c_array(dist, np.float64), kernels.c_array(region, np.int64),
                                     *self.adjacency, COMPETE_ROUNDS)
+
+
+@dataclass(frozen=True)
+class GraphSampler:
+    """Triples of nearby points among the points ``rest`` (ascending) of a graph (a :data:`.types.Sampler`):
+    ``graph`` holds it as :func:`.kernels.graph_triples` takes it after the draws (rest, each point's place in rest
+    (n + 1,), the walk's indptr, indices and degrees)."""
+
+    graph: tuple
+
+    def __call__(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        """(count, 3) positions in rest, -1 where a walk ends on a point not among them. The draws are
+        :meth:`.neighbours.Neighbours.sampler`'s: the first points, each walk's scale, then one share a hop."""
+        first = rng.integers(0, len(self.graph[0]), count)
+        scale_pick = rng.integers(0, len(NEARBY_SCALES), 2 * count)
+        steps = rng.random((int(_SCALES[scale_pick].max(initial=0)), 2 * count))
+        return kernels.graph_triples(first, scale_pick, steps, _SCALES, *self.graph)
 
 
 @dataclass(frozen=True, eq=False)
