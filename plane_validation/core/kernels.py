@@ -350,10 +350,27 @@ def graph_components(n: int, edges: np.ndarray, member: np.ndarray) -> tuple[np.
 
 
 @numba.njit(**_JIT)
-def graph_region(edges: np.ndarray, normals: np.ndarray, normal: np.ndarray, min_cos: float, mask: np.ndarray,
-                 support: np.ndarray, above: np.ndarray, rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`grid_region` on a graph of n points joined by ``edges`` (e, 2) (all n points searched): ``mask``,
-    ``support`` and ``above`` (n,); ``normals`` (n, 3), or (0, 3) when none is known."""
+def _member_components(edges: np.ndarray, edge_rows: np.ndarray, member: np.ndarray) -> tuple[np.ndarray, int]:
+    """:func:`graph_components` of a graph whose ``edges`` (e, 2) are sorted by their first point, point i's starting
+    at ``edge_rows[i]`` ((n + 1,)): the same joins in the same order, visiting only the members' edges."""
+    n = member.shape[0]
+    parent = np.arange(n)
+    for i in range(n):
+        if member[i]:
+            for q in range(edge_rows[i], edge_rows[i + 1]):
+                j = edges[q, 1]
+                if member[j]:
+                    _join(parent, i, j)
+    return _numbered(parent, member)
+
+
+@numba.njit(**_JIT)
+def graph_region(edges: np.ndarray, edge_rows: np.ndarray, normals: np.ndarray, normal: np.ndarray, min_cos: float,
+                 mask: np.ndarray, support: np.ndarray, above: np.ndarray, rules: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`grid_region` on a graph of n points joined by ``edges`` (e, 2), sorted, point i's from
+    ``edge_rows[i]`` ((n + 1,)) (all n points searched): ``mask``, ``support`` and ``above`` (n,); ``normals``
+    (n, 3), or (0, 3) when none is known."""
     n = mask.shape[0]
     known = normals.shape[0] > 0
     wide = np.zeros(n, np.bool_)
@@ -365,10 +382,10 @@ def graph_region(edges: np.ndarray, normals: np.ndarray, normal: np.ndarray, min
             coherent = not cos < min_cos
         wide[i] = support[i] and coherent
         full[i] = mask[i] and coherent
-    component, count = graph_components(n, edges, full)
+    component, count = _member_components(edges, edge_rows, full)
     out, sizes = _largest(component, count, full)
     if _fragmented(sizes, rules[0], rules[1]):
-        component, count = graph_components(n, edges, wide)
+        component, count = _member_components(edges, edge_rows, wide)
         return _surface(_largest(component, count, full)[0], full, above, out, rules[2])
     return out, out
 
@@ -4065,7 +4082,8 @@ def _warm_regions() -> None:
     grid_region(index, index, flags, 2, np.zeros((1, 3), np.int64), pts, np.ones(3), 0.5, index, index, flags, flags,
                 flags, np.ones(3))
     graph_components(4, np.zeros((1, 2), np.int64), flags)
-    graph_region(np.zeros((1, 2), np.int64), pts, np.ones(3), 0.5, flags, flags, flags, np.ones(3))
+    graph_region(np.zeros((1, 2), np.int64), np.zeros(5, np.int64), pts, np.ones(3), 0.5, flags, flags, flags,
+                 np.ones(3))
     pair_graph(4, np.zeros((1, 2), np.int64), np.zeros((4, 2)), np.zeros((4, 2), np.int64), np.ones(4), 1)
 
 

@@ -228,27 +228,29 @@ class _GraphRemaining(Remaining):
 
     local: GraphNeighbours
     edges: np.ndarray
+    edge_rows: np.ndarray
     normals: np.ndarray
 
     @classmethod
     def of(cls, local: GraphNeighbours) -> _GraphRemaining:
-        return cls(local, local.c_edges, _NO_NORMALS if local.normals is None else local.normals)
+        return cls(local, local.c_edges, local.edge_rows, _NO_NORMALS if local.normals is None else local.normals)
 
     def keep(self, mask: np.ndarray, normal: np.ndarray, support: np.ndarray, above: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray]:
-        return graph_region(self.edges, self.normals, mask, normal, support, above)
+        return graph_region(self.edges, self.edge_rows, self.normals, mask, normal, support, above)
 
     def without(self, left: np.ndarray) -> Remaining:
         return _GraphRemaining.of(self.local.subgraph(np.flatnonzero(left)))
 
 
-def graph_region(edges: np.ndarray, normals: np.ndarray, mask: np.ndarray, normal: np.ndarray, support: np.ndarray,
-                 above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(kept, taken) (n,) of a graph of n points joined by ``edges`` (e, 2) with local ``normals`` (n, 3) ((0, 3):
-    none known) for a plane of ``normal`` with inliers ``mask`` (n,), support band ``support`` and side ``above``:
-    :func:`.kernels.graph_region` (:func:`graph_region_numpy` is its reference)."""
-    return kernels.graph_region(edges, normals, kernels.c_array(normal, np.float64), NORMAL_MIN_COS, mask, support,
-                                above, REGION_RULES)
+def graph_region(edges: np.ndarray, edge_rows: np.ndarray, normals: np.ndarray, mask: np.ndarray, normal: np.ndarray,
+                 support: np.ndarray, above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(kept, taken) (n,) of a graph of n points joined by ``edges`` (e, 2) (sorted; point i's from ``edge_rows[i]``,
+    (n + 1,)) with local ``normals`` (n, 3) ((0, 3): none known) for a plane of ``normal`` with inliers ``mask`` (n,),
+    support band ``support`` and side ``above``: :func:`.kernels.graph_region` (:func:`graph_region_numpy` is its
+    reference)."""
+    return kernels.graph_region(edges, edge_rows, normals, kernels.c_array(normal, np.float64), NORMAL_MIN_COS, mask,
+                                support, above, REGION_RULES)
 
 
 def graph_region_numpy(local: GraphNeighbours, mask: np.ndarray, normal: np.ndarray, support: np.ndarray,
