@@ -12,7 +12,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from plane_validation.core import kernels
-from plane_validation.core.plane_silhouette import _drawn_members_numpy
 from plane_validation.core.ransac import finite_rows
 from plane_validation.core.search.grid import spread_grid, spread_grid_numpy
 from plane_validation.core.search.neighbours_graph import GraphNeighbours
@@ -403,23 +402,3 @@ def test_seeded_draws_are_numpys_draws_seeded_by_m(m, count):
     got = kernels.seeded_draws(m, count)
     assert got.dtype == np.int64
     np.testing.assert_array_equal(got, expected)
-
-
-@SETTINGS
-@given(st.integers(0, 2**32 - 1), st.integers(1, 3000), st.integers(1, 3000), st.integers(0, 3))
-def test_drawn_members_are_the_sorted_draws_rows_and_their_codes(seed, n, m, spread):
-    # labels in runs (as a search labels an image's rows), NaN rows, negative labels below -1 and far-apart labels
-    rng = np.random.default_rng(seed)
-    pts = rng.normal(size=(n, 3))
-    pts[rng.random(n) < 0.1, rng.integers(0, 3)] = np.nan
-    labels = np.repeat(rng.integers(-3, 1 + 10 ** spread, n), rng.integers(1, 30, n))[:n].astype(np.int32)
-    compact = np.empty(n, np.int32)
-    _, members, _, count = kernels.label_census(pts, labels, compact)
-    if members == 0 or len(count) == 0:
-        return
-    draws = rng.integers(0, members, m)
-    rows, ids, codes = kernels.drawn_members(compact, draws, members)
-    want = _drawn_members_numpy(pts, labels, draws)
-    for got, expected in zip((rows, ids, codes), want):
-        assert got.dtype == np.int64
-        np.testing.assert_array_equal(got, expected)

@@ -425,7 +425,7 @@ def _dunn(diam: np.ndarray, dist: np.ndarray) -> float:
     k = len(diam)
     if k < 2:
         return 0.0
-    sep = min(float(dist[i, i + 1:].min()) for i in range(k - 1))  # the pairs above the diagonal
+    sep = float(dist[np.triu_indices(k, 1)].min())
     spread = float(diam.max())
     if sep == 0.0:
         return 0.0

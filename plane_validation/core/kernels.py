@@ -23,7 +23,7 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_line',
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
-           'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'drawn_members', 'cluster_distance_pass',
+           'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
            'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
            'beyond_rows',
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
@@ -1688,48 +1688,6 @@ def rows_at_ranks(compact: np.ndarray, low: int, cluster: np.ndarray, ranks: np.
             seen[c] = stop
         i = end
     return out
-
-
-@numba.njit(**_JIT)
-def drawn_members(compact: np.ndarray, draws: np.ndarray, members: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The labelled rows at ranks ``draws`` (m,) (unsorted, repeats allowed, each in [0, ``members``)) among the rows
-    whose ``compact`` label (N,) of :func:`label_census` is >= 0, numbered from 0 in row order; counted, not sorted.
-    Returns (rows (m,) int64 in ascending rank order, ids (j,) int64 their distinct labels ascending, codes (m,)
-    int64 each row's position among the ids): ``np.unique(compact[rows], return_inverse=True)`` without the sort."""
-    times = np.zeros(members, np.int32)
-    for d in draws:
-        times[d] += 1
-    m = draws.shape[0]
-    rows = np.empty(m, np.int64)
-    at = rank = 0
-    for i in range(compact.shape[0]):
-        if at == m:
-            break
-        if compact[i] < 0:
-            continue
-        for _ in range(times[rank]):
-            rows[at] = i
-            at += 1
-        rank += 1
-    low = high = np.int64(compact[rows[0]]) if m else np.int64(0)
-    for at in range(m):
-        low, high = min(low, np.int64(compact[rows[at]])), max(high, np.int64(compact[rows[at]]))
-    code = np.full(high - low + 1 if m else 0, -1, np.int64)
-    for at in range(m):
-        code[compact[rows[at]] - low] = 0
-    j = 0
-    for lab in range(code.shape[0]):
-        if code[lab] == 0:
-            code[lab] = j
-            j += 1
-    ids = np.empty(j, np.int64)
-    for lab in range(code.shape[0]):
-        if code[lab] >= 0:
-            ids[code[lab]] = lab + low
-    codes = np.empty(m, np.int64)
-    for at in range(m):
-        codes[at] = code[compact[rows[at]] - low]
-    return rows, ids, codes
 
 
 @numba.njit(**_JIT)
@@ -4143,7 +4101,6 @@ def _warm_indices() -> None:
     for ints in (codes, codes.astype(np.int32)):  # the label types the package passes
         n, m, low, count = label_census(pts, ints, compact)
     rows_at_ranks(compact, low, np.arange(len(count)) - 1, np.zeros(2, np.int64), np.array([0, 1, 2]))
-    drawn_members(compact, np.zeros(2, np.int64), 2)
     sizes = np.array([2, 2], np.int64)
     cluster_distance_pass(pts, np.array([0, 2], np.int64), sizes)
     silhouettes(np.ones((4, 2)), codes[[0, 0, 2, 2]] // 2, sizes, True)
@@ -4446,7 +4403,7 @@ _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components
             voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, widen_xyz,
             valid_rows, frame_pass, plane_patches, fold_line, grid_sample, grid_edges, grid_usable,
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
-            triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks, drawn_members,
+            triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
             cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
             beyond_counts, beyond_rows, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
             voxel_nearest, spread_nearest, spread_among, score_hypotheses, spread_test, fit_members,

@@ -108,27 +108,18 @@ def plane_silhouette_of(pts: np.ndarray, lab: np.ndarray, compact: np.ndarray, c
         return 0.0
     coverage = n_assigned / n_valid
     if sample_size is not None and n_assigned > FRAME_SAMPLE:  # with replacement: much cheaper on large clouds
-        draws = rng.integers(0, n_assigned, FRAME_SAMPLE)
-        if span:  # the drawn rows, their labels numbered, in one pass (no sort)
-            assigned, ids, dense = kernels.drawn_members(compact, draws, n_assigned)
-        else:
-            assigned, ids, dense = _drawn_members_numpy(pts, lab, draws)
+        ranks = np.sort(rng.integers(0, n_assigned, FRAME_SAMPLE))
     else:
-        assigned = kernels.rows_at_ranks(compact, low, np.where(np.arange(low, low + span) >= 0, 0, -1),
-                                         np.arange(n_assigned), np.array([0, n_assigned])) if span else \
-            np.flatnonzero(finite_rows(pts) & (lab >= 0))
-        ids, dense = dense_codes(lab[assigned].astype(np.int64, copy=False))
+        ranks = np.arange(n_assigned)
+    if span:
+        assigned = kernels.rows_at_ranks(compact, low, np.where(np.arange(low, low + span) >= 0, 0, -1), ranks,
+                                         np.array([0, len(ranks)]))
+    else:
+        assigned = np.flatnonzero(finite_rows(pts) & (lab >= 0))[ranks]
+    ids, dense = dense_codes(lab[assigned].astype(np.int64, copy=False))
     origin = pts[assigned[0]]  # precision for far-away coordinates
     frames = _region_frames(pts, origin, assigned, dense, len(ids), rng)
     rows = np.arange(len(assigned)) if sample_size is None or len(assigned) <= sample_size else \
         rng.choice(len(assigned), int(sample_size), replace=False)
     sample = np.take(pts, assigned[rows], axis=0) - origin  # (np.take: much faster than pts[...] on rows of 3)
     return float(kernels.plane_silhouette_sum(sample, dense[rows], *frames) / len(rows) * coverage)
-
-
-def _drawn_members_numpy(pts: np.ndarray, lab: np.ndarray, draws: np.ndarray
-                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`.kernels.drawn_members` in numpy, from the points ``pts`` (N, 3) and labels ``lab`` (N,): the finite
-    rows labelled >= 0 at the sorted ranks ``draws`` (m,), their distinct labels and each one's code."""
-    rows = np.flatnonzero(finite_rows(pts) & (lab >= 0))[np.sort(draws)]
-    return (rows, *dense_codes(lab[rows].astype(np.int64, copy=False)))
