@@ -6,7 +6,8 @@ than most changes; two versions interleaved call by call in one process see the 
 ``--keep`` and imported beside the working tree's; its kernels compile there the first time (about 2.5 min)
 and load from its ``__pycache__`` after. Per frame and call (benchmarks/pvbench/frame_calls.py), the CPU
 medians (``process_time``, ms) of both and the median of the paired ratios new / old; the order alternates
-from run to run.
+from run to run. Process-wide settings (one BLAS thread, glibc's thresholds of core/allocator.py, as the node sets
+them) hold for both: a change to them is measured in alternating processes instead.
 
 Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/ab_frame.py REV [PCD ...] [--repeat 15]
          [--calls organized,plain,infinite]
@@ -25,6 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from pvbench.frame_calls import frame_calls  # noqa: E402
 from pvbench.node_e2e import cloud_message  # noqa: E402
 
+from plane_validation.core.allocator import reuse_freed_memory  # noqa: E402
 from plane_validation.core.blas import limit_blas_threads  # noqa: E402
 from plane_validation.formats.files import load_cloud  # noqa: E402
 
@@ -44,6 +46,7 @@ def main() -> None:
     args = parser.parse_args()
     old = _extract(args.rev, args.keep)
     limit_blas_threads()
+    reuse_freed_memory()  # as the node: a frame's arrays from the heap (core/allocator.py)
     for name in (old, NEW):
         start = time.perf_counter()
         __import__(f'{name}.core.kernels', fromlist=['warm']).warm()

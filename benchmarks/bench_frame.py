@@ -25,6 +25,7 @@ from pvbench import open3d_ref  # noqa: E402
 from pvbench.frame_calls import frame_calls  # noqa: E402
 from pvbench.node_e2e import cloud_message  # noqa: E402
 
+from plane_validation.core.allocator import reuse_freed_memory  # noqa: E402
 from plane_validation.core.blas import limit_blas_threads  # noqa: E402
 from plane_validation.core.kernels import warm  # noqa: E402
 from plane_validation.formats.files import load_cloud  # noqa: E402
@@ -39,6 +40,7 @@ def main() -> None:
     parser.add_argument('--repeat', type=int, default=9)
     args = parser.parse_args()
     limit_blas_threads()
+    reuse_freed_memory()  # as the node: a frame's arrays from the heap (core/allocator.py)
     print(f'kernels: {warm()}; Open3D {open3d_ref.version()}', flush=True)
     print('| frame | organized, PointCloud2 to messages (ms) | plain N x 3, regions (ms) | infinite planes (ms) '
           '| Open3D 5 planes (ms) | organized / Open3D | plain / Open3D |')

@@ -26,6 +26,7 @@ from bench_frame_io import _timed, organized_frames  # noqa: E402
 
 from plane_validation.app import pipeline, tracking  # noqa: E402
 from plane_validation.core import geometry, kernels  # noqa: E402
+from plane_validation.core.allocator import reuse_freed_memory  # noqa: E402
 from plane_validation.core.blas import limit_blas_threads  # noqa: E402
 from plane_validation.ros import messages  # noqa: E402
 
@@ -45,6 +46,7 @@ def main() -> None:
     parser.add_argument('--top', type=int, default=30, help='rows printed per frame')
     args = parser.parse_args()
     limit_blas_threads()
+    reuse_freed_memory()  # as the node: a frame's arrays from the heap (core/allocator.py)
     kernels.warm()
     spent: dict[str, list[float]] = defaultdict(lambda: [0.0])
     calls: dict[str, int] = defaultdict(int)

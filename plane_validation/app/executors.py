@@ -34,11 +34,13 @@ class Lost:
 
 
 def _worker_start() -> None:
-    """A local worker's first step: one BLAS thread (the pool is the parallelism), and Ctrl-C for the parent
-    only, which stops the workers (a terminal sends it to the whole process group)."""
+    """A local worker's first step: one BLAS thread (the pool is the parallelism), freed memory reused, and Ctrl-C for
+    the parent only, which stops the workers (a terminal sends it to the whole process group)."""
+    from ..core.allocator import reuse_freed_memory
     from ..core.blas import limit_blas_threads
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     limit_blas_threads()
+    reuse_freed_memory()
 
 
 def run_local(func: Callable, tasks: list, workers: int) -> Iterator[tuple[int, object]]:

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..core import kernels
+from ..core.allocator import reuse_freed_memory
 from ..core.blas import limit_blas_threads
 from ..core.geometry import plane_rows, voxel_downsample
 from ..core.indices import ValidityIndices, validity_indices
@@ -44,7 +45,7 @@ from .obstacles import ground_plane, obstacle_mask
 from .tracking import PlaneTracker
 
 __all__ = ['PipelineConfig', 'FrameResult', 'FramePipeline', 'header_stamp_ns', 'frame_seed', 'Level',
-           'limit_blas_threads',
+           'limit_blas_threads', 'reuse_freed_memory',
            'OK', 'WARN', 'ERROR']
 
 OK, WARN, ERROR = Level.OK, Level.WARN, Level.ERROR

@@ -832,9 +832,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = build_parser().parse_args(argv)
         _resolve_seed(args)
-        from ..app.pipeline import limit_blas_threads
+        from ..app.pipeline import limit_blas_threads, reuse_freed_memory
         from ..core.workers import TuningWorkerError, stop_workers, workers_ignore_sigint
         limit_blas_threads()  # small matrix products; spinning BLAS threads only slow a busy machine down
+        reuse_freed_memory()  # a frame's arrays from the heap, not fresh pages (core/allocator.py)
     except KeyboardInterrupt:  # while they load (threadpoolctl opens the BLAS libraries)
         return 130
     try:

@@ -65,11 +65,12 @@ def process_bag(task: tuple[BagJob, str]) -> Outcome:
     """In a worker: replay one bag into a hidden folder and rename it to ``OUT/<name>`` once complete.
     ``task``: the job and the name of the driver's marker file in OUT. Never raises for a bad bag: any
     failure is the Outcome's error."""
-    from ..app.pipeline import limit_blas_threads
+    from ..app.pipeline import limit_blas_threads, reuse_freed_memory
     from ..app.plot import plot_bag_report
 
     job, marker = task
     limit_blas_threads()  # on any executor: the parallelism is one bag per worker
+    reuse_freed_memory()
     start = time.perf_counter()
     shared = (job.out / marker).is_file()
     base = job.out if shared else Path(tempfile.mkdtemp(prefix='plane-validation-batch-'))

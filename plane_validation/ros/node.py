@@ -20,7 +20,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
 
 from ..app.config import PARAMETERS
-from ..app.pipeline import FramePipeline, limit_blas_threads
+from ..app.pipeline import FramePipeline, limit_blas_threads, reuse_freed_memory
 from ..core.kernels import Warmup, warm_probe
 from ..core.workers import stop_workers
 from .messages import OUTPUTS, status_name
@@ -137,6 +137,7 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
         return 0
     try:
         limit_blas_threads()
+        reuse_freed_memory()  # a frame's arrays from the heap, not fresh pages (core/allocator.py)
         rclpy.init(args=args)
         # rclpy shuts down on SIGINT and SIGTERM; SIGHUP (a closed terminal or session) would end the process
         # on the spot, leaving the sweep's worker processes behind: it becomes a SIGTERM. Not try_shutdown() here:
