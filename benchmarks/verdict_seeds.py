@@ -5,8 +5,8 @@ Per scene (the families of plane_validation.core.scene_families at TUNING seeds,
 (core/scoring.py), and ``judge`` on the tuned planes. Each scene's detections are cached in --cache (a pickle per
 scene) so that the verdict can be re-judged after a change of core/verdict.py without detecting again
 (--rejudge). Lists the bad scenes called reliable and the good ones called not reliable, with the true planes
-the tuned result did not get right (their size, range, where their points went and why: miss_cause), and per family
-how many true planes of its scenes not good were missed for each cause.
+the tuned result did not get right (their size, range, where their points went and why: core/scoring.py's
+miss_cause), and per family how many true planes of its scenes not good were missed for each cause.
 
 Only tuning seeds: choose the verdict's limits here; the held-out split is for quality.py's report.
 
@@ -28,7 +28,12 @@ import quality  # noqa: E402
 
 import plane_validation as pv  # noqa: E402
 from plane_validation.core import scene_families  # noqa: E402
-from plane_validation.core.scoring import HOOVER_OVERLAP, segmentation_quality  # noqa: E402
+from plane_validation.core.scoring import (  # noqa: E402
+    HOOVER_OVERLAP,
+    MISS_CAUSES,
+    miss_cause,
+    segmentation_quality,
+)
 from plane_validation.core.verdict import judge  # noqa: E402
 
 CACHE = Path('/tmp/verdict_seeds_cache')
@@ -74,40 +79,6 @@ def _row(family: str, cloud: quality.Cloud, cached: dict, rejudge: bool) -> dict
                 bad=share < quality.BAD_CORRECT or not ratio >= quality.BAD_RATIO,
                 missed=missed_planes(cloud, seg.labels, int(quality._params(cloud)['min_inliers'])),
                 noise=tuned.noise_level)
-
-
-#: What took a true plane the tuned result did not get right (miss_cause), in the order they are tested.
-CAUSES = ('small', 'merged', 'split', 'unassigned', 'absorbed', 'partial')
-#: A detected plane that takes at least this share of a true plane's points is one of its pieces (split) when most of
-#: its own points (PIECE_OWN) are that plane's.
-PIECE = 0.1
-PIECE_OWN = 0.5
-
-
-def miss_cause(truth: np.ndarray, labels: np.ndarray, plane: int, min_inliers: int) -> str:
-    """Why the true plane ``plane`` of ``truth`` (N,) is not matched by the detected ``labels`` (N,) (both -1: none),
-    one of CAUSES: 'small' it has fewer points than the search's ``min_inliers`` (no t finds it); 'merged' one detected
-    plane holds HOOVER_OVERLAP of it, but it is less than that share of that plane (other surfaces found with it);
-    'split' two or more detected planes each hold PIECE of it and are mostly (PIECE_OWN) made of it; 'unassigned' half
-    of it or more is in no plane; 'absorbed' the plane that took most of it is mostly another true plane's; else
-    'partial' (its own plane holds less than HOOVER_OVERLAP of it, the rest spread)."""
-    on = truth == plane
-    size = int(np.count_nonzero(on))
-    if size < min_inliers:
-        return 'small'
-    found = labels[on]
-    ids, counts = np.unique(found[found >= 0], return_counts=True)
-    if not len(ids) or np.mean(found < 0) >= 0.5:
-        return 'unassigned'
-    top = int(ids[np.argmax(counts)])
-    top_size = int(np.count_nonzero(labels == top))
-    if counts.max() >= HOOVER_OVERLAP * size and counts.max() < HOOVER_OVERLAP * top_size:
-        return 'merged'
-    sizes = np.array([np.count_nonzero(labels == d) for d in ids])
-    if np.count_nonzero((counts >= PIECE * size) & (counts >= PIECE_OWN * sizes)) >= 2:
-        return 'split'
-    owners = np.bincount(truth[(labels == top) & (truth >= 0)], minlength=plane + 1)
-    return 'absorbed' if owners.argmax() != plane else 'partial'
 
 
 def missed_planes(cloud: quality.Cloud, labels: np.ndarray, min_inliers: int) -> list[tuple[str, str]]:
@@ -181,7 +152,7 @@ def main() -> None:
               f'{np.mean([r["good"] == r["verdict"].reliable for r in g]):.2f}')
         causes = [cause for r in g if not r['good'] for cause, _ in r['missed']]
         print('    true planes missed in the scenes not good, by cause: '
-              + ', '.join(f'{c} {causes.count(c)}' for c in CAUSES))
+              + ', '.join(f'{c} {causes.count(c)}' for c in MISS_CAUSES))
     print(f'all: {len(rows)} scenes; bad called reliable {sum(r["bad"] and r["verdict"].reliable for r in rows)}/'
           f'{sum(r["bad"] for r in rows)}, good called not reliable '
           f'{sum(r["good"] and not r["verdict"].reliable for r in rows)}/{sum(r["good"] for r in rows)}, agreement '

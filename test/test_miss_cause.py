@@ -1,13 +1,8 @@
-"""benchmarks/verdict_seeds.py's causes of a missed true plane (miss_cause) on small hand-made labelings."""
-import sys
-from pathlib import Path
-
+"""Why a true plane was not matched (core/scoring.py's miss_cause) on small hand-made labelings."""
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'benchmarks'))
-import quality  # noqa: E402
-import verdict_seeds  # noqa: E402
+from plane_validation.core.scoring import miss_cause
 
 
 def _labels(*runs: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray]:
@@ -33,12 +28,10 @@ def _labels(*runs: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray]:
 ])
 def test_miss_cause(runs, plane, cause):
     truth, detected = _labels(*runs)
-    assert verdict_seeds.miss_cause(truth, detected, plane, 10) == cause
+    assert miss_cause(truth, detected, plane, 10) == cause
 
 
-def test_missed_planes_lists_only_the_planes_not_matched():
-    truth, detected = _labels((0, 0, 100), (1, 1, 40), (1, 2, 40))  # plane 0 found, plane 1 split in two
-    cloud = quality.Cloud('t', np.ones((len(truth), 3)), truth, None)
-    missed = verdict_seeds.missed_planes(cloud, detected, 10)
-    assert [cause for cause, _ in missed] == ['split']
-    assert missed[0][1].startswith('true 1 (split): 80 pts')
+def test_miss_cause_needs_a_label_per_point():
+    truth, detected = _labels((0, 0, 20))
+    with pytest.raises(ValueError, match='19 detected labels for 20 true labels'):
+        miss_cause(truth, detected[:-1], 0, 10)
