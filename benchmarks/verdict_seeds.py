@@ -5,7 +5,8 @@ Per scene (the families of plane_validation.core.scene_families at TUNING seeds,
 (core/scoring.py), and ``judge`` on the tuned planes. Each scene's detections are cached in --cache (a pickle per
 scene) so that the verdict can be re-judged after a change of core/verdict.py without detecting again
 (--rejudge). Lists the bad scenes called reliable and the good ones called not reliable, with the true planes
-the tuned result did not get right (their size, range and noise).
+the tuned result did not get right (their size, range, where their points went and why: core/scoring.py's
+miss_cause), and per family how many true planes of its scenes not good were missed for each cause.
 
 Only tuning seeds: choose the verdict's limits here; the held-out split is for quality.py's report.
 
@@ -27,7 +28,12 @@ import quality  # noqa: E402
 
 import plane_validation as pv  # noqa: E402
 from plane_validation.core import scene_families  # noqa: E402
-from plane_validation.core.scoring import segmentation_quality  # noqa: E402
+from plane_validation.core.scoring import (  # noqa: E402
+    HOOVER_OVERLAP,
+    MISS_CAUSES,
+    miss_cause,
+    segmentation_quality,
+)
 from plane_validation.core.verdict import judge  # noqa: E402
 
 CACHE = Path('/tmp/verdict_seeds_cache')
@@ -71,12 +77,13 @@ def _row(family: str, cloud: quality.Cloud, cached: dict, rejudge: bool) -> dict
     return dict(family=family, name=cloud.name, q=q, ratio=ratio, t=tuned.tolerance, verdict=verdict,
                 good=share >= quality.GOOD_CORRECT and ratio >= quality.GOOD_RATIO,
                 bad=share < quality.BAD_CORRECT or not ratio >= quality.BAD_RATIO,
-                missed=missed_planes(cloud, seg.labels), noise=tuned.noise_level)
+                missed=missed_planes(cloud, seg.labels, int(quality._params(cloud)['min_inliers'])),
+                noise=tuned.noise_level)
 
 
-def missed_planes(cloud: quality.Cloud, labels: np.ndarray) -> list[str]:
-    """The true planes not matched Hoover-correctly (overlap 0.8 both ways): size, median range (m), what took
-    their points."""
+def missed_planes(cloud: quality.Cloud, labels: np.ndarray, min_inliers: int) -> list[tuple[str, str]]:
+    """The true planes not matched Hoover-correctly (HOOVER_OVERLAP both ways): (their miss_cause, a line with
+    their size, median range (m) and what took their points)."""
     out = []
     truth = cloud.labels
     pts = cloud.points
@@ -88,13 +95,14 @@ def missed_planes(cloud: quality.Cloud, labels: np.ndarray) -> list[str]:
         if k is not None:
             d = ids[k]
             inter = counts[k]
-            if inter >= 0.8 * on.sum() and inter >= 0.8 * np.count_nonzero(labels == d):
+            if inter >= HOOVER_OVERLAP * on.sum() and inter >= HOOVER_OVERLAP * np.count_nonzero(labels == d):
                 continue
         r = float(np.median(np.linalg.norm(pts[on], axis=1)))
         free = float(np.mean(found < 0))
         top = ', '.join(f'p{i}:{c / on.sum():.0%}({np.count_nonzero(labels == i)})'
                         for i, c in sorted(zip(ids, counts), key=lambda x: -x[1])[:3] if i >= 0)
-        out.append(f'true {g}: {on.sum()} pts at {r:.1f} m, {free:.0%} unassigned, {top}')
+        cause = miss_cause(truth, labels, int(g), min_inliers)
+        out.append((cause, f'true {g} ({cause}): {on.sum()} pts at {r:.1f} m, {free:.0%} unassigned, {top}'))
     return out
 
 
@@ -132,7 +140,7 @@ def main() -> None:
                   f'{"reliable" if r["verdict"].reliable else kinds} {flag}',
                   flush=True)
             if flag == 'BAD-RELIABLE' or args.detail:
-                for line in r['missed']:
+                for _, line in r['missed']:
                     print('   ', line)
     print()
     for family in dict.fromkeys(r['family'] for r in rows):
@@ -142,6 +150,9 @@ def main() -> None:
               f'{sum(r["bad"] and r["verdict"].reliable for r in g)}, good called not reliable '
               f'{sum(r["good"] and not r["verdict"].reliable for r in g)}, agreement '
               f'{np.mean([r["good"] == r["verdict"].reliable for r in g]):.2f}')
+        causes = [cause for r in g if not r['good'] for cause, _ in r['missed']]
+        print('    true planes missed in the scenes not good, by cause: '
+              + ', '.join(f'{c} {causes.count(c)}' for c in MISS_CAUSES))
     print(f'all: {len(rows)} scenes; bad called reliable {sum(r["bad"] and r["verdict"].reliable for r in rows)}/'
           f'{sum(r["bad"] for r in rows)}, good called not reliable '
           f'{sum(r["good"] and not r["verdict"].reliable for r in rows)}/{sum(r["good"] for r in rows)}, agreement '

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ['Quality', 'segmentation_quality', 'HOOVER_OVERLAP']
+__all__ = ['Quality', 'segmentation_quality', 'HOOVER_OVERLAP', 'miss_cause', 'MISS_CAUSES']
 
 #: Hoover's overlap threshold T.
 HOOVER_OVERLAP = 0.8
@@ -119,3 +119,42 @@ def segmentation_quality(pred: np.ndarray, truth: np.ndarray, *, points: np.ndar
     return Quality(precision=precision, recall=recall, f1=f1, correct=correct, over=over, under=under, missed=missed,
                    noise=noise, true_planes=int(np.count_nonzero(gsize)), detected=int(np.count_nonzero(dsize)),
                    angle_deg=angle)
+
+
+#: Why a true plane was not matched (miss_cause), in the order they are tested.
+MISS_CAUSES = ('small', 'merged', 'split', 'unassigned', 'absorbed', 'partial')
+#: A detected plane that takes at least this share of a true plane's points is one of its pieces (split) when most of
+#: its own points (MISS_PIECE_OWN) are that plane's.
+MISS_PIECE = 0.1
+MISS_PIECE_OWN = 0.5
+
+
+def miss_cause(truth: np.ndarray, labels: np.ndarray, plane: int, min_inliers: int) -> str:
+    """Why the true plane ``plane`` of ``truth`` (N,) is not matched by the detected ``labels`` (N,) (both -1:
+    none), one of MISS_CAUSES: 'small' it has fewer points than the search's ``min_inliers`` (no t finds it);
+    'merged' one detected plane holds HOOVER_OVERLAP of it, but it is less than that share of that plane (other
+    surfaces found with it); 'split' two or more detected planes each hold MISS_PIECE of it and are mostly
+    (MISS_PIECE_OWN) made of it; 'unassigned' half of it or more is in no plane; 'absorbed' the plane that took most
+    of it is mostly another true plane's; else 'partial' (its own plane holds less than HOOVER_OVERLAP of it, the rest
+    spread)."""
+    truth = np.asarray(truth).reshape(-1)
+    labels = np.asarray(labels).reshape(-1)
+    if len(truth) != len(labels):
+        raise ValueError(f'{len(labels)} detected labels for {len(truth)} true labels')
+    on = truth == plane
+    size = int(np.count_nonzero(on))
+    if size < min_inliers:
+        return 'small'
+    found = labels[on]
+    ids, counts = np.unique(found[found >= 0], return_counts=True)
+    if not len(ids) or np.mean(found < 0) >= 0.5:
+        return 'unassigned'
+    top = int(ids[np.argmax(counts)])
+    top_size = int(np.count_nonzero(labels == top))
+    if counts.max() >= HOOVER_OVERLAP * size and counts.max() < HOOVER_OVERLAP * top_size:
+        return 'merged'
+    sizes = np.array([np.count_nonzero(labels == d) for d in ids])
+    if np.count_nonzero((counts >= MISS_PIECE * size) & (counts >= MISS_PIECE_OWN * sizes)) >= 2:
+        return 'split'
+    owners = np.bincount(truth[(labels == top) & (truth >= 0)], minlength=plane + 1)
+    return 'absorbed' if owners.argmax() != plane else 'partial'
