@@ -30,7 +30,7 @@ import plane_validation as pv  # noqa: E402
 from plane_validation.core import scene_families  # noqa: E402
 from plane_validation.core.scoring import (  # noqa: E402
     HOOVER_OVERLAP,
-    MISS_CAUSES,
+    MissCause,
     miss_cause,
     segmentation_quality,
 )
@@ -102,7 +102,7 @@ def missed_planes(cloud: quality.Cloud, labels: np.ndarray, min_inliers: int) ->
         top = ', '.join(f'p{i}:{c / on.sum():.0%}({np.count_nonzero(labels == i)})'
                         for i, c in sorted(zip(ids, counts), key=lambda x: -x[1])[:3] if i >= 0)
         cause = miss_cause(truth, labels, int(g), min_inliers)
-        out.append((cause, f'true {g} ({cause}): {on.sum()} pts at {r:.1f} m, {free:.0%} unassigned, {top}'))
+        out.append((cause, f'true {g} ({cause.value}): {on.sum()} pts at {r:.1f} m, {free:.0%} unassigned, {top}'))
     return out
 
 
@@ -152,7 +152,7 @@ def main() -> None:
               f'{np.mean([r["good"] == r["verdict"].reliable for r in g]):.2f}')
         causes = [cause for r in g if not r['good'] for cause, _ in r['missed']]
         print('    true planes missed in the scenes not good, by cause: '
-              + ', '.join(f'{c} {causes.count(c)}' for c in MISS_CAUSES))
+              + ', '.join(f'{c.value} {causes.count(c)}' for c in MissCause))
     print(f'all: {len(rows)} scenes; bad called reliable {sum(r["bad"] and r["verdict"].reliable for r in rows)}/'
           f'{sum(r["bad"] for r in rows)}, good called not reliable '
           f'{sum(r["good"] and not r["verdict"].reliable for r in rows)}/{sum(r["good"] for r in rows)}, agreement '

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from plane_validation.core.scoring import miss_cause
+from plane_validation.core.scoring import MissCause, miss_cause
 
 
 def _labels(*runs: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray]:
@@ -28,7 +28,7 @@ def _labels(*runs: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray]:
 ])
 def test_miss_cause(runs, plane, cause):
     truth, detected = _labels(*runs)
-    assert miss_cause(truth, detected, plane, 10) == cause
+    assert miss_cause(truth, detected, plane, 10) is MissCause(cause)
 
 
 def test_miss_cause_needs_a_label_per_point():

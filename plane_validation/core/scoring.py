@@ -10,11 +10,12 @@ each mostly (>= T) inside it, is an *under-segmentation*; true regions in none o
 """
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ['Quality', 'segmentation_quality', 'HOOVER_OVERLAP', 'miss_cause', 'MISS_CAUSES']
+__all__ = ['Quality', 'segmentation_quality', 'HOOVER_OVERLAP', 'miss_cause', 'MissCause']
 
 #: Hoover's overlap threshold T.
 HOOVER_OVERLAP = 0.8
@@ -121,21 +122,30 @@ def segmentation_quality(pred: np.ndarray, truth: np.ndarray, *, points: np.ndar
                    angle_deg=angle)
 
 
-#: Why a true plane was not matched (miss_cause), in the order they are tested.
-MISS_CAUSES = ('small', 'merged', 'split', 'unassigned', 'absorbed', 'partial')
+class MissCause(enum.Enum):
+    """Why a true plane was not matched (:func:`miss_cause`), in the order they are tested."""
+
+    SMALL = 'small'
+    MERGED = 'merged'
+    SPLIT = 'split'
+    UNASSIGNED = 'unassigned'
+    ABSORBED = 'absorbed'
+    PARTIAL = 'partial'
+
+
 #: A detected plane that takes at least this share of a true plane's points is one of its pieces (split) when most of
 #: its own points (MISS_PIECE_OWN) are that plane's.
 MISS_PIECE = 0.1
 MISS_PIECE_OWN = 0.5
 
 
-def miss_cause(truth: np.ndarray, labels: np.ndarray, plane: int, min_inliers: int) -> str:
+def miss_cause(truth: np.ndarray, labels: np.ndarray, plane: int, min_inliers: int) -> MissCause:
     """Why the true plane ``plane`` of ``truth`` (N,) is not matched by the detected ``labels`` (N,) (both -1:
-    none), one of MISS_CAUSES: 'small' it has fewer points than the search's ``min_inliers`` (no t finds it);
-    'merged' one detected plane holds HOOVER_OVERLAP of it, but it is less than that share of that plane (other
-    surfaces found with it); 'split' two or more detected planes each hold MISS_PIECE of it and are mostly
-    (MISS_PIECE_OWN) made of it; 'unassigned' half of it or more is in no plane; 'absorbed' the plane that took most
-    of it is mostly another true plane's; else 'partial' (its own plane holds less than HOOVER_OVERLAP of it, the rest
+    none): SMALL it has fewer points than the search's ``min_inliers`` (no t finds it);
+    MERGED one detected plane holds HOOVER_OVERLAP of it, but it is less than that share of that plane (other
+    surfaces found with it); SPLIT two or more detected planes each hold MISS_PIECE of it and are mostly
+    (MISS_PIECE_OWN) made of it; UNASSIGNED half of it or more is in no plane; ABSORBED the plane that took most
+    of it is mostly another true plane's; else PARTIAL (its own plane holds less than HOOVER_OVERLAP of it, the rest
     spread)."""
     truth = np.asarray(truth).reshape(-1)
     labels = np.asarray(labels).reshape(-1)
@@ -144,17 +154,17 @@ def miss_cause(truth: np.ndarray, labels: np.ndarray, plane: int, min_inliers: i
     on = truth == plane
     size = int(np.count_nonzero(on))
     if size < min_inliers:
-        return 'small'
+        return MissCause.SMALL
     found = labels[on]
     ids, counts = np.unique(found[found >= 0], return_counts=True)
     if not len(ids) or np.mean(found < 0) >= 0.5:
-        return 'unassigned'
+        return MissCause.UNASSIGNED
     top = int(ids[np.argmax(counts)])
     top_size = int(np.count_nonzero(labels == top))
     if counts.max() >= HOOVER_OVERLAP * size and counts.max() < HOOVER_OVERLAP * top_size:
-        return 'merged'
+        return MissCause.MERGED
     sizes = np.array([np.count_nonzero(labels == d) for d in ids])
     if np.count_nonzero((counts >= MISS_PIECE * size) & (counts >= MISS_PIECE_OWN * sizes)) >= 2:
-        return 'split'
+        return MissCause.SPLIT
     owners = np.bincount(truth[(labels == top) & (truth >= 0)], minlength=plane + 1)
-    return 'absorbed' if owners.argmax() != plane else 'partial'
+    return MissCause.ABSORBED if owners.argmax() != plane else MissCause.PARTIAL
