@@ -311,7 +311,8 @@ def _warm_installed_kernels(site: Path) -> None:
     stat = source.stat()
     os.utime(installed, ns=(stat.st_atime_ns, stat.st_mtime_ns))
     (installed.parent / '__pycache__').mkdir(exist_ok=True)
-    for path in (source.parent / '__pycache__').glob('kernels.*.nb*'):
+    # where this process's kernels are cached: beside the source, or under NUMBA_CACHE_DIR when that is set
+    for path in Path(kernels.finite_mask._cache._cache_path).glob('kernels.*.nb*'):
         shutil.copy(path, installed.parent / '__pycache__' / path.name)
 
 
@@ -322,7 +323,8 @@ def test_installed_node_starts_and_exits_cleanly_on_sigint(prefix, tmp_path):
     env.update(ROS_DOMAIN_ID='187', ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1',
                PYTHONPATH=os.pathsep.join(p for p in [str(site), env.get('PYTHONPATH', '')] if p),
                AMENT_PREFIX_PATH=os.pathsep.join(p for p in [str(prefix), env.get('AMENT_PREFIX_PATH', '')] if p))
-    for var in ('ROS_LOCALHOST_ONLY', 'ROS_STATIC_PEERS'):
+    # NUMBA_CACHE_DIR too: the installed copy reads the cache put beside it (a cache there is keyed by source path)
+    for var in ('ROS_LOCALHOST_ONLY', 'ROS_STATIC_PEERS', 'NUMBA_CACHE_DIR'):
         env.pop(var, None)
     # the installed copy of the package is the one imported, not the repository's editable install
     # (cwd outside the repository, as `ros2 run` would be)
