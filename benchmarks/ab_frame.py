@@ -15,6 +15,7 @@ Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/ab_frame.py REV [PCD ...
 from __future__ import annotations
 
 import argparse
+import io
 import statistics
 import subprocess
 import sys
@@ -72,7 +73,7 @@ def _extract(rev: str, keep: Path) -> str:
         partial.mkdir(parents=True, exist_ok=True)
         archive = subprocess.run(['git', '-C', str(ROOT), 'archive', sha, 'plane_validation'], check=True,
                                  capture_output=True).stdout
-        with tarfile.open(fileobj=__import__('io').BytesIO(archive)) as tar:
+        with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
             tar.extractall(partial, filter='data')
         (partial / 'plane_validation').rename(partial / name)
         partial.rename(target)

@@ -2957,7 +2957,7 @@ def grid_triples(first: np.ndarray, scale_pick: np.ndarray, row_share: np.ndarra
 def graph_triples(first: np.ndarray, scale_pick: np.ndarray, steps: np.ndarray, scales: np.ndarray, rest: np.ndarray,
                   position: np.ndarray, indptr: np.ndarray, indices: np.ndarray, degrees: np.ndarray) -> np.ndarray:
     """(c, 3) triples of nearby points of a graph (adjacency ``indptr`` (n + 1,), ``indices``, with ``degrees`` (n,)
-    >= 1: a loop at a point without neighbours) as positions among its points ``rest`` (r,) (``position`` (n + 1,):
+    >= 1: a loop at a point without neighbours) as positions among its points ``rest`` (r,) (``position`` (n,):
     each point's, -1 for none): each of ``first`` (c,) (positions) with the ends of two random walks from it, the 2c
     walks ``scales[scale_pick]`` (2c,) hops long, hop h of walk q to the neighbour at share ``steps[h, q]`` in [0, 1)
     of the point's list (the first c walks give the second point, the next c the third), as

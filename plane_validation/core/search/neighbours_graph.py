@@ -19,6 +19,7 @@ from .neighbours import (
     row_starts,
     settle_numpy,
 )
+from .neighbours_grid import rest_positions
 from .types import Sampler
 
 __all__ = ['GraphNeighbours', 'GraphSampler', 'graph_region', 'graph_region_numpy', 'COMPACT_SHARE']
@@ -59,10 +60,9 @@ class GraphNeighbours(Neighbours):
         compiled call (:func:`.kernels.graph_triples`)."""
         if self.adjacency is None:  # no edges: every walk stays where it starts
             return super().sampler(rest_idx)
-        position = np.full(self.n + 1, -1, dtype=np.int64)  # [-1] stays -1
-        position[rest_idx] = np.arange(len(rest_idx))
         indptr, indices, degrees = (kernels.c_array(a, np.int64) for a in self._walk)
-        return GraphSampler((kernels.c_array(rest_idx, np.int64), position, indptr, indices, degrees))
+        return GraphSampler((kernels.c_array(rest_idx, np.int64), rest_positions(self.n, rest_idx), indptr, indices,
+                             degrees))
 
     @functools.cached_property
     def _walk(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -209,7 +209,7 @@ class GraphNeighbours(Neighbours):
 class GraphSampler:
     """Triples of nearby points among the points ``rest`` (ascending) of a graph (a :data:`.types.Sampler`):
     ``graph`` holds it as :func:`.kernels.graph_triples` takes it after the draws (rest, each point's place in rest
-    (n + 1,), the walk's indptr, indices and degrees)."""
+    (n,), the walk's indptr, indices and degrees)."""
 
     graph: tuple
 
