@@ -122,6 +122,17 @@ def _collect_from_now() -> None:
         gc.enable()
 
 
+def _shutdown() -> None:
+    """``rclpy.try_shutdown()``, quiet when a signal's shutdown wins the race: rclpy shuts its contexts down from
+    its own signal thread, which can come between try_shutdown's look at the context and its shutdown (RCLError
+    "rcl_shutdown already called")."""
+    try:
+        rclpy.try_shutdown()
+    except RuntimeError:
+        if rclpy.ok():
+            raise
+
+
 def main(args: list[str] | None = None, node_class: type | None = None, prog: str = 'plane_validation_node') -> int:
     """Start ``node_class`` (default :class:`PlaneValidationNode`) and serve it until a signal or shutdown."""
     node_class = node_class or PlaneValidationNode
@@ -145,7 +156,7 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
         # try_shutdown() takes too: the node would wait for itself
         signal.signal(signal.SIGHUP, lambda signum, frame: os.kill(os.getpid(), signal.SIGTERM))
     except KeyboardInterrupt:  # Ctrl-C while starting: as quiet as while spinning
-        rclpy.try_shutdown()
+        _shutdown()
         return 0
     except Exception as exc:  # malformed --ros-args, a params file that is missing or not YAML
         print(f'{prog}: cannot start: {exc}', file=sys.stderr)
@@ -154,13 +165,13 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
         node = node_class(warmup=warmup)
         _collect_from_now()
     except KeyboardInterrupt:  # Ctrl-C while starting: as quiet as while spinning
-        rclpy.try_shutdown()
+        _shutdown()
         return 0
     except Exception as exc:  # invalid parameters (range, type, consistency): say which and exit
         if not rclpy.ok():  # a signal shut rclpy down while kernels missing from the cache compiled (numba's compiler
             return 0        # turns the KeyboardInterrupt into another error): as quiet as Ctrl-C
         print(f'{prog}: cannot start: {exc}', file=sys.stderr)
-        rclpy.try_shutdown()
+        _shutdown()
         return 2
     try:
         if node.context.ok():  # else a SIGTERM came while the kernels loaded (an executor on it would not start)
@@ -173,7 +184,7 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
     finally:
         signal.signal(signal.SIGHUP, signal.SIG_IGN)  # ending already: a late one must not end the clean-up
         node.destroy_node()
-        rclpy.try_shutdown()
+        _shutdown()
         stop_workers()  # whichever signal ended the node: its sweep's worker processes end with it
     return 0
 

@@ -16,6 +16,7 @@ import math
 import os
 import threading
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
@@ -55,7 +56,11 @@ def warm_kernels(logger, started: Warmup | None = None) -> Warmup:
     ``started``: what ``kernels.warm_probe()`` did before (when it compiled, the cache is cold: the others are
     compiled on every core). A node calls this before it answers its first frame."""
     cold = started is not None and started.compiled
-    ready = warm(jobs=os.cpu_count() or 1, cold=cold)
+    # in a thread of its own: Ctrl-C raises KeyboardInterrupt in the main thread, which must not be inside numba's
+    # loading (a KeyboardInterrupt in llvmlite's ctypes callback crashed the process with SIGSEGV); here it ends
+    # the wait and the start, and the loading finishes before the process exits
+    with ThreadPoolExecutor(1, thread_name_prefix='plane_validation_warmup') as pool:
+        ready = pool.submit(warm, jobs=os.cpu_count() or 1, cold=cold).result()
     seconds = ready.seconds + (started.seconds if started is not None else 0.0)
     logger.info(f'compiled kernels ready in {seconds:.2f} s ' + (
         '(compiled now and cached: later starts load them)' if ready.compiled else '(loaded from the cache)'))
