@@ -32,3 +32,24 @@ def test_a_frames_arrays_are_allocated_again_without_page_faults():
     for _ in range(10):
         _frame()
     assert resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before < 500
+
+
+def _faults_of_frames() -> int:
+    """Minor page faults of 10 frames' arrays after 3 (in the process that calls it)."""
+    for _ in range(3):
+        _frame()
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    for _ in range(10):
+        _frame()
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+
+
+@pytest.mark.skipif(platform.libc_ver()[0] != 'glibc', reason="glibc's mallopt thresholds")
+def test_a_parallel_sweeps_worker_processes_reuse_freed_memory_too():
+    from plane_validation.core.workers import parallel_calls, stop_workers
+    try:
+        with parallel_calls(2) as run:  # this process takes the first call, a worker the last
+            faults = dict(run(_faults_of_frames, [(), (), (), ()]))
+    finally:
+        stop_workers()
+    assert max(faults.values()) < 500, faults

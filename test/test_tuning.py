@@ -599,7 +599,7 @@ def test_a_worker_handed_a_call_without_the_shared_arguments_it_lacks_is_answere
         assert sorted(s for _, (_, s) in run(_pid_and_sum, [(0,), (0,)])) == [45.0, 45.0]
     # the sweeps' pool, as _workers gets it (other settings would start a new one)
     executor = get_reusable_executor(max_workers=1, timeout=workers.WORKER_IDLE_S,
-                                     initializer=workers._worker_ignores_sigint)
+                                     initializer=workers._worker_start)
     carrier = workers._Carrier((np.arange(4.0),), workers=0)  # as if another call had taken the worker's first one
     future = carrier.submit(executor, _pid_and_sum, (1,))
     pid, total = carrier.result(future, _pid_and_sum, (1,))
@@ -621,7 +621,7 @@ def test_after_a_worker_lacked_the_shared_arguments_the_next_calls_carry_them_at
 
     from plane_validation.core import workers
     executor = get_reusable_executor(max_workers=1, timeout=workers.WORKER_IDLE_S,
-                                     initializer=workers._worker_ignores_sigint)
+                                     initializer=workers._worker_start)
     executor.submit(os.getpid).result()  # started
     share = workers._Shared(executor, _pid_after_sum, [(1.0,)] + [(0.05,)] * 7, 1,
                            workers._Carrier((np.arange(4.0),), workers=0))

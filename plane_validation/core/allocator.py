@@ -6,7 +6,7 @@ beyond its trim threshold. A 640 x 480 frame's arrays (a few MB each: rows, labe
 come as new pages every frame, each faulted in and zeroed by the kernel: 4,000-4,900 minor page faults (16-19 MB)
 a Kinect frame, a quarter of its CPU time or more. With both thresholds set, freed blocks up to MMAP_THRESHOLD
 stay in the heap for the next frame's arrays (benchmarks/README.md, issue 37). Process-wide, like the BLAS limit:
-the node, the command line and the batch workers set it at start.
+the node, the command line, the batch workers and the parallel sweeps' worker processes set it at start.
 """
 from __future__ import annotations
 

@@ -18,6 +18,8 @@ import uuid
 from collections.abc import Callable, Iterator
 from concurrent.futures import BrokenExecutor, Future
 
+from .allocator import reuse_freed_memory
+
 __all__ = ['TuningWorkerError', 'parallel_calls', 'in_order', 'stop_workers', 'workers_ignore_sigint', 'WORKER_IDLE_S']
 
 
@@ -61,7 +63,7 @@ def parallel_calls(jobs: int, shared: tuple = ()
         with _PARALLEL:
             with _sigint_ignored():
                 executor = get_reusable_executor(max_workers=jobs - 1, timeout=WORKER_IDLE_S,
-                                                  initializer=_worker_ignores_sigint)
+                                                  initializer=_worker_start)
             global _EXECUTOR
             _EXECUTOR = executor
             try:
@@ -160,10 +162,12 @@ class _Carrier:
             return func(*self.shared, *args)
 
 
-def _worker_ignores_sigint() -> None:
+def _worker_start() -> None:
     """A worker process's first step: a Ctrl-C reaches the sweep's process, which stops the workers (a
-    worker interrupted while it sends a result leaves loky's pipe unreadable: the process then hangs)."""
+    worker interrupted while it sends a result leaves loky's pipe unreadable: the process then hangs); a candidate's
+    arrays come from the heap, as in the process that started the sweep (:mod:`.allocator`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    reuse_freed_memory()
 
 
 class _Shared:
