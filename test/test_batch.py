@@ -227,7 +227,7 @@ def test_ray_without_ray_installed_says_how_to_install_it(tmp_path):
                 if name.split('.')[0] == 'ray':
                     raise ImportError('blocked: ' + name)
         sys.meta_path.insert(0, Block())
-        from plane_validation.cli.commands import main
+        from plane_validation.cli.run import main
         sys.exit(main(sys.argv[1:]))
     ''')
     proc = subprocess.run([sys.executable, '-c', script, 'batch', str(BAGS / 'room'), '--out', str(tmp_path / 'o'),

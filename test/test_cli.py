@@ -738,7 +738,7 @@ def test_a_signal_exception_dropped_by_a_finalizer_is_delivered_again():
     import signal
     import time
 
-    from plane_validation.cli.commands import Terminated, _terminate_cleanly
+    from plane_validation.cli.run import Terminated, _terminate_cleanly
 
     class Finalized:
         def __del__(self):

@@ -53,7 +53,7 @@ def test_replay_and_demo_without_ros_say_so_in_one_line():
         import sys
         import no_ros
         no_ros.install()
-        from plane_validation.cli.commands import main
+        from plane_validation.cli.run import main
         sys.exit(main(sys.argv[1:]))
     ''')
     for argv in (['replay', str(ROOT / 'bags' / 'cube')], ['demo', '--out', 'unused'],

@@ -102,7 +102,7 @@ def test_cli_options(tmp_path):
 def test_every_command_searches_with_the_table_s_search_params(tmp_path, monkeypatch):
     """detect, sweep and planes pass the same SearchParams (PipelineConfig.search) on: an option such as
     --ransac-points reaches the search from each command (planes used to drop it)."""
-    from plane_validation.cli.commands import main
+    from plane_validation.cli.run import main
     from plane_validation.core import ransac
     cloud = tmp_path / 'room.npy'
     np.save(cloud, scenes.room(3000, 0.005, seed=2).points)
