@@ -376,7 +376,7 @@ def test_staged_files_land_in_a_folder_on_another_file_system(tmp_path):
     (EXDEV) and a whole paper run was lost at its end."""
     import tempfile
 
-    from plane_validation.formats.files import staged_files
+    from plane_validation.formats.outputs import staged_files
     shm = Path('/dev/shm')
     if not shm.is_dir() or shm.stat().st_dev == tmp_path.stat().st_dev:
         pytest.skip('no second file system at /dev/shm')

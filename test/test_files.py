@@ -517,7 +517,7 @@ def test_an_empty_text_file_is_an_empty_cloud_without_warnings(tmp_path):
 
 
 def test_an_output_that_cannot_be_made_is_named_without_its_temporary_file(tmp_path):
-    from plane_validation.formats.files import atomic_output
+    from plane_validation.formats.outputs import atomic_output
     target = tmp_path / 'gone' / 'x.ply'  # its folder vanished after the checks
     with pytest.raises(OSError, match=r'^cannot write .*/gone/x\.ply: No such file or directory$'):
         with atomic_output(target):
@@ -655,7 +655,7 @@ def test_a_binary_pcd_with_less_than_a_point_of_padding_is_read():
 
 
 def test_a_set_of_outputs_refuses_one_file_twice_and_a_directory(tmp_path):
-    from plane_validation.formats.files import atomic_outputs
+    from plane_validation.formats.outputs import atomic_outputs
     with pytest.raises(ValueError, match='the same file is given twice'):
         with atomic_outputs(tmp_path / 'a.csv', tmp_path / '.' / 'a.csv'):
             pass
@@ -776,7 +776,7 @@ def test_staged_files_clear_the_stages_of_killed_runs_only(tmp_path, capfd):
     import subprocess
     import sys
 
-    from plane_validation.formats.files import staged_files
+    from plane_validation.formats.outputs import staged_files
     ended = subprocess.run([sys.executable, '-c', 'import os; print(os.getpid())'], capture_output=True, text=True)
     dead = int(ended.stdout)  # a process that has ended (and been reaped): its stage is stale
     out = tmp_path / 'out'

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..formats.bags import BAG_SUFFIXES
-from ..formats.files import atomic_output
+from ..formats.outputs import atomic_output
 from .config import PipelineConfig
 from .diagnostics import Level
 from .report import jsonable

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..core import scenes
 from ..core.tuning import PlaneCountResult, TuningResult, select_plane_count, tune_tolerance
-from ..formats.files import staged_files
+from ..formats.outputs import staged_files
 from .plot import plot_plane_count, plot_sweep
 
 __all__ = ['Case', 'CASES', 'CaseResult', 'run_paper', 'summary_markdown', 'linear_grid']

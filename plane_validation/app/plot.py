@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..formats.files import atomic_output
+from ..formats.outputs import atomic_output
 
 #: Formats matplotlib lists but does not write by itself: pgf is LaTeX code that needs a TeX installation.
 NOT_WRITTEN = frozenset({'pgf'})

@@ -29,7 +29,8 @@ import numpy as np
 
 from ..app.config import min_inliers_value
 from ..app.report import format_planes
-from ..formats.files import atomic_outputs, check_output, check_writable, load_scan
+from ..formats.files import check_output, load_scan
+from ..formats.outputs import atomic_outputs, check_writable
 
 __all__ = ['format_planes', 'parse_tolerances', 'progress_bar']
 
