@@ -19,8 +19,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import quality  # noqa: E402
 
@@ -35,8 +33,7 @@ def organized_clouds(split: str, gt: Path, seeds: int) -> list[quality.Cloud]:
     """The split's organized clouds: its first ``seeds`` indoor depth frames, and in tuning the labelled ones."""
     out = [c for c in quality.labelled_clouds(gt) if c.shape is not None] if split == 'tuning' else []
     for seed in scene_families.SPLITS[split][:seeds]:
-        s = scene_families.FAMILIES[FAMILY](seed)
-        out.append(quality.Cloud(s.name, s.points, s.labels.astype(np.int64), s.shape))
+        out.append(quality.Cloud.of_scene(scene_families.FAMILIES[FAMILY](seed)))
     return out
 
 

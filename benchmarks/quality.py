@@ -52,12 +52,18 @@ GOOD_RATIO = 0.97
 
 @dataclass(frozen=True, eq=False)
 class Cloud:
-    """points (N, 3) m with NaN rows; labels (N,) true plane or -1; shape (H, W) or None."""
+    """points (N, 3) m with NaN rows; labels (N,) true plane or -1; shape (H, W) or None; min_plane_points: the
+    fewest points its generator labels a plane with (None: not known)."""
 
     name: str
     points: np.ndarray
     labels: np.ndarray
     shape: tuple[int, int] | None
+    min_plane_points: int | None = None
+
+    @classmethod
+    def of_scene(cls, s: scenes.Scene) -> Cloud:
+        return cls(s.name, s.points, s.labels.astype(np.int64), s.shape, s.min_plane_points)
 
     @property
     def true_planes(self) -> int:
@@ -98,7 +104,7 @@ def load_clouds(only: list[str] | None = None, gt: Path = GT) -> list[Cloud]:
     clouds = labelled_clouds(gt)
     for view in scenes.SENSOR_VIEWS:
         s = scenes.depth_camera(view, seed=1)
-        clouds.append(Cloud(s.name, s.points, s.labels.astype(np.int64), s.shape))
+        clouds.append(Cloud.of_scene(s))
     for s in (scenes.lidar(seed=1), scenes.lidar(**scenes.VLP16_ROOM, seed=1)):
         clouds.append(Cloud(s.name, s.points, s.labels.astype(np.int64), None))
     for s in (scenes.lidar(seed=1, organized=True), scenes.lidar(**scenes.VLP16_ROOM, seed=1, organized=True)):
@@ -114,7 +120,10 @@ def _grid(cloud: Cloud, count: int) -> np.ndarray:
 
 def _params(cloud: Cloud) -> dict:
     n = int(np.isfinite(cloud.points).all(axis=1).sum())
-    return dict(max_planes=cloud.true_planes + 8, min_inliers=max(5, int((0.0008 if n > 20000 else 0.01) * n)))
+    least = max(5, int((0.0008 if n > 20000 else 0.01) * n))
+    if cloud.min_plane_points is not None:  # a surface labelled as a true plane must be one the search may return
+        least = min(least, cloud.min_plane_points)
+    return dict(max_planes=cloud.true_planes + 8, min_inliers=least)
 
 
 def _best(results: list[tuple[float, Quality, float]]) -> tuple[float, Quality, float]:
@@ -287,8 +296,7 @@ def split_clouds(split: str, quick: bool = False, gt: Path = GT) -> list[tuple[s
         raise ValueError(f'unknown split {split!r}; choose one of {", ".join(SPLIT_NAMES)}')
     out = [(LABELLED, c) for c in labelled_clouds(gt)] if split == 'tuning' else []
     for family, seed in scene_families.split(split, quick=quick):
-        s = scene_families.FAMILIES[family](seed)
-        out.append((family, Cloud(s.name, s.points, s.labels.astype(np.int64), s.shape)))
+        out.append((family, Cloud.of_scene(scene_families.FAMILIES[family](seed))))
     return out
 
 

@@ -35,8 +35,7 @@ def clouds(extra: int, gt: Path) -> list[tuple[str, quality.Cloud]]:
     used = scene_families.SCENES_PER_SPLIT
     for family, make in scene_families.FAMILIES.items():
         for seed in scene_families.TUNING_SEEDS[used[family]:used[family] + extra]:
-            s = make(seed)
-            out.append((family, quality.Cloud(s.name, s.points, s.labels.astype(np.int64), s.shape)))
+            out.append((family, quality.Cloud.of_scene(make(seed))))
     return out
 
 

@@ -55,8 +55,7 @@ def clouds(args) -> list[tuple[str, quality.Cloud]]:
     out = [(quality.LABELLED, c) for c in quality.labelled_clouds(args.gt)] if args.gt else []
     for family, text in (('indoor_depth', args.indoor), ('lidar_scan', args.lidar), ('aerial_roof', args.roofs)):
         for seed in _seeds(text) if text else ():
-            s = scene_families.FAMILIES[family](seed)
-            out.append((family, quality.Cloud(s.name, s.points, s.labels.astype(np.int64), s.shape)))
+            out.append((family, quality.Cloud.of_scene(scene_families.FAMILIES[family](seed))))
     return out
 
 

@@ -73,6 +73,19 @@ def test_roof_labels_lie_on_their_planes_and_shallow_gables_occur():
     assert min(pitches) < 6 and max(pitches) > 20  # shallow and steep gables both in the family
 
 
+@pytest.mark.parametrize('family', list(sf.FAMILIES))
+def test_min_plane_points_is_the_labelling_floor(family):
+    """Each scene says how few points its generator labels a plane with (benchmarks ask min_inliers no larger):
+    every labelled plane holds that many."""
+    for seed in range(6):
+        s = _make(family, seed)
+        assert isinstance(s.min_plane_points, int) and s.min_plane_points >= 10
+        counts = np.bincount(s.labels[s.labels >= 0], minlength=len(s.planes))
+        assert len(counts) == len(s.planes) and counts.min() >= s.min_plane_points
+    if family == 'lidar_scan':
+        assert _make(family, 1, organized=True).min_plane_points == _make(family, 1).min_plane_points
+
+
 def test_roof_kinds():
     names = {_make('aerial_roof', seed).name.split('_')[2] for seed in range(30)}
     assert names == set(sf.ROOF_KINDS)

@@ -272,9 +272,10 @@ def indoor_depth(seed: int, *, width: int = 640, height: int = 480, hfov_deg: fl
         z = np.round(z / step) * step
     points = rays_cam * np.where(lost, np.nan, z)[:, None]
     planes = np.array([_plane(s[0], rot, eye) for s in surfaces])
-    labels, planes = _drop_small(labels.astype(np.int32), planes, max(20, int(0.001 * width * height)))
+    floor = max(20, int(0.001 * width * height))
+    labels, planes = _drop_small(labels.astype(np.int32), planes, floor)
     return Scene(name=f'indoor_depth_{seed}', points=points, labels=labels, planes=planes, noise=a + b,
-                 shape=(height, width))
+                 shape=(height, width), min_plane_points=floor)
 
 
 # -- spinning lidar scans ----------------------------------------------------------------------
@@ -364,7 +365,8 @@ def lidar_scan(seed: int, *, azimuths: int = 1024, organized: bool = False) -> S
     points = rays[hit] * r[:, None]
     labels = surface[hit]
     planes = np.array([_plane(s[0], np.eye(3), eye) for s in surfaces])
-    keep_labels, planes = _drop_small(labels.astype(np.int32), planes, max(20, int(0.002 * hit.sum())))
+    floor = max(20, int(0.002 * hit.sum()))
+    keep_labels, planes = _drop_small(labels.astype(np.int32), planes, floor)
     beam = np.repeat(np.arange(rings, dtype=np.int32), azimuths)
     if organized:
         image = np.full((len(rays), 3), np.nan)
@@ -372,9 +374,9 @@ def lidar_scan(seed: int, *, azimuths: int = 1024, organized: bool = False) -> S
         full = np.full(len(rays), -1, dtype=np.int32)
         full[hit] = keep_labels
         return Scene(name=f'lidar_scan_{kind}_{seed}', points=image, labels=full, planes=planes, noise=sigma,
-                     shape=(rings, azimuths), rings=beam)
+                     shape=(rings, azimuths), rings=beam, min_plane_points=floor)
     return Scene(name=f'lidar_scan_{kind}_{seed}', points=points, labels=keep_labels, planes=planes, noise=sigma,
-                 rings=beam[hit])
+                 rings=beam[hit], min_plane_points=floor)
 
 
 # -- aerial roofs ------------------------------------------------------------------------------
@@ -447,9 +449,10 @@ def aerial_roof(seed: int, *, n_points: int = 2048) -> Scene:
     pts -= centre
     planes = np.column_stack([planes[:, :3] @ rot.T, planes[:, 3]])
     planes[:, 3] += planes[:, :3] @ centre
-    labels, planes = _drop_small(labels, planes, max(10, int(0.01 * n_points)))
+    floor = max(10, int(0.01 * n_points))
+    labels, planes = _drop_small(labels, planes, floor)
     return Scene(name=f'aerial_roof_{kind}_{np.degrees(pitch):.0f}deg_{seed}', points=pts, labels=labels,
-                 planes=planes, noise=sigma)
+                 planes=planes, noise=sigma, min_plane_points=floor)
 
 
 # -- registry and splits -----------------------------------------------------------------------

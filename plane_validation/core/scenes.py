@@ -19,7 +19,8 @@ __all__ = ['Scene', 'corner', 'cube', 'room', 'stairs', 'table', 'sphere', 'boxe
 class Scene:
     """points: (N, 3) float64; labels: (N,) int32 true plane index or -1; planes: (k, 4) a, b, c, d;
     shape: (H, W) when the rows are an image (a depth camera's organized cloud, NaN rows for holes);
-    rings: (N,) each point's beam, for a lidar scan (as a driver's ``ring`` field)."""
+    rings: (N,) each point's beam, for a lidar scan (as a driver's ``ring`` field); min_plane_points: the fewest
+    points a labelled plane holds (a generator labels smaller surfaces -1; None: every surface is labelled)."""
 
     name: str
     points: np.ndarray
@@ -28,6 +29,7 @@ class Scene:
     noise: float
     shape: tuple[int, int] | None = None
     rings: np.ndarray | None = None
+    min_plane_points: int | None = None
 
     @property
     def n_planes(self) -> int:
