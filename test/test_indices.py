@@ -13,6 +13,7 @@ from sklearn import metrics
 
 from plane_validation import scenes
 from plane_validation.core import indices as pi
+from plane_validation.core.clusters import as_clusters
 from plane_validation.core.ransac import detect_planes
 
 TOL = 1e-9
@@ -145,7 +146,7 @@ def test_silhouettes_of_the_pair_pass_agree_with_cdist(case):
         scene = scenes.depth_camera('room', seed=4)
         keep = np.flatnonzero(np.isfinite(scene.points).all(axis=1))[::97][:2000]
         points, labels = scene.points[keep], scene.labels[keep]
-    cl = pi._clusters(points, labels)
+    cl = as_clusters(points, labels)
     s, s_planes = pi._silhouettes(cl)
     distances = cdist(cl.points, cl.points)
     sums = np.stack([distances[:, cl.codes == c].sum(axis=1) for c in range(cl.k)], axis=1)
@@ -533,12 +534,12 @@ def test_sampled_silhouettes_survive_a_float_max_row_and_wide_clouds():
 
 
 def test_cluster_distances_are_the_same_from_all_pairs_and_from_kd_trees(monkeypatch):
-    from plane_validation.core import indices
+    from plane_validation.core import cluster_extent, indices
     rng = np.random.default_rng(5)
     pts = np.vstack([rng.normal(c, 0.3, (250, 3)) for c in rng.uniform(-3, 3, (12, 3))])
     labels = np.repeat(np.arange(-1, 11), 250)
     brute = indices.cluster_distances(pts, labels)  # 3000 points: every point queried
-    monkeypatch.setattr(indices, 'BRUTE_DISTANCES', 0)
+    monkeypatch.setattr(cluster_extent, 'BRUTE_DISTANCES', 0)
     trees = indices.cluster_distances(pts, labels)
     assert brute.shape == (12, 12) and np.all(np.diag(brute) == 0) and np.all(brute[~np.eye(12, dtype=bool)] > 0)
     assert np.array_equal(brute, trees)

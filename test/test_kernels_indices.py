@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.distance import cdist
 
-from plane_validation.core import indices, kernels
+from plane_validation.core import cluster_extent, clusters, indices, kernels
 from plane_validation.core.plane_silhouette import clipped_plane_distances, plane_silhouette, region_frames
 
 SETTINGS = settings(max_examples=60, deadline=None)
@@ -110,10 +110,10 @@ def test_the_pair_pass_gives_the_diameters_and_distances_of_hulls_and_kd_trees()
     rng = np.random.default_rng(3)
     pts = np.vstack([rng.normal(c, 0.3, (200, 3)) for c in rng.uniform(-3, 3, (5, 3))])
     labels = np.repeat(np.arange(-1, 4), 200)
-    cl = indices._clusters(pts, labels)
+    cl = clusters.as_clusters(pts, labels)
     _, diameters, gaps = indices._pair_pass(cl)
-    np.testing.assert_array_equal(diameters, indices._diameters(cl))
-    np.testing.assert_array_equal(gaps, indices._distances(cl))
+    np.testing.assert_array_equal(diameters, cluster_extent.diameters_of(cl))
+    np.testing.assert_array_equal(gaps, cluster_extent.distances_of(cl))
 
 
 @SETTINGS
@@ -174,12 +174,12 @@ def test_a_nan_distance_counts_zero_as_in_numpy():
 @given(st.integers(0, 2**32 - 1), st.integers(2, 400), st.sampled_from([1, 4, 40]))
 def test_the_sample_picked_in_a_stream_is_the_sample_of_the_sorted_clusters(seed, n, spread):
     pts, labels = _cloud(seed, n, spread)
-    census = indices._census(pts, labels)
+    census = clusters.take_census(pts, labels)
     if len(census.ids) < 2 or census.n < 3:
         return
     total = max(2, census.n // 2)
-    streamed = indices._stratified_census(census, total, np.random.default_rng(seed))
-    sorted_ = indices._stratified_coded(indices._coded(pts, labels), total, np.random.default_rng(seed))
+    streamed = clusters.stratified_census(census, total, np.random.default_rng(seed))
+    sorted_ = clusters.stratified_coded(clusters.coded(pts, labels), total, np.random.default_rng(seed))
     for field in ('points', 'codes', 'starts', 'sizes', 'ids', 'order'):
         np.testing.assert_array_equal(getattr(streamed, field), getattr(sorted_, field))
 

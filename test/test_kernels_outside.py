@@ -128,12 +128,13 @@ def test_distinct_counts_past_the_pairwise_limit_as_before():
 @given(st.integers(0, 2**32 - 1), st.integers(4, 60), st.integers(2, 6), st.booleans())
 def test_silhouettes_match_numpy(seed, n, k, rest):
     from plane_validation.core import indices
+    from plane_validation.core.clusters import as_clusters
     rng = np.random.default_rng(seed)
     labels = rng.integers(-1 if rest else 0, k, n)
     labels[:2] = [-1 if rest else 0, k - 1]  # at least two clusters
     labels[2:4] = rng.integers(0, k, 2)  # (singleton clusters are likely too)
     pts = rng.normal(size=(n, 3))
-    cl = indices._clusters(pts, labels)
+    cl = as_clusters(pts, labels)
     sums = indices._pair_pass(cl)[0]
     got = indices._silhouettes(cl, sums)
     want = indices._silhouettes_numpy(cl, sums)

@@ -26,399 +26,30 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError, cKDTree
-from scipy.spatial.distance import cdist, pdist
+from scipy.spatial.distance import cdist
 
 from . import kernels
 from .blas import single_blas_thread
-from .plane_silhouette import dense_codes, plane_silhouette_of
-from .ransac import as_points, check_flag, check_integer, finite_rows, generator
+from .cluster_extent import cluster_diameters, cluster_distances, diameter, diameters_of, distances_of
+from .clusters import (
+    Clusters,
+    as_clusters,
+    check_labelled,
+    code_labels,
+    sorted_by_cluster,
+    stratified,
+    stratified_census,
+    stratified_coded,
+    take_census,
+)
+from .plane_silhouette import plane_silhouette_of
+from .ransac import check_flag, check_integer, generator
 
 __all__ = [
     'ValidityIndices', 'validity_indices', 'dunn_index', 'davies_bouldin_index', 'davies_bouldin_classic',
     'silhouette_samples', 'silhouette_score', 'global_silhouette', 'cluster_diameters', 'cluster_distances',
     'diameter',
 ]
-
-#: Clusters with at most this many points get their diameter by brute force, without a hull.
-BRUTE_DIAMETER = 64
-#: Hull vertex sets up to this size are searched by brute force; larger ones use box pruning.
-BRUTE_PAIRS = 2048
-#: Points per bucket when pruning a large diameter search (at least), and most buckets.
-BUCKET = 32
-MAX_BUCKETS = 1024
-
-
-# --------------------------------------------------------------------------------------------
-# Input handling
-
-
-@dataclass(frozen=True, eq=False)
-class _Clusters:
-    """Finite points grouped by cluster, contiguous in ``points``.
-
-    points: (n, 3) float64 sorted by cluster; codes: (n,) cluster index 0..K-1 of each row;
-    starts, sizes: (K,) first row and row count of each cluster; ids: (K,) label of each cluster
-    (-1 for the unassigned one, which is cluster 0 when present); order: (n,) input row of each
-    sorted row (an index into the original, unfiltered input).
-    """
-
-    points: np.ndarray
-    codes: np.ndarray
-    starts: np.ndarray
-    sizes: np.ndarray
-    ids: np.ndarray
-    order: np.ndarray
-
-    @property
-    def k(self) -> int:
-        return len(self.sizes)
-
-    @property
-    def n(self) -> int:
-        return len(self.points)
-
-    def members(self, c: int) -> np.ndarray:
-        """(n_c, 3) points of cluster ``c``."""
-        return self.points[self.starts[c]:self.starts[c] + self.sizes[c]]
-
-    def planes_only(self) -> _Clusters:
-        """The same clusters without the unassigned one (label -1)."""
-        if self.k == 0 or self.ids[0] >= 0:
-            return self
-        cut = int(self.sizes[0])
-        return _Clusters(self.points[cut:], self.codes[cut:] - 1, self.starts[1:] - cut, self.sizes[1:],
-                         self.ids[1:], self.order[cut:])
-
-    def subset(self, rows: np.ndarray) -> _Clusters:
-        """Clusters restricted to the sorted rows ``rows`` (ascending); every cluster must keep a row."""
-        codes = self.codes[rows]
-        sizes = np.bincount(codes, minlength=self.k)
-        starts = np.cumsum(sizes) - sizes
-        return _Clusters(np.take(self.points, rows, axis=0), codes, starts, sizes, self.ids, self.order[rows])
-
-
-def _check(points: np.ndarray, labels: np.ndarray, convert: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """Validate shapes: points (N, 3) real, labels (N,) integer-valued. Returns them as float64 and
-    int64 (``convert`` False: signed integer labels as they are)."""
-    pts = np.asarray(points)
-    if pts.dtype.kind not in 'fiu' or pts.ndim != 2 or pts.shape[1] != 3:  # as detect_planes takes them
-        raise ValueError(f'points must be a real array of shape (N, 3), got {pts.dtype} {pts.shape}')
-    if isinstance(points, np.ma.MaskedArray):
-        pts = as_points(points)  # its masked rows NaN
-    lab = np.asarray(labels)
-    if lab.ndim != 1 or len(lab) != len(pts):
-        raise ValueError(f'labels must have shape ({len(pts)},), got {lab.shape}')
-    if lab.dtype.kind == 'f':
-        if not np.all(np.isfinite(lab) & (lab == np.round(lab))):
-            raise ValueError('labels must be integers')
-    elif lab.dtype.kind not in 'iub':
-        raise ValueError(f'labels must be integers, got dtype {lab.dtype}')
-    if lab.dtype.kind in 'uf' and len(lab) and lab.max() > np.iinfo(np.int64).max:  # would wrap to negative
-        raise ValueError(f'labels must fit in 64-bit signed integers, got {lab.max()}')
-    return pts.astype(np.float64, copy=False), lab if lab.dtype.kind == 'i' and not convert else lab.astype(np.int64)
-
-
-@dataclass(frozen=True, eq=False)
-class _Coded:
-    """Finite rows in input order with their cluster code: pts (N, 3) float64 all input rows; keep
-    (n,) finite row numbers; codes (n,) cluster 0..K-1 of each; ids (K,) ascending labels; sizes
-    (K,); grouped (n,) positions in ``keep`` cluster by cluster, ascending within each, cluster c's
-    being ``grouped[bounds[c]:bounds[c + 1]]``; bounds (K + 1,)."""
-
-    pts: np.ndarray
-    keep: np.ndarray
-    codes: np.ndarray
-    ids: np.ndarray
-    sizes: np.ndarray
-    grouped: np.ndarray
-    bounds: np.ndarray
-
-    def members(self, c: int) -> np.ndarray:
-        """Positions in ``keep`` of cluster c, ascending."""
-        return self.grouped[self.bounds[c]:self.bounds[c + 1]]
-
-
-def _coded(points: np.ndarray, labels: np.ndarray) -> _Coded:
-    """Drop non-finite rows, merge negative labels into -1 and number the clusters."""
-    return _code(*_check(points, labels))
-
-
-def _code(pts: np.ndarray, lab: np.ndarray) -> _Coded:
-    """_coded of checked input: pts (N, 3) float64, lab (N,) int64."""
-    keep = np.flatnonzero(finite_rows(pts))
-    ids, codes = dense_codes(np.maximum(lab[keep], -1)) if len(keep) else (np.empty(0, np.int64),) * 2
-    grouped, bounds = kernels.group_by_label(codes, len(ids))
-    return _Coded(pts, keep, codes, ids, np.diff(bounds), grouped, bounds)
-
-
-@dataclass(frozen=True, eq=False)
-class _Census:
-    """Checked input and its clusters, counted in one streaming pass: pts (N, 3) C-ordered float64; lab
-    (N,) integers; compact (N,) int32 each row's label (see kernels.label_census), to be used only with
-    a table; n finite rows, n_assigned of them labelled >= 0; ids (K,)
-    ascending cluster labels (negative ones merged into -1); sizes (K,) finite rows per cluster;
-    table (span,) the cluster of each label from ``low`` on, -1 for none (empty when the labels
-    lie too far apart for a table)."""
-
-    pts: np.ndarray
-    lab: np.ndarray
-    compact: np.ndarray
-    n: int
-    n_assigned: int
-    ids: np.ndarray
-    sizes: np.ndarray
-    low: int
-    table: np.ndarray
-
-
-def _census(points: np.ndarray, labels: np.ndarray) -> _Census:
-    """Check the input and count its clusters (see _Census)."""
-    pts, lab = _check(points, labels, convert=False)
-    pts = kernels.c_array(pts, np.float64)
-    lab = kernels.c_array(lab, lab.dtype if lab.dtype in (np.int32, np.int64) else np.int64)
-    compact = np.empty(len(lab), np.int32)
-    n, n_assigned, low, count = kernels.label_census(pts, lab, compact)
-    present = count > 0
-    if n and not len(count):  # labels too far apart for a table: numbered by a sort
-        ids, codes = dense_codes(np.maximum(lab[finite_rows(pts)], -1).astype(np.int64))
-        return _Census(pts, lab, compact, n, n_assigned, ids, np.bincount(codes, minlength=len(ids)), low, count)
-    return _Census(pts, lab, compact, n, n_assigned, np.flatnonzero(present) + low, count[present], low,
-                   np.where(present, np.cumsum(present) - 1, -1))
-
-
-def _stratified_census(census: _Census, total: int, rng: np.random.Generator) -> _Clusters:
-    """The same sample as :func:`_stratified_coded` of the same input (same rows for the same generator
-    state), picked in one streaming pass over the rows (needs ``census.table``)."""
-    alloc = _allocate(census.sizes, total)
-    ranks = np.concatenate([np.sort(rng.choice(int(size), int(take), replace=False))
-                            for size, take in zip(census.sizes, alloc)])
-    bounds = np.zeros(len(alloc) + 1, np.int64)
-    bounds[1:] = np.cumsum(alloc)
-    rows = kernels.rows_at_ranks(census.compact, census.low, census.table, ranks, bounds)
-    return _Clusters(np.take(census.pts, rows, axis=0), np.repeat(np.arange(len(alloc)), alloc), bounds[:-1], alloc,
-                     census.ids, rows)
-
-
-def _sorted_by_cluster(coded: _Coded, positions: np.ndarray | None = None) -> _Clusters:
-    """_Clusters of the rows ``positions`` (into ``coded.keep``; all when None), which must be
-    grouped by cluster and ascending within each."""
-    if positions is None:
-        positions = coded.grouped
-    codes = coded.codes[positions]
-    sizes = np.bincount(codes, minlength=len(coded.ids))
-    starts = (np.cumsum(sizes) - sizes).astype(np.int64)
-    rows = coded.keep[positions]
-    return _Clusters(np.take(coded.pts, rows, axis=0), codes, starts, sizes, coded.ids, rows)
-
-
-def _clusters(points: np.ndarray, labels: np.ndarray) -> _Clusters:
-    """Drop non-finite rows, merge negative labels into -1 and sort the rows by cluster."""
-    return _sorted_by_cluster(_coded(points, labels))
-
-
-# --------------------------------------------------------------------------------------------
-# Diameters (exact, through convex hulls)
-
-
-def _brute_max(p: np.ndarray) -> float:
-    """Exact max pairwise distance of a small set p (m, 3), by pdist."""
-    return float(pdist(p).max()) if len(p) > 1 else 0.0
-
-
-def _kd_buckets(p: np.ndarray, size: int) -> np.ndarray:
-    """Permutation of p's rows that groups them into spatially compact runs of ``size`` rows
-    (median splits along the widest axis), so that run b is rows ``[b*size, (b+1)*size)``."""
-    perm = np.arange(len(p))
-    segments = [(0, len(p))]
-    done = []
-    while segments:
-        nxt = []
-        for lo, hi in segments:
-            if hi - lo <= size:
-                done.append((lo, hi))
-                continue
-            idx = perm[lo:hi]
-            axis = int(np.argmax(np.ptp(p[idx], axis=0)))
-            # split on a multiple of size so that every run but the last is full
-            mid = lo + max(size, ((hi - lo) // 2) // size * size)
-            part = np.argpartition(p[idx, axis], mid - lo - 1)
-            perm[lo:hi] = idx[part]
-            nxt += [(lo, mid), (mid, hi)]
-        segments = nxt
-    return perm
-
-
-def _max_pair_distance(p: np.ndarray) -> float:
-    """Exact diameter (max pairwise distance) of p (m, 3).
-
-    Brute force up to ``BRUTE_PAIRS`` points; beyond, the points are bucketed (kd median splits)
-    and only bucket pairs whose bounding boxes can be farther apart than the best pair found so
-    far are compared, which keeps e.g. a 50k-point sphere (all points on the hull) fast.
-    """
-    m = len(p)
-    if m <= BRUTE_PAIRS:
-        return _brute_max(p)
-    # lower bound by repeated farthest-point jumps (a double normal)
-    best, i = 0.0, int(np.argmax(((p - p.mean(axis=0)) ** 2).sum(axis=1)))
-    for _ in range(4):
-        d = ((p - p[i]) ** 2).sum(axis=1)
-        j = int(np.argmax(d))
-        if d[j] <= best * best:
-            break
-        best, i = float(np.sqrt(d[j])), j
-    size = max(BUCKET, -(-m // MAX_BUCKETS))
-    q = p[_kd_buckets(p, size)]
-    starts = np.arange(0, m, size)
-    lo, hi = np.minimum.reduceat(q, starts), np.maximum.reduceat(q, starts)
-    # farthest possible distance between two boxes, per pair of buckets
-    span = np.maximum(hi[:, None, :] - lo[None, :, :], hi[None, :, :] - lo[:, None, :])
-    upper = np.sqrt((span ** 2).sum(axis=2))
-    for a in np.argsort(-upper.max(axis=1)):
-        if upper[a].max() <= best:
-            break
-        cand = np.flatnonzero(upper[a] > best)
-        cand = cand[cand >= a]  # each unordered pair once
-        if len(cand) == 0:
-            continue
-        rows = (starts[cand][:, None] + np.arange(size)).ravel()
-        rows = rows[rows < m]
-        best = max(best, float(cdist(q[starts[a]:starts[a] + size], q[rows]).max()))
-    return best
-
-
-def _hull_vertices(p: np.ndarray) -> np.ndarray:
-    """Indices of rows of p (m, 3) that include both ends of a diameter.
-
-    3-D convex hull; when Qhull rejects the set as flat, the 2-D hull of its projection onto the
-    two principal axes; when that is degenerate too (collinear), the two extremes along the main
-    axis. Distances are later measured on the original 3-D rows.
-    """
-    try:
-        return ConvexHull(p).vertices
-    except (QhullError, ValueError):
-        pass
-    centred = p - p.mean(axis=0)
-    _, sv, vt = np.linalg.svd(centred, full_matrices=False)
-    if sv[0] == 0.0:  # all points coincide
-        return np.array([0])
-    if sv[1] > 1e-12 * sv[0]:
-        try:
-            return ConvexHull(centred @ vt[:2].T).vertices
-        except (QhullError, ValueError):
-            pass
-    t = centred @ vt[0]
-    return np.array([int(np.argmin(t)), int(np.argmax(t))])
-
-
-def diameter(points: np.ndarray) -> float:
-    """Exact diameter (max pairwise Euclidean distance) of one point set (m, 3); 0.0 for m < 2.
-
-    Works in O(m log m) for typical clouds: only convex hull vertices can be diameter ends.
-    """
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    if len(p) <= BRUTE_DIAMETER:
-        return _brute_max(p)
-    return _max_pair_distance(p[_hull_vertices(p)])
-
-
-def _diameters(cl: _Clusters) -> np.ndarray:
-    return np.array([diameter(cl.members(c)) for c in range(cl.k)], dtype=np.float64)
-
-
-def cluster_diameters(points: np.ndarray, labels: np.ndarray) -> np.ndarray:
-    """(K,) diameter of each cluster (max distance between two of its points), units of points.
-
-    Clusters in ascending label order; all label -1 points form one cluster, listed first.
-    A one-point cluster has diameter 0.
-    """
-    return _diameters(_clusters(points, labels))
-
-
-# --------------------------------------------------------------------------------------------
-# Distances between clusters (exact minimum point-to-point, through kd-trees)
-
-
-def _box_distance(q: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """(m,) distance of each row of q (m, 3) to the axis-aligned box [lo, hi]."""
-    gap = np.maximum(lo - q, 0.0) + np.maximum(q - hi, 0.0)
-    return np.sqrt((gap ** 2).sum(axis=1))
-
-
-def _min_distance(small: np.ndarray, big: np.ndarray, t_small: cKDTree, t_big: cKDTree,
-                  boxes: tuple[tuple[np.ndarray, np.ndarray], ...] | None = None) -> float:
-    """Exact min distance between point sets ``small`` and ``big`` (both non-empty); ``boxes``:
-    their (min, max) corners when known.
-
-    A few alternating nearest-neighbour hops from spread-out seeds give an upper bound ``ub``
-    achieved by a real pair; then only the points of ``small`` within ``ub`` of the bounding box
-    of ``big`` are queried, with ``ub`` as the search radius.
-    """
-    seeds = small[np.linspace(0, len(small) - 1, min(len(small), 16)).astype(int)]
-    ub = np.inf
-    for _ in range(3):  # (an index == size: no neighbour at a finite distance, coordinates near 1e154+)
-        d, j = t_big.query(seeds, k=1)
-        ub = min(ub, float(d.min()))
-        d, i = t_small.query(big[j[j < len(big)]], k=1)
-        ub = min(ub, float(d.min(initial=np.inf)))
-        seeds = small[np.unique(i[i < len(small)])]
-        if len(seeds) == 0:
-            break
-    if ub == 0.0:
-        return 0.0
-    (s_lo, s_hi), (lo, hi) = boxes or ((small.min(axis=0), small.max(axis=0)), (big.min(axis=0), big.max(axis=0)))
-    if np.linalg.norm(np.maximum(np.maximum(lo - s_hi, s_lo - hi), 0.0)) >= ub:  # boxes ub apart: no closer pair
-        return ub
-    near = small[_box_distance(small, lo, hi) < ub]
-    if len(near):
-        d, _ = t_big.query(near, k=1, distance_upper_bound=ub)
-        ub = min(ub, float(d.min()))
-    return ub
-
-
-#: Up to this many points the cluster distances come from one kd-tree query per cluster of all the
-#: points of the later clusters (instead of two kd-tree searches per cluster pair).
-BRUTE_DISTANCES = 4096
-
-
-def _distances(cl: _Clusters) -> np.ndarray:
-    k = cl.k
-    if cl.n <= BRUTE_DISTANCES:
-        return _all_point_distances(cl)
-    out = np.zeros((k, k))
-    members = [cl.members(c) for c in range(k)]
-    trees = [cKDTree(m) for m in members] if k > 1 else []
-    boxes = [(m.min(axis=0), m.max(axis=0)) for m in members]
-    for i in range(k):
-        for j in range(i + 1, k):
-            a, b = (i, j) if cl.sizes[i] <= cl.sizes[j] else (j, i)
-            out[i, j] = out[j, i] = _min_distance(members[a], members[b], trees[a], trees[b],
-                                                  (boxes[a], boxes[b]))
-    return out
-
-
-def _all_point_distances(cl: _Clusters) -> np.ndarray:
-    """_distances from each point's nearest neighbour in every earlier cluster: cluster c's kd-tree
-    is queried with all the points of the clusters after it (contiguous), and each cluster's
-    minimum is read per cluster."""
-    out = np.zeros((cl.k, cl.k))
-    for c in range(cl.k - 1):
-        later = cl.points[cl.starts[c + 1]:]
-        nearest, _ = cKDTree(cl.members(c)).query(later, k=1)
-        out[c, c + 1:] = out[c + 1:, c] = np.minimum.reduceat(nearest, cl.starts[c + 1:] - cl.starts[c + 1])
-    return out
-
-
-def cluster_distances(points: np.ndarray, labels: np.ndarray) -> np.ndarray:
-    """(K, K) symmetric matrix of minimum point-to-point distances between clusters (0 diagonal).
-
-    Same cluster order as :func:`cluster_diameters`. Exact, via kd-tree nearest-neighbour queries.
-    """
-    return _distances(_clusters(points, labels))
-
-
-# --------------------------------------------------------------------------------------------
-# Dunn and Davies-Bouldin
 
 
 def _dunn(diam: np.ndarray, dist: np.ndarray) -> float:
@@ -450,10 +81,10 @@ def dunn_index(points: np.ndarray, labels: np.ndarray) -> float:
     form one cluster; non-finite rows dropped. Defined values: 0.0 for fewer than two clusters or
     when two clusters touch (dist 0); inf when all clusters have diameter 0 but are apart.
     """
-    cl = _clusters(points, labels)
+    cl = as_clusters(points, labels)
     if cl.k < 2:
         return 0.0
-    return _dunn(_diameters(cl), _distances(cl))
+    return _dunn(diameters_of(cl), distances_of(cl))
 
 
 def davies_bouldin_index(points: np.ndarray, labels: np.ndarray) -> float:
@@ -464,13 +95,13 @@ def davies_bouldin_index(points: np.ndarray, labels: np.ndarray) -> float:
     dropped. Defined values: inf for fewer than two clusters, and a pair at distance 0 contributes
     inf (so coincident or touching clusters give inf).
     """
-    cl = _clusters(points, labels)
+    cl = as_clusters(points, labels)
     if cl.k < 2:
         return np.inf
-    return _db_paper(_diameters(cl), _distances(cl))
+    return _db_paper(diameters_of(cl), distances_of(cl))
 
 
-def _db_classic(cl: _Clusters) -> float:
+def _db_classic(cl: Clusters) -> float:
     if cl.k < 2:
         return 0.0
     centroids = np.add.reduceat(cl.points, cl.starts, axis=0) / cl.sizes[:, None]
@@ -492,21 +123,17 @@ def davies_bouldin_classic(points: np.ndarray, labels: np.ndarray) -> float:
     does not raise): 0.0 for fewer than two clusters, or when all S or all centroid distances are
     ~0; coinciding centroids are treated as infinitely far apart.
     """
-    return _db_classic(_clusters(points, labels))
+    return _db_classic(as_clusters(points, labels))
 
 
-# --------------------------------------------------------------------------------------------
-# Silhouettes
-
-
-def _pair_pass(cl: _Clusters) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _pair_pass(cl: Clusters) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every pair of rows of ``cl`` once (a compiled O(n^2) pass, O(n K) memory): (sums (n, K) summed
     distances from each row to each cluster, diameters (K,), distances (K, K) between clusters)."""
     return kernels.cluster_distance_pass(kernels.c_array(cl.points, np.float64), kernels.c_array(cl.starts, np.int64),
                                          kernels.c_array(cl.sizes, np.int64))
 
 
-def _silhouettes(cl: _Clusters, sums: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _silhouettes(cl: Clusters, sums: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Exact silhouettes of each (sorted) row among the rows of ``cl``: (s (n,), s_planes (n,)), as
     :func:`_silhouettes_numpy` gives them, in one compiled pass over the distance sums
     (:func:`.kernels.silhouettes`)."""
@@ -518,7 +145,7 @@ def _silhouettes(cl: _Clusters, sums: np.ndarray | None = None) -> tuple[np.ndar
                                kernels.c_array(cl.sizes, np.int64), bool(cl.ids[0] < 0))
 
 
-def _silhouettes_numpy(cl: _Clusters, sums: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _silhouettes_numpy(cl: Clusters, sums: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Exact silhouettes of each (sorted) row among the rows of ``cl``: (s (n,), s_planes (n,)).
 
     s_i = (b_i - a_i) / max(a_i, b_i); a_i mean distance to the other members of its cluster,
@@ -567,21 +194,21 @@ def silhouette_samples(points: np.ndarray, labels: np.ndarray) -> np.ndarray:
     there are fewer than two clusters; 0 for a singleton cluster (as scikit-learn).
     Memory O(N K); time O(N^2).
     """
-    pts, _ = _check(points, labels)
-    cl = _clusters(points, labels)
+    pts, _ = check_labelled(points, labels)
+    cl = as_clusters(points, labels)
     out = np.full(len(pts), np.nan)
     out[cl.order] = _silhouettes(cl)[0]
     return out
 
 
-def _cluster_means(cl: _Clusters, s: np.ndarray) -> np.ndarray:
+def _cluster_means(cl: Clusters, s: np.ndarray) -> np.ndarray:
     return np.add.reduceat(s, cl.starts) / cl.sizes if cl.k else np.zeros(0)
 
 
 def silhouette_score(points: np.ndarray, labels: np.ndarray) -> float:
     """Exact mean silhouette over all finite points (equals ``sklearn.metrics.silhouette_score``);
     label -1 points form one cluster; 0.0 for fewer than two clusters."""
-    cl = _clusters(points, labels)
+    cl = as_clusters(points, labels)
     return float(_silhouettes(cl)[0].mean()) if cl.k >= 2 else 0.0
 
 
@@ -592,50 +219,10 @@ def global_silhouette(points: np.ndarray, labels: np.ndarray, *, planes_only: bo
     and the silhouettes are computed among the planes alone (GS_planes). 0.0 with fewer than two
     clusters (planes). Non-finite rows dropped.
     """
-    cl = _clusters(points, labels)
+    cl = as_clusters(points, labels)
     if planes_only:
         cl = cl.planes_only()
     return float(_cluster_means(cl, _silhouettes(cl)[0]).mean()) if cl.k >= 2 else 0.0
-
-
-# --------------------------------------------------------------------------------------------
-# Stratified sampling of silhouettes
-
-
-def _allocate(sizes: np.ndarray, total: int) -> np.ndarray:
-    """(K,) sample size per cluster: a floor of min(N_h, max(2, total // (4K))) points, the rest
-    of ``total`` shared in proportion to what each cluster has left (largest remainders).
-    Requires total < sizes.sum()."""
-    k = len(sizes)
-    floor = np.minimum(sizes, max(2, total // (4 * k)))
-    rest = total - int(floor.sum())
-    if rest <= 0:
-        return floor
-    room = sizes - floor
-    raw = rest * room / room.sum()
-    take = np.floor(raw).astype(np.int64)
-    short = rest - int(take.sum())
-    if short > 0:
-        take[np.argsort(take - raw, kind='stable')[:short]] += 1
-    return floor + np.minimum(take, room)
-
-
-def _stratified(cl: _Clusters, total: int, rng: np.random.Generator) -> _Clusters:
-    """A stratified random sample (without replacement) of about ``total`` rows of ``cl``."""
-    alloc = _allocate(cl.sizes, total)
-    rows = np.concatenate([cl.starts[c] + rng.choice(int(cl.sizes[c]), int(alloc[c]), replace=False)
-                           for c in range(cl.k)])
-    return cl.subset(np.sort(rows))
-
-
-def _stratified_coded(coded: _Coded, total: int, rng: np.random.Generator) -> _Clusters:
-    """The same sample as ``_stratified(_sorted_by_cluster(coded), total, rng)`` (same rows for
-    the same generator state), without gathering and sorting every row first."""
-    alloc = _allocate(coded.sizes, total)
-    positions = np.concatenate([coded.members(c)[np.sort(rng.choice(int(coded.sizes[c]), int(alloc[c]),
-                                                                     replace=False))]
-                                for c in range(len(coded.ids))])
-    return _sorted_by_cluster(coded, positions)
 
 
 @dataclass(frozen=True)
@@ -648,7 +235,7 @@ class _Estimate:
     cluster_means: tuple[float, ...]
 
 
-def _summarize(sizes: np.ndarray, sub: _Clusters, s: np.ndarray, exact: bool) -> _Estimate:
+def _summarize(sizes: np.ndarray, sub: Clusters, s: np.ndarray, exact: bool) -> _Estimate:
     """Silhouette (mean of s_i) and GS of a population of clusters with ``sizes`` (K,) from the
     silhouettes ``s`` of its rows ``sub``: exact (SE 0), or a stratified sample (stratified SE
     with finite-population correction)."""
@@ -669,7 +256,7 @@ def _summarize(sizes: np.ndarray, sub: _Clusters, s: np.ndarray, exact: bool) ->
                      cluster_means=tuple(map(float, mean_h)))
 
 
-def _estimates(sizes: np.ndarray, ids: np.ndarray, sub: _Clusters, exact: bool,
+def _estimates(sizes: np.ndarray, ids: np.ndarray, sub: Clusters, exact: bool,
                sums: np.ndarray | None) -> tuple[_Estimate, _Estimate]:
     """(all clusters, planes only) silhouette estimates for a population of clusters ``sizes``
     (K,) with labels ``ids`` from the distance sums ``sums`` (n, K) of its rows ``sub`` (all of
@@ -679,10 +266,6 @@ def _estimates(sizes: np.ndarray, ids: np.ndarray, sub: _Clusters, exact: bool,
     cut = int(sub.sizes[0]) if sub.k and sub.ids[0] < 0 else 0
     plane_sizes = sizes[1:] if len(ids) and ids[0] < 0 else sizes
     return _summarize(sizes, sub, s, exact), _summarize(plane_sizes, sub.planes_only(), s_planes[cut:], exact)
-
-
-# --------------------------------------------------------------------------------------------
-# All indices at once
 
 
 @dataclass(frozen=True)
@@ -792,17 +375,17 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
     if sample_size is not None:
         sample_size = check_integer('sample_size', sample_size, 2)
     sampled_separation = check_flag('sampled_separation', sampled_separation)
-    census = _census(points, labels)
+    census = take_census(points, labels)
     rng = generator(seed)
     n, k = census.n, len(census.ids)
     sampled = sample_size is not None and n > int(sample_size) and k >= 2
     if sampled and sampled_separation:
-        sub = _stratified_census(census, int(sample_size), rng) if len(census.table) else \
-            _stratified_coded(_code(census.pts, census.lab.astype(np.int64)), int(sample_size), rng)
+        sub = stratified_census(census, int(sample_size), rng) if len(census.table) else \
+            stratified_coded(code_labels(census.pts, census.lab.astype(np.int64)), int(sample_size), rng)
         sep = sub
     else:
-        cl = _sorted_by_cluster(_code(census.pts, census.lab.astype(np.int64, copy=False)))
-        sub = _stratified(cl, int(sample_size), rng) if sampled else cl
+        cl = sorted_by_cluster(code_labels(census.pts, census.lab.astype(np.int64, copy=False)))
+        sub = stratified(cl, int(sample_size), rng) if sampled else cl
         sep = cl
     ps = functools.partial(plane_silhouette_of, census.pts, census.lab, census.compact,
                            (n, census.n_assigned, census.low, len(census.table)), sample_size=sample_size, rng=rng)
@@ -814,7 +397,7 @@ def validity_indices(points: np.ndarray, labels: np.ndarray, *, sample_size: int
         if k >= 2:
             sums, diam, dist = _pair_pass(sub)  # on sep too when it is the same rows
             if sep is not sub:
-                diam, dist = _diameters(sep), _distances(sep)
+                diam, dist = diameters_of(sep), distances_of(sep)
             dunn, db = _dunn(diam, dist), _db_paper(diam, dist)
         else:
             dunn, db = 0.0, np.inf
