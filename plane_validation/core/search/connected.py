@@ -10,7 +10,7 @@ import numpy as np
 from .. import kernels
 from .checks import resolve_min_inliers
 from .fit import allows_normal, canonical, fit_columns, plane_distances, plane_rows, refit_regions, tolerance_at
-from .folds import settle_folds, split_folds
+from .folds import settle_folds, split_folds, split_terraces
 from .graph import SearchGraph, checked_search_graph, spread_nearest
 from .grid import spread_grid
 from .neighbours import NORMAL_MIN_COS, Neighbours
@@ -72,6 +72,9 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
         reason += f'; split {ridges} region(s) at a ridge or fold into the two surfaces meeting there'
     if tents:
         reason += f'; split {tents} region(s) whose residuals form a tent into its faces'
+    region, found, terraces = split_terraces(search, region, found, search_tolerance, max_planes, search_min, allows)
+    if terraces:
+        reason += f'; split {terraces} group(s) of regions cut across a fold or tent into its faces'
     region, found = settle_folds(search, region, found, search_tolerance, neighbours, allows)
     if step:
         uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]

@@ -17,12 +17,13 @@ from __future__ import annotations
 import numpy as np
 
 from .. import kernels
-from .fit import allows_normal, fit_columns, tolerance_at
+from .fit import allows_normal, fit_columns, plane_rows, tolerance_at
 from .neighbours import NORMAL_MIN_COS, Neighbours
 from .tents import tent_faces
 from .types import Allows, Tolerance
 
-__all__ = ['split_folds', 'settle_folds', 'FOLD_SIDE']
+__all__ = ['split_folds', 'split_terraces', 'settle_folds', 'FOLD_SIDE', 'TERRACE_ANGLE_DEG', 'TERRACE_STEP',
+           'TERRACE_SAME']
 
 #: A region is split only where each side holds at least this share of its points (a fold near the region's edge is
 #: a lip or a bent border, not a second surface).
@@ -43,7 +44,7 @@ def split_folds(search: np.ndarray, region: np.ndarray, found: list, tolerance: 
     for j in range(len(found)):
         if len(found) >= max_planes:
             break
-        rows = np.flatnonzero(region == j)
+        rows = _within(search, np.flatnonzero(region == j), [found[j]], region, tolerance)
         tol = float(np.median(tolerance_at(tolerance, rows))) if len(rows) else 0.0
         shape = _region_shape(search, rows, tol, min_count)
         if shape is None:
@@ -67,19 +68,148 @@ def split_folds(search: np.ndarray, region: np.ndarray, found: list, tolerance: 
     return region, found, (ridges, tents)
 
 
+#: Regions whose normals lie within this angle of each other (degrees) ...
+TERRACE_ANGLE_DEG = 10.0
+#: ... and whose points' means lie within this many t of each other's planes are terraces of one surface group (see
+#: :func:`split_terraces`): at t of 2-3 noise sigmas, horizontal slabs 2 t thick, each cutting across every face of a
+#: shallow hip roof at its own height, hold more points than any face (tuning seeds aerial_roof 18, 31, 64, 70: up to
+#: four such slabs, about 2 t apart).
+TERRACE_STEP = 3.0
+#: A group's split leaves its regions as they were where each face shares at least this share of its points with one
+#: region and that region this share of its points with the face (Hoover's overlap): the split found the regions again.
+TERRACE_SAME = 0.8
+
+
+def split_terraces(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance, max_planes: int,
+                   min_count: int, allows: Allows = None) -> tuple[np.ndarray, list, int]:
+    """``region`` (m,) (-1: none) and ``found`` (normal, offset) planes of the centred points ``search`` (3, m)
+    meters, with each group of terraces (regions of nearly parallel planes, TERRACE_ANGLE_DEG, whose means lie within
+    TERRACE_STEP t of each other's planes, chained) whose joint points read as a tent or a ridge (the tests of
+    :func:`split_folds`) replaced by the tent's faces or the ridge's two sides, unless those are the regions again
+    (TERRACE_SAME). A shallow roof cut into slabs across its faces comes back as its faces. ``tolerance``: t (m) at
+    each searched point (m,) or for all; ``max_planes``, ``min_count``, ``allows`` as for :func:`split_folds`.
+    Returns the new region labels and planes (renumbered: the groups' regions replaced by their faces, numbered
+    last) and how many groups were split; the inputs are left as they were."""
+    k = len(found)
+    if k < 2:
+        return region, found, 0
+    groups = _terrace_groups(search, region, found, tolerance, _judged(min_count))
+    if not groups:
+        return region, found, 0
+    region, found = region.copy(), list(found)
+    gone: list[int] = []
+    split = 0
+    for group in groups:
+        rows = _within(search, np.flatnonzero(np.isin(region, group)), found, region, tolerance)
+        tol = float(np.median(tolerance_at(tolerance, rows)))
+        shape = _region_shape(search, rows, tol, min_count)
+        if shape is None:
+            continue
+        room = max_planes - len(found) + len(gone) + len(group)
+        faces = _tent_split(shape, min_count, allows, room)
+        if faces is None:
+            halves = _fold_halves(shape, rows, min_count, allows) if room >= 2 else None
+            if halves is None:
+                continue
+            (first, plane), (second, other) = halves
+            face = np.isin(rows, second).astype(np.int64)
+            faces = face, [plane, other]
+        face, planes = faces
+        if _same_regions(region[rows], face, group, len(planes)):
+            continue
+        region[rows] = face + len(found)
+        found += planes
+        gone += group
+        split += 1
+    if not split:
+        return region, found, 0
+    keep = np.setdiff1d(np.arange(len(found)), gone)
+    renumber = np.full(len(found) + 1, -1, dtype=np.int64)
+    renumber[keep] = np.arange(len(keep))
+    return renumber[region], [found[j] for j in keep], split
+
+
+def _terrace_groups(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance, least: int
+                    ) -> list[list[int]]:
+    """The groups (two regions or more, each a list of region numbers) of terraces among the ``found`` planes of the
+    regions ``region`` (m,) of ``search`` (3, m) (see :func:`split_terraces`), each region of ``least`` points or more:
+    a smaller one is too small to judge as a surface (a clutter blob above a roof, whose points would raise the
+    group's noise and fail its tests)."""
+    k = len(found)
+    normals = np.array([normal for normal, _ in found]).reshape(k, 3)
+    offsets = np.array([offset for _, offset in found])
+    parallel = np.abs(normals @ normals.T) >= np.cos(np.radians(TERRACE_ANGLE_DEG))
+    np.fill_diagonal(parallel, False)
+    if not parallel.any():
+        return []
+    labelled = region >= 0
+    counts = np.bincount(region[labelled], minlength=k).astype(np.float64)
+    means = np.stack([np.bincount(region[labelled], weights=search[axis, labelled], minlength=k)
+                      for axis in range(3)], axis=1) / np.maximum(counts, 1)[:, None]  # (k, 3)
+    tol = np.array([np.median(tolerance_at(tolerance, np.flatnonzero(region == j))) if counts[j] else 0.0
+                    for j in range(k)]) if np.ndim(tolerance) else np.full(k, float(tolerance))
+    # [i, j]: how far region j's mean lies from plane i, in the larger of the two regions' t
+    apart = np.abs(normals @ means.T + offsets[:, None]) / np.maximum(np.maximum.outer(tol, tol), 1e-12)
+    near = parallel & (apart <= TERRACE_STEP) & (apart.T <= TERRACE_STEP) & (counts[:, None] >= least) & (counts >= least)
+    root = np.arange(k)
+    for i, j in zip(*np.nonzero(np.triu(near, 1))):
+        a, b = _root(root, i), _root(root, j)
+        root[max(a, b)] = min(a, b)
+    roots = np.array([_root(root, j) for j in range(k)])
+    return [list(np.flatnonzero(roots == r)) for r in np.unique(roots) if np.count_nonzero(roots == r) > 1]
+
+
+def _root(root: np.ndarray, j: int) -> int:
+    """The root of ``j`` in the union-find ``root`` (k,)."""
+    while root[j] != j:
+        j = root[j]
+    return int(j)
+
+
+def _same_regions(old: np.ndarray, face: np.ndarray, group: list[int], faces: int) -> bool:
+    """Whether the ``faces`` faces ``face`` (r,) of a group's points are its regions ``group`` again: each face
+    matched one to one to a region of ``old`` (r,) that shares TERRACE_SAME of both's points."""
+    if faces != len(group):
+        return False
+    counts = np.array([[np.count_nonzero((face == f) & (old == g)) for g in group] for f in range(faces)], float)
+    ok = (counts >= TERRACE_SAME * counts.sum(axis=1, keepdims=True)) & \
+        (counts >= TERRACE_SAME * counts.sum(axis=0, keepdims=True))
+    return bool(np.all(ok.any(axis=1)) and np.all(ok.any(axis=0)))
+
+
 def _region_shape(search: np.ndarray, rows: np.ndarray, tolerance: float, min_count: int) -> tuple | None:
     """What the ridge and tent tests need of the region of ``rows`` (r,) of ``search`` (3, m) at its t ``tolerance``
     (m): (its points (3, r), its sample's :func:`.verdict._pca`, the patches' noise (m^2), its lack of fit, t); None
     where it is too small to judge or its noise unknown."""
-    from .. import verdict  # the verdict imports the search's types: importing it with the module is a cycle
-    if len(rows) < max(2 * min_count, 2 * verdict.TILT_NEIGHBOURS):
+    if len(rows) < _judged(min_count):
         return None
+    from .. import verdict  # the verdict imports the search's types: importing it with the module is a cycle
     cols = search[:, rows]
     pca = verdict._pca(np.ascontiguousarray(cols.T[verdict._sample_rows(np.arange(len(rows)))]))
     local = verdict._patch_noise(pca, tolerance)
     if local is None:
         return None
     return cols, pca, local, verdict._lack(pca, local), tolerance
+
+
+def _within(search: np.ndarray, rows: np.ndarray, found: list, region: np.ndarray, tolerance: Tolerance
+            ) -> np.ndarray:
+    """Those of ``rows`` (r,) of ``search`` (3, m) within t (``tolerance``) of their region's plane (``region`` (m,)
+    numbers ``found``; a single plane: theirs): the points the region keeps once labelled. A region's search took in
+    the points within t of its first plane, and clutter among them (a blob above a roof) raised the noise the tests
+    measure."""
+    if not len(rows):
+        return rows
+    planes = plane_rows(found)[np.zeros(len(rows), np.int64) if len(found) == 1 else region[rows]]  # (r, 4)
+    cols = search[:, rows]
+    distance = np.abs(np.einsum('ij,ji->i', planes[:, :3], cols) + planes[:, 3])
+    return rows[distance <= tolerance_at(tolerance, rows)]
+
+
+def _judged(min_count: int) -> int:
+    """The fewest points a region of ``min_count`` searched points at least is judged on (:func:`_region_shape`)."""
+    from .. import verdict
+    return max(2 * min_count, 2 * verdict.TILT_NEIGHBOURS)
 
 
 def _tent_split(shape: tuple, min_count: int, allows: Allows, room: int) -> tuple[np.ndarray, list] | None:
