@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import kernels
-from .fit import allows_normal, fit_columns, plane_rows, tolerance_at
+from .fit import allows_normal, fit_columns, plane_distances, plane_rows, tolerance_at
 from .neighbours import NORMAL_MIN_COS, Neighbours
 from .tents import tent_faces
 from .types import Allows, Tolerance
@@ -44,7 +44,8 @@ def split_folds(search: np.ndarray, region: np.ndarray, found: list, tolerance: 
     for j in range(len(found)):
         if len(found) >= max_planes:
             break
-        rows = _within(search, np.flatnonzero(region == j), [found[j]], region, tolerance)
+        members = np.flatnonzero(region == j)
+        rows = _within(search, members, [found[j]], region, tolerance)
         tol = float(np.median(tolerance_at(tolerance, rows))) if len(rows) else 0.0
         shape = _region_shape(search, rows, tol, min_count)
         if shape is None:
@@ -52,10 +53,12 @@ def split_folds(search: np.ndarray, region: np.ndarray, found: list, tolerance: 
         faces = _tent_split(shape, min_count, allows, max_planes - len(found) + 1)
         if faces is not None:
             face, planes = faces
+            labels = [j] + list(range(len(found), len(found) + len(planes) - 1))
             found[j] = planes[0]
             for k in range(1, len(planes)):
                 region[rows[face == k]] = len(found)
                 found.append(planes[k])
+            _to_nearest(search, region, np.setdiff1d(members, rows), labels, planes)
             tents += 1
             continue
         halves = _fold_halves(shape, rows, min_count, allows)
@@ -64,13 +67,14 @@ def split_folds(search: np.ndarray, region: np.ndarray, found: list, tolerance: 
             region[move] = len(found)
             found[j] = plane
             found.append(other)
+            _to_nearest(search, region, np.setdiff1d(members, rows), [j, len(found) - 1], [plane, other])
             ridges += 1
     return region, found, (ridges, tents)
 
 
 #: Regions whose normals lie within this angle of each other (degrees) ...
 TERRACE_ANGLE_DEG = 10.0
-#: ... and whose points' means lie within this many t of each other's planes are terraces of one surface group (see
+#: ... and where one's points' mean lies within this many t of the other's plane are terraces of one surface group (see
 #: :func:`split_terraces`): at t of 2-3 noise sigmas, horizontal slabs 2 t thick, each cutting across every face of a
 #: shallow hip roof at its own height, hold more points than any face (tuning seeds aerial_roof 18, 31, 64, 70: up to
 #: four such slabs, about 2 t apart).
@@ -83,8 +87,8 @@ TERRACE_SAME = 0.8
 def split_terraces(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance, max_planes: int,
                    min_count: int, allows: Allows = None) -> tuple[np.ndarray, list, int]:
     """``region`` (m,) (-1: none) and ``found`` (normal, offset) planes of the centred points ``search`` (3, m)
-    meters, with each group of terraces (regions of nearly parallel planes, TERRACE_ANGLE_DEG, whose means lie within
-    TERRACE_STEP t of each other's planes, chained) whose joint points read as a tent or a ridge (the tests of
+    meters, with each group of terraces (regions of nearly parallel planes, TERRACE_ANGLE_DEG, one's mean within
+    TERRACE_STEP t of the other's plane, chained) whose joint points read as a tent or a ridge (the tests of
     :func:`split_folds`) replaced by the tent's faces or the ridge's two sides, unless those are the regions again
     (TERRACE_SAME). A shallow roof cut into slabs across its faces comes back as its faces. ``tolerance``: t (m) at
     each searched point (m,) or for all; ``max_planes``, ``min_count``, ``allows`` as for :func:`split_folds`.
@@ -100,7 +104,8 @@ def split_terraces(search: np.ndarray, region: np.ndarray, found: list, toleranc
     gone: list[int] = []
     split = 0
     for group in groups:
-        rows = _within(search, np.flatnonzero(np.isin(region, group)), found, region, tolerance)
+        members = np.flatnonzero(np.isin(region, group))
+        rows = _within(search, members, found, region, tolerance)
         tol = float(np.median(tolerance_at(tolerance, rows)))
         shape = _region_shape(search, rows, tol, min_count)
         if shape is None:
@@ -118,6 +123,7 @@ def split_terraces(search: np.ndarray, region: np.ndarray, found: list, toleranc
         if _same_regions(region[rows], face, group, len(planes)):
             continue
         region[rows] = face + len(found)
+        _to_nearest(search, region, np.setdiff1d(members, rows), range(len(found), len(found) + len(planes)), planes)
         found += planes
         gone += group
         split += 1
@@ -143,14 +149,16 @@ def _terrace_groups(search: np.ndarray, region: np.ndarray, found: list, toleran
     if not parallel.any():
         return []
     labelled = region >= 0
-    counts = np.bincount(region[labelled], minlength=k).astype(np.float64)
-    means = np.stack([np.bincount(region[labelled], weights=search[axis, labelled], minlength=k)
-                      for axis in range(3)], axis=1) / np.maximum(counts, 1)[:, None]  # (k, 3)
-    tol = np.array([np.median(tolerance_at(tolerance, np.flatnonzero(region == j))) if counts[j] else 0.0
-                    for j in range(k)]) if np.ndim(tolerance) else np.full(k, float(tolerance))
+    label = region[labelled]
+    counts = np.bincount(label, minlength=k).astype(np.float64)
+    weights = [search[axis, labelled] for axis in range(3)] + ([tolerance[labelled]] if np.ndim(tolerance) else [])
+    sums = np.stack([np.bincount(label, weights=w, minlength=k) for w in weights], axis=1)
+    sums /= np.maximum(counts, 1)[:, None]
+    means = sums[:, :3]  # (k, 3)
+    tol = sums[:, 3] if np.ndim(tolerance) else np.full(k, float(tolerance))  # each region's mean t
     # [i, j]: how far region j's mean lies from plane i, in the larger of the two regions' t
     apart = np.abs(normals @ means.T + offsets[:, None]) / np.maximum(np.maximum.outer(tol, tol), 1e-12)
-    near = parallel & (apart <= TERRACE_STEP) & (apart.T <= TERRACE_STEP) & (counts[:, None] >= least) & (counts >= least)
+    near = parallel & (np.minimum(apart, apart.T) <= TERRACE_STEP) & (counts[:, None] >= least) & (counts >= least)
     root = np.arange(k)
     for i, j in zip(*np.nonzero(np.triu(near, 1))):
         a, b = _root(root, i), _root(root, j)
@@ -197,13 +205,22 @@ def _within(search: np.ndarray, rows: np.ndarray, found: list, region: np.ndarra
     """Those of ``rows`` (r,) of ``search`` (3, m) within t (``tolerance``) of their region's plane (``region`` (m,)
     numbers ``found``; a single plane: theirs): the points the region keeps once labelled. A region's search took in
     the points within t of its first plane, and clutter among them (a blob above a roof) raised the noise the tests
-    measure."""
+    measure. The points beyond go to the nearest of the planes the region is split into (:func:`_to_nearest`)."""
     if not len(rows):
         return rows
     planes = plane_rows(found)[np.zeros(len(rows), np.int64) if len(found) == 1 else region[rows]]  # (r, 4)
     cols = search[:, rows]
     distance = np.abs(np.einsum('ij,ji->i', planes[:, :3], cols) + planes[:, 3])
     return rows[distance <= tolerance_at(tolerance, rows)]
+
+
+def _to_nearest(search: np.ndarray, region: np.ndarray, rows: np.ndarray, labels, planes: list) -> None:
+    """``region`` (m,) with each of ``rows`` (indices into ``search`` (3, m)) given the label (of ``labels``) of the
+    nearest of ``planes`` (normal, offset): the points of a split region the tests did not judge (:func:`_within`)."""
+    if len(rows):
+        rows_of = plane_rows(planes)
+        distance = plane_distances(search[:, rows], rows_of[:, :3], rows_of[:, 3])
+        region[rows] = np.asarray(list(labels))[np.argmin(distance, axis=0)]
 
 
 def _judged(min_count: int) -> int:
