@@ -1,7 +1,8 @@
 """The connected-regions search (``connectivity=True``): sequential RANSAC over a neighbourhood, then each
 region refitted, the borders between regions settled, touching regions of one surface merged (and coplanar ones
 apart where the part between them is hidden, :mod:`.occluded`), regions holding a ridge split at it once, or a hip
-roof's faces into them (:mod:`.folds`, :mod:`.tents`), the band along a shallow fold settled by side, and every valid
+roof's faces into them (:mod:`.folds`, :mod:`.tents`), groups of nearly parallel regions that cut across such a roof
+in slabs replaced by its faces, the band along a shallow fold settled by side, and every valid
 point labelled from the searched ones."""
 from __future__ import annotations
 

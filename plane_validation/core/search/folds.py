@@ -45,6 +45,8 @@ def split_folds(search: np.ndarray, region: np.ndarray, found: list, tolerance: 
         if len(found) >= max_planes:
             break
         members = np.flatnonzero(region == j)
+        if len(members) < _judged(min_count):
+            continue
         rows = _within(search, members, [found[j]], region, tolerance)
         tol = float(np.median(tolerance_at(tolerance, rows))) if len(rows) else 0.0
         shape = _region_shape(search, rows, tol, min_count)
@@ -106,7 +108,9 @@ def split_terraces(search: np.ndarray, region: np.ndarray, found: list, toleranc
     for group in groups:
         members = np.flatnonzero(np.isin(region, group))
         rows = _within(search, members, found, region, tolerance)
-        tol = float(np.median(tolerance_at(tolerance, rows)))
+        tol = float(np.median(tolerance_at(tolerance, rows))) if len(rows) else 0.0
+        if not _bent(search, rows, found, region, tol):
+            continue
         shape = _region_shape(search, rows, tol, min_count)
         if shape is None:
             continue
@@ -133,6 +137,23 @@ def split_terraces(search: np.ndarray, region: np.ndarray, found: list, toleranc
     renumber = np.full(len(found) + 1, -1, dtype=np.int64)
     renumber[keep] = np.arange(len(keep))
     return renumber[region], [found[j] for j in keep], split
+
+
+def _bent(search: np.ndarray, rows: np.ndarray, found: list, region: np.ndarray, tolerance: float) -> bool:
+    """Whether the points ``rows`` of a group of regions (``region`` (m,) numbers the ``found`` planes) of
+    ``search`` (3, m) fit one plane through them all FOLD_FIT times worse (RMS) than their own regions' planes or
+    more, which the ridge and tent tests need (their lack of fit FOLD_FIT or more against a noise their own planes
+    match), and within TERRACE_STEP t (``tolerance``, m) RMS of it, as slabs 2 t thick across one shallow roof lie:
+    a cheap test before theirs. Pieces of one surface apart (a lidar's floor beyond an obstacle) fail the first; the
+    table tops, shelves and floor of a room, chained into one group by their steps, the second."""
+    from .. import verdict
+    if len(rows) < 3:
+        return False
+    own = float(np.mean(_distances(search, rows, found, region) ** 2))
+    cols = np.ascontiguousarray(search[:, rows])
+    normal, offset = fit_columns(cols)
+    joint = float(np.mean((normal @ cols + offset) ** 2))
+    return verdict.FOLD_FIT ** 2 * own <= joint <= (TERRACE_STEP * tolerance) ** 2
 
 
 def _terrace_groups(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance, least: int
@@ -206,12 +227,16 @@ def _within(search: np.ndarray, rows: np.ndarray, found: list, region: np.ndarra
     numbers ``found``; a single plane: theirs): the points the region keeps once labelled. A region's search took in
     the points within t of its first plane, and clutter among them (a blob above a roof) raised the noise the tests
     measure. The points beyond go to the nearest of the planes the region is split into (:func:`_to_nearest`)."""
-    if not len(rows):
-        return rows
-    planes = plane_rows(found)[np.zeros(len(rows), np.int64) if len(found) == 1 else region[rows]]  # (r, 4)
-    cols = search[:, rows]
-    distance = np.abs(np.einsum('ij,ji->i', planes[:, :3], cols) + planes[:, 3])
-    return rows[distance <= tolerance_at(tolerance, rows)]
+    return rows[_distances(search, rows, found, region) <= tolerance_at(tolerance, rows)]
+
+
+def _distances(search: np.ndarray, rows: np.ndarray, found: list, region: np.ndarray) -> np.ndarray:
+    """(r,) distances (m) of ``rows`` of ``search`` (3, m) to their region's plane (see :func:`_within`)."""
+    if len(found) == 1:
+        normal, offset = found[0]
+        return np.abs(normal @ search[:, rows] + offset)
+    planes = plane_rows(found)[region[rows]]  # (r, 4)
+    return np.abs(np.einsum('ij,ji->i', planes[:, :3], search[:, rows]) + planes[:, 3])
 
 
 def _to_nearest(search: np.ndarray, region: np.ndarray, rows: np.ndarray, labels, planes: list) -> None:
