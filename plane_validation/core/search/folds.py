@@ -169,14 +169,20 @@ def _terrace_groups(search: np.ndarray, region: np.ndarray, found: list, toleran
     np.fill_diagonal(parallel, False)
     if not parallel.any():
         return []
-    labelled = region >= 0
-    label = region[labelled]
-    counts = np.bincount(label, minlength=k).astype(np.float64)
-    weights = [search[axis, labelled] for axis in range(3)] + ([tolerance[labelled]] if np.ndim(tolerance) else [])
+    counts = np.bincount(region[region >= 0], minlength=k)
+    # the means and t on about FOLD_SAMPLE points (every so many-th): the test is coarse, and most frames have none
+    stride = max(1, len(region) // FOLD_SAMPLE)
+    sample = region[::stride]
+    labelled = sample >= 0
+    label = sample[labelled]
+    weights = [search[axis, ::stride][labelled] for axis in range(3)] + \
+        ([tolerance[::stride][labelled]] if np.ndim(tolerance) else [])
     sums = np.stack([np.bincount(label, weights=w, minlength=k) for w in weights], axis=1)
-    sums /= np.maximum(counts, 1)[:, None]
+    sampled = np.bincount(label, minlength=k)
+    sums /= np.maximum(sampled, 1)[:, None]
     means = sums[:, :3]  # (k, 3)
     tol = sums[:, 3] if np.ndim(tolerance) else np.full(k, float(tolerance))  # each region's mean t
+    counts = np.where(sampled > 0, counts, 0)  # a region the sample missed is not judged
     # [i, j]: how far region j's mean lies from plane i, in the larger of the two regions' t
     apart = np.abs(normals @ means.T + offsets[:, None]) / np.maximum(np.maximum.outer(tol, tol), 1e-12)
     near = parallel & (np.minimum(apart, apart.T) <= TERRACE_STEP) & (counts[:, None] >= least) & (counts >= least)
