@@ -9,6 +9,10 @@ fails as surfaces merged, is split too), is split at that line: each side gets a
 goes to the nearer of the two, and both planes are refitted. A region that reads better as a tent than as one fold
 is split into the tent's faces instead (:func:`.tents.tent_faces`).
 
+At t of a few noise sigmas a shallow roof can instead be found as level slabs, each cutting across its faces at one
+height: :func:`split_terraces` judges such a group of nearly parallel regions as one region, and replaces it by the
+faces or sides the same tests find.
+
 Near a shallow fold found as two regions, both planes lie within t of the points of a band along the line, where
 the nearer plane is the one the noise favours: :func:`settle_folds` gives each such point to the face on its side.
 """
