@@ -1,7 +1,8 @@
 """The connected-regions search (``connectivity=True``): sequential RANSAC over a neighbourhood, then each
 region refitted, the borders between regions settled, touching regions of one surface merged (and coplanar ones
 apart where the part between them is hidden, :mod:`.occluded`), regions holding a ridge split at it once, or a hip
-roof's faces into them (:mod:`.folds`, :mod:`.tents`), the band along a shallow fold settled by side, and every valid
+roof's faces into them (:mod:`.folds`, :mod:`.tents`), groups of nearly parallel regions that cut across such a roof
+in slabs replaced by its faces, the band along a shallow fold settled by side, and every valid
 point labelled from the searched ones."""
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import numpy as np
 from .. import kernels
 from .checks import resolve_min_inliers
 from .fit import allows_normal, canonical, fit_columns, plane_distances, plane_rows, refit_regions, tolerance_at
-from .folds import settle_folds, split_folds
+from .folds import settle_folds, split_folds, split_terraces
 from .graph import SearchGraph, checked_search_graph, spread_nearest
 from .grid import spread_grid
 from .neighbours import NORMAL_MIN_COS, Neighbours
@@ -72,6 +73,9 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
         reason += f'; split {ridges} region(s) at a ridge or fold into the two surfaces meeting there'
     if tents:
         reason += f'; split {tents} region(s) whose residuals form a tent into its faces'
+    region, found, terraces = split_terraces(search, region, found, search_tolerance, max_planes, search_min, allows)
+    if terraces:
+        reason += f'; split {terraces} group(s) of regions cut across a fold or tent into its faces'
     region, found = settle_folds(search, region, found, search_tolerance, neighbours, allows)
     if step:
         uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]

@@ -85,8 +85,9 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX
     touching regions of one surface are merged (and coplanar regions apart where the sensor sees nothing
     through their plane between them and something hides it or it is out of view), a region holding the two sides
     of a shallow ridge is split at it, or the faces of a shallow hip roof into them (:mod:`.tents`), while there are
-    fewer than ``max_planes`` (:mod:`.folds`), the points along a shallow fold between two regions go to the face on
-    their side of it, and every valid point
+    fewer than ``max_planes`` (:mod:`.folds`), nearly parallel regions that cut across such a roof in slabs are
+    replaced by its faces (:func:`.folds.split_terraces`), the points along a shallow fold between two regions go to
+    the face on their side of it, and every valid point
     takes the region of the searched point nearest to it (organized: of the sub-grid pixels around it) when it
     lies within ``tolerance`` of that region's plane, else -1. Either way a plane left with fewer than
     ``min_inliers`` points is dropped (and said so in ``reason``); with connectivity its points stay

@@ -9,6 +9,10 @@ fails as surfaces merged, is split too), is split at that line: each side gets a
 goes to the nearer of the two, and both planes are refitted. A region that reads better as a tent than as one fold
 is split into the tent's faces instead (:func:`.tents.tent_faces`).
 
+At t of a few noise sigmas a shallow roof can instead be found as level slabs, each cutting across its faces at one
+height: :func:`split_terraces` judges such a group of nearly parallel regions as one region, and replaces it by the
+faces or sides the same tests find.
+
 Near a shallow fold found as two regions, both planes lie within t of the points of a band along the line, where
 the nearer plane is the one the noise favours: :func:`settle_folds` gives each such point to the face on its side.
 """
@@ -17,12 +21,13 @@ from __future__ import annotations
 import numpy as np
 
 from .. import kernels
-from .fit import allows_normal, fit_columns, tolerance_at
+from .fit import allows_normal, fit_columns, plane_distances, plane_rows, tolerance_at
 from .neighbours import NORMAL_MIN_COS, Neighbours
 from .tents import tent_faces
 from .types import Allows, Tolerance
 
-__all__ = ['split_folds', 'settle_folds', 'FOLD_SIDE']
+__all__ = ['split_folds', 'split_terraces', 'settle_folds', 'FOLD_SIDE', 'TERRACE_ANGLE_DEG', 'TERRACE_STEP',
+           'TERRACE_SAME']
 
 #: A region is split only where each side holds at least this share of its points (a fold near the region's edge is
 #: a lip or a bent border, not a second surface).
@@ -43,7 +48,10 @@ def split_folds(search: np.ndarray, region: np.ndarray, found: list, tolerance: 
     for j in range(len(found)):
         if len(found) >= max_planes:
             break
-        rows = np.flatnonzero(region == j)
+        members = np.flatnonzero(region == j)
+        if len(members) < _judged(min_count):
+            continue
+        rows = _within(search, members, [found[j]], region, tolerance)
         tol = float(np.median(tolerance_at(tolerance, rows))) if len(rows) else 0.0
         shape = _region_shape(search, rows, tol, min_count)
         if shape is None:
@@ -51,10 +59,12 @@ def split_folds(search: np.ndarray, region: np.ndarray, found: list, tolerance: 
         faces = _tent_split(shape, min_count, allows, max_planes - len(found) + 1)
         if faces is not None:
             face, planes = faces
+            labels = [j] + list(range(len(found), len(found) + len(planes) - 1))
             found[j] = planes[0]
             for k in range(1, len(planes)):
                 region[rows[face == k]] = len(found)
                 found.append(planes[k])
+            _to_nearest(search, region, np.setdiff1d(members, rows), labels, planes)
             tents += 1
             continue
         halves = _fold_halves(shape, rows, min_count, allows)
@@ -63,23 +73,195 @@ def split_folds(search: np.ndarray, region: np.ndarray, found: list, tolerance: 
             region[move] = len(found)
             found[j] = plane
             found.append(other)
+            _to_nearest(search, region, np.setdiff1d(members, rows), [j, len(found) - 1], [plane, other])
             ridges += 1
     return region, found, (ridges, tents)
+
+
+#: Regions whose normals lie within this angle of each other (degrees) ...
+TERRACE_ANGLE_DEG = 10.0
+#: ... and where one's points' mean lies within this many t of the other's plane are terraces of one surface group (see
+#: :func:`split_terraces`): at t of 2-3 noise sigmas, horizontal slabs 2 t thick, each cutting across every face of a
+#: shallow hip roof at its own height, hold more points than any face (tuning seeds aerial_roof 18, 31, 64, 70: up to
+#: four such slabs, about 2 t apart).
+TERRACE_STEP = 3.0
+#: A group's split leaves its regions as they were where each face shares at least this share of its points with one
+#: region and that region this share of its points with the face (Hoover's overlap): the split found the regions again.
+TERRACE_SAME = 0.8
+
+
+def split_terraces(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance, max_planes: int,
+                   min_count: int, allows: Allows = None) -> tuple[np.ndarray, list, int]:
+    """``region`` (m,) (-1: none) and ``found`` (normal, offset) planes of the centred points ``search`` (3, m)
+    meters, with each group of terraces (regions of nearly parallel planes, TERRACE_ANGLE_DEG, one's mean within
+    TERRACE_STEP t of the other's plane, chained) whose joint points read as a tent or a ridge (the tests of
+    :func:`split_folds`) replaced by the tent's faces or the ridge's two sides, unless those are the regions again
+    (TERRACE_SAME). A shallow roof cut into slabs across its faces comes back as its faces. ``tolerance``: t (m) at
+    each searched point (m,) or for all; ``max_planes``, ``min_count``, ``allows`` as for :func:`split_folds`.
+    Returns the new region labels and planes (renumbered: the groups' regions replaced by their faces, numbered
+    last) and how many groups were split; the inputs are left as they were."""
+    k = len(found)
+    if k < 2:
+        return region, found, 0
+    groups = _terrace_groups(search, region, found, tolerance, _judged(min_count))
+    if not groups:
+        return region, found, 0
+    region, found = region.copy(), list(found)
+    gone: list[int] = []
+    split = 0
+    for group in groups:
+        members = np.flatnonzero(np.isin(region, group))
+        rows = _within(search, members, found, region, tolerance)
+        tol = float(np.median(tolerance_at(tolerance, rows))) if len(rows) else 0.0
+        if not _bent(search, rows, found, region, tol):
+            continue
+        shape = _region_shape(search, rows, tol, min_count)
+        if shape is None:
+            continue
+        room = max_planes - len(found) + len(gone) + len(group)
+        faces = _tent_split(shape, min_count, allows, room)
+        if faces is None:
+            halves = _fold_halves(shape, rows, min_count, allows) if room >= 2 else None
+            if halves is None:
+                continue
+            (first, plane), (second, other) = halves
+            face = np.isin(rows, second).astype(np.int64)
+            faces = face, [plane, other]
+        face, planes = faces
+        if _same_regions(region[rows], face, group, len(planes)):
+            continue
+        region[rows] = face + len(found)
+        _to_nearest(search, region, np.setdiff1d(members, rows), range(len(found), len(found) + len(planes)), planes)
+        found += planes
+        gone += group
+        split += 1
+    if not split:
+        return region, found, 0
+    keep = np.setdiff1d(np.arange(len(found)), gone)
+    renumber = np.full(len(found) + 1, -1, dtype=np.int64)
+    renumber[keep] = np.arange(len(keep))
+    return renumber[region], [found[j] for j in keep], split
+
+
+def _bent(search: np.ndarray, rows: np.ndarray, found: list, region: np.ndarray, tolerance: float) -> bool:
+    """Whether the points ``rows`` of a group of regions (``region`` (m,) numbers the ``found`` planes) of
+    ``search`` (3, m) fit one plane through them all FOLD_FIT times worse (RMS) than their own regions' planes or
+    more, which the ridge and tent tests need (their lack of fit FOLD_FIT or more against a noise their own planes
+    match), and within TERRACE_STEP t (``tolerance``, m) RMS of it, as slabs 2 t thick across one shallow roof lie:
+    a cheap test before theirs. Pieces of one surface apart (a lidar's floor beyond an obstacle) fail the first; the
+    table tops, shelves and floor of a room, chained into one group by their steps, the second."""
+    from .. import verdict
+    if len(rows) < 3:
+        return False
+    own = float(np.mean(_distances(search, rows, found, region) ** 2))
+    cols = np.ascontiguousarray(search[:, rows])
+    normal, offset = fit_columns(cols)
+    joint = float(np.mean((normal @ cols + offset) ** 2))
+    return verdict.FOLD_FIT ** 2 * own <= joint <= (TERRACE_STEP * tolerance) ** 2
+
+
+def _terrace_groups(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance, least: int
+                    ) -> list[list[int]]:
+    """The groups (two regions or more, each a list of region numbers) of terraces among the ``found`` planes of the
+    regions ``region`` (m,) of ``search`` (3, m) (see :func:`split_terraces`), each region of ``least`` points or more:
+    a smaller one is too small to judge as a surface (a clutter blob above a roof, whose points would raise the
+    group's noise and fail its tests)."""
+    k = len(found)
+    normals = np.array([normal for normal, _ in found]).reshape(k, 3)
+    offsets = np.array([offset for _, offset in found])
+    parallel = np.abs(normals @ normals.T) >= np.cos(np.radians(TERRACE_ANGLE_DEG))
+    np.fill_diagonal(parallel, False)
+    if not parallel.any():
+        return []
+    counts = np.bincount(region[region >= 0], minlength=k)
+    # the means and t on about FOLD_SAMPLE points (every so many-th): the test is coarse, and most frames have none
+    stride = max(1, len(region) // FOLD_SAMPLE)
+    sample = region[::stride]
+    labelled = sample >= 0
+    label = sample[labelled]
+    weights = [search[axis, ::stride][labelled] for axis in range(3)] + \
+        ([tolerance[::stride][labelled]] if np.ndim(tolerance) else [])
+    sums = np.stack([np.bincount(label, weights=w, minlength=k) for w in weights], axis=1)
+    sampled = np.bincount(label, minlength=k)
+    sums /= np.maximum(sampled, 1)[:, None]
+    means = sums[:, :3]  # (k, 3)
+    tol = sums[:, 3] if np.ndim(tolerance) else np.full(k, float(tolerance))  # each region's mean t
+    counts = np.where(sampled > 0, counts, 0)  # a region the sample missed is not judged
+    # [i, j]: how far region j's mean lies from plane i, in the larger of the two regions' t
+    apart = np.abs(normals @ means.T + offsets[:, None]) / np.maximum(np.maximum.outer(tol, tol), 1e-12)
+    near = parallel & (np.minimum(apart, apart.T) <= TERRACE_STEP) & (counts[:, None] >= least) & (counts >= least)
+    root = np.arange(k)
+    for i, j in zip(*np.nonzero(np.triu(near, 1))):
+        a, b = _root(root, i), _root(root, j)
+        root[max(a, b)] = min(a, b)
+    roots = np.array([_root(root, j) for j in range(k)])
+    return [list(np.flatnonzero(roots == r)) for r in np.unique(roots) if np.count_nonzero(roots == r) > 1]
+
+
+def _root(root: np.ndarray, j: int) -> int:
+    """The root of ``j`` in the union-find ``root`` (k,)."""
+    while root[j] != j:
+        j = root[j]
+    return int(j)
+
+
+def _same_regions(old: np.ndarray, face: np.ndarray, group: list[int], faces: int) -> bool:
+    """Whether the ``faces`` faces ``face`` (r,) of a group's points are its regions ``group`` again: each face
+    matched one to one to a region of ``old`` (r,) that shares TERRACE_SAME of both's points."""
+    if faces != len(group):
+        return False
+    counts = np.array([[np.count_nonzero((face == f) & (old == g)) for g in group] for f in range(faces)], float)
+    ok = (counts >= TERRACE_SAME * counts.sum(axis=1, keepdims=True)) & \
+        (counts >= TERRACE_SAME * counts.sum(axis=0, keepdims=True))
+    return bool(np.all(ok.any(axis=1)) and np.all(ok.any(axis=0)))
 
 
 def _region_shape(search: np.ndarray, rows: np.ndarray, tolerance: float, min_count: int) -> tuple | None:
     """What the ridge and tent tests need of the region of ``rows`` (r,) of ``search`` (3, m) at its t ``tolerance``
     (m): (its points (3, r), its sample's :func:`.verdict._pca`, the patches' noise (m^2), its lack of fit, t); None
     where it is too small to judge or its noise unknown."""
-    from .. import verdict  # the verdict imports the search's types: importing it with the module is a cycle
-    if len(rows) < max(2 * min_count, 2 * verdict.TILT_NEIGHBOURS):
+    if len(rows) < _judged(min_count):
         return None
+    from .. import verdict  # the verdict imports the search's types: importing it with the module is a cycle
     cols = search[:, rows]
     pca = verdict._pca(np.ascontiguousarray(cols.T[verdict._sample_rows(np.arange(len(rows)))]))
     local = verdict._patch_noise(pca, tolerance)
     if local is None:
         return None
     return cols, pca, local, verdict._lack(pca, local), tolerance
+
+
+def _within(search: np.ndarray, rows: np.ndarray, found: list, region: np.ndarray, tolerance: Tolerance
+            ) -> np.ndarray:
+    """Those of ``rows`` (r,) of ``search`` (3, m) within t (``tolerance``) of their region's plane (``region`` (m,)
+    numbers ``found``; a single plane: theirs): the points the region keeps once labelled. A region's search took in
+    the points within t of its first plane, and clutter among them (a blob above a roof) raised the noise the tests
+    measure. The points beyond go to the nearest of the planes the region is split into (:func:`_to_nearest`)."""
+    return rows[_distances(search, rows, found, region) <= tolerance_at(tolerance, rows)]
+
+
+def _distances(search: np.ndarray, rows: np.ndarray, found: list, region: np.ndarray) -> np.ndarray:
+    """(r,) distances (m) of ``rows`` of ``search`` (3, m) to their region's plane (see :func:`_within`)."""
+    if len(found) == 1:
+        normal, offset = found[0]
+        return np.abs(normal @ search[:, rows] + offset)
+    planes = plane_rows(found)[region[rows]]  # (r, 4)
+    return np.abs(np.einsum('ij,ji->i', planes[:, :3], search[:, rows]) + planes[:, 3])
+
+
+def _to_nearest(search: np.ndarray, region: np.ndarray, rows: np.ndarray, labels, planes: list) -> None:
+    """``region`` (m,) with each of ``rows`` (indices into ``search`` (3, m)) given the label (of ``labels``) of the
+    nearest of ``planes`` (normal, offset): the points of a split region the tests did not judge (:func:`_within`)."""
+    if len(rows):
+        rows_of = plane_rows(planes)
+        distance = plane_distances(search[:, rows], rows_of[:, :3], rows_of[:, 3])
+        region[rows] = np.asarray(list(labels))[np.argmin(distance, axis=0)]
+
+
+def _judged(min_count: int) -> int:
+    """The fewest points a region of ``min_count`` searched points at least is judged on (:func:`_region_shape`)."""
+    from .. import verdict
+    return max(2 * min_count, 2 * verdict.TILT_NEIGHBOURS)
 
 
 def _tent_split(shape: tuple, min_count: int, allows: Allows, room: int) -> tuple[np.ndarray, list] | None:
