@@ -1,6 +1,6 @@
-"""The verdict's ridge test (verdict.FOLD_LACK, FOLD_FIT) on the tuning split's scenes: per plane, whether it lies
+"""The verdict's ridge test (plane_shape.FOLD_LACK, FOLD_FIT) on the tuning split's scenes: per plane, whether it lies
 on one true plane or holds two, its lack of fit with one plane, with two planes meeting at a line, and with a quadric
-(verdict.plane_lack_of_fit, verdict.plane_fold); then how many planes of each kind the test fails, beside a lack-of-fit
+(plane_shape.plane_lack_of_fit, plane_fold); then how many planes of each kind the test fails, beside a lack-of-fit
 limit alone.
 
 Planes are those of the auto-tuned result and of three fixed t per scene that hold 2 % of the planes' points or more;
@@ -24,7 +24,8 @@ import quality  # noqa: E402
 import plane_validation as pv  # noqa: E402
 from plane_validation.core import scene_families  # noqa: E402
 from plane_validation.core.blas import limit_blas_threads  # noqa: E402
-from plane_validation.core.verdict import FOLD_FIT, FOLD_LACK, MAX_LACK_OF_FIT, plane_fold, plane_lack_of_fit  # noqa: E402
+from plane_validation.core.plane_shape import FOLD_FIT, FOLD_LACK, plane_fold, plane_lack_of_fit  # noqa: E402
+from plane_validation.core.verdict import MAX_LACK_OF_FIT  # noqa: E402
 
 FIXED_T = {'organized': (0.006, 0.02, 0.063), 'plain': (0.011, 0.032, 0.089)}
 

@@ -17,6 +17,7 @@ import quality  # noqa: E402
 
 import plane_validation as pv  # noqa: E402
 from plane_validation.core import scenes  # noqa: E402
+from plane_validation.core.plane_shape import plane_thickness  # noqa: E402
 from plane_validation.core.scoring import segmentation_quality  # noqa: E402
 from plane_validation.core.verdict import (  # noqa: E402
     MAX_FILL,
@@ -25,7 +26,6 @@ from plane_validation.core.verdict import (  # noqa: E402
     plane_curvature,
     plane_fill,
     plane_layering,
-    plane_thickness,
 )
 from plane_validation.formats.files import load_cloud  # noqa: E402
 

@@ -7,7 +7,7 @@ import pytest
 
 import plane_validation as pv
 from plane_validation.app.report import dumps
-from plane_validation.core import scenes
+from plane_validation.core import plane_shape, scenes
 from plane_validation.core import verdict as verdict_module
 from plane_validation.core.failures import Failure, FailureKind, Verdict
 from plane_validation.core.verdict import MAX_LACK_OF_FIT, RELIABLE_PS, judge
@@ -97,7 +97,8 @@ def test_a_shallow_gable_found_as_one_plane_is_a_ridge():
     """A 2 degree gable (0.14 m drop to the eaves, under 5 x its 3 cm noise) found as one plane: a lack of fit well
     below the 2 of steep merges, which two planes meeting at the ridge explain: RIDGE, with both numbers. Each side
     alone is not a ridge."""
-    from plane_validation.core.verdict import FOLD_FIT, FOLD_LACK, MAX_LACK_OF_FIT
+    from plane_validation.core.plane_shape import FOLD_FIT, FOLD_LACK
+    from plane_validation.core.verdict import MAX_LACK_OF_FIT
     roof = _gable(seed=5, n=2048, half_width=4, length=10, pitch_deg=2, noise=0.03)
     seg = pv.detect_planes(roof, 0.15, seed=0, max_planes=1)
     verdict = judge(roof, seg, pv.validity_indices(roof, seg.labels, seed=0))
@@ -118,9 +119,9 @@ def test_a_bowed_surface_is_neither_a_ridge_nor_a_tent():
     x, y = rng.uniform(-4, 4, 4000), rng.uniform(-4, 4, 4000)
     bowl = np.column_stack([x, y, 0.006 * (x * x + y * y) + rng.normal(0, 0.02, 4000)])
     seg = pv.detect_planes(bowl, 0.2, seed=0, max_planes=1)
-    folds, tents = verdict_module.plane_fold(bowl, seg), verdict_module.plane_tent(bowl, seg)
-    lack = verdict_module.plane_lack_of_fit(bowl, seg)[0]
-    assert lack >= verdict_module.FOLD_LACK >= verdict_module.TENT_LACK  # a misfit ...
+    folds, tents = plane_shape.plane_fold(bowl, seg), plane_shape.plane_tent(bowl, seg)
+    lack = plane_shape.plane_lack_of_fit(bowl, seg)[0]
+    assert lack >= plane_shape.FOLD_LACK >= verdict_module.TENT_LACK  # a misfit ...
     assert folds[0, 0] > folds[0, 1] and tents[0, 0] > tents[0, 1]  # ... that a quadric explains better
     kinds = judge(bowl, seg, pv.validity_indices(bowl, seg.labels, seed=0)).kinds
     assert FailureKind.RIDGE not in kinds and FailureKind.TENT not in kinds
@@ -142,7 +143,8 @@ def test_a_shallow_hip_roof_found_as_one_plane_is_a_tent():
     """A 3 degree hip roof (its four faces 0.2 m above the eaves at the ridge, 7 x its 3 cm noise) found as one plane:
     a lack of fit below the 2 of steep merges that one fold explains only in part (no RIDGE), but residuals rising
     from every edge: TENT, with both numbers."""
-    from plane_validation.core.verdict import FOLD_FIT, TENT_LACK
+    from plane_validation.core.plane_shape import FOLD_FIT
+    from plane_validation.core.verdict import TENT_LACK
     roof, _ = _hip(seed=2, n=2048, length=12, width=8, pitch_deg=3, noise=0.03)
     seg = pv.detect_planes(roof, 0.25, seed=0, max_planes=1)
     verdict = judge(roof, seg, pv.validity_indices(roof, seg.labels, seed=0))
@@ -151,7 +153,7 @@ def test_a_shallow_hip_roof_found_as_one_plane_is_a_tent():
     assert TENT_LACK <= tent[0].value < MAX_LACK_OF_FIT and tent[0].other <= FOLD_FIT
     assert FailureKind.RIDGE not in verdict.kinds and FailureKind.SURFACES_MERGED not in verdict.kinds
     assert 'form a tent' in str(tent[0]) and 'hip roof' in str(tent[0])
-    tents = verdict_module.plane_tent(roof, seg)
+    tents = plane_shape.plane_tent(roof, seg)
     assert tents.shape == (1, 2) and tents[0, 0] == pytest.approx(tent[0].other) and tents[0, 0] < tents[0, 1]
 
 
@@ -162,7 +164,7 @@ def test_a_hip_roof_found_face_by_face_is_no_tent():
     seg = pv.detect_planes(roof, 0.08, seed=0, max_planes=6)
     verdict = judge(roof, seg, pv.validity_indices(roof, seg.labels, seed=0))
     assert seg.n_planes == 4 and verdict.reliable, verdict
-    lack = verdict_module.plane_lack_of_fit(roof, seg)
+    lack = plane_shape.plane_lack_of_fit(roof, seg)
     # each face fits its plane: no misfit for a tent to explain (NaN: too few patches to judge)
     assert np.count_nonzero(np.isfinite(lack)) >= 3 and not np.any(lack >= verdict_module.TENT_LACK), lack
     for k in range(4):

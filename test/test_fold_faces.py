@@ -98,11 +98,11 @@ def test_a_flat_or_gently_curved_roof_is_no_tent():
 
 
 def test_tent_faces_refuse_too_few_points_or_a_normal_not_allowed():
-    from plane_validation.core import verdict
+    from plane_validation.core import plane_shape
     points, face = _hip(0, 3.0, 0.02)
     cols = np.ascontiguousarray((points - points.mean(axis=0)).T)
-    pca = verdict._pca(np.ascontiguousarray(cols.T[verdict._sample_rows(np.arange(cols.shape[1]))]))
-    local = verdict._patch_noise(pca, 0.15)
+    pca = plane_shape.principal_frame(np.ascontiguousarray(cols.T[plane_shape.sample_rows(np.arange(cols.shape[1]))]))
+    local = plane_shape.patch_noise(pca, 0.15)
     got = tent_faces(cols, pca, local, 50)
     assert got is not None and len(got[1]) == 4
     assert np.mean(got[0] == np.array([np.bincount(got[0][face == k]).argmax() for k in range(4)])[face]) > 0.95

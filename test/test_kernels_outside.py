@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from plane_validation.app.pipeline import _no_returns_as_nan
 from plane_validation.app.tracking import _near_share, _near_share_kdtree
-from plane_validation.core import kernels, scenes
+from plane_validation.core import kernels, plane_shape, scenes
 from plane_validation.core import verdict as V
 from plane_validation.core.ransac import AT_VIEWPOINT, detect_planes, no_returns_as_nan
 
@@ -99,8 +99,8 @@ def test_plane_beyond_equals_its_numpy_reference(noise_model, organized):
     seg = detect_planes(pts, t, max_planes=6, seed=0, shape=scene.shape if organized else None,
                         noise_model=noise_model)
     assert seg.n_planes >= 3
-    samples = V._samples(pts, seg)
-    frames = [V._pca(inl) for inl in samples]
+    samples = plane_shape.inlier_samples(pts, seg)
+    frames = [plane_shape.principal_frame(inl) for inl in samples]
     fill = np.array([V._fill(inl, p, seg) for inl, p in zip(samples, seg.planes)])
     got = V._beyond(pts, seg, frames, fill)
     np.testing.assert_array_equal(got, V._beyond_numpy(pts, seg, frames, fill))
@@ -159,7 +159,7 @@ def test_patch_eigenvalues_match_the_numpy_closed_form(seed, p, flat):
     x = rng.normal(size=(p, 20, 3)) * [1.0, rng.uniform(0.1, 1.0), flat]
     m = np.einsum('pni,pnj->pij', x, x) / 20
     m[rng.random(p) < 0.2] *= np.eye(3)  # diagonal scatters: their entries, sorted
-    got, want = kernels.patch_eigenvalues(m), V.symmetric_eigenvalues(m)
+    got, want = kernels.patch_eigenvalues(m), plane_shape.symmetric_eigenvalues(m)
     # the same steps; numpy's vectorized arccos and cos may round differently in the last place
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max(initial=0.0))
 

@@ -327,8 +327,9 @@ def test_a_count_min_inliers_is_scaled_to_the_tuning_subsample():
 
 
 def test_a_narrow_noisy_strip_is_a_plane_and_a_curved_slab_is_not():
+    from plane_validation.core.plane_shape import plane_thickness
     from plane_validation.core.ransac import Plane, Segmentation
-    from plane_validation.core.verdict import MAX_THICKNESS, MIN_CURVATURE, plane_curvature, plane_thickness
+    from plane_validation.core.verdict import MAX_THICKNESS, MIN_CURVATURE, plane_curvature
     rng = np.random.default_rng(0)
     u, v = rng.uniform(-0.6, 0.6, 4000), rng.uniform(-0.08, 0.08, 4000)
     strip = np.column_stack([u, v, rng.normal(0, 0.012, 4000)])  # a far stair riser: 16 cm tall, 12 mm noise
@@ -1003,7 +1004,8 @@ def _gable(pitch_deg: float, n: int = 2048, noise: float = 0.02, seed: int = 0) 
 def test_lack_of_fit_tells_one_surface_from_a_shallow_ridge():
     """A plane across both sides of a 3-degree ridge (0.2 m drop, 10 x the noise) fits its points worse than its
     patches fit theirs; each side alone, or a plane whose noise grows fivefold across it, does not."""
-    from plane_validation.core.verdict import MAX_LACK_OF_FIT, judge, plane_lack_of_fit
+    from plane_validation.core.plane_shape import plane_lack_of_fit
+    from plane_validation.core.verdict import MAX_LACK_OF_FIT, judge
     points, side = _gable(3.0)
     merged = pv.detect_planes(points, 0.15, max_planes=1, seed=0)  # t as the sweep chose without the test
     assert merged.n_planes == 1 and len(merged.planes[0].inliers) > 0.95 * len(points)
@@ -1038,13 +1040,13 @@ def test_a_shallow_gable_roof_is_tuned_to_its_two_sides(pitch):
 def test_the_patches_closed_form_eigenvalues_match_eigvalsh(seed):
     """The verdict's patches: closed-form eigenvalues (lack of fit) against np.linalg.eigh (tilt), flat and
     diagonal scatters included."""
-    from plane_validation.core.verdict import _patches, _pca, symmetric_eigenvalues
+    from plane_validation.core.plane_shape import patches_of, principal_frame, symmetric_eigenvalues
     rng = np.random.default_rng(seed)
     n, thickness = int(rng.integers(0, 400)), float(rng.choice([0.0, 1e-6, 0.01, 0.2]))
     points = np.column_stack([rng.uniform(0, 3, n), rng.uniform(0, 1 + 2 * rng.random(), n),
                               rng.normal(0, thickness, n) + 0.1 * np.sin(rng.uniform(0, 6, n))])
-    pca = _pca(points)
-    closed, full = _patches(pca, axes=False), _patches(pca)
+    pca = principal_frame(points)
+    closed, full = patches_of(pca, axes=False), patches_of(pca)
     assert (closed is None) == (full is None)
     if closed is not None:
         assert np.array_equal(closed[2], full[2])

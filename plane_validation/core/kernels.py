@@ -2062,7 +2062,7 @@ def silhouettes(sums: np.ndarray, codes: np.ndarray, sizes: np.ndarray, has_rest
 @numba.njit(**_JIT)
 def patch_eigenvalues(m: np.ndarray) -> np.ndarray:
     """The eigenvalues (p, 3), ascending, of symmetric 3 x 3 matrices ``m`` (p, 3, 3), by the trigonometric closed
-    form, the same steps as ``verdict.symmetric_eigenvalues`` (its numpy reference)."""
+    form, the same steps as ``plane_shape.symmetric_eigenvalues`` (its numpy reference)."""
     out = np.empty((m.shape[0], 3))
     for i in range(m.shape[0]):
         a = m[i]

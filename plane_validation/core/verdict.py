@@ -1,4 +1,5 @@
-"""The reliability verdict: are the detected planes trustworthy? Its thresholds live here only.
+"""The reliability verdict: are the detected planes trustworthy? Its thresholds live here, the fold's and the
+tent's (FOLD_LACK, FOLD_FIT), which the search shares, in :mod:`.plane_shape` with the measures.
 
 Pure numpy (no ROS import). :func:`judge` is used by the tuner, the pipeline and the CLI.
 """
@@ -11,17 +12,35 @@ from .failures import Failure, FailureKind, Verdict
 from .indices import ValidityIndices
 from .leftover import leftover_plane
 from .noise import tolerance_scale
+from .plane_shape import (
+    FOLD_FIT,
+    FOLD_LACK,
+    TILT_MIN_PATCHES,
+    fold_of,
+    frame_thickness,
+    inlier_sample,
+    inlier_samples,
+    is_ridge,
+    lack_from_noise,
+    lack_of_fit,
+    patch_cells,
+    patch_noise,
+    patches_of,
+    plane_tolerance,
+    principal_frame,
+    sample_rows,
+    tent_of,
+)
 from .plane_silhouette import EXTENT_PERCENTILES
 from .ransac import Segmentation, as_points
 from .scoring import segmentation_quality
 from .search.neighbours import NORMAL_MIN_COS
 
-__all__ = ['judge', 'surface_failures', 'plane_tilt', 'MAX_TILT', 'plane_thickness', 'plane_curvature', 'plane_fill',
-           'plane_lack_of_fit', 'MAX_LACK_OF_FIT', 'plane_layering', 'plane_beyond', 'MAX_FILL', 'MAX_LAYERING',
-           'EXACT_LAYERS', 'MAX_BEYOND', 'MAX_ROUNDNESS', 'RELIABLE_PS', 'RELIABLE_GS_PLANES', 'MAX_THICKNESS',
-           'MIN_CURVATURE', 'SINGLE_PLANE_THICKNESS', 'seed_agreement', 'MIN_SEED_AGREEMENT', 'STABILITY_RESEEDS',
-           'MIN_PLANE_POINTS', 'coordinate_step', 'plane_fold', 'fold_line', 'is_ridge', 'FOLD_LACK', 'FOLD_FIT',
-           'plane_tent', 'TENT_LACK', 'LEFTOVER_SHARE']
+__all__ = ['judge', 'surface_failures', 'plane_tilt', 'MAX_TILT', 'plane_curvature', 'plane_fill', 'MAX_LACK_OF_FIT',
+           'plane_layering', 'plane_beyond', 'MAX_FILL', 'MAX_LAYERING', 'EXACT_LAYERS', 'MAX_BEYOND', 'MAX_ROUNDNESS',
+           'RELIABLE_PS', 'RELIABLE_GS_PLANES', 'MAX_THICKNESS', 'MIN_CURVATURE', 'SINGLE_PLANE_THICKNESS',
+           'seed_agreement', 'MIN_SEED_AGREEMENT', 'STABILITY_RESEEDS', 'MIN_PLANE_POINTS', 'coordinate_step',
+           'TENT_LACK', 'LEFTOVER_SHARE']
 
 #: Below this plane silhouette (PS, core/plane_silhouette.py) the planes are not reported as
 #: reliable. Calibrated on benchmarks/quality.py and the Kinect frames (benchmarks/README.md): good
@@ -84,8 +103,6 @@ EXACT_LAYERS = 0.995
 #: A lone plane this thin (see plane_thickness) is a plane; a thicker one may be a slab cut
 #: through stairs or a curved surface (a noisy 2 m floor with e = 1 cm is 0.01, a stair slope 0.14).
 SINGLE_PLANE_THICKNESS = 0.05
-#: plane_thickness looks at a fixed random subset of this many inliers of a larger plane.
-THICKNESS_POINTS = 4096
 #: A plane on fewer distinct points than this is no evidence: any 3 points are coplanar and a handful lie
 #: within t of a plane on any surface (3 random points, or a room in a few coarse voxels, scored PS 1.00;
 #: 3 points with 32 copies each, too).
@@ -116,49 +133,22 @@ COORDINATE_STEP_SAMPLE = 4096
 #: smaller ones up to 1.00 (0.9 % of icl_office_0's points). Such planes may hold less than MINOR_SHARE of the planes'
 #: points (benchmarks/README.md).
 MAX_TILT = 0.8
-#: ... patches: cells of a grid in the plane holding about TILT_NEIGHBOURS of its sampled inliers (see _tilt); a patch
-#: thinner than TILT_FLAT (its thickness ratio, as plane_thickness) has a determined normal, tilted over TILT_DEG off it
-TILT_NEIGHBOURS = 32
+#: ... patches (plane_shape.patches_of: about TILT_NEIGHBOURS sampled inliers each); a patch thinner than TILT_FLAT
+#: (its thickness ratio, as plane_thickness) has a determined normal, tilted over TILT_DEG off it
 TILT_FLAT = 0.3
 TILT_DEG = 20.0
 #: ... judged on planes at least this thick (a flat plane has no steps to be tilted on; it saves the patches' cost),
 #: with at least TILT_MIN_PATCHES determined patches.
 TILT_THICKNESS = 0.05
-TILT_MIN_PATCHES = 16
 #: A plane whose RMS distance to its points is this many times the RMS thickness of its patches (see
 #: plane_lack_of_fit) holds several surfaces as one: the planes of benchmarks/quality.py's clouds and of shallow gable
 #: roofs, over a grid of t, that hold 2 % of the points or more and whose points lie on one true plane: median 1.02,
 #: 95th percentile 1.22; those holding two true planes (20 % or more of the second): median 3.3, 84 % at 2 or more.
 #: Such planes may hold less than MINOR_SHARE of the planes' points.
 MAX_LACK_OF_FIT = 2.0
-#: ... judged on at least TILT_MIN_PATCHES patches, and on most of them, whose RMS thickness is over this share of their
-#: spread: flatter ones are noise-free up to float32 rounding, or lie on one depth step of a quantizing sensor
-#: without noise (a sensor's noise is 1e-2 of a patch's spread or more).
-EXACT_PATCH = 1e-4
-#: ... and the patches' RMS thickness counts as at least the plane's tolerance over this: deviations from one plane
-#: far inside the band of +-t (a noise-free render's depth steps and warps, 0.3 mm against t = 13 mm on icl_office_0,
-#: or a real wall's bow seen by a precise sensor) are not several surfaces. At a good t the noise is t / 2 or more.
-LACK_OF_FIT_FLOOR = 8.0
-#: A plane whose lack of fit is at least FOLD_LACK (below MAX_LACK_OF_FIT) and falls to FOLD_FIT or less with two
-#: planes meeting at a line (kernels.fold_line: FOLD_ANGLES directions, FOLD_OFFSETS lines each within the middle
-#: FOLD_INNER of the points), which fit it better than a quadric surface does, holds the two sides of a ridge or a
-#: fold: the residuals of one in-plane direction form a V. Chosen on the tuning split of benchmarks/quality.py (its
-#: scenes and 74 more tuning seeds; benchmarks/README.md): it fails 2 of 660 planes on one true plane and 31 % of the
-#: planes holding two (a lack of fit of 2 or more alone: 15 %), measured with 18 directions on up to 4,096 points;
-#: with these settings it judges the split's scenes alike: 5 merged 2-4 degree gables more are not reliable, and no
-#: auto-tuned scene that is good. Real depth
-#: frames, whose error is correlated across a surface, read a lack of fit of 1.2-2.0 on single walls, which a lower
-#: MAX_LACK_OF_FIT would fail; a fold explains little of it there (1.58 -> 1.48 on the Kinect frame's floor).
-FOLD_LACK = 1.3
-FOLD_FIT = 1.1
-FOLD_ANGLES = 12
-FOLD_OFFSETS = 15
-FOLD_INNER = 0.7
-#: ... searched on at most this many of the plane's sampled inliers (every so many-th): about 0.2 ms a plane.
-FOLD_POINTS = 1024
 #: A plane whose lack of fit is at least TENT_LACK (below MAX_LACK_OF_FIT), that is no ridge, and that falls to FOLD_FIT
 #: or less when its residuals rise (or fall) evenly with the distance from the edges of its points' bounding box (a
-#: tent: w = a + b min(distances to the four edges); kernels.tent_fit, the box turned through TENT_ANGLES directions,
+#: tent: w = a + b min(distances to the four edges); plane_shape.tent_of, the box turned through TENT_ANGLES directions,
 #: on the fold's points), which fits it better than a quadric surface does, holds the faces of a hip roof or a
 #: pyramid: residuals that form a V in two in-plane directions, which one fold line leaves half explained. Chosen on
 #: tuning seeds only (benchmarks/quality.py's families: indoor_depth 0-40, lidar_scan 0-20, aerial_roof 0-60, and the
@@ -166,7 +156,6 @@ FOLD_POINTS = 1024
 #: quadric: 0.99-1.24; one fold: 1.02-1.51). No other plane of those scenes with a lack of fit in the window fits a
 #: tent better than a quadric, nor does any plane of the reliable Kinect frames (at their tuned t or at t = 1 cm).
 TENT_LACK = 1.15
-TENT_ANGLES = 12
 #: The largest plane among the points in no plane, beyond COVER t of every plane within its extent (core/leftover.py,
 #: at the segmentation's t), holding this share of the valid points or more, is a surface the search did not find:
 #: the planes found may each be sound, but the result misses it. Chosen on tuning seeds only (benchmarks/
@@ -196,16 +185,17 @@ def plane_tilt(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     """Per plane the share (0..1) of its patches (see TILT_NEIGHBOURS) with a determined normal that lies over TILT_DEG
     off the plane's: about 0 on a surface, near 1 on a slab cut across steps (treads and risers); NaN where not
     judged (thinner than TILT_THICKNESS, fewer than TILT_MIN_PATCHES determined patches). ``points`` (N, 3) meters."""
-    samples = _samples(as_points(points), seg)
-    return np.array([_tilt(_pca(inl), plane.normal) for inl, plane in zip(samples, seg.planes)])
+    samples = inlier_samples(as_points(points), seg)
+    return np.array([_tilt(principal_frame(inl), plane.normal) for inl, plane in zip(samples, seg.planes)])
 
 
 def _tilt(pca, normal: np.ndarray, cells: tuple | None = None) -> float:
-    """:func:`plane_tilt` of one plane from its sampled inliers' :func:`_pca` and its ``normal``; ``cells``: its
-    :func:`_cells` when known."""
-    if pca is None or not _thickness(pca) >= TILT_THICKNESS:
+    """:func:`plane_tilt` of one plane from its sampled inliers' :func:`principal_frame` and its ``normal``; ``cells``:
+    its
+    :func:`patch_cells` when known."""
+    if pca is None or not frame_thickness(pca) >= TILT_THICKNESS:
         return float('nan')
-    patches = _patches(pca, cells=cells)
+    patches = patches_of(pca, cells=cells)
     if patches is None:
         return float('nan')
     values, axes, _ = patches
@@ -215,203 +205,52 @@ def _tilt(pca, normal: np.ndarray, cells: tuple | None = None) -> float:
     return float(np.mean(np.abs(axes[flat, :, 0] @ normal) < np.cos(np.radians(TILT_DEG))))
 
 
-def _cells(pca) -> tuple[np.ndarray, np.ndarray] | None:
-    """(counts (p,), scatter (p, 3, 3)) of the patches of one plane's sampled inliers (its :func:`_pca`; see
-    :func:`_patches`); None for too few inliers."""
-    if pca is None or len(pca[1]) < 2 * TILT_NEIGHBOURS:
-        return None
-    _, centred, _, vectors = pca
-    return kernels.plane_patches(centred, np.ascontiguousarray(vectors[:, 1:]), TILT_NEIGHBOURS, TILT_NEIGHBOURS // 2)
 
 
-def _patches(pca, axes: bool = True, cells: tuple | None = None
-             ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray] | None:
-    """The patches of one plane's sampled inliers (its :func:`_pca`): the cells of a square grid along their in-plane
-    principal axes, sized to hold TILT_NEIGHBOURS of them on average (cells with half that or more count). Per patch
-    the eigenvalues (p, 3) ascending and, with ``axes``, eigenvectors (p, 3, 3) of its scatter (per point, m^2), and
-    its points (p,); None for too few inliers. Without ``axes`` the eigenvalues come in closed form
-    (:func:`.kernels.patch_eigenvalues`; :func:`symmetric_eigenvalues` is its numpy reference). ``cells``: its
-    :func:`_cells` when known."""
-    if cells is None:
-        cells = _cells(pca)
-    if cells is None:
-        return None
-    counts, scatter = cells
-    if not len(counts):
-        return None
-    if axes:
-        values, vectors = np.linalg.eigh(scatter)
-        return values, vectors, counts
-    return kernels.patch_eigenvalues(scatter), None, counts
 
 
-def symmetric_eigenvalues(m: np.ndarray) -> np.ndarray:
-    """The eigenvalues (p, 3), ascending, of symmetric 3 x 3 matrices ``m`` (p, 3, 3), by the trigonometric closed
-    form (a tenth of np.linalg.eigvalsh's time on a few hundred small matrices)."""
-    off = m[:, 0, 1] ** 2 + m[:, 0, 2] ** 2 + m[:, 1, 2] ** 2
-    diag = np.stack([m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]], axis=1)
-    q = diag.mean(axis=1)
-    p = np.sqrt((((diag - q[:, None]) ** 2).sum(axis=1) + 2 * off) / 6)
-    safe = np.where(p > 0, p, 1.0)
-    b = (m - q[:, None, None] * np.eye(3)) / safe[:, None, None]
-    det = (b[:, 0, 0] * (b[:, 1, 1] * b[:, 2, 2] - b[:, 1, 2] * b[:, 2, 1])
-           - b[:, 0, 1] * (b[:, 1, 0] * b[:, 2, 2] - b[:, 1, 2] * b[:, 2, 0])
-           + b[:, 0, 2] * (b[:, 1, 0] * b[:, 2, 1] - b[:, 1, 1] * b[:, 2, 0]))
-    r = np.clip(det / 2, -1.0, 1.0)
-    phi = np.arccos(r) / 3
-    big = q + 2 * p * np.cos(phi)
-    small = q + 2 * p * np.cos(phi + 2 * np.pi / 3)
-    out = np.stack([small, 3 * q - big - small, big], axis=1)
-    return np.where((off == 0)[:, None], np.sort(diag, axis=1), out)
 
 
-def plane_lack_of_fit(points: np.ndarray, seg: Segmentation) -> np.ndarray:
-    """Per plane the RMS distance of its inliers to their best-fit plane over the RMS thickness of its patches (see
-    _patches; each patch's own best-fit plane; at least t / LACK_OF_FIT_FLOOR): about 1 or less on one surface,
-    whatever its noise and however the noise varies across it; larger where the surface bends away from one plane
-    (a shallow gable roof, or a table top and the floor beside it, found as one plane). NaN where there are too few
-    inliers. ``points`` (N, 3) meters."""
-    return np.array([_lack_of_fit(_pca(inl), _tolerance(inl, seg)) for inl in _samples(as_points(points), seg)])
 
 
-def _tolerance(inl: np.ndarray, seg: Segmentation, scale: np.ndarray | None | bool = False) -> float:
-    """The tolerance (m) of ``seg`` at one plane's inliers ``inl`` (m, 3): its median under the noise model (its
-    :func:`.noise.tolerance_scale` at them when known as ``scale``)."""
-    if scale is False:
-        scale = tolerance_scale(inl, seg.noise_model, seg.noise_reference, seg.viewpoint) if len(inl) else None
-    return float(seg.tolerance * (1.0 if scale is None or not len(inl) else np.median(scale)))
 
 
-def _lack_of_fit(pca, tolerance: float, cells: tuple | None = None) -> float:
-    """:func:`plane_lack_of_fit` of one plane from its sampled inliers' :func:`_pca` (and its :func:`_cells` when
-    known) and its ``tolerance`` (m)."""
-    return _lack(pca, _patch_noise(pca, tolerance, cells))
 
 
-def _lack(pca, local: float | None) -> float:
-    """The lack of fit of one plane from its sampled inliers' :func:`_pca` and its :func:`_patch_noise` ``local``
-    (m^2); NaN where not judged (``local`` None)."""
-    return float(np.sqrt(max(float(pca[2][0]), 0.0) / len(pca[1]) / local)) if local is not None else float('nan')
 
 
-def _patch_noise(pca, tolerance: float, cells: tuple | None = None) -> float | None:
-    """The mean squared thickness (m^2) of one plane's patches (see plane_lack_of_fit; at least (t /
-    LACK_OF_FIT_FLOOR)^2), from its sampled inliers' :func:`_pca` (and its :func:`_cells` when known); None where
-    not judged."""
-    patches = _patches(pca, axes=False, cells=cells)
-    if patches is None:
-        return None
-    values, _, counts = patches
-    # a patch exactly flat up to rounding lies on one step of a quantizing sensor: it tells nothing of the noise
-    noisy = values[:, 0] > (EXACT_PATCH * values[:, 2]) ** 2
-    if np.count_nonzero(noisy) < max(TILT_MIN_PATCHES, len(noisy) / 2):  # noise-free: only edge patches are thick
-        return None
-    values, counts = values[noisy], counts[noisy]
-    weight = counts.sum(dtype=np.float64)  # both means weighted by the points, as np.average sums them
-    local = float(np.multiply(values[:, 0], counts, dtype=np.float64).sum() / weight)
-    # per-patch eigenvalues of a few dozen points underestimate their noise by about (n - 3) / n
-    local *= float(np.multiply(counts / np.maximum(counts - 3, 1), counts, dtype=np.float64).sum() / weight)
-    return max(local, (tolerance / LACK_OF_FIT_FLOOR) ** 2)
 
 
-def plane_fold(points: np.ndarray, seg: Segmentation) -> np.ndarray:
-    """Per plane its lack of fit (see plane_lack_of_fit) with two planes meeting at a line in place of one (the best
-    of kernels.fold_line's lines) and with a quadric surface, (k, 2): about 1 and more on the two sides of a ridge
-    found as one plane, whose lack of fit with one plane is larger; NaN where there are too few inliers. ``points``
-    (N, 3) meters."""
-    samples = _samples(as_points(points), seg)
-    return np.array([_fold(_pca(inl), _tolerance(inl, seg)) for inl in samples]).reshape(-1, 2)
 
 
-def _fold(pca, tolerance: float, local: float | None = None, ridge_only: bool = False) -> tuple[float, float]:
-    """:func:`plane_fold` of one plane from its sampled inliers' :func:`_pca` and its ``tolerance`` (m); ``local``:
-    its :func:`_patch_noise` when known. With ``ridge_only`` the quadric is fitted only where the fold could make a
-    ridge (FOLD_FIT or less; judge compares the two only there), NaN elsewhere."""
-    return fold_line(pca, tolerance, local, ridge_only)[:2]
 
 
-def fold_line(pca, tolerance: float, local: float | None = None, ridge_only: bool = False
-              ) -> tuple[float, float, float, float]:
-    """:func:`_fold` of one plane and the line of its best fold (:func:`.kernels.fold_line`): (fold, quadric, theta
-    (rad), s0 (m)), the line at s0 along (cos theta, sin theta) in the plane's in-plane principal axes (``pca[3]``'s
-    columns 1 and 2) from its sampled inliers' centre ``pca[0]``; NaN where not judged."""
-    if local is None and pca is not None:
-        local = _patch_noise(pca, tolerance)
-    if local is None:
-        return float('nan'), float('nan'), float('nan'), float('nan')
-    u, v, w = _fold_points(pca)
-    mse, theta, s0 = kernels.fold_line(u, v, w, FOLD_ANGLES, FOLD_OFFSETS, FOLD_INNER)
-    fold = float(np.sqrt(mse / local))
-    quadric = float('nan') if ridge_only and not fold <= FOLD_FIT else _quadric(u, v, w, local)
-    return fold, quadric, float(theta), float(s0)
 
 
-def _fold_points(pca) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The points the fold and the tent are fitted to, every so many-th of one plane's sampled inliers (its
-    :func:`_pca`; at most FOLD_POINTS): their in-plane coordinates u, v and residuals w (m,), meters, C-ordered."""
-    w, u, v = (pca[1][::-(-len(pca[1]) // FOLD_POINTS)] @ pca[3]).T
-    return np.ascontiguousarray(u), np.ascontiguousarray(v), np.ascontiguousarray(w)
 
 
-def is_ridge(lack: float, fold: float, quadric: float) -> bool:
-    """Whether a plane of lack of fit ``lack`` whose fold and quadric fit it to ``fold`` and ``quadric`` (see
-    :func:`fold_line`) holds the two sides of a ridge: ``lack`` at least FOLD_LACK, the fold FOLD_FIT or less and
-    better than the quadric (judge fails it below MAX_LACK_OF_FIT; above, as surfaces merged)."""
-    return bool(lack >= FOLD_LACK and fold <= FOLD_FIT and fold < quadric)
 
 
-def plane_tent(points: np.ndarray, seg: Segmentation) -> np.ndarray:
-    """Per plane its lack of fit (see plane_lack_of_fit) with a tent in place of one plane (residuals rising evenly
-    with the distance from the edges of its points' bounding box, the best of TENT_ANGLES turns of the box) and with a
-    quadric surface, (k, 2): about 1 and more on the faces of a hip roof found as one plane, whose lack of fit with one
-    plane is larger; NaN where there are too few inliers. ``points`` (N, 3) meters."""
-    out = []
-    for inl in _samples(as_points(points), seg):
-        pca = _pca(inl)
-        out.append(_tent(pca, None if pca is None else _patch_noise(pca, _tolerance(inl, seg))))
-    return np.array(out).reshape(-1, 2)
 
 
-def _tent(pca, local: float | None, quadric: float = np.nan, ridge_only: bool = False) -> tuple[float, float]:
-    """:func:`plane_tent` of one plane from its sampled inliers' :func:`_pca` and its :func:`_patch_noise` ``local``
-    (m^2); the ``quadric``'s lack of fit when known (else fitted). With ``ridge_only`` the quadric is fitted only where
-    the tent fits FOLD_FIT or less (judge compares the two only there), NaN elsewhere."""
-    if local is None:
-        return float('nan'), float('nan')
-    u, v, w = _fold_points(pca)
-    tent = float(np.sqrt(kernels.tent_fit(u, v, w, TENT_ANGLES) / local))
-    if np.isnan(quadric) and not (ridge_only and not tent <= FOLD_FIT):
-        quadric = _quadric(u, v, w, local)
-    return tent, float(quadric)
 
 
-def _quadric(u: np.ndarray, v: np.ndarray, w: np.ndarray, local: float) -> float:
-    """The lack of fit of residuals ``w`` (m,) with a quadric surface over in-plane coordinates (u, v) (m,), all
-    meters, against the patches' mean squared thickness ``local`` (m^2)."""
-    design = np.column_stack([u * u, u * v, v * v, u, v, np.ones_like(u)])
-    coef, *_ = np.linalg.lstsq(design, w, rcond=None)
-    return float(np.sqrt(np.mean((w - design @ coef) ** 2) / local))
 
 
-def plane_thickness(points: np.ndarray, seg: Segmentation) -> np.ndarray:
-    """Per plane sqrt(l0 / l1) of its inlier scatter (smallest over middle eigenvalue): RMS
-    thickness over in-plane spread, 0 for a perfect plane, ~0.15 for the paper's corner at e = 7.5,
-    ~0.3 for a slab cut out of a sphere."""
-    return np.array([_thickness(_pca(inl)) for inl in _samples(points, seg)])
 
 
 def plane_fill(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     """Per plane the RMS of its inliers' distances to it in units of their tolerance (t, scaled by the noise
     model at each point): about sigma / t on a surface with noise sigma well inside t, 0.58 on points
     that fill the band of +-t evenly, more on two layers near its edges. ``points`` (N, 3) meters."""
-    return np.array([_fill(inl, plane, seg) for inl, plane in zip(_samples(points, seg), seg.planes)])
+    return np.array([_fill(inl, plane, seg) for inl, plane in zip(inlier_samples(points, seg), seg.planes)])
 
 
 def plane_layering(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     """Per plane the share (0..1) of its residuals' variance that the best split of them at one value into
     two groups explains (1-D two-means): near 1 when its points lie on two parallel layers, 0.64 for
     Gaussian and 0.75 for uniform noise. ``points`` (N, 3) meters."""
-    return np.array([_layering(inl, plane) for inl, plane in zip(_samples(points, seg), seg.planes)])
+    return np.array([_layering(inl, plane) for inl, plane in zip(inlier_samples(points, seg), seg.planes)])
 
 
 def plane_beyond(points: np.ndarray, seg: Segmentation) -> np.ndarray:
@@ -420,8 +259,8 @@ def plane_beyond(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     per point within t; both counted within its in-plane extent (between the EXTENT_PERCENTILES of its inliers along
     their principal axes). Under 0.1 on a surface whose noise is well inside t, about 1 in a volume of clutter."""
     pts = as_points(points)
-    samples = _samples(pts, seg)
-    return _beyond(pts, seg, [_pca(inl) for inl in samples], np.array([_fill(inl, p, seg) for inl, p in
+    samples = inlier_samples(pts, seg)
+    return _beyond(pts, seg, [principal_frame(inl) for inl in samples], np.array([_fill(inl, p, seg) for inl, p in
                                                                        zip(samples, seg.planes)]))
 
 
@@ -434,21 +273,21 @@ def surface_failures(points: np.ndarray, seg: Segmentation
     (k,) bool arrays, and its plane_thickness (k,), from the same inlier samples."""
     pts = kernels.c_array(as_points(points), np.float64)
     samples, frames, scales = _sampled(pts, seg)
-    cells = [_cells(pca) for pca in frames]
+    cells = [patch_cells(pca) for pca in frames]
     beyond, layering, _, tilt = _surface(pts, seg, samples, frames, scales, cells)
     merged = (layering >= MAX_LAYERING) & (layering < EXACT_LAYERS) | (tilt >= MAX_TILT)  # NaN tilt: not judged
-    lack = np.array([_lack_of_fit(pca, _tolerance(inl, seg, scale), c)
+    lack = np.array([lack_of_fit(pca, plane_tolerance(inl, seg, scale), c)
                      for pca, inl, scale, c in zip(frames, samples, scales, cells)])
     misfit = lack >= MAX_LACK_OF_FIT
-    return beyond >= MAX_BEYOND, merged, misfit, np.array([_thickness(pca) for pca in frames])
+    return beyond >= MAX_BEYOND, merged, misfit, np.array([frame_thickness(pca) for pca in frames])
 
 
 def _surface(pts: np.ndarray, seg: Segmentation, samples: list, frames: list, scales: list | None = None,
              cells: list | None = None, extents: tuple | None = None
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(plane_beyond, plane_layering (0 where the plane does not fill its band), plane_fill, plane_tilt), each (k,),
-    from the planes' inlier ``samples``, their ``frames`` (_pca) and, when known, their tolerance ``scales``,
-    :func:`_cells` and :func:`_extents`."""
+    from the planes' inlier ``samples``, their ``frames`` (principal_frame) and, when known, their tolerance ``scales``,
+    :func:`patch_cells` and :func:`_extents`."""
     scales = [False] * len(samples) if scales is None else scales
     cells = [None] * len(samples) if cells is None else cells
     fill = np.array([_fill(inl, plane, seg, scale) for inl, plane, scale in zip(samples, seg.planes, scales)])
@@ -460,9 +299,9 @@ def _surface(pts: np.ndarray, seg: Segmentation, samples: list, frames: list, sc
 
 def _beyond(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray, extents: tuple | None = None
             ) -> np.ndarray:
-    """:func:`plane_beyond` from each plane's inlier :func:`_pca` and :func:`plane_fill` (and its :func:`_extents` when
-    known); all planes at once (the counts in one compiled pass, :func:`.kernels.beyond_counts`; :func:`_beyond_numpy`
-    is the reference)."""
+    """:func:`plane_beyond` from each plane's inlier :func:`principal_frame` and :func:`plane_fill` (and its
+    :func:`_extents` when known); all planes at once (the counts in one compiled pass, :func:`.kernels.beyond_counts`;
+    :func:`_beyond_numpy` is the reference)."""
     if len(seg.planes) == 0:
         return np.zeros(0)
     labels, t, box, d = _beyond_rows(pts, seg, frames)
@@ -491,7 +330,7 @@ def _beyond_rows(pts: np.ndarray, seg: Segmentation, frames: list
 
 
 def _in_plane_axes(frames: list) -> np.ndarray:
-    """(3, 2k) each plane's two in-plane principal axes from its :func:`_pca` (zeros without one)."""
+    """(3, 2k) each plane's two in-plane principal axes from its :func:`principal_frame` (zeros without one)."""
     axes = np.zeros((3, 2 * len(frames)))
     for j, pca in enumerate(frames):
         if pca is not None:
@@ -516,8 +355,8 @@ def _beyond_frames(seg: Segmentation, frames: list, fill: np.ndarray, extents: t
 
 
 def _extents(frames: list) -> tuple[np.ndarray, np.ndarray]:
-    """Each plane's box along its in-plane principal axes from its :func:`_pca`: (lo, hi (2k,), in the cloud's
-    coordinates; empty without inliers)."""
+    """Each plane's box along its in-plane principal axes from its :func:`principal_frame`: (lo, hi (2k,), in the
+    cloud's coordinates; empty without inliers)."""
     k = len(frames)
     lo, hi = np.full(2 * k, np.inf), np.full(2 * k, -np.inf)  # no inliers: nothing inside
     for j, pca in enumerate(frames):
@@ -549,17 +388,14 @@ def _extent(uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.array([end[0] for end in ends]), np.array([end[2] for end in ends])
 
 
-def _samples(points: np.ndarray, seg: Segmentation) -> list[np.ndarray]:
-    """Per plane the (m, 3) inliers its shape is judged on (:func:`_inlier_sample`)."""
-    return [_inlier_sample(points, plane.inliers) for plane in seg.planes]
 
 
 def _sampled(pts: np.ndarray, seg: Segmentation) -> tuple[list[np.ndarray], list, list]:
-    """Per plane of ``seg`` on ``pts`` (N, 3) C-ordered float64 meters: its :func:`_samples`, their :func:`_pca` and
-    their :func:`.noise.tolerance_scale` (None: constant), the samples gathered and centred in one compiled pass
-    (:func:`.kernels.plane_samples`, the same values as numpy's take and mean)."""
+    """Per plane of ``seg`` on ``pts`` (N, 3) C-ordered float64 meters: its :func:`inlier_samples`, their
+    :func:`principal_frame` and their :func:`.noise.tolerance_scale` (None: constant), the samples gathered and centred
+    in one compiled pass (:func:`.kernels.plane_samples`, the same values as numpy's take and mean)."""
     _check_rows(pts, seg)
-    picks = [_sample_rows(plane.inliers) for plane in seg.planes]
+    picks = [sample_rows(plane.inliers) for plane in seg.planes]
     bounds = np.zeros(len(picks) + 1, np.int64)
     np.cumsum([len(rows) for rows in picks], out=bounds[1:])
     rows = np.concatenate(picks).astype(np.int64, copy=False) if picks else np.zeros(0, np.int64)
@@ -578,23 +414,8 @@ def _sampled(pts: np.ndarray, seg: Segmentation) -> tuple[list[np.ndarray], list
     return samples, frames, scales
 
 
-def _pca(inl: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
-    """(centre (3,), centred (m, 3), eigenvalues (3,) ascending, eigenvectors (3, 3) as columns) of one plane's
-    inliers ``inl`` (m, 3); None for fewer than 3."""
-    if len(inl) < 3:
-        return None
-    centre = inl.mean(axis=0)
-    centred = inl - centre
-    values, vectors = np.linalg.eigh(centred.T @ centred)
-    return centre, centred, values, vectors
 
 
-def _thickness(pca) -> float:
-    """:func:`plane_thickness` of one plane from its :func:`_pca`."""
-    if pca is None:
-        return np.inf
-    ev = pca[2]
-    return float(np.sqrt(max(ev[0], 0.0) / ev[1])) if ev[1] > 0 else np.inf
 
 
 def _fill(inl: np.ndarray, plane, seg: Segmentation, scale: np.ndarray | None | bool = False) -> float:
@@ -624,26 +445,19 @@ def _layering(inl: np.ndarray, plane) -> float:
     return float(min(between / total, 1.0))
 
 
-def _inlier_sample(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    return np.take(points, _sample_rows(rows), axis=0)  # (much faster than points[rows] on rows of 3)
 
 
-def _sample_rows(rows: np.ndarray) -> np.ndarray:
-    """The rows (m,) of a plane's inlier ``rows`` its shape is judged on."""
-    if len(rows) > THICKNESS_POINTS:  # a fixed random subset: the ratios are robust statistics
-        rows = rows[kernels.seeded_draws(len(rows), THICKNESS_POINTS)]  # default_rng(m).integers(0, m, ...)
-    return rows
 
 
 def plane_curvature(points: np.ndarray, plane_rows: np.ndarray) -> float:
     """Share (0..1) of the variance of a plane's residuals that a quadric surface w = q(u, v) over its
     in-plane coordinates explains: near 0 when they are noise, near 1 on a patch of a curved surface.
     plane_rows: the plane's inlier rows of ``points`` (N, 3)."""
-    return _curvature(_pca(_inlier_sample(points, plane_rows)))
+    return _curvature(principal_frame(inlier_sample(points, plane_rows)))
 
 
 def _curvature(pca) -> float:
-    """:func:`plane_curvature` of one plane from its inliers' :func:`_pca`."""
+    """:func:`plane_curvature` of one plane from its inliers' :func:`principal_frame`."""
     if pca is None or len(pca[1]) < CURVATURE_POINTS:
         return 1.0  # too few to tell noise from curvature: a thick one counts against the verdict
     _, centred, _, axes = pca
@@ -702,21 +516,21 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
         return Verdict(False, (Failure(FailureKind.NO_PLANES, 0.0, 1.0, note=seg.reason),), 0, ps)
     pts = kernels.c_array(as_points(points), np.float64)  # the layout the kernels read (copied once, if at all)
     samples, frames, scales = _sampled(pts, seg)
-    cells = [_cells(pca) for pca in frames]
-    thickness = np.array([_thickness(pca) for pca in frames])
+    cells = [patch_cells(pca) for pca in frames]
+    thickness = np.array([frame_thickness(pca) for pca in frames])
     sizes = np.array([len(p.inliers) for p in seg.planes], dtype=float)
     curvature = np.array([_curvature(pca) if t > MAX_THICKNESS else 0.0 for pca, t in zip(frames, thickness)])
     extents = _extents(frames)  # shared by the volume test and the leftover plane
     beyond, layering, fill, tilt = _surface(pts, seg, samples, frames, scales, cells, extents)
-    noise = [None if pca is None else _patch_noise(pca, _tolerance(inl, seg, scale), c)
+    noise = [None if pca is None else patch_noise(pca, plane_tolerance(inl, seg, scale), c)
              for pca, inl, scale, c in zip(frames, samples, scales, cells)]
-    lack = np.array([_lack(pca, local) for pca, local in zip(frames, noise)])
+    lack = np.array([lack_from_noise(pca, local) for pca, local in zip(frames, noise)])
     # only planes that could be a ridge and are not failed as merged already (the fold search costs ~0.2 ms a plane)
-    folds = np.array([_fold(pca, np.nan, local, ridge_only=True) if FOLD_LACK <= x < MAX_LACK_OF_FIT
+    folds = np.array([fold_of(pca, np.nan, local, ridge_only=True) if FOLD_LACK <= x < MAX_LACK_OF_FIT
                       else (np.nan, np.nan) for pca, local, x in zip(frames, noise, lack)]).reshape(-1, 2)
     ridge = np.array([is_ridge(x, *fold) for x, fold in zip(lack, folds)], dtype=bool)  # NaN: not judged
     # the tent only where a shallower misfit is no ridge (about 0.05 ms a plane)
-    tents = np.array([_tent(pca, local, quadric, True) if TENT_LACK <= x < MAX_LACK_OF_FIT and not r
+    tents = np.array([tent_of(pca, local, quadric, True) if TENT_LACK <= x < MAX_LACK_OF_FIT and not r
                       else (np.nan, np.nan)
                       for pca, local, x, r, quadric in zip(frames, noise, lack, ridge, folds[:, 1])]).reshape(-1, 2)
     tent = (tents[:, 0] <= FOLD_FIT) & (tents[:, 0] < tents[:, 1])  # NaN: not judged

@@ -4,10 +4,10 @@
 Two surfaces meeting at a shallow angle (a gable roof of a few degrees, a ramp meeting a floor) can lie within t of
 one plane and join one connected region, whose residuals across the line then form a V. A region whose lack of fit
 is FOLD_LACK or more and that two planes meeting at a line bring down to FOLD_FIT, better than a quadric surface
-(the verdict's ridge test, :func:`.verdict.is_ridge`, without its upper bound: a larger lack of fit, which the verdict
-fails as surfaces merged, is split too), is split at that line: each side gets a plane, each of the region's points
-goes to the nearer of the two, and both planes are refitted. A region that reads better as a tent than as one fold
-is split into the tent's faces instead (:func:`.tents.tent_faces`).
+(the verdict's ridge test, :func:`.plane_shape.is_ridge`, without its upper bound: a larger lack of fit, which the
+verdict fails as surfaces merged, is split too), is split at that line: each side gets a plane, each of the region's
+points goes to the nearer of the two, and both planes are refitted. A region that reads better as a tent than as one
+fold is split into the tent's faces instead (:func:`.tents.tent_faces`).
 
 At t of a few noise sigmas a shallow roof can instead be found as level slabs, each cutting across its faces at one
 height: :func:`split_terraces` judges such a group of nearly parallel regions as one region, and replaces it by the
@@ -40,7 +40,7 @@ def split_folds(search: np.ndarray, region: np.ndarray, found: list, tolerance: 
     meters, with each region that holds a ridge split once in two, or that holds a tent into its faces (the new planes
     numbered last), while there are fewer than ``max_planes`` and each side or face keeps ``min_count`` searched
     points. ``tolerance``: t (m) at each searched point (m,) or for all; its median over a region sets the floor of the
-    noise the ridge and tent tests measure (:func:`.verdict._patch_noise`). ``allows``: the normals a plane may have
+    noise the ridge and tent tests measure (:func:`.plane_shape.patch_noise`). ``allows``: the normals a plane may have
     (None: any). Returns the new region labels and planes, and how many regions were split (at a ridge, into a tent's
     faces); the inputs are left as they were."""
     region, found = region.copy(), list(found)
@@ -150,14 +150,14 @@ def _bent(search: np.ndarray, rows: np.ndarray, found: list, region: np.ndarray,
     match), and within TERRACE_STEP t (``tolerance``, m) RMS of it, as slabs 2 t thick across one shallow roof lie:
     a cheap test before theirs. Pieces of one surface apart (a lidar's floor beyond an obstacle) fail the first; the
     table tops, shelves and floor of a room, chained into one group by their steps, the second."""
-    from .. import verdict
+    from .. import plane_shape
     if len(rows) < 3:
         return False
     own = float(np.mean(_distances(search, rows, found, region) ** 2))
     cols = np.ascontiguousarray(search[:, rows])
     normal, offset = fit_columns(cols)
     joint = float(np.mean((normal @ cols + offset) ** 2))
-    return verdict.FOLD_FIT ** 2 * own <= joint <= (TERRACE_STEP * tolerance) ** 2
+    return plane_shape.FOLD_FIT ** 2 * own <= joint <= (TERRACE_STEP * tolerance) ** 2
 
 
 def _terrace_groups(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance, least: int
@@ -218,17 +218,17 @@ def _same_regions(old: np.ndarray, face: np.ndarray, group: list[int], faces: in
 
 def _region_shape(search: np.ndarray, rows: np.ndarray, tolerance: float, min_count: int) -> tuple | None:
     """What the ridge and tent tests need of the region of ``rows`` (r,) of ``search`` (3, m) at its t ``tolerance``
-    (m): (its points (3, r), its sample's :func:`.verdict._pca`, the patches' noise (m^2), its lack of fit, t); None
-    where it is too small to judge or its noise unknown."""
+    (m): (its points (3, r), its sample's :func:`.plane_shape.principal_frame`, the patches' noise (m^2), its lack of
+    fit, t); None where it is too small to judge or its noise unknown."""
     if len(rows) < _judged(min_count):
         return None
-    from .. import verdict  # the verdict imports the search's types: importing it with the module is a cycle
+    from .. import plane_shape  # it imports ransac, which imports the search: with the module, a cycle
     cols = search[:, rows]
-    pca = verdict._pca(np.ascontiguousarray(cols.T[verdict._sample_rows(np.arange(len(rows)))]))
-    local = verdict._patch_noise(pca, tolerance)
+    pca = plane_shape.principal_frame(np.ascontiguousarray(cols.T[plane_shape.sample_rows(np.arange(len(rows)))]))
+    local = plane_shape.patch_noise(pca, tolerance)
     if local is None:
         return None
-    return cols, pca, local, verdict._lack(pca, local), tolerance
+    return cols, pca, local, plane_shape.lack_from_noise(pca, local), tolerance
 
 
 def _within(search: np.ndarray, rows: np.ndarray, found: list, region: np.ndarray, tolerance: Tolerance
@@ -260,8 +260,8 @@ def _to_nearest(search: np.ndarray, region: np.ndarray, rows: np.ndarray, labels
 
 def _judged(min_count: int) -> int:
     """The fewest points a region of ``min_count`` searched points at least is judged on (:func:`_region_shape`)."""
-    from .. import verdict
-    return max(2 * min_count, 2 * verdict.TILT_NEIGHBOURS)
+    from .. import plane_shape
+    return max(2 * min_count, 2 * plane_shape.TILT_NEIGHBOURS)
 
 
 def _tent_split(shape: tuple, min_count: int, allows: Allows, room: int) -> tuple[np.ndarray, list] | None:
@@ -271,14 +271,14 @@ def _tent_split(shape: tuple, min_count: int, allows: Allows, room: int) -> tupl
     points, at most ``room`` of them; else None. The lower bound takes the part of a 2-degree hip roof with 4.5 cm
     noise that RANSAC finds at 8 cm (tuning seed aerial_roof 14: lack of fit 1.14; the faces at 19 cm: 0 -> 4 of 4
     planes correct auto-tuned)."""
-    from .. import verdict
+    from .. import plane_shape
     cols, pca, local, lack, tolerance = shape
-    if not lack >= verdict.FOLD_FIT or room < 2:
+    if not lack >= plane_shape.FOLD_FIT or room < 2:
         return None
-    tent, quadric = verdict._tent(pca, local, ridge_only=True)
-    if not (tent <= verdict.FOLD_FIT and tent < quadric):
+    tent, quadric = plane_shape.tent_of(pca, local, ridge_only=True)
+    if not (tent <= plane_shape.FOLD_FIT and tent < quadric):
         return None
-    if verdict.fold_line(pca, tolerance, local, ridge_only=True)[0] <= tent:
+    if plane_shape.fold_line(pca, tolerance, local, ridge_only=True)[0] <= tent:
         return None
     faces = tent_faces(cols, pca, local, max(min_count, 3), allows)
     return faces if faces is not None and len(faces[1]) <= room else None
@@ -288,12 +288,12 @@ def _fold_halves(shape: tuple, rows: np.ndarray, min_count: int, allows: Allows)
     """The two sides of the region of ``rows`` (r,) (its :func:`_region_shape` ``shape``) at its best fold, each as
     (its rows (a,), its (normal, offset) plane), or None where the region holds no ridge (see the module), a side
     would keep fewer than ``min_count`` points or FOLD_SIDE of the region's, or ``allows`` refuses a side's normal."""
-    from .. import verdict
+    from .. import plane_shape
     cols, pca, local, lack, tolerance = shape
-    if not lack >= verdict.FOLD_LACK:  # NaN: not judged
+    if not lack >= plane_shape.FOLD_LACK:  # NaN: not judged
         return None
-    fold, quadric, theta, s0 = verdict.fold_line(pca, tolerance, local, ridge_only=True)
-    if not verdict.is_ridge(lack, fold, quadric):
+    fold, quadric, theta, s0 = plane_shape.fold_line(pca, tolerance, local, ridge_only=True)
+    if not plane_shape.is_ridge(lack, fold, quadric):
         return None
     across = (cols.T - pca[0]) @ (pca[3][:, 1] * np.cos(theta) + pca[3][:, 2] * np.sin(theta))
     least = max(min_count, FOLD_SIDE * len(rows), 3)

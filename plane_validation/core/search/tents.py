@@ -1,7 +1,7 @@
 """Regions that hold the faces of a shallow hip roof or pyramid (a tent), split into those faces.
 
 A hip roof of a few degrees lies within t of one plane at any t that holds a face of it, and its residuals then rise
-evenly from the edges of its points' bounding box (the verdict's tent test, :func:`.verdict.plane_tent`). Where a
+evenly from the edges of its points' bounding box (the verdict's tent test, :func:`.plane_shape.plane_tent`). Where a
 region reads so, and better than as a quadric surface or as one fold (:mod:`.folds`), its faces are found by
 piecewise-planar refinement from the tent: the tent's four faces are the start, each point goes to the face of the
 roof's envelope above it (the lowest face for a roof, the highest for a pit: noise along the residual moves a point
@@ -25,15 +25,16 @@ TENT_ROUNDS = 10
 
 def tent_faces(cols: np.ndarray, pca, local: float, least: float, allows: Allows = None
                ) -> tuple[np.ndarray, list] | None:
-    """The faces of the tent in the region's points ``cols`` (3, r) meters (its sample's :func:`.verdict._pca`
-    ``pca``, the patches' mean squared thickness ``local`` m^2): (each point's face (r,) 0..f-1, the f >= 2 faces'
-    (normal, offset) planes), or None where the faces fit no better than FOLD_FIT of the noise, a face keeps fewer than
-    ``least`` points (those left out along the way: fewer than two faces left), or ``allows`` refuses one's normal."""
-    from .. import verdict  # the verdict imports the search's types: importing it with the module is a cycle
+    """The faces of the tent in the region's points ``cols`` (3, r) meters (its sample's
+    :func:`.plane_shape.principal_frame` ``pca``, the patches' mean squared thickness ``local`` m^2): (each point's
+    face (r,) 0..f-1, the f >= 2 faces' (normal, offset) planes), or None where the faces fit no better than FOLD_FIT
+    of the noise, a face keeps fewer than ``least`` points (those left out along the way: fewer than two faces left),
+    or ``allows`` refuses one's normal."""
+    from .. import plane_shape  # it imports ransac, which imports the search: with the module, a cycle
     centre, axes = pca[0], pca[3]
     w, u, v = ((cols.T - centre) @ axes).T
     design = np.column_stack([np.ones_like(u), u, v])  # (r, 3): a face is w = design @ c
-    coef, sign = _tent_start(u, v, w, verdict.TENT_ANGLES)
+    coef, sign = _tent_start(u, v, w, plane_shape.TENT_ANGLES)
     face = None
     for _ in range(TENT_ROUNDS):
         heights = design @ coef.T  # (r, f)
@@ -50,7 +51,7 @@ def tent_faces(cols: np.ndarray, pca, local: float, least: float, allows: Allows
     face = np.argmin(sign * (design @ coef.T), axis=1)
     residual = w - np.take_along_axis(design @ coef.T, face[:, None], axis=1)[:, 0]
     counts = np.bincount(face, minlength=len(coef))
-    if not np.sqrt(np.mean(residual ** 2) / local) <= verdict.FOLD_FIT or len(coef) < 2 or counts.min() < least:
+    if not np.sqrt(np.mean(residual ** 2) / local) <= plane_shape.FOLD_FIT or len(coef) < 2 or counts.min() < least:
         return None
     planes = [fit_columns(np.ascontiguousarray(cols[:, face == k])) for k in range(len(coef))]
     if not all(allows_normal(allows, normal) for normal, _ in planes):
