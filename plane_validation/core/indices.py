@@ -10,8 +10,8 @@ Conventions shared by every public function here:
 * Rows of ``points`` with a NaN or infinite coordinate are dropped first, together with their
   labels; ``n_points`` counts the remaining (finite) rows.
 * Except for GS_planes, the unassigned points form ONE extra cluster. Per-cluster arrays
-  (:func:`cluster_diameters`, :func:`cluster_distances`) list clusters in ascending label order,
-  so the unassigned cluster, when present, comes first (the order of ``np.unique(labels)``).
+  (:func:`.cluster_extent.cluster_diameters`, :func:`.cluster_extent.cluster_distances`) list clusters in ascending
+  label order, so the unassigned cluster, when present, comes first (the order of ``np.unique(labels)``).
 * Degenerate input never raises: fewer than two clusters gives Dunn 0.0, Davies-Bouldin (paper)
   inf, Davies-Bouldin (classic) 0.0 and silhouette/GS 0.0; GS_planes with fewer than two planes
   is 0.0. Only badly shaped input raises ``ValueError``.

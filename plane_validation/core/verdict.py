@@ -190,9 +190,8 @@ def plane_tilt(points: np.ndarray, seg: Segmentation) -> np.ndarray:
 
 
 def _tilt(pca, normal: np.ndarray, cells: tuple | None = None) -> float:
-    """:func:`plane_tilt` of one plane from its sampled inliers' :func:`principal_frame` and its ``normal``; ``cells``:
-    its
-    :func:`patch_cells` when known."""
+    """:func:`plane_tilt` of one plane from its sampled inliers' :func:`.plane_shape.principal_frame` and its
+    ``normal``; ``cells``: its :func:`.plane_shape.patch_cells` when known."""
     if pca is None or not frame_thickness(pca) >= TILT_THICKNESS:
         return float('nan')
     patches = patches_of(pca, cells=cells)
@@ -287,7 +286,7 @@ def _surface(pts: np.ndarray, seg: Segmentation, samples: list, frames: list, sc
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(plane_beyond, plane_layering (0 where the plane does not fill its band), plane_fill, plane_tilt), each (k,),
     from the planes' inlier ``samples``, their ``frames`` (principal_frame) and, when known, their tolerance ``scales``,
-    :func:`patch_cells` and :func:`_extents`."""
+    :func:`.plane_shape.patch_cells` and :func:`_extents`."""
     scales = [False] * len(samples) if scales is None else scales
     cells = [None] * len(samples) if cells is None else cells
     fill = np.array([_fill(inl, plane, seg, scale) for inl, plane, scale in zip(samples, seg.planes, scales)])
@@ -299,9 +298,9 @@ def _surface(pts: np.ndarray, seg: Segmentation, samples: list, frames: list, sc
 
 def _beyond(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray, extents: tuple | None = None
             ) -> np.ndarray:
-    """:func:`plane_beyond` from each plane's inlier :func:`principal_frame` and :func:`plane_fill` (and its
-    :func:`_extents` when known); all planes at once (the counts in one compiled pass, :func:`.kernels.beyond_counts`;
-    :func:`_beyond_numpy` is the reference)."""
+    """:func:`plane_beyond` from each plane's inlier :func:`.plane_shape.principal_frame` and :func:`plane_fill` (and
+    its :func:`_extents` when known); all planes at once (the counts in one compiled pass,
+    :func:`.kernels.beyond_counts`; :func:`_beyond_numpy` is the reference)."""
     if len(seg.planes) == 0:
         return np.zeros(0)
     labels, t, box, d = _beyond_rows(pts, seg, frames)
@@ -330,7 +329,8 @@ def _beyond_rows(pts: np.ndarray, seg: Segmentation, frames: list
 
 
 def _in_plane_axes(frames: list) -> np.ndarray:
-    """(3, 2k) each plane's two in-plane principal axes from its :func:`principal_frame` (zeros without one)."""
+    """(3, 2k) each plane's two in-plane principal axes from its :func:`.plane_shape.principal_frame` (zeros without
+    one)."""
     axes = np.zeros((3, 2 * len(frames)))
     for j, pca in enumerate(frames):
         if pca is not None:
@@ -355,8 +355,8 @@ def _beyond_frames(seg: Segmentation, frames: list, fill: np.ndarray, extents: t
 
 
 def _extents(frames: list) -> tuple[np.ndarray, np.ndarray]:
-    """Each plane's box along its in-plane principal axes from its :func:`principal_frame`: (lo, hi (2k,), in the
-    cloud's coordinates; empty without inliers)."""
+    """Each plane's box along its in-plane principal axes from its :func:`.plane_shape.principal_frame`: (lo, hi (2k,),
+    in the cloud's coordinates; empty without inliers)."""
     k = len(frames)
     lo, hi = np.full(2 * k, np.inf), np.full(2 * k, -np.inf)  # no inliers: nothing inside
     for j, pca in enumerate(frames):
@@ -391,9 +391,9 @@ def _extent(uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _sampled(pts: np.ndarray, seg: Segmentation) -> tuple[list[np.ndarray], list, list]:
-    """Per plane of ``seg`` on ``pts`` (N, 3) C-ordered float64 meters: its :func:`inlier_samples`, their
-    :func:`principal_frame` and their :func:`.noise.tolerance_scale` (None: constant), the samples gathered and centred
-    in one compiled pass (:func:`.kernels.plane_samples`, the same values as numpy's take and mean)."""
+    """Per plane of ``seg`` on ``pts`` (N, 3) C-ordered float64 meters: its :func:`.plane_shape.inlier_samples`, their
+    :func:`.plane_shape.principal_frame` and their :func:`.noise.tolerance_scale` (None: constant), the samples gathered
+    and centred in one compiled pass (:func:`.kernels.plane_samples`, the same values as numpy's take and mean)."""
     _check_rows(pts, seg)
     picks = [sample_rows(plane.inliers) for plane in seg.planes]
     bounds = np.zeros(len(picks) + 1, np.int64)
@@ -457,7 +457,7 @@ def plane_curvature(points: np.ndarray, plane_rows: np.ndarray) -> float:
 
 
 def _curvature(pca) -> float:
-    """:func:`plane_curvature` of one plane from its inliers' :func:`principal_frame`."""
+    """:func:`plane_curvature` of one plane from its inliers' :func:`.plane_shape.principal_frame`."""
     if pca is None or len(pca[1]) < CURVATURE_POINTS:
         return 1.0  # too few to tell noise from curvature: a thick one counts against the verdict
     _, centred, _, axes = pca
@@ -497,19 +497,20 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
 
     Reliable needs at least one plane, the planes on enough points (those with fewer than
     MIN_PLANE_POINTS distinct points hold less than MINOR_SHARE of the planes' points), the planes flat
-    (curved slabs, planes with a thickness ratio above MAX_THICKNESS, see :func:`plane_thickness`, whose
+    (curved slabs, planes with a thickness ratio above MAX_THICKNESS, see :func:`.plane_shape.plane_thickness`, whose
     residuals are at least MIN_CURVATURE explained by curvature, see :func:`plane_curvature`, hold less
     than MINOR_SHARE of their points), surfaces (planes cut out of a volume, MAX_BEYOND, see
     :func:`plane_beyond`, planes across several surfaces, MAX_TILT and MAX_LACK_OF_FIT, see :func:`plane_tilt` and
-    :func:`plane_lack_of_fit`, the two sides of a ridge, FOLD_LACK and FOLD_FIT, see :func:`plane_fold`, the faces of a
-    hip roof, TENT_LACK, see :func:`plane_tent`, and planes whose points lie on two layers that fill their band,
-    MAX_LAYERING and MAX_FILL, see :func:`plane_layering` and :func:`plane_fill`, each hold less than MINOR_SHARE of
-    their points), no plane of LEFTOVER_SHARE of the points left among those no plane covers (a surface the search
-    did not find, see :func:`.leftover.leftover_plane`) and a plane silhouette PS >= RELIABLE_PS: the points lie on
-    their planes and clear of the other regions. On plane-free clouds (sphere, bunny) the "planes" are thick slabs or
-    patches whose points lie near their neighbours' planes. With ``agreement`` (see :func:`seed_agreement`;
-    tune_tolerance gives it) it must also reach MIN_SEED_AGREEMENT: other RANSAC seeds find the same
-    planes (a curved surface is cut into different patches each time); NaN (not measured) skips this test.
+    :func:`.plane_shape.plane_lack_of_fit`, the two sides of a ridge, FOLD_LACK and FOLD_FIT, see
+    :func:`.plane_shape.plane_fold`, the faces of a hip roof, TENT_LACK, see :func:`.plane_shape.plane_tent`, and
+    planes whose points lie on two layers that fill their band, MAX_LAYERING and MAX_FILL, see :func:`plane_layering`
+    and :func:`plane_fill`, each hold less than MINOR_SHARE of their points), no plane of LEFTOVER_SHARE of the points
+    left among those no plane covers (a surface the search did not find, see :func:`.leftover.leftover_plane`) and a
+    plane silhouette PS >= RELIABLE_PS: the points lie on their planes and clear of the other regions. On plane-free
+    clouds (sphere, bunny) the "planes" are thick slabs or patches whose points lie near their neighbours' planes. With
+    ``agreement`` (see :func:`seed_agreement`; tune_tolerance gives it) it must also reach MIN_SEED_AGREEMENT: other
+    RANSAC seeds find the same planes (a curved surface is cut into different patches each time); NaN (not measured)
+    skips this test.
     """
     ps = float(scores.plane_silhouette)
     if seg.n_planes == 0:

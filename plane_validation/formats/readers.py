@@ -311,8 +311,8 @@ def _check_binary_size(path: Path, data: memoryview, n: int, point_bytes: int) -
 
 
 def read_pcd_scan(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int, int] | None]:
-    """(n, 3) float64 x, y, z of a PCD file, its ``ring`` field (n,) as :func:`beam_numbers` gives it when
-    it has one of count 1 (else None), and its image shape (H, W) when HEIGHT > 1 (else None)."""
+    """(n, 3) float64 x, y, z of a PCD file, its ``ring`` field (n,) as :func:`..core.geometry.beam_numbers` gives it
+    when it has one of count 1 (else None), and its image shape (H, W) when HEIGHT > 1 (else None)."""
     raw = path.read_bytes()
     parsed = pcd_header(raw)
     if parsed is None:
