@@ -187,22 +187,6 @@ def grid_components(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, wid
 
 
 @numba.njit(**_JIT)
-def _largest(component: np.ndarray, count: int, counted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(n,) bool: the component with the most ``counted`` points (the first of equals); and those counts."""
-    sizes = np.zeros(count, np.int64)
-    for i in range(component.shape[0]):
-        if component[i] >= 0 and counted[i]:
-            sizes[component[i]] += 1
-    out = np.zeros(component.shape[0], np.bool_)
-    if count == 0:
-        return out, sizes
-    best = np.argmax(sizes)
-    for i in range(component.shape[0]):
-        out[i] = component[i] == best
-    return out, sizes
-
-
-@numba.njit(**_JIT)
 def _fragmented(sizes: np.ndarray, largest_share: float, piece_share: float) -> bool:
     total = sizes.sum()
     if total == 0:
@@ -295,7 +279,16 @@ def _band_largest(pixel: np.ndarray, node: np.ndarray, width: int, bridges: np.n
         if i >= 0 and j >= 0 and position[i] >= 0 and position[j] >= 0 and inside[position[i]] and \
                 inside[position[j]]:
             _join(parent, position[i], position[j])
-    number = np.empty(r, np.int64)  # read only at roots, each written when its first point is met
+    return _member_largest(parent, members, counted, r)
+
+
+@numba.njit(**_JIT)
+def _member_largest(parent: np.ndarray, members: np.ndarray, counted: np.ndarray, n: int
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The component of the union-find ``parent`` (n,) (joined by :func:`_join`: each root its component's smallest
+    point) among the points ``members`` (c,) ascending, with the most ``counted`` (n,) points (the first of equals,
+    components numbered in the order of their first point), as (n,) bool, and those counts per component."""
+    number = np.empty(n, np.int64)  # read only at roots, each written when its first point is met
     component = np.empty(members.shape[0], np.int64)
     count = 0
     for c in range(members.shape[0]):
@@ -308,7 +301,7 @@ def _band_largest(pixel: np.ndarray, node: np.ndarray, width: int, bridges: np.n
     for c in range(members.shape[0]):
         if counted[members[c]]:
             sizes[component[c]] += 1
-    out = np.zeros(r, np.bool_)
+    out = np.zeros(n, np.bool_)
     if count == 0:
         return out, sizes
     best = np.argmax(sizes)
@@ -350,44 +343,64 @@ def graph_components(n: int, edges: np.ndarray, member: np.ndarray) -> tuple[np.
 
 
 @numba.njit(**_JIT)
-def _member_components(edges: np.ndarray, edge_rows: np.ndarray, member: np.ndarray) -> tuple[np.ndarray, int]:
-    """:func:`graph_components` of a graph whose ``edges`` (e, 2) are sorted by their first point, point i's starting
-    at ``edge_rows[i]`` ((n + 1,)): the same joins in the same order, visiting only the members' edges."""
-    n = member.shape[0]
-    parent = np.arange(n)
-    for i in range(n):
-        if member[i]:
-            for q in range(edge_rows[i], edge_rows[i + 1]):
-                j = edges[q, 1]
-                if member[j]:
-                    _join(parent, i, j)
-    return _numbered(parent, member)
-
-
-@numba.njit(**_JIT)
 def graph_region(edges: np.ndarray, edge_rows: np.ndarray, normals: np.ndarray, normal: np.ndarray, min_cos: float,
                  mask: np.ndarray, support: np.ndarray, above: np.ndarray, rules: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`grid_region` on a graph of n points joined by ``edges`` (e, 2), sorted, point i's from
     ``edge_rows[i]`` ((n + 1,)) (all n points searched): ``mask``, ``support`` and ``above`` (n,); ``normals``
-    (n, 3), or (0, 3) when none is known."""
+    (n, 3), or (0, 3) when none is known. Only the points of the support band and the inliers are visited after
+    one pass over the flags."""
     n = mask.shape[0]
     known = normals.shape[0] > 0
     wide = np.zeros(n, np.bool_)
     full = np.zeros(n, np.bool_)
+    band = np.empty(n, np.int64)  # the points of the support band that may join a region, ascending
+    inliers = np.empty(n, np.int64)  # ... and the inliers that may
+    n_band = n_in = 0
     for i in range(n):
-        coherent = True
-        if known:
-            cos = abs(normals[i, 0] * normal[0] + normals[i, 1] * normal[1] + normals[i, 2] * normal[2])
-            coherent = not cos < min_cos
-        wide[i] = support[i] and coherent
-        full[i] = mask[i] and coherent
-    component, count = _member_components(edges, edge_rows, full)
-    out, sizes = _largest(component, count, full)
+        if support[i] or mask[i]:
+            if known:
+                cos = abs(normals[i, 0] * normal[0] + normals[i, 1] * normal[1] + normals[i, 2] * normal[2])
+                if cos < min_cos:
+                    continue
+            if support[i]:
+                wide[i] = True
+                band[n_band] = i
+                n_band += 1
+            if mask[i]:
+                full[i] = True
+                inliers[n_in] = i
+                n_in += 1
+    return _graph_band(edges, edge_rows, wide, full, above, band[:n_band], inliers[:n_in], rules)
+
+
+@numba.njit(**_JIT)
+def _graph_band(edges: np.ndarray, edge_rows: np.ndarray, wide: np.ndarray, full: np.ndarray, up: np.ndarray,
+                band: np.ndarray, inliers: np.ndarray, rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`graph_region` from its support band ``wide`` (n,) (its points ``band``, ascending), inliers ``full``
+    (n,) (``inliers``) and side ``up`` (n,)."""
+    parent = np.empty(wide.shape[0], np.int64)
+    out, sizes = _graph_largest(edges, edge_rows, full, inliers, full, parent)
     if _fragmented(sizes, rules[0], rules[1]):
-        component, count = _member_components(edges, edge_rows, wide)
-        return _surface(_largest(component, count, full)[0], full, above, out, rules[2])
+        whole = _graph_largest(edges, edge_rows, wide, band, full, parent)[0]
+        return _surface(whole, full, up, out, rules[2])
     return out, out
+
+
+@numba.njit(**_JIT)
+def _graph_largest(edges: np.ndarray, edge_rows: np.ndarray, inside: np.ndarray, members: np.ndarray,
+                   counted: np.ndarray, parent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_member_largest` of the points ``members`` (c,) ascending (``inside`` (n,): the same as a mask) of a
+    graph (``edges``, ``edge_rows`` as :func:`graph_region` takes them), joined through the members' own edges
+    (components as :func:`graph_components` numbers them); ``parent`` (n,): scratch."""
+    for i in members:
+        parent[i] = i
+    for i in members:
+        for q in range(edge_rows[i], edge_rows[i + 1]):
+            j = edges[q, 1]
+            if inside[j]:
+                _join(parent, i, j)
+    return _member_largest(parent, members, counted, inside.shape[0])
 
 
 @numba.njit(**_JIT)
