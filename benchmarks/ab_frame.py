@@ -10,7 +10,7 @@ from run to run. Process-wide settings (one BLAS thread, glibc's thresholds of c
 them) hold for both: a change to them is measured in alternating processes instead.
 
 Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/ab_frame.py REV [PCD ...] [--repeat 15]
-         [--calls organized,plain,infinite]
+         [--calls organized,plain,infinite,tune]
 """
 from __future__ import annotations
 

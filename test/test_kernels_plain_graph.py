@@ -1,15 +1,19 @@
 """The plain graph's compiled kernels (core/kernels.py, the plain graph block, and the principal axes) against
-plain-numpy references, on random graphs: a subgraph's edges, the pairs that join two regions, border settling."""
+plain-numpy references, on random graphs: a subgraph's edges, the pairs that join two regions, border settling, a
+RANSAC run's plane (the best confirmed hypothesis by its region, then its refits) from one call."""
 from __future__ import annotations
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_kernels_graph import _cloud
+from test_kernels_search_loop import _planar_points
 
 from plane_validation.core import kernels
-from plane_validation.core.regions import _neighbours, _principal_axes
+from plane_validation.core.regions import _neighbours, _principal_axes, graph_neighbours
+from plane_validation.core.search import hypotheses
 from plane_validation.core.search.neighbours import Neighbours, settle_numpy
+from plane_validation.core.search.neighbours_graph import GraphNeighbours, _GraphRemaining, graph_region_numpy
 
 SETTINGS = settings(max_examples=60, deadline=None)
 
@@ -140,3 +144,47 @@ def test_voxel_count_matches_the_grid(seed, size):
     assert count == len(kernels.voxel_grid(pts, lo, cell, dims)[1])
     cells = ((pts - lo) / cell).astype(np.int64)
     assert count == len(np.unique(cells[:, 0] + dims[0] * (cells[:, 1] + dims[1] * cells[:, 2])))
+
+
+class _NumpyGraphRemaining(_GraphRemaining):
+    """The graph's region rule by its numpy reference, run through the generic loops of Remaining (no compiled whole
+    plane)."""
+
+    def keep(self, mask, normal, support, above):
+        return graph_region_numpy(self.local, mask, normal, support, above)
+
+    def refitted(self, *args):
+        return None
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.booleans())
+def test_graph_plane_matches_the_numpy_loop(seed, per_point):
+    """The plane, region and taken points of one compiled call (kernels.graph_plane) are those of
+    hypotheses.best_region's loop over the numpy region rule (Remaining.best, then Remaining.refit while the region
+    grows), on the nearest-neighbour graph of a share of points on a few noisy planes, some normals unknown, the
+    tolerance from below the noise (regions fall apart and are joined through their support) to well above it."""
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(10, 800))
+    cols = _planar_points(rng, m)
+    graph = graph_neighbours(np.ascontiguousarray(cols.T))
+    normals = graph.normals.copy()
+    normals[rng.random(m) < 0.1] = np.nan
+    rest = np.flatnonzero(rng.random(m) < rng.uniform(0.5, 1.0))
+    if len(rest) < 3:
+        return
+    local = GraphNeighbours(n=m, edges=graph.edges, normals=normals).subgraph(rest)
+    search = np.ascontiguousarray(cols[:, rest])
+    idx = rng.integers(0, len(rest), (int(rng.integers(1, 6)), 3))
+    planes, offsets = kernels.triple_planes(search, idx, 1e-6)
+    if not len(planes):
+        return
+    scale = float(rng.uniform(0.001, 0.05))
+    tolerance = scale * rng.uniform(0.5, 1.5, len(rest)) if per_point else scale
+    point_normals = np.ascontiguousarray(local.normals.T)
+    got = hypotheses.best_region(search, tolerance, planes, offsets, _GraphRemaining.of(local), point_normals)
+    ref = hypotheses.best_region(search, tolerance, planes, offsets, _NumpyGraphRemaining.of(local), point_normals)
+    np.testing.assert_array_equal(got[0], ref[0])
+    assert got[1] == ref[1]
+    np.testing.assert_array_equal(got[2], ref[2])
+    np.testing.assert_array_equal(got[3], ref[3])

@@ -307,9 +307,12 @@ def test_skipping_hypotheses_by_their_coherent_inliers_keeps_the_same_planes(mon
     module, name = (neighbours_grid, 'grid_region') if organized else (neighbours_graph, 'graph_region')
     compiled = getattr(module, name)  # each region comes from one compiled call
     monkeypatch.setattr(module, name, lambda *args: calls.append(1) or compiled(*args))
-    if organized:  # the generic loop, labelling through the call counted (the kernel that runs it is tested alike)
+    # the generic loop, labelling through the call counted (the kernels that run it are tested alike)
+    if organized:
         monkeypatch.setattr(neighbours_grid._GridRemaining, 'best', Remaining.best)
         monkeypatch.setattr(neighbours_grid._GridRemaining, 'refitted', Remaining.refitted)
+    else:
+        monkeypatch.setattr(neighbours_graph._GraphRemaining, 'refitted', Remaining.refitted)
     fast = pv.detect_planes(points, t, seed=5, shape=shape, max_planes=8)
     n_fast, calls[:] = len(calls), []
     best_region = hypotheses.best_region

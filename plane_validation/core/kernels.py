@@ -33,6 +33,7 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
            'labels_where', 'graph_triples',
            'grid_spread', 'strided_rows', 'columns_at', 'grid_batch', 'kept_edges', 'graph_contacts', 'graph_settle',
+           'graph_plane',
            'voxel_count', 'tent_fit', 'leftover_rows', 'leftover_best', 'seeded_draws', 'warm', 'warm_probe',
            'Warmup']
 
@@ -187,22 +188,6 @@ def grid_components(pixel: np.ndarray, node: np.ndarray, usable: np.ndarray, wid
 
 
 @numba.njit(**_JIT)
-def _largest(component: np.ndarray, count: int, counted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(n,) bool: the component with the most ``counted`` points (the first of equals); and those counts."""
-    sizes = np.zeros(count, np.int64)
-    for i in range(component.shape[0]):
-        if component[i] >= 0 and counted[i]:
-            sizes[component[i]] += 1
-    out = np.zeros(component.shape[0], np.bool_)
-    if count == 0:
-        return out, sizes
-    best = np.argmax(sizes)
-    for i in range(component.shape[0]):
-        out[i] = component[i] == best
-    return out, sizes
-
-
-@numba.njit(**_JIT)
 def _fragmented(sizes: np.ndarray, largest_share: float, piece_share: float) -> bool:
     total = sizes.sum()
     if total == 0:
@@ -295,7 +280,16 @@ def _band_largest(pixel: np.ndarray, node: np.ndarray, width: int, bridges: np.n
         if i >= 0 and j >= 0 and position[i] >= 0 and position[j] >= 0 and inside[position[i]] and \
                 inside[position[j]]:
             _join(parent, position[i], position[j])
-    number = np.empty(r, np.int64)  # read only at roots, each written when its first point is met
+    return _member_largest(parent, members, counted, r)
+
+
+@numba.njit(**_JIT)
+def _member_largest(parent: np.ndarray, members: np.ndarray, counted: np.ndarray, n: int
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The component of the union-find ``parent`` (n,) (joined by :func:`_join`: each root its component's smallest
+    point) among the points ``members`` (c,) ascending, with the most ``counted`` (n,) points (the first of equals,
+    components numbered in the order of their first point), as (n,) bool, and those counts per component."""
+    number = np.empty(n, np.int64)  # read only at roots, each written when its first point is met
     component = np.empty(members.shape[0], np.int64)
     count = 0
     for c in range(members.shape[0]):
@@ -308,7 +302,7 @@ def _band_largest(pixel: np.ndarray, node: np.ndarray, width: int, bridges: np.n
     for c in range(members.shape[0]):
         if counted[members[c]]:
             sizes[component[c]] += 1
-    out = np.zeros(r, np.bool_)
+    out = np.zeros(n, np.bool_)
     if count == 0:
         return out, sizes
     best = np.argmax(sizes)
@@ -350,44 +344,64 @@ def graph_components(n: int, edges: np.ndarray, member: np.ndarray) -> tuple[np.
 
 
 @numba.njit(**_JIT)
-def _member_components(edges: np.ndarray, edge_rows: np.ndarray, member: np.ndarray) -> tuple[np.ndarray, int]:
-    """:func:`graph_components` of a graph whose ``edges`` (e, 2) are sorted by their first point, point i's starting
-    at ``edge_rows[i]`` ((n + 1,)): the same joins in the same order, visiting only the members' edges."""
-    n = member.shape[0]
-    parent = np.arange(n)
-    for i in range(n):
-        if member[i]:
-            for q in range(edge_rows[i], edge_rows[i + 1]):
-                j = edges[q, 1]
-                if member[j]:
-                    _join(parent, i, j)
-    return _numbered(parent, member)
-
-
-@numba.njit(**_JIT)
 def graph_region(edges: np.ndarray, edge_rows: np.ndarray, normals: np.ndarray, normal: np.ndarray, min_cos: float,
                  mask: np.ndarray, support: np.ndarray, above: np.ndarray, rules: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`grid_region` on a graph of n points joined by ``edges`` (e, 2), sorted, point i's from
     ``edge_rows[i]`` ((n + 1,)) (all n points searched): ``mask``, ``support`` and ``above`` (n,); ``normals``
-    (n, 3), or (0, 3) when none is known."""
+    (n, 3), or (0, 3) when none is known. Only the points of the support band and the inliers are visited after
+    one pass over the flags."""
     n = mask.shape[0]
     known = normals.shape[0] > 0
     wide = np.zeros(n, np.bool_)
     full = np.zeros(n, np.bool_)
+    band = np.empty(n, np.int64)  # the points of the support band that may join a region, ascending
+    inliers = np.empty(n, np.int64)  # ... and the inliers that may
+    n_band = n_in = 0
     for i in range(n):
-        coherent = True
-        if known:
-            cos = abs(normals[i, 0] * normal[0] + normals[i, 1] * normal[1] + normals[i, 2] * normal[2])
-            coherent = not cos < min_cos
-        wide[i] = support[i] and coherent
-        full[i] = mask[i] and coherent
-    component, count = _member_components(edges, edge_rows, full)
-    out, sizes = _largest(component, count, full)
+        if support[i] or mask[i]:
+            if known:
+                cos = abs(normals[i, 0] * normal[0] + normals[i, 1] * normal[1] + normals[i, 2] * normal[2])
+                if cos < min_cos:
+                    continue
+            if support[i]:
+                wide[i] = True
+                band[n_band] = i
+                n_band += 1
+            if mask[i]:
+                full[i] = True
+                inliers[n_in] = i
+                n_in += 1
+    return _graph_band(edges, edge_rows, wide, full, above, band[:n_band], inliers[:n_in], rules)
+
+
+@numba.njit(**_JIT)
+def _graph_band(edges: np.ndarray, edge_rows: np.ndarray, wide: np.ndarray, full: np.ndarray, up: np.ndarray,
+                band: np.ndarray, inliers: np.ndarray, rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`graph_region` from its support band ``wide`` (n,) (its points ``band``, ascending), inliers ``full``
+    (n,) (``inliers``) and side ``up`` (n,)."""
+    parent = np.empty(wide.shape[0], np.int64)
+    out, sizes = _graph_largest(edges, edge_rows, full, inliers, full, parent)
     if _fragmented(sizes, rules[0], rules[1]):
-        component, count = _member_components(edges, edge_rows, wide)
-        return _surface(_largest(component, count, full)[0], full, above, out, rules[2])
+        whole = _graph_largest(edges, edge_rows, wide, band, full, parent)[0]
+        return _surface(whole, full, up, out, rules[2])
     return out, out
+
+
+@numba.njit(**_JIT)
+def _graph_largest(edges: np.ndarray, edge_rows: np.ndarray, inside: np.ndarray, members: np.ndarray,
+                   counted: np.ndarray, parent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_member_largest` of the points ``members`` (c,) ascending (``inside`` (n,): the same as a mask) of a
+    graph (``edges``, ``edge_rows`` as :func:`graph_region` takes them), joined through the members' own edges
+    (components as :func:`graph_components` numbers them); ``parent`` (n,): scratch."""
+    for i in members:
+        parent[i] = i
+    for i in members:
+        for q in range(edge_rows[i], edge_rows[i + 1]):
+            j = edges[q, 1]
+            if inside[j]:
+                _join(parent, i, j)
+    return _member_largest(parent, members, counted, inside.shape[0])
 
 
 @numba.njit(**_JIT)
@@ -3875,6 +3889,87 @@ def _offer(dst: int, src: int, d: float, cand: int, offer_d: np.ndarray, offer_s
     return count
 
 
+@numba.njit(**_NUMPY_JIT)
+def graph_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, support: float,
+                bound_cos: float, point_normals: np.ndarray, edges: np.ndarray, edge_rows: np.ndarray, min_cos: float,
+                rules: np.ndarray, refits: int) -> tuple[int, np.ndarray, float, np.ndarray, np.ndarray]:
+    """:func:`grid_plane` on a graph of the points ``cols`` (3, r) meters joined by ``edges`` (e, 2), sorted, point
+    i's from ``edge_rows[i]`` ((r + 1,)), as :func:`graph_region` takes them: the confirmed hypothesis whose region is
+    largest, then up to ``refits`` least-squares refits on its region. Returns (the winner, the plane's normal (3,),
+    offset meters, region (r,), taken (r,))."""
+    h, r = normals.shape[0], cols.shape[1]
+    counts, cost, known, order = _ranked(cols, tolerance, normals, offsets)
+    winner, size = -1, -1
+    region = taken = np.zeros(r, np.bool_)
+    for i in range(h):  # Remaining.best's loop
+        j = order[i]
+        if counts[j] <= size:
+            break
+        if size > 0:
+            bound = _coherent_near(cols, tolerance, normals[j], offsets[j], point_normals, bound_cos)
+            if bound < size or (bound == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) >=
+                                _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
+                continue
+        kept, took = _graph_plane_region(cols, tolerance, support, normals[j], offsets[j], point_normals, edges,
+                                         edge_rows, min_cos, rules)
+        found = np.count_nonzero(kept)
+        if found > size or (found == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) <
+                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
+            winner, region, taken, size = j, kept, took, found
+    normal = normals[winner].copy()
+    offset = offsets[winner]
+    for _ in range(refits):  # hypotheses.best_region's
+        count = np.count_nonzero(region)
+        if count < 3:
+            break
+        new_normal, new_offset = fit_members(cols, np.flatnonzero(region))
+        new_region, new_taken = _graph_plane_region(cols, tolerance, support, new_normal, new_offset, point_normals,
+                                                    edges, edge_rows, min_cos, rules)
+        if np.count_nonzero(new_region) < count:
+            break
+        normal, offset = new_normal, new_offset
+        same = np.array_equal(new_region, region)
+        region, taken = new_region, new_taken
+        if same:
+            break
+    return winner, normal, offset, region, taken
+
+
+@numba.njit(**_NUMPY_JIT)
+def _graph_plane_region(cols: np.ndarray, tolerance: np.ndarray, support: float, normal: np.ndarray, offset: float,
+                        point_normals: np.ndarray, edges: np.ndarray, edge_rows: np.ndarray, min_cos: float,
+                        rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(kept, taken) (r,) of the plane (``normal`` (3,), ``offset`` meters) among the points of :func:`graph_plane`:
+    :func:`graph_region` of its inliers and support band (:func:`plane_bands` and :func:`band_counts`' arithmetic),
+    the points' normals (3, r) as its (r, 3)."""
+    r = cols.shape[1]
+    per_point = tolerance.shape[0] > 1
+    nx, ny, nz = normal[0], normal[1], normal[2]
+    wide = np.zeros(r, np.bool_)
+    full = np.zeros(r, np.bool_)
+    up = np.empty(r, np.bool_)
+    band = np.empty(r, np.int64)
+    inliers = np.empty(r, np.int64)
+    n_band = n_in = 0
+    for q in range(r):
+        e = nx * cols[0, q] + ny * cols[1, q] + nz * cols[2, q] + offset
+        t = tolerance[q] if per_point else tolerance[0]
+        up[q] = e > 0
+        d = abs(e)
+        near, within = d <= support * t, d <= t
+        if (near or within) and not abs(point_normals[0, q] * nx + point_normals[1, q] * ny
+                                        + point_normals[2, q] * nz) < min_cos:
+            if near:
+                wide[q] = True
+                band[n_band] = q
+                n_band += 1
+            if within:
+                full[q] = True
+                inliers[n_in] = q
+                n_in += 1
+    return _graph_band(edges, edge_rows, wide, full, up, band[:n_band], inliers[:n_in], rules)
+
+
 @numba.njit(**_JIT)
 def graph_settle(dist: np.ndarray, region: np.ndarray, indptr: np.ndarray, indices: np.ndarray, rounds: int
                  ) -> np.ndarray:
@@ -4372,6 +4467,9 @@ def _warm_plain_graph() -> None:
     voxel_count(np.zeros((4, 3)), np.zeros(3), 1.0, np.ones(3, np.int64))
     graph_settle(np.zeros((3, 4)), np.zeros(4, np.int64), np.zeros(5, np.int64), np.zeros(0, np.int64), 6)
     graph_triples(index[:2], index % 2, np.zeros((1, 4)), np.ones(2, np.int64), index, index, index, index, index)
+    cols = np.zeros((3, 4))
+    graph_plane(cols, np.ones(1), np.ones((2, 3)), np.zeros(2), 2.0, 0.5, cols, edges, np.zeros(5, np.int64), 0.5,
+                np.ones(3), 3)
 
 
 #: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The
@@ -4452,4 +4550,4 @@ _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components
             graph_triples, read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
             merge_pair, relabel_rows, labels_where, grid_spread, strided_rows, columns_at, grid_batch, kept_edges,
             graph_contacts,
-            graph_settle, voxel_count, tent_fit, leftover_rows, leftover_best, seeded_draws)
+            graph_settle, graph_plane, voxel_count, tent_fit, leftover_rows, leftover_best, seeded_draws)

@@ -239,6 +239,16 @@ class _GraphRemaining(Remaining):
              ) -> tuple[np.ndarray, np.ndarray]:
         return graph_region(self.edges, self.edge_rows, self.normals, mask, normal, support, above)
 
+    def refitted(self, cols: np.ndarray, tolerances: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
+                 point_normals: np.ndarray | None, support: float, bound_cos: float, refits: int
+                 ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
+        """One compiled call (:func:`.kernels.graph_plane`) when the points' normals are known."""
+        if point_normals is None:
+            return None
+        return kernels.graph_plane(cols, tolerances, normals, offsets, support, bound_cos,
+                                   kernels.c_array(point_normals, np.float64), self.edges, self.edge_rows,
+                                   NORMAL_MIN_COS, REGION_RULES, refits)[1:]
+
     def without(self, left: np.ndarray) -> Remaining:
         return _GraphRemaining.of(self.local.subgraph(np.flatnonzero(left)))
 
