@@ -17,6 +17,8 @@ def pytest_sessionstart(session):
     compile in one process takes most of two minutes. Write the package's bytecode too (with
     PYTHONDONTWRITEBYTECODE set, as on some machines, nothing else does): each of the many Python processes the
     tests start then loads it instead of compiling the package's source again (about 0.5 s of CPU a process)."""
+    if hasattr(session.config, 'workerinput'):  # a pytest-xdist worker: its controller did both
+        return
     import compileall
     from pathlib import Path
 
