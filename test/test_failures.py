@@ -172,3 +172,30 @@ def test_a_hip_roof_found_face_by_face_is_no_tent():
         one = pv.detect_planes(one_face, 0.08, seed=0, max_planes=1)
         assert FailureKind.TENT not in judge(one_face, one, pv.validity_indices(one_face, one.labels, seed=0)).kinds
 
+
+
+def test_a_shallow_hip_roof_found_face_by_face_passes_on_its_faces_hulls(monkeypatch):
+    """A 2 degree hip roof under 4 cm noise found as its four faces: the triangles' bounding rectangles reach over the
+    trapezoids, whose points lie within centimetres of those planes, so PS alone stays under RELIABLE_PS; clipped to
+    the faces' hulls it does not, and the verdict is reliable. Without that second look it would be LOW_SILHOUETTE."""
+    roof, _ = _hip(seed=2, n=2048, length=12, width=8, pitch_deg=2, noise=0.04)
+    seg = pv.detect_planes(roof, 0.12, seed=0, max_planes=6)
+    scores = pv.validity_indices(roof, seg.labels, seed=0)
+    assert seg.n_planes == 4 and scores.plane_silhouette < RELIABLE_PS
+    verdict = judge(roof, seg, scores)
+    assert verdict.reliable and verdict.plane_silhouette == scores.plane_silhouette, verdict
+    monkeypatch.setattr(verdict_module, '_hull_look', lambda pts, seg, ps, assigned: ps)
+    assert judge(roof, seg, scores).kinds == {FailureKind.LOW_SILHOUETTE}
+
+
+def test_slabs_of_a_sphere_stay_below_the_silhouette_on_their_hulls():
+    """A sphere cut into ten slabs at t = 10 cm (72 % of its points in them, enough for the second look): PS on the
+    slabs' hulls rises a little but stays under RELIABLE_PS, and the failure gives that value."""
+    from plane_validation.core.plane_silhouette import hull_silhouette
+    sphere = scenes.sphere(5000, 0.01, seed=0).points
+    seg = pv.detect_planes(sphere, 0.1, seed=0, max_planes=10, min_inliers=0.02)
+    scores = pv.validity_indices(sphere, seg.labels, seed=0)
+    assert seg.n_planes >= 2 and np.mean(seg.labels >= 0) >= RELIABLE_PS
+    low = [f for f in judge(sphere, seg, scores).failures if f.kind is FailureKind.LOW_SILHOUETTE]
+    hull = hull_silhouette(sphere, seg.labels, seed=verdict_module.HULL_SEED)
+    assert len(low) == 1 and low[0].value == max(hull, scores.plane_silhouette) < RELIABLE_PS

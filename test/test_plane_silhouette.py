@@ -59,3 +59,39 @@ def test_without_a_sample_size_every_assigned_point_counts():
     assert len(scene.points) > FRAME_SAMPLE and np.bincount(scene.labels[scene.labels >= 0]).max() <= FRAME_POINTS
     values = {plane_silhouette(scene.points, scene.labels, sample_size=None, seed=s) for s in range(3)}
     assert len(values) == 1 and 0.5 < values.pop() <= 1
+
+
+def test_polygon_distances_against_the_edges_sampled_densely():
+    from plane_validation.core.plane_silhouette import polygon_distances
+    rng = np.random.default_rng(4)
+    angles = np.sort(rng.uniform(0, 2 * np.pi, 9))
+    polygon = np.column_stack([np.cos(angles), 0.5 * np.sin(angles)])  # convex, counter-clockwise
+    p = rng.uniform(-2, 2, (400, 2))
+    ends = np.roll(polygon, -1, axis=0)
+    f = np.linspace(0, 1, 2001)[:, None, None]
+    boundary = (polygon + f * (ends - polygon)).reshape(-1, 2)
+    nearest = np.sqrt(((p[:, None] - boundary[None]) ** 2).sum(axis=2)).min(axis=1)
+    cross = [(b[0] - a[0]) * (q[1] - a[1]) - (b[1] - a[1]) * (q[0] - a[0]) for a, b in zip(polygon, ends) for q in p]
+    inside = (np.array(cross).reshape(len(polygon), len(p)) >= 0).all(axis=0)
+    got = polygon_distances(p, polygon)
+    assert inside.any() and (~inside).any()
+    assert np.all(got[inside] == 0) and np.allclose(got[~inside], nearest[~inside], atol=2e-3)
+
+
+def test_hull_silhouette_is_ps_with_tighter_extents():
+    """The same sample as PS with a seed: never lower; about the same on rectangles (a room's walls), where hull and
+    box agree; higher on a hip roof, whose triangles' boxes reach over the faces beside them."""
+    from plane_validation.core.plane_silhouette import hull_silhouette
+    room = scenes.room(5000, 0.005, seed=2)
+    ps, hull = plane_silhouette(room.points, room.labels, seed=0), hull_silhouette(room.points, room.labels, seed=0)
+    assert ps <= hull <= ps + 0.02
+    rng = np.random.default_rng(1)
+    x, y = rng.uniform(-6, 6, 3000), rng.uniform(-4, 4, 3000)
+    rise = np.stack([4 - y, 4 + y, 6 - x, 6 + x], axis=1)
+    face = np.argmin(rise, axis=1)
+    roof = np.column_stack([x, y, 0.035 * rise[np.arange(3000), face] + rng.normal(0, 0.04, 3000)])  # 2 degrees
+    ps, hull = plane_silhouette(roof, face, seed=0), hull_silhouette(roof, face, seed=0)
+    assert hull > ps + 0.15, (ps, hull)
+    assert hull_silhouette(roof, np.full(3000, -1)) == 0.0
+    with pytest.raises(ValueError, match='labels for'):
+        hull_silhouette(roof, face[:-1])

@@ -31,8 +31,9 @@ class FailureKind(enum.Enum):
     #: ``other``: RMS distance / t
     LEFTOVER_PLANE = 'leftover_plane'        #: share of the valid points on the largest plane among the points no
     #: plane covers >= limit; ``other``: share of the valid points in no plane
-    LOW_SILHOUETTE = 'low_silhouette'        #: plane silhouette PS < limit; ``other``: share of the points in no
-    #: plane when the search stopped at max_planes (else None)
+    LOW_SILHOUETTE = 'low_silhouette'        #: plane silhouette PS < limit (the larger of PS and PS with the planes
+    #: clipped to their hulls, where that was measured); ``other``: share of the points in no plane when the search
+    #: stopped at max_planes (else None)
     COORDINATE_STEPS = 'coordinate_steps'    #: step of the coordinates along the normal (m) > limit, t (m)
     SEEDS_DISAGREE = 'seeds_disagree'        #: agreement with other RANSAC seeds < limit
 
