@@ -3345,6 +3345,47 @@ def _grid_band_region(cols: np.ndarray, tolerance: np.ndarray, support: float, n
 
 
 @numba.njit(**_NUMPY_JIT)
+def _next_candidate(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
+                    point_normals: np.ndarray, bound_cos: float, counts: np.ndarray, cost: np.ndarray,
+                    known: np.ndarray, order: np.ndarray, i: int, winner: int, size: int) -> int:
+    """The step of :func:`grid_plane`'s and :func:`graph_plane`'s search over the hypotheses ranked by
+    :func:`_ranked` (``counts``, ``cost``, ``known``, ``order``) that decides on the i-th: its number when its region
+    is to be found, -1 when it cannot beat the ``winner`` so far (a region of ``size`` points; by
+    :func:`_coherent_near`'s bound, ``bound_cos``), -2 when neither it nor any after it can."""
+    j = order[i]
+    if counts[j] <= size:
+        return -2
+    if size > 0:
+        bound = _coherent_near(cols, tolerance, normals[j], offsets[j], point_normals, bound_cos)
+        if bound < size or (bound == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) >=
+                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
+            return -1
+    return j
+
+
+@numba.njit(**_NUMPY_JIT)
+def _beats(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, cost: np.ndarray,
+           known: np.ndarray, kept: np.ndarray, j: int, winner: int, size: int) -> bool:
+    """Whether hypothesis j's region ``kept`` (r,) beats the ``winner``'s of ``size`` points: larger, or as large
+    at a lower MSAC cost (:func:`_msac_cost`)."""
+    found = np.count_nonzero(kept)
+    return found > size or (found == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) <
+                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known))
+
+
+@numba.njit(**_NUMPY_JIT)
+def _refit_kept(normal: np.ndarray, offset: float, region: np.ndarray, taken: np.ndarray, new_normal: np.ndarray,
+                new_offset: float, new_region: np.ndarray, new_taken: np.ndarray
+                ) -> tuple[bool, np.ndarray, float, np.ndarray, np.ndarray]:
+    """One refit's outcome in :func:`grid_plane` and :func:`graph_plane` (``hypotheses.best_region``): the refitted
+    plane and its region replace the old ones unless the region shrinks; refitting goes on while it changes. Returns
+    (go on, normal (3,), offset meters, region (r,), taken (r,))."""
+    if np.count_nonzero(new_region) < np.count_nonzero(region):
+        return False, normal, offset, region, taken
+    return not np.array_equal(new_region, region), new_normal, new_offset, new_region, new_taken
+
+
+@numba.njit(**_NUMPY_JIT)
 def _grid_best(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, support: float,
                bound_cos: float, point_normals: np.ndarray, rest_pixel: np.ndarray, rest_usable: np.ndarray,
                width: int, bridges: np.ndarray, min_cos: float, rules: np.ndarray
@@ -3358,21 +3399,17 @@ def _grid_best(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
     winner, size = -1, -1
     region = taken = np.zeros(r, np.bool_)
     for i in range(h):
-        j = order[i]
-        if counts[j] <= size:
+        j = _next_candidate(cols, tolerance, normals, offsets, point_normals, bound_cos, counts, cost, known, order,
+                            i, winner, size)
+        if j == -2:
             break
-        if size > 0:
-            bound = _coherent_near(cols, tolerance, normals[j], offsets[j], point_normals, bound_cos)
-            if bound < size or (bound == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) >=
-                                _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
-                continue
+        if j < 0:
+            continue
         kept, took = _grid_band_region(cols, tolerance, support, normals[j, 0], normals[j, 1], normals[j, 2],
                                        offsets[j], point_normals, rest_pixel, rest_usable, width, bridges, min_cos,
                                        rules)
-        found = np.count_nonzero(kept)
-        if found > size or (found == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) <
-                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
-            winner, region, taken, size = j, kept, took, found
+        if _beats(cols, tolerance, normals, offsets, cost, known, kept, j, winner, size):
+            winner, region, taken, size = j, kept, took, np.count_nonzero(kept)
     return winner, region, taken
 
 
@@ -3426,21 +3463,16 @@ def grid_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
     rest_usable = _usable_at(usable, rest_pixel)
     winner, region, taken = _grid_best(cols, tolerance, normals, offsets, support, bound_cos, point_normals,
                                        rest_pixel, rest_usable, width, bridges, min_cos, rules)
-    normal = normals[winner].copy()
-    offset = offsets[winner]
+    normal, offset = normals[winner].copy(), offsets[winner]
     for _ in range(refits):
-        count = np.count_nonzero(region)
-        if count < 3:
+        if np.count_nonzero(region) < 3:
             break
         new_normal, new_offset, new_region, new_taken = _grid_refit(cols, region, tolerance, support, point_normals,
                                                                     rest_pixel, rest_usable, width, bridges, min_cos,
                                                                     rules)
-        if np.count_nonzero(new_region) < count:
-            break
-        normal, offset = new_normal, new_offset
-        same = np.array_equal(new_region, region)
-        region, taken = new_region, new_taken
-        if same:
+        more, normal, offset, region, taken = _refit_kept(normal, offset, region, taken, new_normal, new_offset,
+                                                          new_region, new_taken)
+        if not more:
             break
     return winner, normal, offset, region, taken
 
@@ -3902,35 +3934,26 @@ def graph_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, of
     winner, size = -1, -1
     region = taken = np.zeros(r, np.bool_)
     for i in range(h):  # Remaining.best's loop
-        j = order[i]
-        if counts[j] <= size:
+        j = _next_candidate(cols, tolerance, normals, offsets, point_normals, bound_cos, counts, cost, known, order,
+                            i, winner, size)
+        if j == -2:
             break
-        if size > 0:
-            bound = _coherent_near(cols, tolerance, normals[j], offsets[j], point_normals, bound_cos)
-            if bound < size or (bound == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) >=
-                                _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
-                continue
+        if j < 0:
+            continue
         kept, took = _graph_plane_region(cols, tolerance, support, normals[j], offsets[j], point_normals, edges,
                                          edge_rows, min_cos, rules)
-        found = np.count_nonzero(kept)
-        if found > size or (found == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) <
-                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
-            winner, region, taken, size = j, kept, took, found
-    normal = normals[winner].copy()
-    offset = offsets[winner]
+        if _beats(cols, tolerance, normals, offsets, cost, known, kept, j, winner, size):
+            winner, region, taken, size = j, kept, took, np.count_nonzero(kept)
+    normal, offset = normals[winner].copy(), offsets[winner]
     for _ in range(refits):  # hypotheses.best_region's
-        count = np.count_nonzero(region)
-        if count < 3:
+        if np.count_nonzero(region) < 3:
             break
         new_normal, new_offset = fit_members(cols, np.flatnonzero(region))
         new_region, new_taken = _graph_plane_region(cols, tolerance, support, new_normal, new_offset, point_normals,
                                                     edges, edge_rows, min_cos, rules)
-        if np.count_nonzero(new_region) < count:
-            break
-        normal, offset = new_normal, new_offset
-        same = np.array_equal(new_region, region)
-        region, taken = new_region, new_taken
-        if same:
+        more, normal, offset, region, taken = _refit_kept(normal, offset, region, taken, new_normal, new_offset,
+                                                          new_region, new_taken)
+        if not more:
             break
     return winner, normal, offset, region, taken
 
