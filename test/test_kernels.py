@@ -211,8 +211,7 @@ def test_graph_region_matches_numpy(seed):
     from plane_validation.core.search.neighbours_graph import _NO_NORMALS, graph_region, graph_region_numpy
     local, mask, normal, support, above = _graph_case(seed)
     normals = _NO_NORMALS if local.normals is None else local.normals
-    kept, taken = graph_region(kernels.c_array(local.edges, np.int64), local.edge_rows, normals, mask, normal, support,
-                               above)
+    kept, taken = graph_region(local.edge_ends, local.edge_rows, normals, mask, normal, support, above)
     ref_kept, ref_taken = graph_region_numpy(local, mask, normal, support, above)
     np.testing.assert_array_equal(kept, ref_kept)
     np.testing.assert_array_equal(taken, ref_taken)

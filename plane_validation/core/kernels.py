@@ -344,13 +344,13 @@ def graph_components(n: int, edges: np.ndarray, member: np.ndarray) -> tuple[np.
 
 
 @numba.njit(**_JIT)
-def graph_region(edges: np.ndarray, edge_rows: np.ndarray, normals: np.ndarray, normal: np.ndarray, min_cos: float,
+def graph_region(ends: np.ndarray, edge_rows: np.ndarray, normals: np.ndarray, normal: np.ndarray, min_cos: float,
                  mask: np.ndarray, support: np.ndarray, above: np.ndarray, rules: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`grid_region` on a graph of n points joined by ``edges`` (e, 2), sorted, point i's from
-    ``edge_rows[i]`` ((n + 1,)) (all n points searched): ``mask``, ``support`` and ``above`` (n,); ``normals``
-    (n, 3), or (0, 3) when none is known. Only the points of the support band and the inliers are visited after
-    one pass over the flags."""
+    """:func:`grid_region` on a graph of n points joined by edges (each pair once, the smaller index first, sorted),
+    point i's from ``edge_rows[i]`` ((n + 1,)) to the larger ends ``ends`` (e,) (all n points searched): ``mask``,
+    ``support`` and ``above`` (n,); ``normals`` (n, 3), or (0, 3) when none is known. Only the points of the support
+    band and the inliers are visited after one pass over the flags."""
     n = mask.shape[0]
     known = normals.shape[0] > 0
     wide = np.zeros(n, np.bool_)
@@ -372,35 +372,41 @@ def graph_region(edges: np.ndarray, edge_rows: np.ndarray, normals: np.ndarray, 
                 full[i] = True
                 inliers[n_in] = i
                 n_in += 1
-    return _graph_band(edges, edge_rows, wide, full, above, band[:n_band], inliers[:n_in], rules)
+    return _graph_band(ends, edge_rows, wide, full, above, band[:n_band], inliers[:n_in], rules)
 
 
 @numba.njit(**_JIT)
-def _graph_band(edges: np.ndarray, edge_rows: np.ndarray, wide: np.ndarray, full: np.ndarray, up: np.ndarray,
+def _graph_band(ends: np.ndarray, edge_rows: np.ndarray, wide: np.ndarray, full: np.ndarray, up: np.ndarray,
                 band: np.ndarray, inliers: np.ndarray, rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`graph_region` from its support band ``wide`` (n,) (its points ``band``, ascending), inliers ``full``
     (n,) (``inliers``) and side ``up`` (n,)."""
     parent = np.empty(wide.shape[0], np.int64)
-    out, sizes = _graph_largest(edges, edge_rows, full, inliers, full, parent)
+    out, sizes = _graph_largest(ends, edge_rows, full, inliers, full, parent)
     if _fragmented(sizes, rules[0], rules[1]):
-        whole = _graph_largest(edges, edge_rows, wide, band, full, parent)[0]
+        whole = _graph_largest(ends, edge_rows, wide, band, full, parent)[0]
         return _surface(whole, full, up, out, rules[2])
     return out, out
 
 
 @numba.njit(**_JIT)
-def _graph_largest(edges: np.ndarray, edge_rows: np.ndarray, inside: np.ndarray, members: np.ndarray,
+def _graph_largest(ends: np.ndarray, edge_rows: np.ndarray, inside: np.ndarray, members: np.ndarray,
                    counted: np.ndarray, parent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_member_largest` of the points ``members`` (c,) ascending (``inside`` (n,): the same as a mask) of a
-    graph (``edges``, ``edge_rows`` as :func:`graph_region` takes them), joined through the members' own edges
-    (components as :func:`graph_components` numbers them); ``parent`` (n,): scratch."""
+    graph (``ends``, ``edge_rows`` as :func:`graph_region` takes them), joined through the members' own edges
+    (components as :func:`graph_components` numbers them: :func:`_join`'s roots); ``parent`` (n,): scratch."""
     for i in members:
         parent[i] = i
     for i in members:
+        a = _root(parent, i)  # i's root, followed through its row rather than found again at each edge
         for q in range(edge_rows[i], edge_rows[i + 1]):
-            j = edges[q, 1]
+            j = ends[q]
             if inside[j]:
-                _join(parent, i, j)
+                b = _root(parent, j)
+                if b < a:
+                    parent[a] = b
+                    a = b
+                elif b > a:
+                    parent[b] = a
     return _member_largest(parent, members, counted, inside.shape[0])
 
 
@@ -3345,6 +3351,47 @@ def _grid_band_region(cols: np.ndarray, tolerance: np.ndarray, support: float, n
 
 
 @numba.njit(**_NUMPY_JIT)
+def _next_candidate(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
+                    point_normals: np.ndarray, bound_cos: float, counts: np.ndarray, cost: np.ndarray,
+                    known: np.ndarray, order: np.ndarray, i: int, winner: int, size: int) -> int:
+    """The step of :func:`grid_plane`'s and :func:`graph_plane`'s search over the hypotheses ranked by
+    :func:`_ranked` (``counts``, ``cost``, ``known``, ``order``) that decides on the i-th: its number when its region
+    is to be found, -1 when it cannot beat the ``winner`` so far (a region of ``size`` points; by
+    :func:`_coherent_near`'s bound, ``bound_cos``), -2 when neither it nor any after it can."""
+    j = order[i]
+    if counts[j] <= size:
+        return -2
+    if size > 0:
+        bound = _coherent_near(cols, tolerance, normals[j], offsets[j], point_normals, bound_cos)
+        if bound < size or (bound == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) >=
+                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
+            return -1
+    return j
+
+
+@numba.njit(**_NUMPY_JIT)
+def _beats(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, cost: np.ndarray,
+           known: np.ndarray, kept: np.ndarray, j: int, winner: int, size: int) -> bool:
+    """Whether hypothesis j's region ``kept`` (r,) beats the ``winner``'s of ``size`` points: larger, or as large
+    at a lower MSAC cost (:func:`_msac_cost`)."""
+    found = np.count_nonzero(kept)
+    return found > size or (found == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) <
+                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known))
+
+
+@numba.njit(**_NUMPY_JIT)
+def _refit_kept(normal: np.ndarray, offset: float, region: np.ndarray, taken: np.ndarray, new_normal: np.ndarray,
+                new_offset: float, new_region: np.ndarray, new_taken: np.ndarray
+                ) -> tuple[bool, np.ndarray, float, np.ndarray, np.ndarray]:
+    """One refit's outcome in :func:`grid_plane` and :func:`graph_plane` (``hypotheses.best_region``): the refitted
+    plane and its region replace the old ones unless the region shrinks; refitting goes on while it changes. Returns
+    (go on, normal (3,), offset meters, region (r,), taken (r,))."""
+    if np.count_nonzero(new_region) < np.count_nonzero(region):
+        return False, normal, offset, region, taken
+    return not np.array_equal(new_region, region), new_normal, new_offset, new_region, new_taken
+
+
+@numba.njit(**_NUMPY_JIT)
 def _grid_best(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, support: float,
                bound_cos: float, point_normals: np.ndarray, rest_pixel: np.ndarray, rest_usable: np.ndarray,
                width: int, bridges: np.ndarray, min_cos: float, rules: np.ndarray
@@ -3358,21 +3405,17 @@ def _grid_best(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
     winner, size = -1, -1
     region = taken = np.zeros(r, np.bool_)
     for i in range(h):
-        j = order[i]
-        if counts[j] <= size:
+        j = _next_candidate(cols, tolerance, normals, offsets, point_normals, bound_cos, counts, cost, known, order,
+                            i, winner, size)
+        if j == -2:
             break
-        if size > 0:
-            bound = _coherent_near(cols, tolerance, normals[j], offsets[j], point_normals, bound_cos)
-            if bound < size or (bound == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) >=
-                                _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
-                continue
+        if j < 0:
+            continue
         kept, took = _grid_band_region(cols, tolerance, support, normals[j, 0], normals[j, 1], normals[j, 2],
                                        offsets[j], point_normals, rest_pixel, rest_usable, width, bridges, min_cos,
                                        rules)
-        found = np.count_nonzero(kept)
-        if found > size or (found == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) <
-                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
-            winner, region, taken, size = j, kept, took, found
+        if _beats(cols, tolerance, normals, offsets, cost, known, kept, j, winner, size):
+            winner, region, taken, size = j, kept, took, np.count_nonzero(kept)
     return winner, region, taken
 
 
@@ -3426,21 +3469,16 @@ def grid_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
     rest_usable = _usable_at(usable, rest_pixel)
     winner, region, taken = _grid_best(cols, tolerance, normals, offsets, support, bound_cos, point_normals,
                                        rest_pixel, rest_usable, width, bridges, min_cos, rules)
-    normal = normals[winner].copy()
-    offset = offsets[winner]
+    normal, offset = normals[winner].copy(), offsets[winner]
     for _ in range(refits):
-        count = np.count_nonzero(region)
-        if count < 3:
+        if np.count_nonzero(region) < 3:
             break
         new_normal, new_offset, new_region, new_taken = _grid_refit(cols, region, tolerance, support, point_normals,
                                                                     rest_pixel, rest_usable, width, bridges, min_cos,
                                                                     rules)
-        if np.count_nonzero(new_region) < count:
-            break
-        normal, offset = new_normal, new_offset
-        same = np.array_equal(new_region, region)
-        region, taken = new_region, new_taken
-        if same:
+        more, normal, offset, region, taken = _refit_kept(normal, offset, region, taken, new_normal, new_offset,
+                                                          new_region, new_taken)
+        if not more:
             break
     return winner, normal, offset, region, taken
 
@@ -3802,24 +3840,26 @@ def grid_batch(cols: np.ndarray, spread: np.ndarray, first: np.ndarray, scale_pi
 
 
 @numba.njit(**_JIT)
-def kept_edges(edges: np.ndarray, keep: np.ndarray, n: int) -> np.ndarray:
+def kept_edges(edges: np.ndarray, keep: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """The pairs (e', 2) of ``edges`` (e, 2) of a graph of n points whose both ends are among ``keep`` (ascending
-    point indices), renumbered to positions in ``keep``, in their order."""
+    point indices), renumbered to positions in ``keep``, in their order, and where each kept point's pairs start
+    among them ((len(keep) + 1,); the rows of pairs sorted by their first end, as ``edges`` are). One pass: the
+    pairs are the first rows of an array of e (a view)."""
     position = np.full(n, -1, np.int64)
     for i in range(keep.shape[0]):
         position[keep[i]] = i
-    count = 0
-    for q in range(edges.shape[0]):
-        if position[edges[q, 0]] >= 0 and position[edges[q, 1]] >= 0:
-            count += 1
-    out = np.empty((count, 2), np.int64)
+    starts = np.zeros(keep.shape[0] + 1, np.int64)
+    out = np.empty((edges.shape[0], 2), np.int64)
     count = 0
     for q in range(edges.shape[0]):
         a, b = position[edges[q, 0]], position[edges[q, 1]]
         if a >= 0 and b >= 0:
             out[count, 0], out[count, 1] = a, b
+            starts[a + 1] += 1
             count += 1
-    return out
+    for i in range(keep.shape[0]):
+        starts[i + 1] += starts[i]
+    return out[:count], starts
 
 
 @numba.njit(**_JIT)
@@ -3891,10 +3931,10 @@ def _offer(dst: int, src: int, d: float, cand: int, offer_d: np.ndarray, offer_s
 
 @numba.njit(**_NUMPY_JIT)
 def graph_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, support: float,
-                bound_cos: float, point_normals: np.ndarray, edges: np.ndarray, edge_rows: np.ndarray, min_cos: float,
+                bound_cos: float, point_normals: np.ndarray, ends: np.ndarray, edge_rows: np.ndarray, min_cos: float,
                 rules: np.ndarray, refits: int) -> tuple[int, np.ndarray, float, np.ndarray, np.ndarray]:
-    """:func:`grid_plane` on a graph of the points ``cols`` (3, r) meters joined by ``edges`` (e, 2), sorted, point
-    i's from ``edge_rows[i]`` ((r + 1,)), as :func:`graph_region` takes them: the confirmed hypothesis whose region is
+    """:func:`grid_plane` on a graph of the points ``cols`` (3, r) meters joined by edges (``ends`` (e,),
+    ``edge_rows`` (r + 1,), as :func:`graph_region` takes them): the confirmed hypothesis whose region is
     largest, then up to ``refits`` least-squares refits on its region. Returns (the winner, the plane's normal (3,),
     offset meters, region (r,), taken (r,))."""
     h, r = normals.shape[0], cols.shape[1]
@@ -3902,42 +3942,33 @@ def graph_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, of
     winner, size = -1, -1
     region = taken = np.zeros(r, np.bool_)
     for i in range(h):  # Remaining.best's loop
-        j = order[i]
-        if counts[j] <= size:
+        j = _next_candidate(cols, tolerance, normals, offsets, point_normals, bound_cos, counts, cost, known, order,
+                            i, winner, size)
+        if j == -2:
             break
-        if size > 0:
-            bound = _coherent_near(cols, tolerance, normals[j], offsets[j], point_normals, bound_cos)
-            if bound < size or (bound == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) >=
-                                _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
-                continue
-        kept, took = _graph_plane_region(cols, tolerance, support, normals[j], offsets[j], point_normals, edges,
+        if j < 0:
+            continue
+        kept, took = _graph_plane_region(cols, tolerance, support, normals[j], offsets[j], point_normals, ends,
                                          edge_rows, min_cos, rules)
-        found = np.count_nonzero(kept)
-        if found > size or (found == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) <
-                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
-            winner, region, taken, size = j, kept, took, found
-    normal = normals[winner].copy()
-    offset = offsets[winner]
+        if _beats(cols, tolerance, normals, offsets, cost, known, kept, j, winner, size):
+            winner, region, taken, size = j, kept, took, np.count_nonzero(kept)
+    normal, offset = normals[winner].copy(), offsets[winner]
     for _ in range(refits):  # hypotheses.best_region's
-        count = np.count_nonzero(region)
-        if count < 3:
+        if np.count_nonzero(region) < 3:
             break
         new_normal, new_offset = fit_members(cols, np.flatnonzero(region))
         new_region, new_taken = _graph_plane_region(cols, tolerance, support, new_normal, new_offset, point_normals,
-                                                    edges, edge_rows, min_cos, rules)
-        if np.count_nonzero(new_region) < count:
-            break
-        normal, offset = new_normal, new_offset
-        same = np.array_equal(new_region, region)
-        region, taken = new_region, new_taken
-        if same:
+                                                    ends, edge_rows, min_cos, rules)
+        more, normal, offset, region, taken = _refit_kept(normal, offset, region, taken, new_normal, new_offset,
+                                                          new_region, new_taken)
+        if not more:
             break
     return winner, normal, offset, region, taken
 
 
 @numba.njit(**_NUMPY_JIT)
 def _graph_plane_region(cols: np.ndarray, tolerance: np.ndarray, support: float, normal: np.ndarray, offset: float,
-                        point_normals: np.ndarray, edges: np.ndarray, edge_rows: np.ndarray, min_cos: float,
+                        point_normals: np.ndarray, ends: np.ndarray, edge_rows: np.ndarray, min_cos: float,
                         rules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(kept, taken) (r,) of the plane (``normal`` (3,), ``offset`` meters) among the points of :func:`graph_plane`:
     :func:`graph_region` of its inliers and support band (:func:`plane_bands` and :func:`band_counts`' arithmetic),
@@ -3967,7 +3998,7 @@ def _graph_plane_region(cols: np.ndarray, tolerance: np.ndarray, support: float,
                 full[q] = True
                 inliers[n_in] = q
                 n_in += 1
-    return _graph_band(edges, edge_rows, wide, full, up, band[:n_band], inliers[:n_in], rules)
+    return _graph_band(ends, edge_rows, wide, full, up, band[:n_band], inliers[:n_in], rules)
 
 
 @numba.njit(**_JIT)
@@ -4177,8 +4208,7 @@ def _warm_regions() -> None:
     grid_region(index, index, flags, 2, np.zeros((1, 3), np.int64), pts, np.ones(3), 0.5, index, index, flags, flags,
                 flags, np.ones(3))
     graph_components(4, np.zeros((1, 2), np.int64), flags)
-    graph_region(np.zeros((1, 2), np.int64), np.zeros(5, np.int64), pts, np.ones(3), 0.5, flags, flags, flags,
-                 np.ones(3))
+    graph_region(np.zeros(1, np.int64), np.zeros(5, np.int64), pts, np.ones(3), 0.5, flags, flags, flags, np.ones(3))
     pair_graph(4, np.zeros((1, 2), np.int64), np.zeros((4, 2)), np.zeros((4, 2), np.int64), np.ones(4), 1)
 
 
@@ -4468,8 +4498,8 @@ def _warm_plain_graph() -> None:
     graph_settle(np.zeros((3, 4)), np.zeros(4, np.int64), np.zeros(5, np.int64), np.zeros(0, np.int64), 6)
     graph_triples(index[:2], index % 2, np.zeros((1, 4)), np.ones(2, np.int64), index, index, index, index, index)
     cols = np.zeros((3, 4))
-    graph_plane(cols, np.ones(1), np.ones((2, 3)), np.zeros(2), 2.0, 0.5, cols, edges, np.zeros(5, np.int64), 0.5,
-                np.ones(3), 3)
+    graph_plane(cols, np.ones(1), np.ones((2, 3)), np.zeros(2), 2.0, 0.5, cols, edges[:, 1].copy(),
+                np.zeros(5, np.int64), 0.5, np.ones(3), 3)
 
 
 #: What :func:`warm` runs: each step calls some kernels with the argument types the package calls them with. The

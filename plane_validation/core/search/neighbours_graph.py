@@ -34,10 +34,12 @@ _SCALES = np.array(NEARBY_SCALES, np.int64)
 @dataclass(frozen=True, eq=False, kw_only=True)
 class GraphNeighbours(Neighbours):
     """``edges`` (e, 2) point pairs, each pair once with the smaller index first, sorted; ``adjacency``: the same
-    as CSR (indptr, indices), both ways (None: no edges)."""
+    as CSR (indptr, indices), both ways (None: no edges); ``edge_starts``: :attr:`edge_rows` when its builder has
+    them (None: worked out when first asked for)."""
 
     edges: np.ndarray
     adjacency: tuple[np.ndarray, np.ndarray] | None = None
+    edge_starts: np.ndarray | None = None
 
     def nearby(self, nodes: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """The end of a random walk of NEARBY_SCALES hops from each of ``nodes`` (m,); the node itself where the
@@ -89,7 +91,13 @@ class GraphNeighbours(Neighbours):
     @functools.cached_property
     def edge_rows(self) -> np.ndarray:
         """(n + 1,) where each point's edges to larger indices start in ``edges``."""
-        return row_starts(self.edges[:, 0], self.n)
+        return row_starts(self.edges[:, 0], self.n) if self.edge_starts is None else self.edge_starts
+
+    @functools.cached_property
+    def edge_ends(self) -> np.ndarray:
+        """(e,) int64 the larger end of each edge, contiguous: what the region kernels read (a column of ``edges``
+        read in place costs them about a quarter more)."""
+        return np.ascontiguousarray(self.edges[:, 1], np.int64)
 
     @functools.cached_property
     def c_edges(self) -> np.ndarray:
@@ -100,8 +108,9 @@ class GraphNeighbours(Neighbours):
         """The neighbourhood of the points ``keep`` (ascending indices), renumbered 0..len(keep)-1, in one compiled
         pass (:func:`.kernels.kept_edges`; :meth:`subgraph_numpy` is its reference). Components of points among
         them are the same as in the whole graph."""
-        edges = kernels.kept_edges(self.c_edges, kernels.c_array(keep, np.int64), self.n)
-        return GraphNeighbours(n=len(keep), edges=edges, normals=None if self.normals is None else self.normals[keep])
+        edges, starts = kernels.kept_edges(self.c_edges, kernels.c_array(keep, np.int64), self.n)
+        return GraphNeighbours(n=len(keep), edges=edges, normals=None if self.normals is None else self.normals[keep],
+                               edge_starts=starts)
 
     def subgraph_numpy(self, keep: np.ndarray) -> GraphNeighbours:
         """:meth:`subgraph` in numpy."""
@@ -227,17 +236,17 @@ class _GraphRemaining(Remaining):
     """The region rule over the graph ``local`` of the points left: one compiled call per region."""
 
     local: GraphNeighbours
-    edges: np.ndarray
+    ends: np.ndarray
     edge_rows: np.ndarray
     normals: np.ndarray
 
     @classmethod
     def of(cls, local: GraphNeighbours) -> _GraphRemaining:
-        return cls(local, local.c_edges, local.edge_rows, _NO_NORMALS if local.normals is None else local.normals)
+        return cls(local, local.edge_ends, local.edge_rows, _NO_NORMALS if local.normals is None else local.normals)
 
     def keep(self, mask: np.ndarray, normal: np.ndarray, support: np.ndarray, above: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray]:
-        return graph_region(self.edges, self.edge_rows, self.normals, mask, normal, support, above)
+        return graph_region(self.ends, self.edge_rows, self.normals, mask, normal, support, above)
 
     def refitted(self, cols: np.ndarray, tolerances: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
                  point_normals: np.ndarray | None, support: float, bound_cos: float, refits: int
@@ -246,20 +255,20 @@ class _GraphRemaining(Remaining):
         if point_normals is None:
             return None
         return kernels.graph_plane(cols, tolerances, normals, offsets, support, bound_cos,
-                                   kernels.c_array(point_normals, np.float64), self.edges, self.edge_rows,
+                                   kernels.c_array(point_normals, np.float64), self.ends, self.edge_rows,
                                    NORMAL_MIN_COS, REGION_RULES, refits)[1:]
 
     def without(self, left: np.ndarray) -> Remaining:
         return _GraphRemaining.of(self.local.subgraph(np.flatnonzero(left)))
 
 
-def graph_region(edges: np.ndarray, edge_rows: np.ndarray, normals: np.ndarray, mask: np.ndarray, normal: np.ndarray,
+def graph_region(ends: np.ndarray, edge_rows: np.ndarray, normals: np.ndarray, mask: np.ndarray, normal: np.ndarray,
                  support: np.ndarray, above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(kept, taken) (n,) of a graph of n points joined by ``edges`` (e, 2) (sorted; point i's from ``edge_rows[i]``,
-    (n + 1,)) with local ``normals`` (n, 3) ((0, 3): none known) for a plane of ``normal`` with inliers ``mask`` (n,),
-    support band ``support`` and side ``above``: :func:`.kernels.graph_region` (:func:`graph_region_numpy` is its
-    reference)."""
-    return kernels.graph_region(edges, edge_rows, normals, kernels.c_array(normal, np.float64), NORMAL_MIN_COS, mask,
+    """(kept, taken) (n,) of a graph of n points joined by edges (``GraphNeighbours.edge_ends`` (e,), point i's from
+    ``edge_rows[i]``, (n + 1,)) with local ``normals`` (n, 3) ((0, 3): none known) for a plane of ``normal`` with
+    inliers ``mask`` (n,), support band ``support`` and side ``above``: :func:`.kernels.graph_region`
+    (:func:`graph_region_numpy` is its reference)."""
+    return kernels.graph_region(ends, edge_rows, normals, kernels.c_array(normal, np.float64), NORMAL_MIN_COS, mask,
                                 support, above, REGION_RULES)
 
 
