@@ -195,3 +195,21 @@ def test_validity_indices_with_labels_beyond_a_table_agree():
         b = indices.validity_indices(pts, wide, seed=4, sampled_separation=separation)
         assert a == b
     assert plane_silhouette(pts, small, seed=1) == plane_silhouette(pts, wide, seed=1)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 200), st.integers(1, 40), st.sampled_from([1e-3, 1.0, 1e3]))
+def test_polygon_distances_match_numpy(seed, m, corners, scale):
+    """Points inside, on and outside convex polygons, also degenerate ones (one corner, two, collinear corners)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    from plane_validation.core.plane_silhouette import polygon_distances_numpy
+    rng = np.random.default_rng(seed)
+    corners_uv = rng.normal(size=(corners, 2)) * scale
+    try:
+        polygon = corners_uv[ConvexHull(corners_uv).vertices]
+    except (QhullError, ValueError):  # fewer than 3 corners, or all on a line: the kernel still gets them as given
+        polygon = corners_uv
+    p = np.concatenate([rng.normal(size=(m, 2)) * scale * 2, polygon[: min(m, len(polygon))]])
+    got = kernels.polygon_distances(np.ascontiguousarray(p), np.ascontiguousarray(polygon))
+    np.testing.assert_allclose(got, polygon_distances_numpy(p, polygon), rtol=1e-12, atol=1e-12 * scale)

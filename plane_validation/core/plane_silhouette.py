@@ -18,7 +18,7 @@ from . import kernels
 from .ransac import as_points, finite_rows, generator
 
 __all__ = ['plane_silhouette', 'plane_silhouette_of', 'region_frames', 'clipped_plane_distances', 'dense_codes',
-           'hull_silhouette', 'polygon_distances']
+           'hull_silhouette', 'polygon_distances', 'polygon_distances_numpy']
 
 #: Points per region its frame (plane and extent) is estimated from.
 FRAME_POINTS = 4096
@@ -191,7 +191,12 @@ def _hull(uv: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 
 def polygon_distances(p: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     """(m,) distance (meters) of points ``p`` (m, 2) to the convex ``polygon`` (e, 2), its corners counter-clockwise:
-    0 inside."""
+    0 inside (:func:`.kernels.polygon_distances`)."""
+    return kernels.polygon_distances(kernels.c_array(p, np.float64), kernels.c_array(polygon, np.float64))
+
+
+def polygon_distances_numpy(p: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """:func:`polygon_distances` in numpy: the compiled kernel's reference."""
     a = polygon
     edge = np.roll(polygon, -1, axis=0) - a  # (e, 2)
     rel = p[:, None, :] - a[None]  # (m, e, 2)
