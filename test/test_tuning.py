@@ -1055,3 +1055,26 @@ def test_the_patches_closed_form_eigenvalues_match_eigvalsh(seed):
     diagonal = np.zeros((2, 3, 3))
     diagonal[0][np.diag_indices(3)] = (3.0, 1.0, 2.0)
     assert np.allclose(symmetric_eigenvalues(diagonal), [[1, 2, 3], [0, 0, 0]])
+
+
+def test_a_ctrl_c_inside_a_kernels_callback_is_a_keyboard_interrupt():
+    """numba reports a KeyboardInterrupt raised in its callback into Python (unpickling for the result's boxing) as
+    a SystemError caused by it: the public calls raise the KeyboardInterrupt, so Ctrl-C stays a quiet stop."""
+    from plane_validation.core import tuning
+    from plane_validation.core.interrupts import interrupt_of, keeps_interrupts
+    from plane_validation.core.search import detect
+
+    def kernel_interrupted(*_, **__):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as interrupt:
+            raise SystemError('CPUDispatcher(<function kept_edges>) returned a result with an exception set') \
+                from interrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        keeps_interrupts(kernel_interrupted)()
+    with pytest.raises(SystemError):  # any other SystemError stays what it is
+        keeps_interrupts(lambda: (_ for _ in ()).throw(SystemError('other')))()
+    assert interrupt_of(ValueError('x')) is None
+    for public in (tuning.tune_tolerance, detect.detect_planes):  # the calls a script's Ctrl-C interrupts
+        assert public.__code__ is keeps_interrupts(kernel_interrupted).__code__, public

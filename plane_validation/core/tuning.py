@@ -19,6 +19,7 @@ from scipy.spatial import cKDTree
 from .blas import single_blas_thread
 from .failures import Verdict
 from .indices import ValidityIndices, validity_indices
+from .interrupts import keeps_interrupts
 from .noise import AUTO, NOISE_REFERENCE, TUNED_NOISE_MODELS, check_noise_model, noise_coefficient, tolerance_scale
 from .noise_estimate import NoiseEstimate, estimate_noise
 from .orientation import Orientation
@@ -339,6 +340,7 @@ def noise_from_segmentation(seg: Segmentation, points: np.ndarray | None = None)
     return float(np.sqrt(3 * np.mean(residual ** 2)))
 
 
+@keeps_interrupts
 @single_blas_thread
 def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT_CRITERION, *,
                    max_planes: int = MAX_PLANES, min_inliers: int | float = MIN_INLIERS,

@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 
+from ..interrupts import keeps_interrupts
 from ..noise import NOISE_REFERENCE, tolerance_scale
 from ..orientation import Orientation
 from ..params import GRID_POINTS, MAX_ITERATIONS, MAX_PLANES, MIN_INLIERS, PROBABILITY, RANSAC_POINTS
@@ -29,6 +30,7 @@ from .types import Plane, Segmentation, Viewpoint
 __all__ = ['detect_planes']
 
 
+@keeps_interrupts
 def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX_PLANES,
                   min_inliers: int | float = MIN_INLIERS, probability: float = PROBABILITY,
                   max_iterations: int = MAX_ITERATIONS, seed: int | np.random.Generator | None = None,
