@@ -32,7 +32,7 @@ from plane_validation.ros.messages import frame_messages  # noqa: E402
 REST_MS = 12.0
 WITHOUT_SEARCH_MS = 20.0
 TAKEN_OUT = ('detect_planes', 'validity_indices', 'judge')
-READING = ('xyz_words', 'xyz_array', '_frame_rows')  # the message to the frame's rows and valid points
+READING = ('xyz_words', 'xyz_array', 'frame_rows')  # the message to the frame's rows and valid points
 
 
 def main() -> None:

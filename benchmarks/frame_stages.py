@@ -31,7 +31,7 @@ from plane_validation.core.blas import limit_blas_threads  # noqa: E402
 from plane_validation.ros import messages  # noqa: E402
 
 #: Stages by the module whose name for them is patched (the caller's own import of the function).
-STAGES = {pipeline: ('_frame_rows', 'detect_planes', 'validity_indices', 'judge', 'obstacle_mask', '_by_id'),
+STAGES = {pipeline: ('frame_rows', 'detect_planes', 'validity_indices', 'judge', 'obstacle_mask', 'by_track_id'),
           pipeline.PlaneTracker: ('update',),
           messages: ('_frame_pass', 'outlines_from', 'plane_markers', 'plane_poses', 'diagnostics', 'cloud_buffer'),
           geometry: ('hull_vertices',)}

@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from plane_validation.app.pipeline import _valid_rows_numpy
+from plane_validation.app.frame_rows import valid_rows_numpy
 from plane_validation.core import kernels
 from plane_validation.core.geometry import _DIRECTIONS, outline_directions, plane_basis
 
@@ -121,7 +121,7 @@ def test_frame_pass_sums_each_plane_in_row_order_across_runs(seed, runs, k):
 def test_valid_rows_matches_numpy(seed, n):
     pts = _frame(seed, n, 0)[0]
     finite, valid, infinite = kernels.valid_rows(pts)
-    ref_finite, ref_valid, ref_infinite = _valid_rows_numpy(pts)
+    ref_finite, ref_valid, ref_infinite = valid_rows_numpy(pts)
     np.testing.assert_array_equal(finite, ref_finite)
     np.testing.assert_array_equal(valid, ref_valid)
     assert valid.flags.c_contiguous and infinite == ref_infinite == np.isinf(pts[~finite]).any(axis=1).sum()

@@ -9,7 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import ConvexHull, QhullError
 
-from plane_validation.app.pipeline import FramePipeline, PipelineConfig, _valid_rows_numpy
+from plane_validation.app.frame_rows import valid_rows_numpy
+from plane_validation.app.pipeline import FramePipeline, PipelineConfig
 from plane_validation.core import geometry, kernels
 from plane_validation.core.ransac import AT_VIEWPOINT, no_returns_as_nan
 from plane_validation.core.scenes import depth_camera
@@ -49,7 +50,7 @@ def test_read_rows_matches_numpy(seed, n, width, marks, at_origin):
 
     wide = words[:, columns].astype(np.float64)
     ref_points, ref_marked = no_returns_as_nan(wide, view) if marks else (wide, 0)
-    ref_finite, ref_valid, ref_infinite = _valid_rows_numpy(ref_points)
+    ref_finite, ref_valid, ref_infinite = valid_rows_numpy(ref_points)
     np.testing.assert_array_equal(points, ref_points)  # NaN in the same places
     np.testing.assert_array_equal(finite, ref_finite)
     np.testing.assert_array_equal(valid, ref_valid)

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from plane_validation.app.pipeline import _no_returns_as_nan
+from plane_validation.app.frame_rows import marks_as_nan
 from plane_validation.app.tracking import _near_share, _near_share_kdtree
 from plane_validation.core import kernels, plane_shape, scenes
 from plane_validation.core import verdict as V
@@ -26,7 +26,7 @@ def test_marked_rows_and_the_pipelines_no_return_check_match_numpy(seed, n, view
     pts[rng.random(n) < 0.1, 1] = -0.0 + view[1]  # -0.0 is the mark too
     want, count = no_returns_as_nan(pts, view)
     assert kernels.marked_rows(pts, np.array(view), AT_VIEWPOINT) == count
-    got, got_count = _no_returns_as_nan(pts, view)
+    got, got_count = marks_as_nan(pts, view)
     assert got_count == count
     np.testing.assert_array_equal(got, want)
     if count == 0:

@@ -503,7 +503,7 @@ def test_retune_period_counts_frames_whose_stamps_do_not_advance():
 def test_planes_put_in_id_order_alike_on_an_organized_frame_and_on_points():
     """The renumbering by track id: an organized frame's rows and valid points in one compiled pass give what an index
     by rank gives each of them, as the other inputs' renumbering does."""
-    from plane_validation.app.pipeline import _by_id
+    from plane_validation.app.frame_result import by_track_id
     from plane_validation.core.scenes import depth_camera
     scene = depth_camera('table', width=64, height=48, seed=0)
     result = FramePipeline(dataclasses.replace(FIXED, tolerance=0.02, max_planes=4)).process(scene.points, 10**9,
@@ -514,9 +514,9 @@ def test_planes_put_in_id_order_alike_on_an_organized_frame_and_on_points():
     labels = np.compress(finite, seg.labels)
     ids = tuple(10 * (seg.n_planes - k) for k in range(seg.n_planes))  # the reverse order
     rank = np.append(np.arange(seg.n_planes)[::-1], -1).astype(np.int32)
-    for got_seg, got_labels, got_ids in (_by_id(seg, labels, ids, finite), _by_id(seg, labels, ids)):
+    for got_seg, got_labels, got_ids in (by_track_id(seg, labels, ids, finite), by_track_id(seg, labels, ids)):
         np.testing.assert_array_equal(got_seg.labels, rank[seg.labels])
         np.testing.assert_array_equal(got_labels, rank[labels])
         assert got_seg.labels.dtype == got_labels.dtype == np.int32
         assert got_ids == tuple(sorted(ids)) and got_seg.planes == seg.planes[::-1]
-    assert _by_id(seg, labels, tuple(range(seg.n_planes)), finite)[0] is seg  # in order already: as it is
+    assert by_track_id(seg, labels, tuple(range(seg.n_planes)), finite)[0] is seg  # in order already: as it is

@@ -7,7 +7,6 @@ when it was tuned; everything else comes from :class:`~.config.PipelineConfig`.
 """
 from __future__ import annotations
 
-import functools
 import threading
 import time
 from collections.abc import Callable
@@ -19,18 +18,13 @@ from ..core import kernels
 from ..core.allocator import reuse_freed_memory
 from ..core.blas import limit_blas_threads
 from ..core.geometry import plane_rows, voxel_downsample
-from ..core.indices import ValidityIndices, validity_indices
-from ..core.noise import noise_coefficient
+from ..core.indices import validity_indices
 from ..core.ransac import (
-    AT_VIEWPOINT,
-    Segmentation,
     as_points,
     check_integer,
     check_shape,
-    check_viewpoint,
     detect_planes,
     finite_rows,
-    no_returns_as_nan,
     no_returns_note,
     within_planes,
 )
@@ -41,6 +35,8 @@ from ..formats.pointcloud2 import ring_array, trailing_bytes, xyz_array, xyz_wor
 from .config import PipelineConfig
 from .detection import ring_layout
 from .diagnostics import Diagnostic, Level, fmt
+from .frame_result import FrameResult, by_track_id, failed_result, frame_values
+from .frame_rows import frame_rows, on_rows
 from .obstacles import ground_plane, obstacle_mask
 from .tracking import PlaneTracker
 
@@ -69,67 +65,6 @@ TUNING_FIELDS = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points
                  'min_inliers', 'voxel_size', 'probability', 'max_iterations', 'index_sample_size',
                  'exact_indices', 'ransac_points', 'grid_points', 'connectivity', 'noise_model', 'noise_reference',
                  'viewpoint_x', 'viewpoint_y', 'viewpoint_z', 'zero_is_no_return')
-
-
-@dataclass(frozen=True, eq=False)
-class FrameResult:
-    """What one frame produced. points: (n, 3) valid points (before any voxel grid), labels:
-    (n,) int32 for them; diagnostic: level, message and key-values to publish."""
-
-    points: np.ndarray
-    labels: np.ndarray
-    segmentation: Segmentation | None
-    indices: ValidityIndices | None
-    tolerance: float
-    tolerance_source: str
-    diagnostic: Diagnostic
-    seconds: float
-    plane_counts: tuple[int, ...] = ()  # labelled points per plane (input points, also with voxels)
-    organized: np.ndarray | None = None  # all (H * W, 3) rows of an organized input
-    shape: tuple[int, int] | None = None  # its (H, W)
-    ring_image: tuple[np.ndarray, tuple[int, int]] | None = None  # a scan laid out by rings: (H * W, 3), (H, W)
-    clock: float = 0.0  # the frame's time for retune timing, s: its header stamp (see FROZEN_FRAME_S); 0 when failed
-    plane_ids: tuple[int, ...] = ()  # each plane's track id (PlaneTracker), ascending: the planes are in this order
-    obstacles: np.ndarray | None = None  # (n,) bool: which points are obstacles (app/obstacles.py)
-    image_shape: tuple[int, int] | None = None  # (H, W) of an organized input (``organized`` holds its rows)
-    image_labels: np.ndarray | None = None  # (H * W,) int32 ``labels`` on the rows of ``organized`` (-1: no point)
-
-    def as_image(self, values: np.ndarray, fill) -> np.ndarray:
-        """Per-point ``values`` (n, ...) laid out on the input's H * W rows (``fill`` where a pixel
-        had no valid point); requires ``image_shape``."""
-        full = np.full((len(self.organized),) + values.shape[1:], fill, dtype=values.dtype)
-        full[self._valid_rows] = values
-        return full
-
-    @functools.cached_property
-    def _valid_rows(self) -> np.ndarray:
-        """The rows of ``organized`` that hold the valid points, ascending (found once: every organized output
-        lays its values out on them)."""
-        return np.flatnonzero(finite_rows(self.organized))
-
-    @property
-    def sweep_cloud(self) -> tuple[np.ndarray, tuple[int, int] | None]:
-        """What a retune after this frame sweeps: (points, shape), the image of an organized input or of
-        a ring-laid scan, else the valid points."""
-        if self.shape:
-            return self.organized, self.shape
-        return self.ring_image if self.ring_image is not None else (self.points, None)
-
-    @property
-    def n_planes(self) -> int:
-        return 0 if self.segmentation is None else self.segmentation.n_planes
-
-    @property
-    def level(self) -> Level:
-        return self.diagnostic.level
-
-    @property
-    def message(self) -> str:
-        return self.diagnostic.message
-
-    @property
-    def values(self) -> tuple[tuple[str, str], ...]:
-        return self.diagnostic.values
 
 
 #: Header times (s) come from nanosecond stamps through float64, whose rounding (2.4e-7 s at the epoch's 1.7e9 s)
@@ -331,7 +266,7 @@ class FramePipeline:
     def reject(self, message: str, level: Level = ERROR, n_input: int = 0) -> FrameResult:
         """Result for a frame that could not even be read (e.g. a malformed message declaring
         ``n_input`` points)."""
-        return _failed(level, message, time.perf_counter(), self.current_tolerance(), n_input=n_input)
+        return failed_result(level, message, time.perf_counter(), self.current_tolerance(), n_input=n_input)
 
     def process(self, points: np.ndarray, stamp_ns: int = 0, *, tune_inline: bool = True,
                 shape: tuple[int, int] | None = None, ring: np.ndarray | None = None) -> FrameResult:
@@ -361,9 +296,9 @@ class FramePipeline:
             given = as_points(points) if words is None else None
             shape = None if shape is None else check_shape(shape, None)
         except ValueError as exc:
-            return _failed(ERROR, f'bad input: {exc}', start, self.current_tolerance())
+            return failed_result(ERROR, f'bad input: {exc}', start, self.current_tolerance())
         cfg = self.config
-        pts, no_returns, finite, valid, infinite, largest = _frame_rows(given, words, cfg)
+        pts, no_returns, finite, valid, infinite, largest = frame_rows(given, words, cfg)
         n_input = len(pts)
         image = shape if shape is not None and shape[0] * shape[1] == n_input else None  # kept in the outputs
         if shape is not None and (cfg.voxel_size > 0 or not cfg.connectivity or shape[0] * shape[1] != n_input):
@@ -371,7 +306,7 @@ class FramePipeline:
         if len(valid) < 3:
             why = f'too few valid points: {len(valid)} of {n_input} (need 3)' + no_returns_note(no_returns) + \
                 (f'; {infinite} had an infinite coordinate' if infinite else '')
-            return _failed(WARN, why, start, self.current_tolerance(), n_input=n_input, n_valid=len(valid))
+            return failed_result(WARN, why, start, self.current_tolerance(), n_input=n_input, n_valid=len(valid))
         # (image, (H, W), the pixel of each valid point) of a scan laid out by its rings, and what to say of it
         searched_as_is = shape is not None or not cfg.organize_rings or not cfg.connectivity or cfg.voxel_size > 0
         laid, ring_note = ring_layout(pts, None if searched_as_is else ring, cfg.viewpoint)
@@ -386,7 +321,7 @@ class FramePipeline:
             try:
                 quick = quick_tolerance(valid, seed=frame_seed(cfg.seed, stamp_ns))  # until the sweep ends
             except ValueError as exc:
-                return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
+                return failed_result(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
                                self.current_tolerance(), n_input=n_input, n_valid=len(valid))
             self.quick = float(np.clip(quick, cfg.tune_min or quick, cfg.tune_max or quick))
         if tune_problem is None and self.tune_error is not None:
@@ -421,9 +356,9 @@ class FramePipeline:
                 tracked = (work, seg.labels) if inverse is None else (valid, labels)
                 found = self.tracker.update(*tracked, seg.coefficients, plane_rows(tracked[1], seg))
                 verdict = judge(work, seg, scores, agreement).renumbered(found)  # planes named by their ids
-                seg, labels, ids = _by_id(seg, labels, found, finite if shape is not None else None)
+                seg, labels, ids = by_track_id(seg, labels, found, finite if shape is not None else None)
         except (np.linalg.LinAlgError, ValueError, OverflowError, FloatingPointError) as exc:
-            return _failed(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
+            return failed_result(ERROR, f'numerical failure (coordinates out of range?): {exc}', start,
                            (tolerance, source), n_input=n_input, n_valid=len(valid))
         if seg.n_planes == 0 and sweep is None and self.last_good is None and tolerance == self.quick:
             self.quick = None  # no plane with the quick estimate (a line, one point): the next frame's instead
@@ -435,8 +370,8 @@ class FramePipeline:
                           np.int64)
         obstacles = obstacle_mask(valid, labels, seg, counts, cfg.ground_margin)
         # an organized input's outputs are laid out on its rows: its labels there too
-        image_labels = None if not image else seg.labels if shape is not None else _on_rows(labels, finite, -1)
-        values = _values(cfg, tolerance, source, n_input, len(valid), (no_returns, infinite),
+        image_labels = None if not image else seg.labels if shape is not None else on_rows(labels, finite, -1)
+        values = frame_values(cfg, tolerance, source, n_input, len(valid), (no_returns, infinite),
                          int(np.count_nonzero(labels < 0)), seg, counts, scores, noise_from_segmentation(seg, work),
                          work, ids)
         values += (('obstacle_points', str(int(np.count_nonzero(obstacles)))),
@@ -459,106 +394,3 @@ class FramePipeline:
                            plane_counts=tuple(int(c) for c in counts), organized=pts if image else None, shape=shape,
                            ring_image=(laid[0], laid[1]) if laid else None, clock=stamp, plane_ids=ids,
                            obstacles=obstacles, image_shape=image, image_labels=image_labels)
-
-
-def _frame_rows(points: np.ndarray | None, words: tuple[np.ndarray, np.ndarray] | None, cfg: PipelineConfig
-                ) -> tuple[np.ndarray, int, np.ndarray, np.ndarray, int, float | None]:
-    """A frame's rows (N, 3) meters (with ``zero_is_no_return`` its "no return" marks NaN) and how many were marks,
-    which rows are valid (N,) bool, they themselves (n, 3), how many other rows have an infinite coordinate, and the
-    rows' largest |coordinate| not NaN (None when not found here): of ``points`` (N, 3), else of a PointCloud2's
-    float32 ``words`` and x, y, z columns (:func:`.xyz_words`) in one compiled pass."""
-    if words is not None:
-        pts, finite, valid, infinite, marked, largest = kernels.read_rows(*words, check_viewpoint(cfg.viewpoint),
-                                                                          AT_VIEWPOINT, cfg.zero_is_no_return)
-        return pts, marked, finite, valid, infinite, float(largest)
-    pts, no_returns = _no_returns_as_nan(points, cfg.viewpoint) if cfg.zero_is_no_return else (points, 0)
-    return (pts, no_returns, *_valid_rows(pts), None)
-
-
-def _no_returns_as_nan(points: np.ndarray, viewpoint) -> tuple[np.ndarray, int]:
-    """:func:`~.ransac.no_returns_as_nan`, with the usual frame's answer (no row at the mark: ``points`` as they are)
-    found in one compiled pass over a C-ordered float64 array."""
-    if points.dtype == np.float64 and points.flags.c_contiguous and points.flags.writeable and \
-            kernels.marked_rows(points, check_viewpoint(viewpoint), AT_VIEWPOINT) == 0:
-        return points, 0
-    return no_returns_as_nan(points, viewpoint)
-
-
-def _on_rows(values: np.ndarray, rows: np.ndarray, fill) -> np.ndarray:
-    """Per-point ``values`` (n,) laid out on the N rows of which ``rows`` (N,) bool are the points', ``fill``
-    elsewhere."""
-    out = np.full(len(rows), fill, values.dtype)
-    out[rows] = values
-    return out
-
-
-def _valid_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """The rows of ``points`` (N, 3) with three finite coordinates: (which (N,) bool, they themselves (n, 3)), and
-    how many other rows have an infinite coordinate: left out as no points, as NaN rows are (REP 117 marks a return
-    out of range with +inf and one too close with -inf), and counted. One compiled pass over a C-ordered float64
-    array."""
-    if points.dtype == np.float64 and points.flags.c_contiguous and points.flags.writeable:
-        return kernels.valid_rows(points)
-    return _valid_rows_numpy(points)
-
-
-def _valid_rows_numpy(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """:func:`_valid_rows` in numpy: for other arrays, and the reference its kernel is tested against."""
-    finite = finite_rows(points)
-    valid = np.compress(finite, points, axis=0)  # much faster than a boolean index
-    if len(valid) == len(points):
-        return finite, valid, 0
-    return finite, valid, int(np.count_nonzero(np.isinf(np.compress(~finite, points, axis=0)).any(axis=1)))
-
-
-def _by_id(seg: Segmentation, labels: np.ndarray, ids: tuple[int, ...], finite: np.ndarray | None = None
-           ) -> tuple[Segmentation, np.ndarray, tuple]:
-    """The segmentation and the labels with the planes in ascending track id order, and those ids. ``finite``: the
-    rows of an organized frame whose ``seg.labels`` are ``labels`` (both renumbered in one compiled pass)."""
-    order = np.argsort(ids, kind='stable')
-    if np.all(order == np.arange(len(ids))):
-        return seg, labels, tuple(ids)
-    rank = np.empty(len(ids) + 1, np.int32)
-    rank[order], rank[-1] = np.arange(len(ids)), -1  # label -1 (taking the last entry) stays -1
-    if finite is not None:
-        renumbered, labels = kernels.relabel_rows(kernels.c_array(seg.labels, np.int32), finite, rank)
-    else:  # (take wraps -1 round to the last entry, as an index does, in half the time)
-        renumbered, labels = np.take(rank, seg.labels, mode='wrap'), np.take(rank, labels, mode='wrap')
-    seg = replace(seg, planes=tuple(seg.planes[k] for k in order), labels=renumbered)
-    return seg, labels, tuple(int(ids[k]) for k in order)
-
-
-def _values(cfg: PipelineConfig, tolerance: float, source: str, n_input: int, n_valid: int, left_out: tuple[int, int],
-            n_unassigned: int, seg: Segmentation, counts: np.ndarray, scores: ValidityIndices,
-            noise: float, work: np.ndarray, ids: tuple[int, ...]) -> tuple[tuple[str, str], ...]:
-    values = [('tolerance', fmt(tolerance)), ('tolerance_source', source), ('criterion', cfg.criterion),
-              ('planes', str(seg.n_planes)), ('input_points', str(n_input)), ('valid_points', str(n_valid)),
-              ('no_return_points', str(left_out[0])), ('infinite_points', str(left_out[1])),
-              ('unassigned_points', str(n_unassigned)),
-              ('dunn', fmt(scores.dunn)), ('davies_bouldin', fmt(scores.davies_bouldin)),
-              ('gs', fmt(scores.gs)), ('gs_se', fmt(scores.gs_se)),
-              ('gs_planes', fmt(scores.gs_planes)), ('gs_planes_se', fmt(scores.gs_planes_se)),
-              ('silhouette', fmt(scores.silhouette)), ('silhouette_se', fmt(scores.silhouette_se)),
-              ('plane_silhouette', fmt(scores.plane_silhouette)),
-              ('index_sample_size', str(scores.sample_size)), ('dunn_db_points', str(scores.separation_size)),
-              ('noise_model', seg.noise_model), ('noise_estimate', fmt(noise)),
-              ('stop_reason', seg.reason), ('plane_ids', ' '.join(map(str, ids)))]
-    if any(cfg.viewpoint):
-        values.append(('viewpoint', ' '.join(fmt(c) for c in cfg.viewpoint)))
-    if seg.noise_model == 'depth_quadratic':  # sigma(r) = c r^2
-        values.append(('noise_coefficient', fmt(noise_coefficient(work, seg.labels, seg.coefficients,
-                                                                  seg.viewpoint))))
-    for k, plane in enumerate(seg.planes):  # keyed by track id
-        values += [(f'plane_{ids[k]}_inliers', str(int(counts[k]))), (f'plane_{ids[k]}_rms', fmt(plane.rms))]
-    return tuple(values)
-
-
-def _failed(level: Level, message: str, start: float, tol: tuple[float, str], *,
-            n_input: int = 0, n_valid: int = 0) -> FrameResult:
-    values = (('tolerance', fmt(tol[0])), ('tolerance_source', tol[1]), ('planes', '0'),
-              ('input_points', str(n_input)), ('valid_points', str(n_valid)))
-    seconds = time.perf_counter() - start
-    return FrameResult(points=np.empty((0, 3)), labels=np.empty(0, np.int32), segmentation=None, indices=None,
-                       tolerance=tol[0], tolerance_source=tol[1],
-                       diagnostic=Diagnostic(level, message, values + (('processing_ms', f'{1000 * seconds:.1f}'),)),
-                       seconds=seconds)

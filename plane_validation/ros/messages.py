@@ -16,7 +16,7 @@ from std_msgs.msg import ColorRGBA, Float64MultiArray, MultiArrayDimension
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..app.diagnostics import Diagnostic, Level
-from ..app.pipeline import FrameResult
+from ..app.frame_result import FrameResult
 from ..core.geometry import (
     UNASSIGNED_RGB,
     PlaneOutline,

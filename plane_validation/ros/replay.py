@@ -16,7 +16,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from ..app.config import PipelineConfig
-from ..app.pipeline import TUNE_FAILURES, FramePipeline, FrameResult, header_stamp_ns
+from ..app.frame_result import FrameResult
+from ..app.pipeline import TUNE_FAILURES, FramePipeline, header_stamp_ns
 from ..app.summary import FrameSummary, ReplaySummary
 from ..formats.bags import POINTCLOUD2, BagError, bag_storage, open_bag, pick_topic, read_clouds
 from .messages import frame_messages, node_values, status_name, to_rclpy_cloud

@@ -21,7 +21,8 @@ from concurrent.futures import ThreadPoolExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
 from ..app.diagnostics import Level, fmt
-from ..app.pipeline import FramePipeline, FrameResult, header_stamp_ns
+from ..app.frame_result import FrameResult
+from ..app.pipeline import FramePipeline, header_stamp_ns
 from ..app.rates import RateMeter
 from ..core.kernels import Warmup, warm
 from .messages import OUTPUTS, frame_messages, node_values
