@@ -89,3 +89,29 @@ def test_a_signal_during_a_parallel_sweep_ends_and_reaps_the_workers(ros, sig, t
     assert proc.returncode == 0, (proc.returncode, err)
     assert 'Traceback' not in err + out, err
     assert not left, f'processes left behind after {sig}: {left}'
+
+
+def test_the_node_ends_rclpys_signal_thread_before_its_executor_and_ignores_late_signals():
+    """rclpy's signal thread triggers the executors' guard conditions without a lock: main() ends it before the
+    executor is freed. After that a SIGTERM or SIGINT neither shuts rclpy down nor ends the process."""
+    script = '\n'.join([
+        'import os, signal, time',
+        'import rclpy',
+        'from rclpy.executors import SingleThreadedExecutor',
+        'from plane_validation.ros.node import _end_signal_handling',
+        'rclpy.init()',
+        'executor = SingleThreadedExecutor()',
+        'tasks = len(os.listdir("/proc/self/task"))',
+        '_end_signal_handling()',
+        'ended = tasks - len(os.listdir("/proc/self/task"))',
+        'os.kill(os.getpid(), signal.SIGTERM)',
+        'os.kill(os.getpid(), signal.SIGINT)',
+        'time.sleep(0.3)',
+        'print(ended, rclpy.ok())',
+        'executor.shutdown()',
+        'rclpy.shutdown()'])
+    done = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    ended, ok = done.stdout.split()
+    assert int(ended) >= 1, 'rclpy\'s signal thread still runs'
+    assert ok == 'True', 'a late signal shut rclpy down'
