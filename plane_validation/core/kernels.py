@@ -19,8 +19,8 @@ import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'graph_components', 'graph_region', 'finite_mask',
-           'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'voxel_knn_points', 'principal_axes', 'patch_fits', 'pair_graph',
-           'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_line',
+           'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'voxel_knn_points', 'principal_axes', 'patch_fits',
+           'pair_graph', 'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_line',
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
            'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
@@ -524,30 +524,30 @@ def _take(e: float, j: int, d2: np.ndarray, best: np.ndarray, found: int, k: int
 
 @numba.njit(**_JIT)
 def _ring(points: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray, dims: np.ndarray,
-          dense: bool, query: np.ndarray, f: np.ndarray, c: np.ndarray, cell: float, r: int, d2: np.ndarray,
-          best: np.ndarray, found: int) -> int:
-    """:func:`_take` the points of the voxels in ring ``r`` around the voxel ``c`` (3,) of ``query`` (3,) meters (``f``
-    (3,): it in voxels), skipping those no nearer than the k-th nearest so far; returns how many are found then."""
+          dense: bool, x: float, y: float, z: float, fx: float, fy: float, fz: float, cx: int, cy: int, cz: int,
+          cell: float, r: int, d2: np.ndarray, best: np.ndarray, found: int) -> int:
+    """:func:`_take` the points of the voxels in ring ``r`` around the voxel (cx, cy, cz) of the query (x, y, z)
+    meters ((fx, fy, fz): in voxels), skipping voxels no nearer than the k-th nearest so far; returns how many are
+    found then."""
     k = d2.shape[0]
-    x, y, z = query[0], query[1], query[2]
     for dz in range(-r, r + 1):
-        iz = c[2] + dz
+        iz = cz + dz
         if iz < 0 or iz >= dims[2]:
             continue
-        gz = _gap(f[2], c[2], dz) * cell
+        gz = _gap(fz, cz, dz) * cell
         for dy in range(-r, r + 1):
-            iy = c[1] + dy
+            iy = cy + dy
             if iy < 0 or iy >= dims[1]:
                 continue
-            gy = _gap(f[1], c[1], dy) * cell
+            gy = _gap(fy, cy, dy) * cell
             gyz = gy * gy + gz * gz
             if found == k and gyz > d2[k - 1]:
                 continue
             edge = abs(dz) == r or abs(dy) == r
             dx = -r
             while dx <= r:
-                ix = c[0] + dx
-                gx = _gap(f[0], c[0], dx) * cell
+                ix = cx + dx
+                gx = _gap(fx, cx, dx) * cell
                 if 0 <= ix < dims[0] and not (found == k and gx * gx + gyz > d2[k - 1]):
                     v = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
                     if v >= 0:
@@ -556,32 +556,6 @@ def _ring(points: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: 
                             found = _take(ex * ex + ey * ey + ez * ez, j, d2, best, found, k)
                 dx += 1 if edge or dx == r else 2 * r  # inside the ring: only its two ends
     return found
-
-
-@numba.njit(**_JIT)
-def _rings_from(points: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray, origin: np.ndarray,
-                cell: float, dims: np.ndarray, dense: bool, query: np.ndarray, first: int, max_ring: int,
-                d2: np.ndarray, best: np.ndarray, found: int, f: np.ndarray, c: np.ndarray) -> tuple[int, bool]:
-    """The ``found`` nearest ``d2``, ``best`` (k,) of ``query`` (3,) meters among the rings of voxels before ``first``
-    completed ring by ring from ring ``first`` until certain (every nearer point lies in the rings searched) or past
-    ``max_ring``: (how many are found, certain). ``f``, ``c`` (3,): room for the query's voxel coordinates."""
-    k = d2.shape[0]
-    margin = np.inf  # how far the query lies inside its voxel, meters
-    for a in range(3):
-        f[a] = (query[a] - origin[a]) / cell
-        c[a] = int(f[a])
-        margin = min(margin, f[a] - c[a], c[a] + 1 - f[a])
-    margin *= cell
-    r = first - 1
-    while True:
-        if r >= 0:
-            reach = r * cell + margin
-            if found == k and d2[k - 1] <= reach * reach:
-                return found, True
-        r += 1
-        if r > max_ring:
-            return found, False
-        found = _ring(points, cell_keys, starts, table, dims, dense, query, f, c, cell, r, d2, best, found)
 
 
 @numba.njit(**_JIT)
@@ -598,18 +572,26 @@ def voxel_knn(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, star
     idx = np.full((nq, k), -1, np.int64)
     exact = np.zeros(nq, np.bool_)
     d2 = np.empty(k)
-    best = np.empty(k, np.int64)
-    f = np.empty(3)
-    c = np.empty(3, np.int64)
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * points.shape[0])
     for q in range(nq):
+        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+        fx, fy, fz = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
+        cx, cy, cz = int(fx), int(fy), int(fz)
+        margin = min(fx - cx, cx + 1 - fx, fy - cy, cy + 1 - fy, fz - cz, cz + 1 - fz) * cell
         d2[:] = np.inf
-        found, exact[q] = _rings_from(points, cell_keys, starts, table, origin, cell, dims, dense, queries[q], 0,
-                                      max_ring, d2, best, 0, f, c)
+        found = 0
+        best = idx[q]
+        for r in range(max_ring + 1):
+            found = _ring(points, cell_keys, starts, table, dims, dense, x, y, z, fx, fy, fz, cx, cy, cz, cell, r, d2,
+                          best, found)
+            reach = r * cell + margin
+            if found == k and d2[k - 1] <= reach * reach:
+                exact[q] = True
+                break
         for p in range(found):
             dist[q, p] = np.sqrt(d2[p])
-            idx[q, p] = order[best[p]]
+            best[p] = order[best[p]]
     return dist, idx, exact
 
 
@@ -692,8 +674,6 @@ def voxel_knn_points(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarra
     chosen = np.empty(27 * most, np.int64)
     d2 = np.empty(k)
     best = np.empty(k, np.int64)
-    f = np.empty(3)
-    c = np.empty(3, np.int64)
     guess = np.inf
     for v in range(cell_keys.shape[0]):
         b = _block(points, cell_keys, starts, table, dims, dense, cell_keys[v], xyz, rows)
@@ -702,8 +682,17 @@ def voxel_knn_points(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarra
             if found == k:
                 guess = _GUESS * d2[k - 1]
             q = order[g]
-            found, exact[q] = _rings_from(points, cell_keys, starts, table, origin, cell, dims, dense, points[g], 2,
-                                          max_ring, d2, best, found, f, c)
+            x, y, z = points[g, 0], points[g, 1], points[g, 2]
+            fx, fy, fz = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
+            cx, cy, cz = int(fx), int(fy), int(fz)
+            margin = min(fx - cx, cx + 1 - fx, fy - cy, cy + 1 - fy, fz - cz, cz + 1 - fz) * cell
+            r, reach = 1, cell + margin  # the block is ring 1; the few not certain there go on ring by ring
+            while not (found == k and d2[k - 1] <= reach * reach) and r < max_ring:
+                r += 1
+                found = _ring(points, cell_keys, starts, table, dims, dense, x, y, z, fx, fy, fz, cx, cy, cz, cell, r,
+                              d2, best, found)
+                reach = r * cell + margin
+            exact[q] = found == k and d2[k - 1] <= reach * reach
             for p in range(found):
                 dist[q, p] = np.sqrt(d2[p])
                 idx[q, p] = order[best[p]]
