@@ -71,6 +71,31 @@ def test_voxel_nearest_matches_brute_force_and_voxel_knn(seed, others):
 
 
 @SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(2, 16))
+def test_voxel_knn_points_matches_brute_force_and_voxel_knn(seed, k):
+    """The hashed points' own k nearest, taken voxel by voxel: certain exactly where voxel_knn's query-by-query search
+    is, then exactly its answer and the brute-force one (ties by voxel order); many k nearest lie beyond the 27 voxels
+    around (k up to 16, about 4 points a voxel), some beyond the rings searched (a far outlier)."""
+    pts = _cloud(np.random.default_rng(seed))
+    index = voxel_index(pts)
+    if index is None:
+        return
+    grid = (index.ordered, *index.grid, index.origin, index.cell, index.dims)
+    dist, idx, exact = kernels.voxel_knn_points(*grid, k, VOXEL_RINGS)
+    ref = kernels.voxel_knn(*grid, index.points, k, VOXEL_RINGS)
+    np.testing.assert_array_equal(exact, ref[2])
+    np.testing.assert_array_equal(dist[exact], ref[0][exact])
+    np.testing.assert_array_equal(idx[exact], ref[1][exact])
+    ref_dist, ref_idx = _knn_numpy(index.ordered, index.grid[0], index.points, k)
+    np.testing.assert_array_equal(dist[exact], ref_dist[exact])
+    np.testing.assert_array_equal(idx[exact], ref_idx[exact])
+    assert exact.any() or len(pts) <= 2 * k  # at most one far outlier
+    # VoxelIndex.query takes this path for the points themselves only: a copy of them goes query by query
+    for got, want in zip(index.query(index.points, k), index.query(index.points.copy(), k)):
+        np.testing.assert_array_equal(got, want)
+
+
+@SETTINGS
 @given(st.integers(0, 2**32 - 1))
 def test_voxel_nearest_in_empty_voxels_matches_brute_force(seed):
     """Queries in voxels holding no point (a plane's points, the queries off it and in its holes) are answered voxel by

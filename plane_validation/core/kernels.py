@@ -19,8 +19,8 @@ import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'graph_components', 'graph_region', 'finite_mask',
-           'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'principal_axes', 'patch_fits', 'pair_graph',
-           'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_line',
+           'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'voxel_knn_points', 'principal_axes', 'patch_fits',
+           'pair_graph', 'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_line',
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
            'coherent_inliers', 'largest_magnitude', 'label_census', 'rows_at_ranks', 'cluster_distance_pass',
@@ -506,6 +506,59 @@ def _gap(f: float, c: int, d: int) -> float:
 
 
 @numba.njit(**_JIT)
+def _take(e: float, j: int, d2: np.ndarray, best: np.ndarray, found: int, k: int) -> int:
+    """Insert the hashed point ``j`` at squared distance ``e`` into the ``found`` nearest so far, ``d2`` (k,) and
+    ``best`` (k,), ascending (equal distances: the first in the hash's order first), when it is among the k nearest;
+    returns how many they are then."""
+    if found == k and not (e < d2[k - 1] or (e == d2[k - 1] and j < best[k - 1])):
+        return found
+    p = min(found, k - 1)
+    while p > 0 and (e < d2[p - 1] or (e == d2[p - 1] and j < best[p - 1])):
+        d2[p] = d2[p - 1]
+        best[p] = best[p - 1]
+        p -= 1
+    d2[p] = e
+    best[p] = j
+    return found + 1 if found < k else found
+
+
+@numba.njit(**_JIT)
+def _ring(points: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray, dims: np.ndarray,
+          dense: bool, x: float, y: float, z: float, fx: float, fy: float, fz: float, cx: int, cy: int, cz: int,
+          cell: float, r: int, d2: np.ndarray, best: np.ndarray, found: int) -> int:
+    """:func:`_take` the points of the voxels in ring ``r`` around the voxel (cx, cy, cz) of the query (x, y, z)
+    meters ((fx, fy, fz): in voxels), skipping voxels no nearer than the k-th nearest so far; returns how many are
+    found then."""
+    k = d2.shape[0]
+    for dz in range(-r, r + 1):
+        iz = cz + dz
+        if iz < 0 or iz >= dims[2]:
+            continue
+        gz = _gap(fz, cz, dz) * cell
+        for dy in range(-r, r + 1):
+            iy = cy + dy
+            if iy < 0 or iy >= dims[1]:
+                continue
+            gy = _gap(fy, cy, dy) * cell
+            gyz = gy * gy + gz * gz
+            if found == k and gyz > d2[k - 1]:
+                continue
+            edge = abs(dz) == r or abs(dy) == r
+            dx = -r
+            while dx <= r:
+                ix = cx + dx
+                gx = _gap(fx, cx, dx) * cell
+                if 0 <= ix < dims[0] and not (found == k and gx * gx + gyz > d2[k - 1]):
+                    v = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
+                    if v >= 0:
+                        for j in range(starts[v], starts[v + 1]):
+                            ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+                            found = _take(ex * ex + ey * ey + ez * ez, j, d2, best, found, k)
+                dx += 1 if edge or dx == r else 2 * r  # inside the ring: only its two ends
+    return found
+
+
+@numba.njit(**_JIT)
 def voxel_knn(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
               origin: np.ndarray, cell: float, dims: np.ndarray, queries: np.ndarray, k: int, max_ring: int
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -530,42 +583,8 @@ def voxel_knn(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, star
         found = 0
         best = idx[q]
         for r in range(max_ring + 1):
-            for dz in range(-r, r + 1):
-                iz = cz + dz
-                if iz < 0 or iz >= dims[2]:
-                    continue
-                gz = _gap(fz, cz, dz) * cell
-                for dy in range(-r, r + 1):
-                    iy = cy + dy
-                    if iy < 0 or iy >= dims[1]:
-                        continue
-                    gy = _gap(fy, cy, dy) * cell
-                    gyz = gy * gy + gz * gz
-                    if found == k and gyz > d2[k - 1]:
-                        continue
-                    edge = abs(dz) == r or abs(dy) == r
-                    dx = -r
-                    while dx <= r:
-                        ix = cx + dx
-                        gx = _gap(fx, cx, dx) * cell
-                        if 0 <= ix < dims[0] and not (found == k and gx * gx + gyz > d2[k - 1]):
-                            v = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
-                            if v >= 0:
-                                for j in range(starts[v], starts[v + 1]):
-                                    ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
-                                    e = ex * ex + ey * ey + ez * ez
-                                    if found == k and not (e < d2[k - 1] or (e == d2[k - 1] and j < best[k - 1])):
-                                        continue
-                                    p = min(found, k - 1)
-                                    while p > 0 and (e < d2[p - 1] or (e == d2[p - 1] and j < best[p - 1])):
-                                        d2[p] = d2[p - 1]
-                                        best[p] = best[p - 1]
-                                        p -= 1
-                                    d2[p] = e
-                                    best[p] = j
-                                    if found < k:
-                                        found += 1
-                        dx += 1 if edge or dx == r else 2 * r  # inside the ring: only its two ends
+            found = _ring(points, cell_keys, starts, table, dims, dense, x, y, z, fx, fy, fz, cx, cy, cz, cell, r, d2,
+                          best, found)
             reach = r * cell + margin
             if found == k and d2[k - 1] <= reach * reach:
                 exact[q] = True
@@ -573,6 +592,110 @@ def voxel_knn(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, star
         for p in range(found):
             dist[q, p] = np.sqrt(d2[p])
             best[p] = order[best[p]]
+    return dist, idx, exact
+
+
+#: The 27 voxels of a block (offsets from its middle one, x, y, z): the middle one first, then those across a face, an
+#: edge, a corner (the nearer first: fewer of their points displace others among a query's nearest).
+_BLOCK = np.array(sorted([(dx, dy, dz) for dz in (-1, 0, 1) for dy in (-1, 0, 1) for dx in (-1, 0, 1)],
+                         key=lambda o: abs(o[0]) + abs(o[1]) + abs(o[2])), dtype=np.int64)
+#: voxel_knn_points first looks among the points nearer than this many times the previous query's k-th nearest
+#: squared distance (neighbouring queries have about the same): where at least k are, its k nearest are among them.
+_GUESS = 1.5
+
+
+@numba.njit(**_JIT)
+def _block(points: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray, dims: np.ndarray,
+           dense: bool, key: int, xyz: np.ndarray, rows: np.ndarray) -> int:
+    """The points of the occupied voxels of the 3 x 3 x 3 block around the voxel of ``key`` (in :data:`_BLOCK`'s
+    order): their coordinates into ``xyz`` (3, b) and positions in the hash into ``rows`` (b,); returns how many."""
+    vx, vy, vz = key % dims[0], (key // dims[0]) % dims[1], key // (dims[0] * dims[1])
+    m = 0
+    for b in range(27):
+        ix, iy, iz = vx + _BLOCK[b, 0], vy + _BLOCK[b, 1], vz + _BLOCK[b, 2]
+        if 0 <= ix < dims[0] and 0 <= iy < dims[1] and 0 <= iz < dims[2]:
+            u = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
+            if u >= 0:
+                for j in range(starts[u], starts[u + 1]):
+                    xyz[0, m], xyz[1, m], xyz[2, m] = points[j, 0], points[j, 1], points[j, 2]
+                    rows[m] = j
+                    m += 1
+    return m
+
+
+@numba.njit(**_JIT)
+def _in_block(xyz: np.ndarray, rows: np.ndarray, m: int, query: np.ndarray, guess: float, e2: np.ndarray,
+              chosen: np.ndarray, d2: np.ndarray, best: np.ndarray) -> int:
+    """The k nearest ``d2``, ``best`` (k,) to ``query`` (3,) of the ``m`` block points of :func:`_block` (``xyz``,
+    ``rows``): only those within ``guess`` (squared, m^2) when at least k are (then no other is among the k nearest),
+    else all; returns how many are found. ``e2``, ``chosen`` (b,): room for the squared distances and the points
+    looked at."""
+    k = d2.shape[0]
+    x, y, z = query[0], query[1], query[2]
+    for a in range(m):  # all distances first: a loop without branches
+        ex, ey, ez = xyz[0, a] - x, xyz[1, a] - y, xyz[2, a] - z
+        e2[a] = ex * ex + ey * ey + ez * ez
+    n = 0
+    for a in range(m):
+        chosen[n] = a
+        n += e2[a] <= guess
+    if n < k:
+        n = m
+        for a in range(m):
+            chosen[a] = a
+    found = 0
+    d2[:] = np.inf
+    for t in range(n):
+        a = chosen[t]
+        found = _take(e2[a], rows[a], d2, best, found, k)
+    return found
+
+
+@numba.njit(**_JIT)
+def voxel_knn_points(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray,
+                     table: np.ndarray, origin: np.ndarray, cell: float, dims: np.ndarray, k: int, max_ring: int
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`voxel_knn` of the hashed points themselves (``points`` (m, 3) voxel by voxel; the queries: the points in
+    their order before hashing), the same answer, max_ring >= 1. The queries are taken voxel by voxel: the points of
+    the 27 voxels around each are gathered once for all its queries, which mostly find their k nearest among them
+    (the others go on ring by ring)."""
+    m = points.shape[0]
+    dist = np.full((m, k), np.inf)
+    idx = np.full((m, k), -1, np.int64)
+    exact = np.zeros(m, np.bool_)
+    total = dims[0] * dims[1] * dims[2]
+    dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * m)
+    most = 0
+    for v in range(cell_keys.shape[0]):
+        most = max(most, starts[v + 1] - starts[v])
+    xyz = np.empty((3, 27 * most))
+    rows = np.empty(27 * most, np.int64)
+    e2 = np.empty(27 * most)
+    chosen = np.empty(27 * most, np.int64)
+    d2 = np.empty(k)
+    best = np.empty(k, np.int64)
+    guess = np.inf
+    for v in range(cell_keys.shape[0]):
+        b = _block(points, cell_keys, starts, table, dims, dense, cell_keys[v], xyz, rows)
+        for g in range(starts[v], starts[v + 1]):
+            found = _in_block(xyz, rows, b, points[g], guess, e2, chosen, d2, best)
+            if found == k:
+                guess = _GUESS * d2[k - 1]
+            q = order[g]
+            x, y, z = points[g, 0], points[g, 1], points[g, 2]
+            fx, fy, fz = (x - origin[0]) / cell, (y - origin[1]) / cell, (z - origin[2]) / cell
+            cx, cy, cz = int(fx), int(fy), int(fz)
+            margin = min(fx - cx, cx + 1 - fx, fy - cy, cy + 1 - fy, fz - cz, cz + 1 - fz) * cell
+            r, reach = 1, cell + margin  # the block is ring 1; the few not certain there go on ring by ring
+            while not (found == k and d2[k - 1] <= reach * reach) and r < max_ring:
+                r += 1
+                found = _ring(points, cell_keys, starts, table, dims, dense, x, y, z, fx, fy, fz, cx, cy, cz, cell, r,
+                              d2, best, found)
+                reach = r * cell + margin
+            exact[q] = found == k and d2[k - 1] <= reach * reach
+            for p in range(found):
+                dist[q, p] = np.sqrt(d2[p])
+                idx[q, p] = order[best[p]]
     return dist, idx, exact
 
 
@@ -4217,6 +4340,7 @@ def _warm_voxel_knn() -> None:
     pts, dims = np.zeros((4, 3)), np.ones(3, np.int64)
     grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
     voxel_knn(pts, *grid, np.zeros(3), 1.0, dims, pts, 2, 1)
+    voxel_knn_points(pts, *grid, np.zeros(3), 1.0, dims, 2, 1)
     principal_axes(pts, np.zeros((4, 3), np.int64))
 
 
@@ -4595,7 +4719,7 @@ def warm(jobs: int = 1, *, cold: bool = False) -> Warmup:
 
 _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components,
             grid_region, graph_components, graph_region, coordinate_bounds,
-            voxel_grid, voxel_knn, principal_axes, patch_fits, pair_graph, widen_xyz,
+            voxel_grid, voxel_knn, voxel_knn_points, principal_axes, patch_fits, pair_graph, widen_xyz,
             valid_rows, frame_pass, plane_patches, fold_line, grid_sample, grid_edges, grid_usable,
             grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
             triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,

@@ -228,10 +228,14 @@ class VoxelIndex:
     def query(self, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """The ``k`` nearest points to each of ``queries`` (q, 3), inside the voxels, as cKDTree.query gives them
         (distances (q, k) meters, nearest first; indices (q, k), len(points) where fewer than k exist; ties may be
-        ordered otherwise)."""
-        grid = (self.ordered, *self.grid, self.origin, self.cell, self.dims, kernels.c_array(queries, np.float64))
-        dist, idx, exact = kernels.voxel_nearest(*grid, VOXEL_RINGS) if k == 1 else \
-            kernels.voxel_knn(*grid, k, VOXEL_RINGS)
+        ordered otherwise). The points themselves as ``queries`` (the same array) are answered voxel by voxel."""
+        grid = (self.ordered, *self.grid, self.origin, self.cell, self.dims)
+        if k == 1:
+            dist, idx, exact = kernels.voxel_nearest(*grid, kernels.c_array(queries, np.float64), VOXEL_RINGS)
+        elif queries is self.points:
+            dist, idx, exact = kernels.voxel_knn_points(*grid, k, VOXEL_RINGS)
+        else:
+            dist, idx, exact = kernels.voxel_knn(*grid, kernels.c_array(queries, np.float64), k, VOXEL_RINGS)
         rest = np.flatnonzero(~exact)
         if len(rest):  # far from every point (or fewer than k of them): the kd-tree
             d, i = self._tree.query(queries[rest], k=k)
