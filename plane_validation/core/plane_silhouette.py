@@ -182,9 +182,11 @@ def hull_silhouette(points: np.ndarray, labels: np.ndarray, *, sample_size: int 
 def _hull(uv: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """The convex hull (e, 2) counter-clockwise of in-plane points ``uv`` (n, 2) meters; the box ``lo``, ``hi`` (2,)
     when they span no area (fewer than 3, or on a line)."""
-    from scipy.spatial import ConvexHull, QhullError  # here: only the verdict's second look needs it
+    from scipy.spatial import QhullError  # here: only the verdict's second look needs Qhull
+
+    from .geometry import hull_vertices
     try:
-        return uv[ConvexHull(uv).vertices]  # counter-clockwise in 2-D
+        return uv[hull_vertices(uv)]
     except (QhullError, ValueError):
         return np.array([lo, (hi[0], lo[1]), hi, (lo[0], hi[1])], dtype=float)
 
