@@ -5,7 +5,7 @@ absent), the ICL-NUIM frame with depth-camera noise added, and the synthetic sen
 plane_validation.core.scenes (depth camera: room, table, stairs; spinning lidar). Each method runs
 over a grid of tolerances; a row gives each method at its best t (most Hoover-correct regions,
 then F1) and, for ours, the auto-tuned result (tune_tolerance with the library defaults).
---criteria instead auto-tunes with each criterion of plane_validation.core.tuning.CRITERIA and
+--criteria instead auto-tunes with each criterion of plane_validation.core.criteria.CRITERIA and
 gives each one's F1 as a fraction of the best regions result over the grid (the oracle).
 
 --split tuning|held-out|both runs the randomised scene families of plane_validation.core.scene_families
@@ -40,8 +40,8 @@ from pvbench import open3d_ref  # noqa: E402
 
 import plane_validation as pv  # noqa: E402
 from plane_validation.core import scene_families, scenes  # noqa: E402
+from plane_validation.core.criteria import CRITERIA, DEFAULT_CRITERION  # noqa: E402
 from plane_validation.core.scoring import Quality, segmentation_quality  # noqa: E402
-from plane_validation.core.tuning import CRITERIA, DEFAULT_CRITERION  # noqa: E402
 
 GT = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'gt'
 README = Path(__file__).resolve().parent / 'README.md'

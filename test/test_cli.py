@@ -266,7 +266,7 @@ def test_planes_command(corner_npy, tmp_path, capsys):
     plane = np.column_stack([np.random.default_rng(0).random((500, 2)), np.zeros(500)])
     np.save(tmp_path / 'plane.npy', plane)
     assert main(['planes', str(tmp_path / 'plane.npy'), '--tolerance', '0.01']) == 0
-    from plane_validation.core.tuning import MIN_PLANE_SILHOUETTE
+    from plane_validation.core.plane_count import MIN_PLANE_SILHOUETTE
     assert f'selected k = 1 (no k >= 2 has all its planes at S_j >= {MIN_PLANE_SILHOUETTE})' in capsys.readouterr().out
     assert main(['planes', str(corner_npy), '--tolerance', '0.02', '--max-planes', '5']) == 0
     assert "each index's own optimum: plane_silhouette " in capsys.readouterr().out  # the default criterion too

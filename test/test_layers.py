@@ -133,8 +133,9 @@ def test_the_search_functions_default_to_the_parameter_table_s_search():
     by default (core/params.py defines the RANSAC defaults once; the viewpoint's default is None, the origin)."""
     import inspect
 
+    from plane_validation.core.plane_count import select_plane_count
     from plane_validation.core.ransac import detect_planes, search_graph
-    from plane_validation.core.tuning import select_plane_count, tune_tolerance
+    from plane_validation.core.tuning import tune_tolerance
     search = PipelineConfig().search
     tuned, at_t = search.kwargs(), search.at_tolerance()  # a search at a given t runs auto's noise model as constant
     del tuned['viewpoint'], at_t['viewpoint']

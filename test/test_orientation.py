@@ -113,8 +113,8 @@ def test_every_command_searches_with_the_table_s_search_params(tmp_path, monkeyp
         seen.append((kwargs['ransac_points'], kwargs['orientation']))
         return search(*args, **kwargs)
     monkeypatch.setattr(ransac, 'detect_planes', spy)
-    for module in ('plane_validation.core.tuning', 'plane_validation.app.detection'):
-        monkeypatch.setattr(f'{module}.detect_planes', spy)
+    for module in ('core.tuning', 'core.plane_count', 'app.detection'):
+        monkeypatch.setattr(f'plane_validation.{module}.detect_planes', spy)
     options = ['--ransac-points', '2500', '--axis-mode', 'perpendicular', '--normal-axis-z', '1', '--json']
     for command in (['detect', str(cloud), '--tolerance', '0.02'], ['sweep', str(cloud), '--tolerances', '0.01:0.02:2'],
                     ['planes', str(cloud), '--tolerance', '0.02']):

@@ -10,8 +10,9 @@ import pytest
 
 import plane_validation as pv
 from plane_validation import scenes
+from plane_validation.core.criteria import CRITERIA
 from plane_validation.core.failures import Failure, FailureKind
-from plane_validation.core.tuning import CRITERIA, default_tolerances
+from plane_validation.core.tolerance_grid import default_tolerances
 from plane_validation.core.verdict import MIN_SEED_AGREEMENT, RELIABLE_PS, judge, seed_agreement
 
 
@@ -867,7 +868,7 @@ def test_a_sweep_whose_choice_is_its_derived_top_goes_on_above_it():
     the choice at it had most walls in pieces. The sweep now goes on above the top while the choice is the
     largest candidate; a top that was given (t_max) is kept."""
     from plane_validation.core.scoring import segmentation_quality
-    from plane_validation.core.tuning import TUNE_CANDIDATES
+    from plane_validation.core.tolerance_grid import TUNE_CANDIDATES
     scene = scenes.depth_camera('room', width=320, height=240, sigma_1m=0.0, quantum_1m=0.008, seed=0)
     # one t everywhere (auto sweeps this camera's t0 from its measured noise instead: no derived top)
     kept = pv.tune_tolerance(scene.points, shape=scene.shape, seed=0, extend=0, noise_model='constant')
@@ -887,7 +888,7 @@ def test_a_sweep_whose_choice_is_its_derived_top_goes_on_above_it():
 
 
 def test_a_sweep_whose_choice_is_below_its_top_is_not_extended():
-    from plane_validation.core.tuning import TUNE_CANDIDATES
+    from plane_validation.core.tolerance_grid import TUNE_CANDIDATES
     result = pv.tune_tolerance(scenes.corner(2000, 1.0, seed=0).points, seed=0, noise_bound=0)
     assert not result.at_largest and len(result.rows) == TUNE_CANDIDATES
     # with the noise bound (sigma 0.6 of uniform noise e = 1): the candidates above 5 sigmas are not swept, and the

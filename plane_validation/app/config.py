@@ -10,6 +10,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..core.criteria import CRITERIA, DEFAULT_CRITERION
 from ..core.noise import AUTO, NOISE_REFERENCE, TUNED_NOISE_MODELS
 from ..core.orientation import AXIS_MODES, Orientation, orientation
 from ..core.params import (
@@ -22,7 +23,8 @@ from ..core.params import (
     SearchParams,
     TuneParams,
 )
-from ..core.tuning import CRITERIA, DEFAULT_CRITERION, SWEEP_MAX_PLANES, TUNE_CANDIDATES, TUNE_POINTS
+from ..core.tolerance_grid import TUNE_CANDIDATES
+from ..core.tuning import SWEEP_MAX_PLANES, TUNE_POINTS
 
 __all__ = ['Parameter', 'PipelineConfig', 'PARAMETERS', 'parameters_markdown', 'min_inliers_value']
 

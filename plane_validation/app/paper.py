@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from ..core import scenes
-from ..core.tuning import PlaneCountResult, TuningResult, select_plane_count, tune_tolerance
+from ..core.plane_count import PlaneCountResult, select_plane_count
+from ..core.tuning import TuningResult, tune_tolerance
 from ..formats.outputs import staged_files
 from .plot import plot_plane_count, plot_sweep
 

@@ -28,7 +28,8 @@ from ..core.ransac import (
     no_returns_note,
     within_planes,
 )
-from ..core.tuning import TuningResult, noise_from_segmentation, quick_tolerance, tune_tolerance
+from ..core.tolerance_grid import quick_tolerance
+from ..core.tuning import TuningResult, noise_from_segmentation, tune_tolerance
 from ..core.verdict import judge
 from ..core.workers import TuningWorkerError
 from ..formats.pointcloud2 import ring_array, trailing_bytes, xyz_array, xyz_words

@@ -192,12 +192,13 @@ def plot_sweep(result, path: str | Path, *, title: str = '', unit: str = 'm',
 def plot_plane_count(result, path: str | Path, *, title: str = '', true_planes: int | None = None) -> Path:
     """The paper's Fig. 2: indices of the first k planes vs k, the selected k marked.
 
-    result: a :class:`~plane_validation.tuning.PlaneCountResult`. Left: GS, GSplanes, silhouette
+    result: a :class:`~plane_validation.core.plane_count.PlaneCountResult`. Left: GS, GSplanes, silhouette
     and the smallest per-plane silhouette S_j (the selection rule keeps the largest k with all
     S_j >= MIN_PLANE_SILHOUETTE); right: Dunn and Davies-Bouldin. Legend entries give each
     index's own best k.
     """
-    from ..core.tuning import CRITERIA, MIN_PLANE_SILHOUETTE
+    from ..core.criteria import CRITERIA
+    from ..core.plane_count import MIN_PLANE_SILHOUETTE
 
     path = Path(path)
     k = np.array(result.counts)

@@ -14,10 +14,12 @@ from typing import Any
 
 import numpy as np
 
+from ..core.criteria import CRITERIA
 from ..core.indices import ValidityIndices
 from ..core.noise import noise_coefficient
+from ..core.plane_count import PlaneCountResult
 from ..core.ransac import Segmentation, as_points
-from ..core.tuning import CRITERIA, PlaneCountResult, TuningResult
+from ..core.tuning import TuningResult
 from .detection import Detection
 
 __all__ = ['jsonable', 'dumps', 'planes_json', 'indices_json', 'detection_document', 'sweep_document',

@@ -279,7 +279,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 def cmd_planes(args: argparse.Namespace) -> int:
     from ..app.detection import tune_scan
     from ..app.report import plane_count_document, plane_count_table
-    from ..core.tuning import DEFAULT_CRITERION, MIN_PLANE_SILHOUETTE, select_plane_count
+    from ..core.criteria import DEFAULT_CRITERION
+    from ..core.plane_count import MIN_PLANE_SILHOUETTE, select_plane_count
 
     _check_outputs(args, 'plot')
     tolerance, source, chosen = args.tolerance, 'fixed', None

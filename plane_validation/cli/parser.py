@@ -86,7 +86,6 @@ def _table_type(name: str) -> Callable[[str], object]:
     return parse
 
 
-
 def _add_table_options(parser: argparse.ArgumentParser, names: tuple[tuple[str, str], ...]) -> None:
     """One option per (parameter, metavar) of the table, with its type, range and default; booleans as
     --name/--no-name."""
@@ -114,7 +113,6 @@ def _add_detection_options(parser: argparse.ArgumentParser) -> None:
     _add_table_options(parser, (('seed', 'S'), ('max_planes', 'K'), ('min_inliers', 'M'), ('noise_model', 'MODEL'),
                                 ('noise_reference', 'R'), ('viewpoint_x', 'X'), ('viewpoint_y', 'Y'),
                                 ('viewpoint_z', 'Z'), ('tune_jobs', 'N'), ('zero_is_no_return', '')))
-
 
 
 def _add_search_options(parser: argparse.ArgumentParser) -> None:
@@ -153,8 +151,10 @@ def _add_pipeline_options(parser: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     from ..app.config import PARAMETERS
+    from ..core.criteria import CRITERIA, DEFAULT_CRITERION
     from ..core.scenes import SCENES
-    from ..core.tuning import CRITERIA, DEFAULT_CRITERION, SWEEP_MAX_PLANES, TUNE_CANDIDATES
+    from ..core.tolerance_grid import TUNE_CANDIDATES
+    from ..core.tuning import SWEEP_MAX_PLANES
 
     parser = argparse.ArgumentParser(
         prog='plane-validation', description='Self-validating plane detection: sequential RANSAC planes scored by '

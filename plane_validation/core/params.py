@@ -3,7 +3,7 @@
 
 Built once from the parameter table (``PipelineConfig.search``, ``PipelineConfig.tune``) and passed on as keywords
 (``detect_planes(points, t, seed=..., shape=..., **search.at_tolerance())``; ``tune_tolerance(points, seed=...,
-**search.kwargs(), **tune.kwargs())``; :func:`.tuning.select_plane_count` takes the search's keywords), so that the
+**search.kwargs(), **tune.kwargs())``; :func:`.plane_count.select_plane_count` takes the search's keywords), so that the
 node, replay and every command search and tune alike. The public functions keep their keyword arguments and
 defaults for API users.
 """
@@ -58,7 +58,7 @@ class SearchParams:
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
 
     def at_tolerance(self, chosen: str | None = None) -> dict[str, object]:
-        """The fields as keyword arguments of :func:`.ransac.detect_planes` and :func:`.tuning.select_plane_count`
+        """The fields as keyword arguments of :func:`.ransac.detect_planes` and :func:`.plane_count.select_plane_count`
         at a t: ``auto`` becomes the noise model the sweep behind that t ``chosen`` (``constant`` for a t given)."""
         return dict(self.kwargs(), noise_model=searched_model(self.noise_model, chosen))
 
@@ -68,7 +68,7 @@ class TuneParams:
     """criterion: the index that picks t; sample_size: the index sample (points; None: all); tune_points: the
     sweep's subsample (points; None: all); t_min, t_max: the candidates' range (meters; None: derived from the
     cloud); count: candidates; sampled_separation: Dunn and Davies-Bouldin on the index sample (None: exact up to
-    tuning.EXACT_SEPARATION_POINTS); jobs: processes the candidates run in."""
+    criteria.EXACT_SEPARATION_POINTS); jobs: processes the candidates run in."""
 
     criterion: str
     sample_size: int | None

@@ -1,8 +1,8 @@
-"""Tolerance auto-tuning and plane-count selection by cluster validity indices (paper section 4).
+"""Tolerance auto-tuning by cluster validity indices (paper section 4).
 
 ``tune_tolerance`` sweeps the RANSAC tolerance ``t`` (meters), scores every segmentation with all
-indices and picks ``t`` by one of them; ``select_plane_count`` scores the first k planes of one
-segmentation for k = 1..K (the paper's Fig. 2). Pure numpy/scipy, no ROS import.
+indices and picks ``t`` by one of them (:mod:`.criteria`) among candidates :mod:`.tolerance_grid` derives;
+:mod:`.plane_count` chooses the number of planes (the paper's Fig. 2). Pure numpy, no ROS import.
 """
 from __future__ import annotations
 
@@ -14,9 +14,15 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .blas import single_blas_thread
+from .criteria import (
+    CRITERIA,
+    DEFAULT_CRITERION,
+    SEPARATION_CRITERIA,
+    check_criterion,
+    resolved_sampled_separation,
+)
 from .failures import Verdict
 from .indices import ValidityIndices, validity_indices
 from .interrupts import keeps_interrupts
@@ -42,6 +48,7 @@ from .ransac import (
     min_inliers_number,
     search_graph,
 )
+from .tolerance_grid import TOP_DIAGONAL_SHARE, TUNE_CANDIDATES, default_tolerances, finite_points
 from .verdict import (
     RELIABLE_GS_PLANES,
     SINGLE_PLANE_THICKNESS,
@@ -52,15 +59,10 @@ from .verdict import (
 )
 from .workers import in_order, parallel_calls
 
-__all__ = ['CRITERIA', 'DEFAULT_CRITERION', 'TUNE_CANDIDATES', 'TUNE_POINTS',
-           'TuningRow', 'TuningResult', 'PlaneCountResult', 'default_tolerances', 'tune_tolerance',
-           'select_plane_count', 'noise_from_segmentation', 'local_noise', 'quick_tolerance', 'MIN_PLANE_SILHOUETTE']
+__all__ = ['TUNE_POINTS', 'TuningRow', 'TuningResult', 'tune_tolerance', 'noise_from_segmentation']
 
-#: Default number of tuning candidates and the subsample a sweep runs on (points).
-TUNE_CANDIDATES = 12
+#: The subsample a sweep runs on (points).
 TUNE_POINTS = 20000
-#: The largest derived candidate is at most this share of the bounding-box diagonal (default_tolerances).
-TOP_DIAGONAL_SHARE = 1 / 8
 #: Default of tune_tolerance's ``extend``: a sweep with a derived top whose choice is its largest candidate
 #: goes on, one candidate at a time in the same geometric step, while the choice stays the largest one, for
 #: at most this many candidates and up to TOP_DIAGONAL_SHARE of the diagonal. The derived top (10 local
@@ -77,19 +79,6 @@ TUNE_EXTEND = 6
 #: against 5 mm noise). Not more: a candidate below the noise finds up to that many slivers (with
 #: quality.py's min_inliers of 0.08 %, 30 made its sweeps 30-50 % slower; 20 costs 0-10 %).
 SWEEP_MAX_PLANES = 20
-#: Index name -> True when larger is better.
-CRITERIA = {'gs_planes': True, 'gs': True, 'silhouette': True, 'dunn': True, 'davies_bouldin': False,
-            'davies_bouldin_classic': False, 'plane_silhouette': True}
-#: Criteria computed from cluster separations (exact on all points unless sampled_separation).
-SEPARATION_CRITERIA = ('dunn', 'davies_bouldin', 'davies_bouldin_classic')
-#: tune_tolerance computes the chosen planes' Dunn and Davies-Bouldin exactly up to this many points.
-EXACT_SEPARATION_POINTS = 50_000
-#: The criterion tune_tolerance uses unless told (chosen on benchmarks/quality.py; the paper's is gs_planes).
-DEFAULT_CRITERION = 'plane_silhouette'
-
-#: A plane whose own mean silhouette S_j (eq. 5, among the planes) is below this is not a
-#: well-assigned plane; select_plane_count keeps the largest k whose planes all reach it.
-MIN_PLANE_SILHOUETTE = 0.05
 #: A tuning candidate is eligible when its planes cover at least this share of the best coverage.
 MIN_RELATIVE_COVERAGE = 0.5
 #: Silhouette-type scores closer than this to the best count as ties (the smallest t wins).
@@ -214,114 +203,6 @@ class TuningResult:
         return '\n'.join(lines)
 
 
-@dataclass(frozen=True, eq=False)
-class PlaneCountResult:
-    """Result of :func:`select_plane_count`: indices[k-1] scores the first k planes."""
-
-    counts: tuple[int, ...]
-    indices: tuple[ValidityIndices, ...]
-    criterion: str
-    n_planes: int
-    segmentation: Segmentation
-
-    def best_by(self, criterion: str) -> int:
-        """Plane count the given index would choose (one of :data:`CRITERIA`)."""
-        _check_criterion(criterion)
-        return self.counts[_best_position([getattr(x, criterion) for x in self.indices], criterion)]
-
-
-def _finite(points: np.ndarray) -> np.ndarray:
-    return np.compress(finite_rows(points), points, axis=0)
-
-
-def local_noise(points: np.ndarray, *, k: int = 16, queries: int = 2000, seed=None) -> tuple[float, float]:
-    """(median nearest-neighbour spacing, median local RMS thickness) of a cloud, meters.
-
-    The thickness is the square root of the smallest eigenvalue of the k-neighbourhood scatter
-    at ``queries`` random points: about e / sqrt(3) on a plane with uniform noise e, lower when
-    the noise is large against the neighbourhood. Both are scaled to the whole cloud's density
-    when only a 50k-point probe is searched.
-    """
-    pts = _finite(as_points(points))
-    check_magnitude(pts)
-    rng = generator(seed)
-    probe = pts if len(pts) <= 50000 else pts[rng.choice(len(pts), 50000, replace=False)]
-    k = min(k, len(probe))
-    q = probe if len(probe) <= queries else probe[rng.choice(len(probe), queries, replace=False)]
-    dist, idx = cKDTree(probe).query(q, k=k)
-    nn = dist[:, 1]
-    spacing = float(np.median(nn[nn > 0])) if np.any(nn > 0) else 0.0
-    spacing *= np.sqrt(len(probe) / len(pts))  # surfaces are 2-D: spacing ~ 1/sqrt(density)
-    nb = probe[idx]
-    centered = nb - nb.mean(axis=1, keepdims=True)
-    smallest = np.linalg.eigvalsh(np.einsum('nki,nkj->nij', centered, centered) / k)[:, 0]
-    return spacing, float(np.median(np.sqrt(np.maximum(smallest, 0.0))))
-
-
-#: quick_tolerance is this many local noise thicknesses (tuned t on the Kinect frames of
-#: benchmarks/README.md: 4-10 thicknesses) ...
-QUICK_TOLERANCE_THICKNESSES = 6.0
-#: ... and at least this many point spacings: the 16 nearest points of a lidar return lie on its ring,
-#: whose cone is flat to a fraction of a millimetre whatever the range noise (a 16-beam room scan:
-#: thickness 0.05 mm, spacing 13.5 mm). On the Kinect frames 6 thicknesses are 2-7 spacings.
-QUICK_TOLERANCE_SPACINGS = 2.0
-
-
-def quick_tolerance(points: np.ndarray, *, seed=None) -> float:
-    """A rough tolerance (meters) from the local noise probe alone, without a sweep: what a
-    caller can use while :func:`tune_tolerance` runs. Raises ValueError on fewer than 3 points."""
-    pts = _finite(as_points(points))
-    if len(pts) < 3:
-        raise ValueError(f'need at least 3 finite points, got {len(pts)}')
-    spacing, thickness = local_noise(pts, seed=seed)
-    t = max(QUICK_TOLERANCE_THICKNESSES * thickness, QUICK_TOLERANCE_SPACINGS * spacing)
-    return float(t if t > 0 else 1e-6)
-
-
-def default_tolerances(points: np.ndarray, count: int = TUNE_CANDIDATES, *, lo: float | None = None,
-                       hi: float | None = None, seed=None) -> np.ndarray:
-    """``count`` candidate tolerances (meters), geometrically spaced from ``lo`` to ``hi``.
-
-    Bounds not given are derived from the cloud: ``lo`` is a twentieth of the median
-    nearest-neighbour spacing; ``hi`` is 1/8 of the bounding-box diagonal, capped at the larger of
-    10 local noise thicknesses (about 6 e; the paper's useful t is up to about 2 e) and 5
-    spacings, so that dense real clouds are not swept up to tolerances that merge every plane.
-    """
-    if count < 2:
-        raise ValueError(f'need at least 2 candidates, got {count}')
-    pts = _finite(as_points(points))
-    if lo is None or hi is None:
-        if len(pts) < 3:
-            raise ValueError(f'need at least 3 finite points to derive tolerances, got {len(pts)}')
-        diagonal = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
-        if diagonal <= 0:
-            raise ValueError('all points are identical: no tolerance can be derived')
-        spacing, thickness = local_noise(pts, seed=seed)
-        if hi is None:
-            cap = max(10 * thickness, 5 * spacing)
-            top = TOP_DIAGONAL_SHARE * diagonal
-            hi = min(top, cap) if cap > 0 else top
-            if lo is not None and lo >= hi:
-                raise ValueError(f'the smallest candidate {lo:g} m (t_min, the node\'s tune_min) is not below the '
-                                 f'largest one derived from this cloud, {hi:.3g} m: lower it or give t_max too')
-        if lo is None:
-            lo = min(spacing / 20, hi / 100) if spacing > 0 else hi / 1000
-    if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
-        raise ValueError(f'tolerance range must satisfy 0 < lo < hi, got lo={lo}, hi={hi}')
-    return np.geomspace(lo, hi, count)
-
-
-def _best_position(values, criterion: str) -> int:
-    values = np.asarray(values, dtype=float)
-    values = np.where(np.isnan(values), -np.inf if CRITERIA[criterion] else np.inf, values)
-    return int(np.argmax(values) if CRITERIA[criterion] else np.argmin(values))
-
-
-def _check_criterion(criterion: str) -> None:
-    if criterion not in CRITERIA:
-        raise ValueError(f'unknown criterion {criterion!r}; choose one of {sorted(CRITERIA)}')
-
-
 def noise_from_segmentation(seg: Segmentation, points: np.ndarray | None = None) -> float:
     """Half-width e (meters) of uniform noise matching the pooled residual RMS of the planes; with a
     range-dependent noise model (``points`` (N, 3) then needed), of the residuals divided by the
@@ -398,7 +279,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     sigmas of the sensor's noise (NOISE_BOUND; :func:`.noise_estimate.estimate_noise`) are not swept and the range is
     not extended beyond it, unless that leaves fewer than two candidates (a noise-free cloud); 0 = no bound.
     """
-    _check_criterion(criterion)
+    check_criterion(criterion)
     if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 0:
         raise ValueError(f'jobs must be an integer >= 0 (0 = one per CPU core), got {jobs!r}')
     if isinstance(sweep_planes, bool) or not isinstance(sweep_planes, (int, np.integer)) or sweep_planes < 0:
@@ -415,7 +296,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         raise ValueError(f'noise_bound must be a number >= 0 (0: no bound), got {noise_bound!r}')
     start = time.perf_counter()
     pts = as_points(points)
-    finite = _finite(pts)
+    finite = finite_points(pts)
     if len(finite) < 3:
         raise ValueError(f'need at least 3 finite points to tune, got {len(finite)}')
     check_magnitude(finite)
@@ -477,7 +358,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     # sweep_planes (a cap that stops it early makes the planes take in strips of the surfaces left out)
     sweep_opts = dict(opts, min_inliers=_scaled_min_inliers(min_inliers, n_sweep, len(finite)), shape=sweep_shape,
                       max_planes=max(max_planes, sweep_planes))
-    sampled_separation = _sampled_separation(sampled_separation, len(finite))
+    sampled_separation = resolved_sampled_separation(sampled_separation, len(finite))
     sweep_sampled = sampled_separation or criterion not in SEPARATION_CRITERIA
     score = dict(sample_size=sample_size, seed=int(index_seed), sampled_separation=sweep_sampled)
     # The final detection's graph does not depend on t: built in a thread beside the sweep (its kd-tree
@@ -587,11 +468,6 @@ def _labels(points: np.ndarray, opts: dict, t: float, seed: int) -> np.ndarray:
     return detect_planes(points, t, seed=seed, **opts).labels
 
 
-def _sampled_separation(sampled_separation: bool | None, n_valid: int) -> bool:
-    """The sampled_separation argument, None resolved: on the index sample beyond EXACT_SEPARATION_POINTS."""
-    return n_valid > EXACT_SEPARATION_POINTS if sampled_separation is None else sampled_separation
-
-
 def _scaled_min_inliers(min_inliers: int | float, n_sample: int, n_valid: int) -> int | float:
     """A count ``min_inliers`` (>= 1) scaled from ``n_valid`` points to ``n_sample``; a fraction as is."""
     min_inliers = min_inliers_number(min_inliers)
@@ -642,63 +518,3 @@ def _sound_choice(rows: list[TuningRow], criterion: str, n_points: int) -> int:
     sound = [i for i in range(best) if eligible[i] and rows[i].n_planes and not rows[i].unsound]
     return sound[_choose([rows[i] for i in sound], criterion, n_points)] if sound else best
 
-
-@single_blas_thread
-def select_plane_count(points: np.ndarray, tolerance: float, max_planes: int = MAX_PLANES,
-                       criterion: str = 'gs_planes', *, min_inliers: int | float = MIN_INLIERS,
-                       probability: float = PROBABILITY, max_iterations: int = MAX_ITERATIONS,
-                       sample_size: int | None = 2000,
-                       seed: int | None = None, shape: tuple[int, int] | None = None,
-                       connectivity: bool = True, noise_model: str = 'constant',
-                       noise_reference: float = NOISE_REFERENCE, viewpoint: Viewpoint = None,
-                       sampled_separation: bool | None = None, ransac_points: int | None = RANSAC_POINTS,
-                       grid_points: int | None = GRID_POINTS, orientation: Orientation | None = None
-                       ) -> PlaneCountResult:
-    """Score the first k planes (the rest unassigned) for k = 1..K and pick k (paper Fig. 2).
-
-    One sequential RANSAC run with ``max_planes`` finds up to K planes at ``tolerance`` meters;
-    labels of planes k.. are set to -1 before scoring. Returns every k's indices. For gs, dunn,
-    silhouette and davies_bouldin k is the index's optimum (``best_by``); for gs_planes it is the
-    largest k whose planes all keep a mean silhouette S_j >= MIN_PLANE_SILHOUETTE (see
-    :func:`_well_assigned_count` for why not the plain argmax). shape, connectivity, noise_model,
-    noise_reference, viewpoint, ransac_points, grid_points, orientation: to :func:`detect_planes`;
-    sampled_separation: to :func:`validity_indices`, None meaning exact up to EXACT_SEPARATION_POINTS valid points
-    (as in :func:`tune_tolerance`).
-    """
-    _check_criterion(criterion)
-    rng = generator(seed)
-    ransac_seed, index_seed = rng.integers(0, 2**63, size=2)
-    seg = detect_planes(points, tolerance, max_planes=max_planes, min_inliers=min_inliers,
-                        probability=probability, max_iterations=max_iterations, seed=int(ransac_seed),
-                        shape=shape, connectivity=connectivity, noise_model=noise_model,
-                        noise_reference=noise_reference, viewpoint=viewpoint, ransac_points=ransac_points,
-                        grid_points=grid_points, orientation=orientation)
-    pts = as_points(points)
-    sampled = _sampled_separation(sampled_separation, seg.n_valid)
-    counts, scores = [], []
-    for k in range(1, seg.n_planes + 1):
-        labels = np.where(seg.labels < k, seg.labels, -1)
-        counts.append(k)
-        scores.append(validity_indices(pts, labels, sample_size=sample_size, seed=int(index_seed),
-                                       sampled_separation=sampled))
-    if not counts:
-        n_planes = 0
-    elif criterion == 'gs_planes':
-        n_planes = _well_assigned_count(scores)
-    else:
-        n_planes = counts[_best_position([getattr(s, criterion) for s in scores], criterion)]
-    return PlaneCountResult(counts=tuple(counts), indices=tuple(scores), criterion=criterion, n_planes=n_planes,
-                            segmentation=seg)
-
-
-def _well_assigned_count(scores: list[ValidityIndices]) -> int:
-    """Largest k >= 2 whose k planes all have S_j >= MIN_PLANE_SILHOUETTE; 1 when none.
-
-    The plain argmax of GSplanes over k is biased to k = 2: dropping a plane from the scored set
-    also drops it as a competitor in every b_i, so GS over the first k planes shrinks as k grows
-    even when every plane is real (noise-free corner: 0.38, 0.30 for k = 2, 3). A spurious plane
-    (a sliver of an already found face) instead has S_j near or below 0.
-    """
-    good = [i + 1 for i, s in enumerate(scores)
-            if i >= 1 and min(s.plane_silhouettes, default=0.0) >= MIN_PLANE_SILHOUETTE]
-    return max(good) if good else 1

@@ -213,40 +213,6 @@ def _tilt(pca, normal: np.ndarray, cells: tuple | None = None) -> float:
     return float(np.mean(np.abs(axes[flat, :, 0] @ normal) < np.cos(np.radians(TILT_DEG))))
 
 
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
 def plane_fill(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     """Per plane the RMS of its inliers' distances to it in units of their tolerance (t, scaled by the noise
     model at each point): about sigma / t on a surface with noise sigma well inside t, 0.58 on points
@@ -397,8 +363,6 @@ def _extent(uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.array([end[0] for end in ends]), np.array([end[2] for end in ends])
 
 
-
-
 def _sampled(pts: np.ndarray, seg: Segmentation) -> tuple[list[np.ndarray], list, list]:
     """Per plane of ``seg`` on ``pts`` (N, 3) C-ordered float64 meters: its :func:`.plane_shape.inlier_samples`, their
     :func:`.plane_shape.principal_frame` and their :func:`.noise.tolerance_scale` (None: constant), the samples gathered
@@ -421,10 +385,6 @@ def _sampled(pts: np.ndarray, seg: Segmentation) -> tuple[list[np.ndarray], list
         values, vectors = np.linalg.eigh(part.T @ part)
         frames.append((centres[j], part, values, vectors))
     return samples, frames, scales
-
-
-
-
 
 
 def _fill(inl: np.ndarray, plane, seg: Segmentation, scale: np.ndarray | None | bool = False) -> float:
@@ -452,10 +412,6 @@ def _layering(inl: np.ndarray, plane) -> float:
     left = np.arange(1, len(r))
     between = (sums ** 2 / left + sums ** 2 / (len(r) - left)).max()  # the right group's sum is -left's
     return float(min(between / total, 1.0))
-
-
-
-
 
 
 def plane_curvature(points: np.ndarray, plane_rows: np.ndarray) -> float:
