@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from plane_validation.app.frame_rows import marks_as_nan
 from plane_validation.app.tracking import _near_share, _near_share_kdtree
-from plane_validation.core import kernels, plane_shape, scenes
+from plane_validation.core import kernels, plane_beyond, plane_shape, scenes
 from plane_validation.core import verdict as V
 from plane_validation.core.ransac import AT_VIEWPOINT, detect_planes, no_returns_as_nan
 
@@ -102,8 +102,8 @@ def test_plane_beyond_equals_its_numpy_reference(noise_model, organized):
     samples = plane_shape.inlier_samples(pts, seg)
     frames = [plane_shape.principal_frame(inl) for inl in samples]
     fill = np.array([V._fill(inl, p, seg) for inl, p in zip(samples, seg.planes)])
-    got = V._beyond(pts, seg, frames, fill)
-    np.testing.assert_array_equal(got, V._beyond_numpy(pts, seg, frames, fill))
+    got = plane_beyond.beyond_share(pts, seg, frames, fill < V.MAX_FILL)
+    np.testing.assert_array_equal(got, plane_beyond.beyond_share_numpy(pts, seg, frames, fill < V.MAX_FILL))
     assert (got > 0).any()
 
 

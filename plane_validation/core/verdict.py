@@ -12,6 +12,7 @@ from .failures import Failure, FailureKind, Verdict
 from .indices import ValidityIndices
 from .leftover import leftover_plane
 from .noise import tolerance_scale
+from .plane_beyond import beyond_share, check_rows, in_plane_axes, plane_extents
 from .plane_shape import (
     FOLD_FIT,
     FOLD_LACK,
@@ -31,10 +32,9 @@ from .plane_shape import (
     sample_rows,
     tent_of,
 )
-from .plane_silhouette import EXTENT_PERCENTILES, hull_silhouette
+from .plane_silhouette import hull_silhouette
 from .ransac import Segmentation, as_points
 from .scoring import segmentation_quality
-from .search.neighbours import NORMAL_MIN_COS
 
 __all__ = ['judge', 'surface_failures', 'plane_tilt', 'MAX_TILT', 'plane_curvature', 'plane_fill', 'MAX_LACK_OF_FIT',
            'plane_layering', 'plane_beyond', 'MAX_FILL', 'MAX_LAYERING', 'EXACT_LAYERS', 'MAX_BEYOND', 'MAX_ROUNDNESS',
@@ -89,8 +89,6 @@ MAX_BEYOND = 0.6
 #: Residuals whose spread is below this share of the coordinates' size are one value up to rounding (plane_layering:
 #: 0): a few units in the last place of a float64.
 LAYERING_ROUNDING = 1e-14
-#: The cloud's points plane_beyond counts among, at most (every so many rows).
-BEYOND_SAMPLE = 10000
 #: A plane whose points fill its band of +-t at least this much (see plane_fill: RMS distance over t; even filling
 #: is 0.58, Gaussian noise cut at 2 sigma 0.44) ...
 MAX_FILL = 0.45
@@ -234,8 +232,8 @@ def plane_beyond(points: np.ndarray, seg: Segmentation) -> np.ndarray:
     their principal axes). Under 0.1 on a surface whose noise is well inside t, about 1 in a volume of clutter."""
     pts = as_points(points)
     samples = inlier_samples(pts, seg)
-    return _beyond(pts, seg, [principal_frame(inl) for inl in samples], np.array([_fill(inl, p, seg) for inl, p in
-                                                                       zip(samples, seg.planes)]))
+    fill = np.array([_fill(inl, p, seg) for inl, p in zip(samples, seg.planes)])
+    return beyond_share(pts, seg, [principal_frame(inl) for inl in samples], fill < MAX_FILL)
 
 
 def surface_failures(points: np.ndarray, seg: Segmentation
@@ -261,113 +259,21 @@ def _surface(pts: np.ndarray, seg: Segmentation, samples: list, frames: list, sc
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(plane_beyond, plane_layering (0 where the plane does not fill its band), plane_fill, plane_tilt), each (k,),
     from the planes' inlier ``samples``, their ``frames`` (principal_frame) and, when known, their tolerance ``scales``,
-    :func:`.plane_shape.patch_cells` and :func:`_extents`."""
+    :func:`.plane_shape.patch_cells` and :func:`.plane_beyond.plane_extents`."""
     scales = [False] * len(samples) if scales is None else scales
     cells = [None] * len(samples) if cells is None else cells
     fill = np.array([_fill(inl, plane, seg, scale) for inl, plane, scale in zip(samples, seg.planes, scales)])
     layering = np.array([_layering(inl, plane) if f >= MAX_FILL else 0.0  # only filled planes can fail
                          for inl, plane, f in zip(samples, seg.planes, fill)])
     tilt = np.array([_tilt(pca, plane.normal, c) for pca, plane, c in zip(frames, seg.planes, cells)])
-    return _beyond(pts, seg, frames, fill, extents), layering, fill, tilt
-
-
-def _beyond(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray, extents: tuple | None = None
-            ) -> np.ndarray:
-    """:func:`plane_beyond` from each plane's inlier :func:`.plane_shape.principal_frame` and :func:`plane_fill` (and
-    its :func:`_extents` when known); all planes at once (the counts in one compiled pass,
-    :func:`.kernels.beyond_counts`; :func:`_beyond_numpy` is the reference)."""
-    if len(seg.planes) == 0:
-        return np.zeros(0)
-    labels, t, box, d = _beyond_rows(pts, seg, frames)
-    lo, hi, surface = _beyond_frames(seg, frames, fill, extents)
-    t = np.full(1, t) if np.ndim(t) == 0 else np.ascontiguousarray(t[:, 0])
-    within, beyond = kernels.beyond_counts(box, d, kernels.c_array(labels, np.int32), t, lo, hi, surface)
-    return beyond / np.maximum(within, 1)
-
-
-def _beyond_rows(pts: np.ndarray, seg: Segmentation, frames: list
-                 ) -> tuple[np.ndarray, float | np.ndarray, np.ndarray, np.ndarray]:
-    """The rows :func:`_beyond` counts among (every so many of ``pts``, those whose coordinates sum to a finite value,
-    gathered in one compiled pass: :func:`.kernels.beyond_rows`): (their labels (m,), the tolerance (a number, or
-    (m, 1) by the noise model), their coordinates along each plane's in-plane axes (m, 2k) and their distances to
-    each plane (m, k), meters)."""
-    _check_rows(pts, seg)
-    cloud, labels = kernels.beyond_rows(kernels.c_array(pts, np.float64), max(1, -(-len(pts) // BEYOND_SAMPLE)),
-                                        kernels.c_array(seg.labels, np.int32))
-    scale = tolerance_scale(cloud, seg.noise_model, seg.noise_reference, seg.viewpoint)
-    t = seg.tolerance * (1.0 if scale is None else scale[:, None])
-    axes = _in_plane_axes(frames)
-    normals = np.array([p.normal for p in seg.planes])
-    d = cloud @ normals.T
-    d += np.array([p.offset for p in seg.planes])  # in place: a large temporary less each (page faults)
-    return labels, t, cloud @ axes, np.abs(d, out=d)
-
-
-def _in_plane_axes(frames: list) -> np.ndarray:
-    """(3, 2k) each plane's two in-plane principal axes from its :func:`.plane_shape.principal_frame` (zeros without
-    one)."""
-    axes = np.zeros((3, 2 * len(frames)))
-    for j, pca in enumerate(frames):
-        if pca is not None:
-            axes[:, 2 * j:2 * j + 2] = pca[3][:, 1:]
-    return axes
-
-
-def _check_rows(pts: np.ndarray, seg: Segmentation) -> None:
-    """ValueError unless ``seg`` labels the rows of ``pts`` (N, 3): the compiled passes index them by its labels."""
-    if len(seg.labels) != len(pts):
-        raise ValueError(f'points has {len(pts)} rows but the segmentation labels {len(seg.labels)}: judge a '
-                         'segmentation with the points it was found on')
-
-
-def _beyond_frames(seg: Segmentation, frames: list, fill: np.ndarray, extents: tuple | None = None
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Each plane's box (its :func:`_extents`, or ``extents`` when known) and which planes' points count as a surface
-    for which (k, k) bool: those of a thin plane nearby, parallel to one (a rug on a floor)."""
-    lo, hi = _extents(frames) if extents is None else extents
-    normals = np.array([p.normal for p in seg.planes])
-    return lo, hi, (np.abs(normals @ normals.T) >= NORMAL_MIN_COS) & (fill < MAX_FILL)[None, :]
-
-
-def _extents(frames: list) -> tuple[np.ndarray, np.ndarray]:
-    """Each plane's box along its in-plane principal axes from its :func:`.plane_shape.principal_frame`: (lo, hi (2k,),
-    in the cloud's coordinates; empty without inliers)."""
-    k = len(frames)
-    lo, hi = np.full(2 * k, np.inf), np.full(2 * k, -np.inf)  # no inliers: nothing inside
-    for j, pca in enumerate(frames):
-        if pca is not None:
-            centre, centred, _, vectors = pca
-            low, high = _extent(vectors[:, 1:].T @ centred.T)
-            shift = centre @ vectors[:, 1:]  # the box in the cloud's coordinates
-            lo[2 * j:2 * j + 2], hi[2 * j:2 * j + 2] = low + shift, high + shift
-    return lo, hi
-
-
-def _beyond_numpy(pts: np.ndarray, seg: Segmentation, frames: list, fill: np.ndarray) -> np.ndarray:
-    """:func:`_beyond` in numpy: the reference its kernel is tested against."""
-    if len(seg.planes) == 0:
-        return np.zeros(0)
-    labels, t, box, d = _beyond_rows(pts, seg, frames)
-    lo, hi, surface = _beyond_frames(seg, frames, fill)
-    box = (box >= lo) & (box <= hi)
-    d[~(box[:, 0::2] & box[:, 1::2])] = np.inf  # (m, k): outside a plane's extent counts for neither
-    within = np.count_nonzero(d <= t, axis=0)
-    beyond = (d > t) & (d <= 2 * t) & ~np.where(labels[:, None] >= 0, surface.T[np.maximum(labels, 0)], False)
-    return np.count_nonzero(beyond, axis=0) / np.maximum(within, 1)
-
-
-def _extent(uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(lo, hi) (2,) of points ``uv`` (2, m): their EXTENT_PERCENTILES along each axis, as order statistics."""
-    lo, hi = (int(q / 100 * (uv.shape[1] - 1) + 0.5) for q in EXTENT_PERCENTILES)
-    ends = [kernels.order_statistics(np.ascontiguousarray(axis), lo, lo, hi, hi) for axis in uv]  # (np.partition's)
-    return np.array([end[0] for end in ends]), np.array([end[2] for end in ends])
+    return beyond_share(pts, seg, frames, fill < MAX_FILL, extents), layering, fill, tilt
 
 
 def _sampled(pts: np.ndarray, seg: Segmentation) -> tuple[list[np.ndarray], list, list]:
     """Per plane of ``seg`` on ``pts`` (N, 3) C-ordered float64 meters: its :func:`.plane_shape.inlier_samples`, their
     :func:`.plane_shape.principal_frame` and their :func:`.noise.tolerance_scale` (None: constant), the samples gathered
     and centred in one compiled pass (:func:`.kernels.plane_samples`, the same values as numpy's take and mean)."""
-    _check_rows(pts, seg)
+    check_rows(pts, seg)
     picks = [sample_rows(plane.inliers) for plane in seg.planes]
     bounds = np.zeros(len(picks) + 1, np.int64)
     np.cumsum([len(rows) for rows in picks], out=bounds[1:])
@@ -486,7 +392,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
     thickness = np.array([frame_thickness(pca) for pca in frames])
     sizes = np.array([len(p.inliers) for p in seg.planes], dtype=float)
     curvature = np.array([_curvature(pca) if t > MAX_THICKNESS else 0.0 for pca, t in zip(frames, thickness)])
-    extents = _extents(frames)  # shared by the volume test and the leftover plane
+    extents = plane_extents(frames)  # shared by the volume test and the leftover plane
     beyond, layering, fill, tilt = _surface(pts, seg, samples, frames, scales, cells, extents)
     noise = [None if pca is None else patch_noise(pca, plane_tolerance(inl, seg, scale), c)
              for pca, inl, scale, c in zip(frames, samples, scales, cells)]
@@ -522,7 +428,7 @@ def judge(points: np.ndarray, seg: Segmentation, scores: ValidityIndices,
         if (worst := _worst(failed, sizes)) is not None:
             failures.append(Failure(kind, float(value[worst]), limit, worst,
                                     None if other is None else float(other[worst])))
-    left = leftover_plane(pts, seg, (_in_plane_axes(frames), *extents))
+    left = leftover_plane(pts, seg, (in_plane_axes(frames), *extents))
     if left.share >= LEFTOVER_SHARE:
         failures.append(Failure(FailureKind.LEFTOVER_PLANE, left.share, LEFTOVER_SHARE, other=left.free))
     if ps < RELIABLE_PS and (ps := _hull_look(pts, seg, ps, int(sizes.sum()))) < RELIABLE_PS:
