@@ -72,14 +72,15 @@ def _correct(seg, labels: np.ndarray) -> set:
 
 def test_depth_frame_planes_found_along_rays(monkeypatch):
     """A generated depth frame (indoor_depth, a tuning seed) at t0 = 9 mm with depth_quadratic: the tolerance along
-    the rays finds every plane the tolerance across the plane finds, and more (floor 1: the band across)."""
-    from plane_validation.core import noise, scene_families
+    the rays finds every plane the tolerance across the plane finds (the search without a ray), and more."""
+    from plane_validation.core import scene_families
+    from plane_validation.core.search import detect
     from plane_validation.core.ransac import detect_planes
     scene = scene_families.indoor_depth(7)
     n = int(np.isfinite(scene.points).all(axis=1).sum())
     kwargs = dict(shape=scene.shape, noise_model='depth_quadratic', seed=0, max_planes=len(scene.planes) + 8,
                   min_inliers=min(int(0.0008 * n), scene.min_plane_points))
     along = _correct(detect_planes(scene.points, 0.009, **kwargs), scene.labels)
-    monkeypatch.setattr(noise, 'RAY_FLOOR', 1.0)
+    monkeypatch.setattr(detect, 'ray_band', lambda viewpoint, noise_model: kernels.NO_RAY)
     across = _correct(detect_planes(scene.points, 0.009, **kwargs), scene.labels)
     assert across < along, (across, along)
