@@ -74,8 +74,8 @@ def test_depth_frame_planes_found_along_rays(monkeypatch):
     """A generated depth frame (indoor_depth, a tuning seed) at t0 = 9 mm with depth_quadratic: the tolerance along
     the rays finds every plane the tolerance across the plane finds (the search without a ray), and more."""
     from plane_validation.core import scene_families
-    from plane_validation.core.search import detect
     from plane_validation.core.ransac import detect_planes
+    from plane_validation.core.search import detect
     scene = scene_families.indoor_depth(7)
     n = int(np.isfinite(scene.points).all(axis=1).sum())
     kwargs = dict(shape=scene.shape, noise_model='depth_quadratic', seed=0, max_planes=len(scene.planes) + 8,
