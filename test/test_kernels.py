@@ -43,12 +43,15 @@ def _image_case(seed: int, per_point: bool):
 
 
 @SETTINGS
-@given(st.integers(0, 2**32 - 1), st.booleans())
-def test_spread_grid_matches_numpy(seed, per_point):
-    """The labels, and each region's rows (ascending) with their squared distances to its plane, one after another."""
+@given(st.integers(0, 2**32 - 1), st.booleans(), st.booleans())
+def test_spread_grid_matches_numpy(seed, per_point, along_rays):
+    """The labels, and each region's rows (ascending) with their squared distances to its plane, one after another;
+    with a tolerance across each plane, and along each ray (depth_quadratic: noise.ray_band)."""
     case = _image_case(seed, per_point)
-    labels, rows, bounds, squares = spread_grid(*case)
-    ref_labels, ref_best = spread_grid_numpy(*case)
+    rng = np.random.default_rng(seed + 1)
+    ray = np.append(rng.normal(size=3), rng.uniform(0.05, 0.9)) if along_rays else kernels.NO_RAY
+    labels, rows, bounds, squares = spread_grid(*case, ray)
+    ref_labels, ref_best = spread_grid_numpy(*case, ray)
     np.testing.assert_array_equal(labels, ref_labels)
     assert labels.dtype == np.int32
     k = len(case[6])

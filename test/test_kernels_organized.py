@@ -132,14 +132,14 @@ def test_merge_pair_is_its_parts(seed):
     root = np.arange(len(found))
     normals = kernels.c_array(neighbours.normals, np.float64)
     args = (own, tol, src, dst, a, b, root, normals, 0.9, 0.95, 1.5)
-    same, normal, offset, members = kernels.merge_pair(search, region, i, j, *args, True)
+    same, normal, offset, members = kernels.merge_pair(search, region, i, j, *args, True, kernels.NO_RAY)
     expected = np.flatnonzero((region == i) | (region == j))
     np.testing.assert_array_equal(members, expected)
     ref_normal, ref_offset = kernels.fit_members(search, expected)
     np.testing.assert_array_equal(normal, ref_normal)
     assert offset == ref_offset
-    assert same == kernels.merge_test(search, expected, region, i, j, np.append(normal, offset), *args)
-    untested = kernels.merge_pair(search, region, i, j, *args, False)
+    assert same == kernels.merge_test(search, expected, region, i, j, np.append(normal, offset), *args, kernels.NO_RAY)
+    untested = kernels.merge_pair(search, region, i, j, *args, False, kernels.NO_RAY)
     assert untested[0] is False
     np.testing.assert_array_equal(untested[3], expected)
 

@@ -95,15 +95,18 @@ def _stripes_case(seed: int):
 
 
 @SETTINGS
-@given(st.integers(0, 2**32 - 1))
-def test_merge_test_keeps_the_numpy_merges(seed):
+@given(st.integers(0, 2**32 - 1), st.booleans())
+def test_merge_test_keeps_the_numpy_merges(seed, along_rays):
     """The coplanar merge with its fits and per-pair tests compiled (kernels.fit_members, kernels.merge_test) merges
     the same regions into the same planes as the numpy fits and tests (to the fits' rounding; an eigenvector's sign is
-    arbitrary)."""
+    arbitrary); with the tolerance across the planes, and along the rays (depth_quadratic: noise.ray_band)."""
+    from plane_validation.core import kernels
     from plane_validation.core.search.connected import _merge_coplanar, _merge_coplanar_numpy
     search, region, found, tolerance, neighbours = _stripes_case(seed)
-    same_merges(_merge_coplanar(search, region.copy(), found, tolerance, neighbours),
-                _merge_coplanar_numpy(search, region.copy(), found, tolerance, neighbours))
+    rng = np.random.default_rng(seed)
+    ray = np.append(rng.normal(size=3) * 5, rng.uniform(0.05, 0.9)) if along_rays else kernels.NO_RAY
+    same_merges(_merge_coplanar(search, region.copy(), found, tolerance, neighbours, None, ray),
+                _merge_coplanar_numpy(search, region.copy(), found, tolerance, neighbours, None, ray))
 
 
 def same_merges(got: tuple, ref: tuple) -> None:

@@ -78,7 +78,9 @@ def test_the_pipeline_keeps_ids_through_an_empty_frame_a_malformed_frame_and_a_p
     from plane_validation.app.pipeline import ERROR, WARN, FramePipeline, PipelineConfig
     from plane_validation.core.scenes import depth_camera
 
-    pipeline = FramePipeline(PipelineConfig(auto_tune=False, tolerance=0.004, seed=1, noise_model='depth_quadratic'))
+    # a t at which the search finds the room's walls in every frame: the ids are under test (with depth_quadratic's
+    # band along the rays, at 4-5 mm one frame's wall came back in pieces)
+    pipeline = FramePipeline(PipelineConfig(auto_tune=False, tolerance=0.006, seed=1, noise_model='depth_quadratic'))
     frames = [depth_camera('room', width=160, height=120, eye=(4.6 - 0.05 * k, 0.4, 1.5), seed=k)
               for k in range(4)]
     first = pipeline.process(frames[0].points, 10**9, shape=frames[0].shape)
@@ -86,7 +88,7 @@ def test_the_pipeline_keeps_ids_through_an_empty_frame_a_malformed_frame_and_a_p
     assert first.diagnostic.get('plane_ids') == ' '.join(map(str, first.plane_ids))
     assert pipeline.process(np.full((100, 3), np.nan), 2 * 10**9).level == WARN  # nothing valid: no planes
     assert pipeline.process(np.ones((5, 2)), 3 * 10**9).level == ERROR  # malformed
-    pipeline.reconfigure(dataclasses.replace(pipeline.config, tolerance=0.005))
+    pipeline.reconfigure(dataclasses.replace(pipeline.config, tolerance=0.007))
     later = [pipeline.process(f.points, (4 + k) * 10**9, shape=f.shape) for k, f in enumerate(frames[1:])]
 
     def big(result):  # id of each plane holding over 10 % of the points, by its normal

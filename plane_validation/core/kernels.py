@@ -1396,6 +1396,23 @@ def fold_line(u: np.ndarray, v: np.ndarray, w: np.ndarray, angles: int, offsets:
 _NUMPY_JIT = dict(_JIT, error_model='numpy')
 
 
+#: An empty ray (``ray`` argument of the search kernels): the tolerance is measured across the plane as given.
+NO_RAY = np.empty(0)
+
+
+@numba.njit(**_NUMPY_JIT)
+def _facing(x: float, y: float, z: float, nx: float, ny: float, nz: float, ray: np.ndarray) -> float:
+    """The share of a tolerance measured along the viewing ray that lies across the plane of unit normal (nx, ny, nz)
+    at the point (x, y, z): max(|n . u|, floor), u the unit ray from the viewpoint ``ray[:3]`` to the point and floor
+    ``ray[3]``; 1 for an empty ``ray`` (:data:`NO_RAY`). Range noise moves a point along its ray, so it moves it
+    |n . u| times as far from the plane."""
+    if ray.shape[0] == 0:
+        return 1.0
+    dx, dy, dz = x - ray[0], y - ray[1], z - ray[2]
+    along = abs(nx * dx + ny * dy + nz * dz) / np.sqrt(dx * dx + dy * dy + dz * dz)
+    return along if along > ray[3] else ray[3]  # NaN (a point at the viewpoint): the floor
+
+
 @numba.njit(**_NUMPY_JIT)
 def grid_sample(points: np.ndarray, finite: np.ndarray, width: int, step: int, offsets: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
@@ -1612,13 +1629,14 @@ def _coherent(normals: np.ndarray, p: int, nx: float, ny: float, nz: float, min_
 def merge_test(search: np.ndarray, members: np.ndarray, region: np.ndarray, i: int, j: int, plane: np.ndarray,
                own: np.ndarray, tolerance: np.ndarray, src: np.ndarray, dst: np.ndarray, region_src: np.ndarray,
                region_dst: np.ndarray, root: np.ndarray, normals: np.ndarray, min_cos: float, keep: float,
-               spread: float) -> bool:
+               spread: float, ray: np.ndarray) -> bool:
     """Whether the touching regions ``i`` < ``j`` are one surface with the joint ``plane`` (4,) (a, b, c, d) of their
     points ``members`` (c,) of ``search`` (3, m) meters: they touch (a pair ``src``, ``dst`` (e,) of points first in
     regions ``region_src``, ``region_dst`` (e,), now in ``root`` of those) where both points' ``normals`` (m, 3) agree
     with it (within ``min_cos``; (0, 3): none known); at least ``keep`` of the points lie within ``tolerance``
-    ((1,) or (m,) meters) of it; and their mean squared distance to it is at most ``spread`` squared times that to
-    their own region's plane (``own`` (2, 4): i's, j's; ``region`` (m,): each point's region)."""
+    ((1,) or (m,) meters) of it (times :func:`_facing` of ``ray``; with a ray, also at least ``keep`` of each
+    region's own); and their mean squared distance to it is at most ``spread`` squared times that to their own
+    region's plane (``own`` (2, 4): i's, j's; ``region`` (m,): each point's region)."""
     nx, ny, nz, d = plane[0], plane[1], plane[2], plane[3]
     touch = False
     for q in range(src.shape[0]):
@@ -1631,17 +1649,23 @@ def merge_test(search: np.ndarray, members: np.ndarray, region: np.ndarray, i: i
         return False
     per_point = tolerance.shape[0] > 1
     near = 0
+    near_i = count_i = 0
     joint = mine = 0.0
     for q in range(members.shape[0]):
         p = members[q]
         x, y, z = search[0, p], search[1, p], search[2, p]
         e = abs(nx * x + ny * y + nz * z + d)
-        near += e <= (tolerance[p] if per_point else tolerance[0])
+        within = e <= (tolerance[p] if per_point else tolerance[0]) * _facing(x, y, z, nx, ny, nz, ray)
+        near += within
         joint += e * e
         o = 0 if region[p] == i else 1
+        near_i += within and o == 0
+        count_i += o == 0
         e = own[o, 0] * x + own[o, 1] * y + own[o, 2] * z + own[o, 3]
         mine += e * e
     c = members.shape[0]
+    if ray.shape[0] > 0 and not (near_i >= keep * count_i and near - near_i >= keep * (c - count_i)):
+        return False  # along the rays, a region's own points must lie on the joint plane, however small it is
     return near >= keep * c and joint / c <= spread * spread * (mine / c)
 
 
@@ -2464,14 +2488,24 @@ def spread_among(values: np.ndarray, idx: np.ndarray) -> np.ndarray:
 
 @numba.njit(**_NUMPY_JIT)
 def _inliers_on(subset: np.ndarray, tolerance: np.ndarray, point_normals: np.ndarray, nx: float, ny: float, nz: float,
-                d: float, lo: int, hi: int, min_cos: float) -> int:
+                d: float, lo: int, hi: int, min_cos: float, ray: np.ndarray) -> int:
     """How many of the points ``lo``..``hi`` of ``subset`` (3, s) meters lie within ``tolerance`` ((1,) or (s,)
     meters) of the plane (nx, ny, nz, d) with a local normal (``point_normals`` (3, s), NaN: unknown; (3, 0): none
-    known) within ``min_cos`` of its normal."""
+    known) within ``min_cos`` of its normal; each tolerance times :func:`_facing` of ``ray``."""
     # loops from 0 over views: an index from a variable start could be negative, and its wraparound test
     # keeps the loop from being vectorized (about 15 times slower)
     x, y, z = subset[0, lo:hi], subset[1, lo:hi], subset[2, lo:hi]
     count = 0
+    if ray.shape[0] > 0:  # the tolerance along each ray: a loop of its own, the others stay vectorized
+        per_point = tolerance.shape[0] > 1
+        known = point_normals.shape[1] > 0
+        for p in range(x.shape[0]):
+            t = (tolerance[lo + p] if per_point else tolerance[0]) * _facing(x[p], y[p], z[p], nx, ny, nz, ray)
+            near = abs(nx * x[p] + ny * y[p] + nz * z[p] + d) <= t
+            coherent = not known or not abs(nx * point_normals[0, lo + p] + ny * point_normals[1, lo + p] +
+                                            nz * point_normals[2, lo + p]) < min_cos
+            count += np.int64(near) * np.int64(coherent)
+        return count
     if point_normals.shape[1] == 0:
         if tolerance.shape[0] > 1:
             tol = tolerance[lo:hi]
@@ -2507,7 +2541,7 @@ def _low_count(count: float, n: int, sigmas: float) -> float:
 @numba.njit(**_NUMPY_JIT)
 def score_hypotheses(subset: np.ndarray, tolerance: np.ndarray, point_normals: np.ndarray, normals: np.ndarray,
                      offsets: np.ndarray, head: int, min_cos: float, sigmas: float, best_normals: np.ndarray,
-                     best_offsets: np.ndarray, best_counts: np.ndarray, n_best: int) -> int:
+                     best_offsets: np.ndarray, best_counts: np.ndarray, n_best: int, ray: np.ndarray) -> int:
     """One batch of RANSAC hypotheses (``normals`` (h, 3), ``offsets`` (h,)) scored on the points ``subset`` (3, s)
     meters (see :func:`_inliers_on`) and merged into the best so far: ``best_normals`` (c, 3), ``best_offsets`` (c,),
     ``best_counts`` (c,), the first ``n_best`` of them held, most inliers first (equals: the earlier), updated in
@@ -2519,7 +2553,7 @@ def score_hypotheses(subset: np.ndarray, tolerance: np.ndarray, point_normals: n
     counts = np.empty(h, np.int64)
     for j in range(h):
         counts[j] = _inliers_on(subset, tolerance, point_normals, normals[j, 0], normals[j, 1], normals[j, 2],
-                                offsets[j], 0, head, min_cos)
+                                offsets[j], 0, head, min_cos, ray)
     if head < s:
         share = 0.0
         if n_best == confirm:
@@ -2530,7 +2564,7 @@ def score_hypotheses(subset: np.ndarray, tolerance: np.ndarray, point_normals: n
         for j in range(h):
             if counts[j] >= bar:
                 counts[j] += _inliers_on(subset, tolerance, point_normals, normals[j, 0], normals[j, 1],
-                                         normals[j, 2], offsets[j], head, s, min_cos)
+                                         normals[j, 2], offsets[j], head, s, min_cos, ray)
             else:
                 counts[j] = -1
     for j in range(h):
@@ -2724,7 +2758,7 @@ def _ahead(a: int, b: int, counts: np.ndarray, cost: np.ndarray) -> bool:
 
 @numba.njit(**_NUMPY_JIT)
 def _coherent_near(cols: np.ndarray, tolerance: np.ndarray, normal: np.ndarray, offset: float,
-                   point_normals: np.ndarray, min_cos: float) -> int:
+                   point_normals: np.ndarray, min_cos: float, ray: np.ndarray) -> int:
     """:func:`coherent_inliers` of the inliers of the plane (``normal`` (3,), ``offset``) among ``cols`` (3, r)
     meters (within ``tolerance``, (1,) or (r,) meters)."""
     per_point = tolerance.shape[0] > 1
@@ -2732,7 +2766,8 @@ def _coherent_near(cols: np.ndarray, tolerance: np.ndarray, normal: np.ndarray, 
     count = 0
     for q in range(cols.shape[1]):
         e = abs(nx * cols[0, q] + ny * cols[1, q] + nz * cols[2, q] + offset)
-        if e <= (tolerance[q] if per_point else tolerance[0]) and \
+        if e <= (tolerance[q] if per_point else tolerance[0]) * _facing(cols[0, q], cols[1, q], cols[2, q], nx, ny, nz,
+                                                                        ray) and \
                 not abs(nx * point_normals[0, q] + ny * point_normals[1, q] + nz * point_normals[2, q]) < min_cos:
             count += 1
     return count
@@ -2740,7 +2775,7 @@ def _coherent_near(cols: np.ndarray, tolerance: np.ndarray, normal: np.ndarray, 
 
 @numba.njit(**_NUMPY_JIT)
 def _msac_cost(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, j: int,
-               cost: np.ndarray, known: np.ndarray) -> float:
+               cost: np.ndarray, known: np.ndarray, ray: np.ndarray) -> float:
     """Hypothesis ``j``'s MSAC cost on ``cols`` (3, r) meters (see :func:`band_counts`), summed into ``cost`` (h,)
     the first time (``known`` (h,))."""
     if not known[j]:
@@ -2748,7 +2783,8 @@ def _msac_cost(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
         nx, ny, nz, d = normals[j, 0], normals[j, 1], normals[j, 2], offsets[j]
         total = 0.0
         for q in range(cols.shape[1]):
-            t = tolerance[q] if per_point else tolerance[0]
+            t = (tolerance[q] if per_point else tolerance[0]) * _facing(cols[0, q], cols[1, q], cols[2, q], nx, ny, nz,
+                                                                        ray)
             e = abs(nx * cols[0, q] + ny * cols[1, q] + nz * cols[2, q] + d)
             if e > t:
                 e = t
@@ -2758,7 +2794,7 @@ def _msac_cost(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
 
 
 @numba.njit(**_NUMPY_JIT)
-def _ranked(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray
+def _ranked(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, ray: np.ndarray
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The h hypotheses (``normals`` (h, 3), ``offsets`` (h,)) on the points ``cols`` (3, r) meters in the order the
     region kernels try them: by inliers (within ``tolerance``, (1,) or (r,) meters), then MSAC cost, as np.lexsort
@@ -2771,7 +2807,11 @@ def _ranked(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offset
     for j in range(h):  # band_counts' counts, without its masks
         nx, ny, nz, d = normals[j, 0], normals[j, 1], normals[j, 2], offsets[j]
         near = 0
-        if per_point:
+        if ray.shape[0] > 0:
+            for q in range(r):
+                t = (tolerance[q] if per_point else tolerance[0]) * _facing(x[q], y[q], z[q], nx, ny, nz, ray)
+                near += np.int64(abs(nx * x[q] + ny * y[q] + nz * z[q] + d) <= t)
+        elif per_point:
             for q in range(r):
                 near += np.int64(abs(nx * x[q] + ny * y[q] + nz * z[q] + d) <= tolerance[q])
         else:
@@ -2784,7 +2824,7 @@ def _ranked(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offset
     for j in range(h):
         for i in range(h):
             if i != j and counts[i] == counts[j]:
-                _msac_cost(cols, tolerance, normals, offsets, j, cost, known)
+                _msac_cost(cols, tolerance, normals, offsets, j, cost, known, ray)
     order = np.arange(h)
     for i in range(1, h):  # an insertion sort: stable, and h is a handful
         k = order[i]
@@ -3412,11 +3452,12 @@ def _row_run_components(pixels: np.ndarray, width: int, bridges: np.ndarray, cou
 @numba.njit(**_NUMPY_JIT)
 def _grid_band_region(cols: np.ndarray, tolerance: np.ndarray, support: float, nx: float, ny: float, nz: float,
                       offset: float, point_normals: np.ndarray, rest_pixel: np.ndarray, rest_usable: np.ndarray,
-                      width: int, bridges: np.ndarray, min_cos: float, rules: np.ndarray
+                      width: int, bridges: np.ndarray, min_cos: float, rules: np.ndarray, ray: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray]:
     """(kept, taken) (r,) bool: the region the plane (nx, ny, nz, ``offset``) keeps among the r points ``cols`` (3, r)
     meters of a sub-grid (``rest_pixel`` (r,) their pixels, ascending; ``rest_usable`` (r,) whether each may join a
-    region; ``point_normals`` (3, r)), as :func:`grid_region` gives it."""
+    region; ``point_normals`` (3, r)), as :func:`grid_region` gives it; each tolerance times :func:`_facing` of
+    ``ray``."""
     r = cols.shape[1]
     per_point = tolerance.shape[0] > 1
     band = np.empty(r, np.int64)  # the band's points (places in cols) that may join a region, ascending
@@ -3426,7 +3467,7 @@ def _grid_band_region(cols: np.ndarray, tolerance: np.ndarray, support: float, n
     n_band = 0
     for q in range(r):  # written for every point, kept for those in the band: no branch
         e = nx * cols[0, q] + ny * cols[1, q] + nz * cols[2, q] + offset
-        t = tolerance[q] if per_point else tolerance[0]
+        t = (tolerance[q] if per_point else tolerance[0]) * _facing(cols[0, q], cols[1, q], cols[2, q], nx, ny, nz, ray)
         cos = abs(point_normals[0, q] * nx + point_normals[1, q] * ny + point_normals[2, q] * nz)
         band[n_band] = q
         pixels[n_band] = rest_pixel[q]
@@ -3477,7 +3518,7 @@ def _grid_band_region(cols: np.ndarray, tolerance: np.ndarray, support: float, n
 @numba.njit(**_NUMPY_JIT)
 def _next_candidate(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
                     point_normals: np.ndarray, bound_cos: float, counts: np.ndarray, cost: np.ndarray,
-                    known: np.ndarray, order: np.ndarray, i: int, winner: int, size: int) -> int:
+                    known: np.ndarray, order: np.ndarray, i: int, winner: int, size: int, ray: np.ndarray) -> int:
     """The step of :func:`grid_plane`'s and :func:`graph_plane`'s search over the hypotheses ranked by
     :func:`_ranked` (``counts``, ``cost``, ``known``, ``order``) that decides on the i-th: its number when its region
     is to be found, -1 when it cannot beat the ``winner`` so far (a region of ``size`` points; by
@@ -3486,21 +3527,21 @@ def _next_candidate(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray
     if counts[j] <= size:
         return -2
     if size > 0:
-        bound = _coherent_near(cols, tolerance, normals[j], offsets[j], point_normals, bound_cos)
-        if bound < size or (bound == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) >=
-                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known)):
+        bound = _coherent_near(cols, tolerance, normals[j], offsets[j], point_normals, bound_cos, ray)
+        if bound < size or (bound == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known, ray) >=
+                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known, ray)):
             return -1
     return j
 
 
 @numba.njit(**_NUMPY_JIT)
 def _beats(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, cost: np.ndarray,
-           known: np.ndarray, kept: np.ndarray, j: int, winner: int, size: int) -> bool:
+           known: np.ndarray, kept: np.ndarray, j: int, winner: int, size: int, ray: np.ndarray) -> bool:
     """Whether hypothesis j's region ``kept`` (r,) beats the ``winner``'s of ``size`` points: larger, or as large
     at a lower MSAC cost (:func:`_msac_cost`)."""
     found = np.count_nonzero(kept)
-    return found > size or (found == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known) <
-                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known))
+    return found > size or (found == size and _msac_cost(cols, tolerance, normals, offsets, j, cost, known, ray) <
+                            _msac_cost(cols, tolerance, normals, offsets, winner, cost, known, ray))
 
 
 @numba.njit(**_NUMPY_JIT)
@@ -3518,27 +3559,27 @@ def _refit_kept(normal: np.ndarray, offset: float, region: np.ndarray, taken: np
 @numba.njit(**_NUMPY_JIT)
 def _grid_best(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, support: float,
                bound_cos: float, point_normals: np.ndarray, rest_pixel: np.ndarray, rest_usable: np.ndarray,
-               width: int, bridges: np.ndarray, min_cos: float, rules: np.ndarray
-               ) -> tuple[int, np.ndarray, np.ndarray]:
+               width: int, bridges: np.ndarray, min_cos: float, rules: np.ndarray, ray: np.ndarray,
+               rank_ray: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
     """Of the confirmed hypotheses, the one whose region is largest (see :func:`grid_plane`; ``rest_usable`` (r,):
     whether each point may join a region): (its number, region (r,), taken (r,)). Hypotheses are tried by inliers,
     then cost; none can keep more than its inliers, nor more than those whose normal lies within ``bound_cos`` of its
     own: such hypotheses are not labelled (a bound, so it changes no answer)."""
     h, r = normals.shape[0], cols.shape[1]
-    counts, cost, known, order = _ranked(cols, tolerance, normals, offsets)
+    counts, cost, known, order = _ranked(cols, tolerance, normals, offsets, rank_ray)
     winner, size = -1, -1
     region = taken = np.zeros(r, np.bool_)
     for i in range(h):
         j = _next_candidate(cols, tolerance, normals, offsets, point_normals, bound_cos, counts, cost, known, order,
-                            i, winner, size)
+                            i, winner, size, rank_ray)
         if j == -2:
             break
         if j < 0:
             continue
         kept, took = _grid_band_region(cols, tolerance, support, normals[j, 0], normals[j, 1], normals[j, 2],
                                        offsets[j], point_normals, rest_pixel, rest_usable, width, bridges, min_cos,
-                                       rules)
-        if _beats(cols, tolerance, normals, offsets, cost, known, kept, j, winner, size):
+                                       rules, ray)
+        if _beats(cols, tolerance, normals, offsets, cost, known, kept, j, winner, size, rank_ray):
             winner, region, taken, size = j, kept, took, np.count_nonzero(kept)
     return winner, region, taken
 
@@ -3555,31 +3596,31 @@ def _usable_at(usable: np.ndarray, rest_pixel: np.ndarray) -> np.ndarray:
 @numba.njit(**_NUMPY_JIT)
 def _grid_refit(cols: np.ndarray, region: np.ndarray, tolerance: np.ndarray, support: float,
                 point_normals: np.ndarray, rest_pixel: np.ndarray, rest_usable: np.ndarray, width: int,
-                bridges: np.ndarray, min_cos: float, rules: np.ndarray
+                bridges: np.ndarray, min_cos: float, rules: np.ndarray, ray: np.ndarray
                 ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
     """:func:`grid_refit` with the usable flags of the points (r,)."""
     normal, offset = fit_members(cols, np.flatnonzero(region))
     kept, took = _grid_band_region(cols, tolerance, support, normal[0], normal[1], normal[2], offset, point_normals,
-                                   rest_pixel, rest_usable, width, bridges, min_cos, rules)
+                                   rest_pixel, rest_usable, width, bridges, min_cos, rules, ray)
     return normal, offset, kept, took
 
 
 @numba.njit(**_NUMPY_JIT)
 def grid_refit(cols: np.ndarray, region: np.ndarray, tolerance: np.ndarray, support: float, point_normals: np.ndarray,
                rest_pixel: np.ndarray, usable: np.ndarray, width: int, bridges: np.ndarray, min_cos: float,
-               rules: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+               rules: np.ndarray, ray: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
     """The least-squares plane of the points ``region`` (r,) bool (at least one) of ``cols`` (3, r) meters and the
     region it keeps among them (the sub-grid arguments as :func:`grid_plane` takes them): (normal (3,), offset meters,
     region (r,), taken (r,))."""
     return _grid_refit(cols, region, tolerance, support, point_normals, rest_pixel, _usable_at(usable, rest_pixel),
-                       width, bridges, min_cos, rules)
+                       width, bridges, min_cos, rules, ray)
 
 
 @numba.njit(**_NUMPY_JIT)
 def grid_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, offsets: np.ndarray, support: float,
                bound_cos: float, point_normals: np.ndarray, rest_pixel: np.ndarray, usable: np.ndarray, width: int,
-               bridges: np.ndarray, min_cos: float, rules: np.ndarray, refits: int
-               ) -> tuple[int, np.ndarray, float, np.ndarray, np.ndarray]:
+               bridges: np.ndarray, min_cos: float, rules: np.ndarray, refits: int, ray: np.ndarray,
+               rank_ray: np.ndarray) -> tuple[int, np.ndarray, float, np.ndarray, np.ndarray]:
     """A RANSAC run's plane on a sub-grid's points ``cols`` (3, r) meters (their pixels ``rest_pixel`` (r,),
     ascending, on an image ``width`` wide with ``usable`` pixels and ``bridges`` (b, 3), as :func:`grid_components`
     takes them; their local normals ``point_normals`` (3, r), NaN where unknown): of the confirmed hypotheses
@@ -3588,18 +3629,19 @@ def grid_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
     component, or through the support band ``support`` times as wide by ``rules`` (FRAGMENTED, FRAGMENT_PIECE,
     SUPPORT_BALANCE)) is largest, equals by the lower MSAC cost (``bound_cos``: see :func:`_grid_best`); then up to
     ``refits`` least-squares refits on its region (:func:`grid_refit`), each kept while the region does not shrink,
-    until it stays the same (``hypotheses.best_region`` without an orientation constraint). Returns (the winner, the
+    until it stays the same (``hypotheses.best_region`` without an orientation constraint). Each tolerance is times
+    :func:`_facing` of ``ray`` in the regions and of ``rank_ray`` in ranking the hypotheses. Returns (the winner, the
     plane's normal (3,), offset meters, region (r,), taken (r,))."""
     rest_usable = _usable_at(usable, rest_pixel)
     winner, region, taken = _grid_best(cols, tolerance, normals, offsets, support, bound_cos, point_normals,
-                                       rest_pixel, rest_usable, width, bridges, min_cos, rules)
+                                       rest_pixel, rest_usable, width, bridges, min_cos, rules, ray, rank_ray)
     normal, offset = normals[winner].copy(), offsets[winner]
     for _ in range(refits):
         if np.count_nonzero(region) < 3:
             break
         new_normal, new_offset, new_region, new_taken = _grid_refit(cols, region, tolerance, support, point_normals,
                                                                     rest_pixel, rest_usable, width, bridges, min_cos,
-                                                                    rules)
+                                                                    rules, ray)
         more, normal, offset, region, taken = _refit_kept(normal, offset, region, taken, new_normal, new_offset,
                                                           new_region, new_taken)
         if not more:
@@ -3609,7 +3651,7 @@ def grid_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, off
 
 @numba.njit(**_NUMPY_JIT)
 def _ray_distance(search: np.ndarray, p: int, planes: np.ndarray, j: int, tolerance: np.ndarray,
-                  viewpoint: np.ndarray, min_cos: float) -> float:
+                  viewpoint: np.ndarray, min_cos: float, ray: np.ndarray) -> float:
     """:func:`compete_distances`' entry (j, p): point ``p``'s distance to plane ``j`` along its ray (inf for j = k, no
     region), the same arithmetic."""
     if j >= planes.shape[0]:
@@ -3618,7 +3660,8 @@ def _ray_distance(search: np.ndarray, p: int, planes: np.ndarray, j: int, tolera
     rx, ry, rz = x - viewpoint[0], y - viewpoint[1], z - viewpoint[2]
     size = _length(rx, ry, rz)
     rx, ry, rz = rx / size, ry / size, rz / size
-    tol = tolerance[p] if tolerance.shape[0] > 1 else tolerance[0]
+    tol = (tolerance[p] if tolerance.shape[0] > 1 else tolerance[0]) * \
+        _facing(x, y, z, planes[j, 0], planes[j, 1], planes[j, 2], ray)
     e = abs(planes[j, 0] * x + planes[j, 1] * y + planes[j, 2] * z + planes[j, 3])
     if e > tol:
         e = np.inf
@@ -3628,15 +3671,16 @@ def _ray_distance(search: np.ndarray, p: int, planes: np.ndarray, j: int, tolera
 
 @numba.njit(**_NUMPY_JIT)
 def grid_settle(search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, viewpoint: np.ndarray, min_cos: float,
-                region: np.ndarray, pixel: np.ndarray, node: np.ndarray, width: int, eight: np.ndarray, rounds: int
-                ) -> np.ndarray:
+                region: np.ndarray, pixel: np.ndarray, node: np.ndarray, width: int, eight: np.ndarray, rounds: int,
+                ray: np.ndarray) -> np.ndarray:
     """Border settling on a sub-grid (``Neighbours.settle``) by the distances along each point's ray of
     :func:`compete_distances` (``search`` (3, m) meters, ``planes`` (k, 4), ``tolerance`` (1,) or (m,) meters,
     ``viewpoint`` (3,), ``min_cos``), each worked out only where an offer compares it: ``region`` (m,) 0..k (k:
     none). Each round every point takes the region of an 8-neighbour (``eight``) whose plane is nearer than its own
     (the nearest; equals: the neighbour with the smaller index), all from the labels before the round; the first round
     looks at the points with a neighbour in another region, the next ones at the neighbours of the points that
-    changed. Returns the regions (m,), k for none."""
+    changed. A plane is within reach when within the tolerance times :func:`_facing` of ``ray``. Returns the regions
+    (m,), k for none."""
     m = region.shape[0]
     height = node.shape[0] // width
     region = region.copy()
@@ -3686,9 +3730,9 @@ def grid_settle(search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, v
                 if cand == region[dst]:
                     continue  # its own plane is never nearer than itself
                 if not known[dst]:
-                    best[dst] = _ray_distance(search, dst, planes, region[dst], tolerance, viewpoint, min_cos)
+                    best[dst] = _ray_distance(search, dst, planes, region[dst], tolerance, viewpoint, min_cos, ray)
                     known[dst] = True
-                d = _ray_distance(search, dst, planes, cand, tolerance, viewpoint, min_cos)
+                d = _ray_distance(search, dst, planes, cand, tolerance, viewpoint, min_cos, ray)
                 if not d < best[dst]:
                     continue
                 if offer_src[dst] < 0:
@@ -3711,7 +3755,7 @@ def grid_settle(search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, v
 @numba.njit(**_NUMPY_JIT)
 def merge_pair(search: np.ndarray, region: np.ndarray, i: int, j: int, own: np.ndarray, tolerance: np.ndarray,
                src: np.ndarray, dst: np.ndarray, region_src: np.ndarray, region_dst: np.ndarray, root: np.ndarray,
-               normals: np.ndarray, min_cos: float, keep: float, spread: float, test: bool
+               normals: np.ndarray, min_cos: float, keep: float, spread: float, test: bool, ray: np.ndarray
                ) -> tuple[bool, np.ndarray, float, np.ndarray]:
     """Two touching regions ``i`` < ``j`` of ``region`` (m,) of the points ``search`` (3, m) meters tried as one
     surface in one call: their points (ascending), their joint least-squares plane (:func:`fit_members`) and, with
@@ -3732,7 +3776,7 @@ def merge_pair(search: np.ndarray, region: np.ndarray, i: int, j: int, own: np.n
     plane[:3] = normal
     plane[3] = offset
     same = merge_test(search, members, region, i, j, plane, own, tolerance, src, dst, region_src, region_dst, root,
-                      normals, min_cos, keep, spread)
+                      normals, min_cos, keep, spread, ray)
     return same, normal, offset, members
 
 
@@ -3833,16 +3877,17 @@ def _grouped(labels: np.ndarray, best: np.ndarray, counts: np.ndarray, k: int
 
 @numba.njit(**_NUMPY_JIT)
 def grid_spread(points: np.ndarray, valid: np.ndarray, pixel: np.ndarray, region: np.ndarray, gh: int, gw: int,
-                near_r: np.ndarray, near_c: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, eight: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                near_r: np.ndarray, near_c: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, eight: np.ndarray,
+                ray: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Labels (N,) int32 of the pixels of an H x W image ``points`` (N, 3) meters from the regions ``region`` (m,)
     (-1: none) of the points at ``pixel`` (m,) of its gh x gw sub-grid, ``planes`` (k, 4) rows (a, b, c, d) in the
     coordinates of ``points``: a pixel takes the region of its nearest sub-grid pixel (``near_r`` (H,), ``near_c``
     (W,)) when within tolerance of its plane, else of the 8 sub-grid pixels around that one (``eight``, in order) the
     region whose plane is nearest within tolerance (a strictly nearer one wins a tie); -1 otherwise. ``valid`` (N,)
-    bool: finite rows; ``tolerance``: (1,) or (N,) meters. Also each region's rows, ascending, one after another
-    (rows (c,) int64, bounds (k + 1,) int64: region j's are rows[bounds[j]:bounds[j + 1]]) and their squared
-    distances to its plane (c,) m^2 in the same order (:func:`label_rows` of the labels and those distances)."""
+    bool: finite rows; ``tolerance``: (1,) or (N,) meters, times :func:`_facing` of ``ray``. Also each region's
+    rows, ascending, one after another (rows (c,) int64, bounds (k + 1,) int64: region j's are
+    rows[bounds[j]:bounds[j + 1]]) and their squared distances to its plane (c,) m^2 in the same order
+    (:func:`label_rows` of the labels and those distances)."""
     h, w = near_r.shape[0], near_c.shape[0]
     k = planes.shape[0]
     per_point = tolerance.shape[0] > 1
@@ -3880,7 +3925,7 @@ def grid_spread(points: np.ndarray, valid: np.ndarray, pixel: np.ndarray, region
                     if lab != held:
                         held, pa, pb, pc, pd = lab, planes[lab, 0], planes[lab, 1], planes[lab, 2], planes[lab, 3]
                     d = abs(pa * x + pb * y + pc * z + pd)
-                    if d <= tol:
+                    if d <= tol * _facing(x, y, z, pa, pb, pc, ray):
                         out, nearest = lab, d
                 if out < 0:
                     if n_cand[cell] < 0:
@@ -3888,7 +3933,8 @@ def grid_spread(points: np.ndarray, valid: np.ndarray, pixel: np.ndarray, region
                     for q in range(n_cand[cell]):
                         lab = cand[cell, q]
                         d = abs(planes[lab, 0] * x + planes[lab, 1] * y + planes[lab, 2] * z + planes[lab, 3])
-                        if d <= tol and d < nearest:
+                        if d <= tol * _facing(x, y, z, planes[lab, 0], planes[lab, 1], planes[lab, 2], ray) and \
+                                d < nearest:
                             out, nearest = lab, d
                 best[i] = nearest
             labels[i] = out
@@ -3939,7 +3985,7 @@ def grid_batch(cols: np.ndarray, spread: np.ndarray, first: np.ndarray, scale_pi
                col_share: np.ndarray, scales: np.ndarray, rest: np.ndarray, position: np.ndarray, pixel: np.ndarray,
                node: np.ndarray, height: int, width: int, min_sine: float, subset: np.ndarray, tolerance: np.ndarray,
                point_normals: np.ndarray, head: int, min_cos: float, sigmas: float, best_normals: np.ndarray,
-               best_offsets: np.ndarray, best_counts: np.ndarray, n_best: int) -> int:
+               best_offsets: np.ndarray, best_counts: np.ndarray, n_best: int, ray: np.ndarray) -> int:
     """One batch of RANSAC hypotheses on a sub-grid's points ``cols`` (3, r) meters, scored: the triples ``spread``
     (c, 3) drawn from all of them and those drawn near ``first`` (:func:`grid_triples`, the draws and the sub-grid as
     it takes them), without those with a point it did not find, then their planes (:func:`triple_planes`,
@@ -3957,7 +4003,7 @@ def grid_batch(cols: np.ndarray, spread: np.ndarray, first: np.ndarray, scale_pi
     if normals.shape[0] == 0:
         return n_best
     return score_hypotheses(subset, tolerance, point_normals, normals, offsets, head, min_cos, sigmas, best_normals,
-                            best_offsets, best_counts, n_best)
+                            best_offsets, best_counts, n_best, ray)
 
 
 # --- plain graph: subgraphs and border settling ---
@@ -4062,19 +4108,20 @@ def graph_plane(cols: np.ndarray, tolerance: np.ndarray, normals: np.ndarray, of
     largest, then up to ``refits`` least-squares refits on its region. Returns (the winner, the plane's normal (3,),
     offset meters, region (r,), taken (r,))."""
     h, r = normals.shape[0], cols.shape[1]
-    counts, cost, known, order = _ranked(cols, tolerance, normals, offsets)
+    rank_ray = np.empty(0)
+    counts, cost, known, order = _ranked(cols, tolerance, normals, offsets, rank_ray)
     winner, size = -1, -1
     region = taken = np.zeros(r, np.bool_)
     for i in range(h):  # Remaining.best's loop
         j = _next_candidate(cols, tolerance, normals, offsets, point_normals, bound_cos, counts, cost, known, order,
-                            i, winner, size)
+                            i, winner, size, rank_ray)
         if j == -2:
             break
         if j < 0:
             continue
         kept, took = _graph_plane_region(cols, tolerance, support, normals[j], offsets[j], point_normals, ends,
                                          edge_rows, min_cos, rules)
-        if _beats(cols, tolerance, normals, offsets, cost, known, kept, j, winner, size):
+        if _beats(cols, tolerance, normals, offsets, cost, known, kept, j, winner, size, rank_ray):
             winner, region, taken, size = j, kept, took, np.count_nonzero(kept)
     normal, offset = normals[winner].copy(), offsets[winner]
     for _ in range(refits):  # hypotheses.best_region's
@@ -4374,7 +4421,7 @@ def _warm_planes() -> None:
     pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
     cols, plane, edges = np.zeros((3, 4)), np.zeros(4), np.zeros(1, np.int64)
     merge_test(cols, index, index, 0, 1, plane, np.zeros((2, 4)), np.ones(1), edges, edges, edges, edges, index, pts,
-               0.5, 0.95, 1.5)
+               0.5, 0.95, 1.5, NO_RAY)
     compete_distances(cols, np.zeros((1, 4)), np.ones(1), np.zeros(3), 0.25)
     band_counts(plane_bands(cols, np.ones((2, 3)), np.zeros(2))[0], np.ones(1), 2.0)
     triple_planes(cols, np.zeros((2, 3), np.int64), 1e-6)
@@ -4560,7 +4607,7 @@ def _warm_fits() -> None:
     flags, index = np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
     cols, codes = np.zeros((3, 4)), np.array([0, -1, 0, 1], np.int64)
     best = np.zeros((2, 3)), np.zeros(2), np.zeros(2, np.int64)
-    score_hypotheses(cols, np.ones(1), np.empty((3, 0)), np.ones((2, 3)), np.zeros(2), 2, 0.5, 3.0, *best, 0)
+    score_hypotheses(cols, np.ones(1), np.empty((3, 0)), np.ones((2, 3)), np.zeros(2), 2, 0.5, 3.0, *best, 0, NO_RAY)
     spread_test(cols, index, True, 1e-6)
     fit_members(cols, index)
     fit_mask(cols, flags)
@@ -4599,14 +4646,14 @@ def _warm_organized_detect() -> None:
     flags, index, cols = np.ones(4, np.bool_), np.arange(4, dtype=np.int64), np.zeros((3, 4))
     bridges = np.zeros((1, 3), np.int64)
     plane = grid_plane(cols, np.ones(1), np.ones((2, 3)), np.zeros(2), 2.0, 0.5, cols, index, flags, 2, bridges, 0.5,
-                       np.ones(3), 3)
-    grid_refit(cols, plane[3], np.ones(1), 2.0, cols, index, flags, 2, bridges, 0.5, np.ones(3))
+                       np.ones(3), 3, NO_RAY, NO_RAY)
+    grid_refit(cols, plane[3], np.ones(1), 2.0, cols, index, flags, 2, bridges, 0.5, np.ones(3), NO_RAY)
     grid_settle(cols, np.zeros((1, 4)), np.ones(1), np.zeros(3), 0.25, np.zeros(4, np.int64), index, index, 2, EIGHT,
-                2)
+                2, NO_RAY)
     edges = np.zeros(1, np.int64)
     for known in (np.zeros((4, 3)), np.empty((0, 3))):  # the grid's normals, and none known
         merge_pair(cols, index, 0, 1, np.zeros((2, 4)), np.ones(1), edges, edges, edges, edges, index, known, 0.5, 0.95,
-                   1.5, True)
+                   1.5, True, NO_RAY)
 
 
 def _warm_frame_ids() -> None:
@@ -4632,13 +4679,13 @@ def _warm_leftover() -> None:
 def _warm_organized_batch() -> None:
     pts, flags, index = np.zeros((4, 3)), np.ones(4, np.bool_), np.arange(4, dtype=np.int64)
     lines = np.zeros(2, np.int64)
-    grid_spread(pts, flags, index[:1], index[:1], 1, 1, lines, lines, np.zeros((1, 4)), np.ones(1), EIGHT)
+    grid_spread(pts, flags, index[:1], index[:1], 1, 1, lines, lines, np.zeros((1, 4)), np.ones(1), EIGHT, NO_RAY)
     strided_rows(flags, 4, 2)
     columns_at(pts, index, np.zeros(3))
     cols, best = np.zeros((3, 4)), (np.zeros((2, 3)), np.zeros(2), np.zeros(2, np.int64))
     grid_batch(cols, index.reshape(-1, 2)[:, :1].repeat(3, axis=1), index[:2], index % 2, np.zeros(4), np.zeros(4),
                np.ones(2, np.int64), index, index, index, index, 2, 2, 1e-6, cols, np.ones(1), cols, 2, 0.5, 3.0, *best,
-               0)
+               0, NO_RAY)
 
 
 def _warm_plain_graph() -> None:

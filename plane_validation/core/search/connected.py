@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import kernels
+from ..noise import ray_share
 from .checks import resolve_min_inliers
 from .fit import allows_normal, canonical, fit_columns, plane_distances, plane_rows, refit_regions, tolerance_at
 from .folds import settle_folds, split_folds, split_terraces
@@ -31,9 +32,10 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
                    probability: float, max_iterations: int, rng: np.random.Generator,
                    ransac_points: int | None, shape: tuple[int, int] | None,
                    graph: SearchGraph | None, viewpoint: np.ndarray, grid_points: int | None,
-                   allows: Allows = None) -> Segmentation:
+                   allows: Allows = None, ray: np.ndarray = kernels.NO_RAY) -> Segmentation:
     """detect_planes with connected regions (see its docstring) on the checked points ``pts`` (N, 3) meters, whose
-    finite rows are ``finite`` (N,)."""
+    finite rows are ``finite`` (N,); ``ray``: :func:`.noise.ray_band` (kernels.NO_RAY: the tolerance across each
+    plane)."""
     n_valid = int(np.count_nonzero(finite))
     min_count = resolve_min_inliers(min_inliers, n_valid)
     graph = checked_search_graph(graph, pts, finite, shape, ransac_points, rng, viewpoint, grid_points)
@@ -42,15 +44,17 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
                                 kernels.c_array(center, np.float64))  # (3, m)
     search_min = max(3, int(np.ceil(min_count * len(search_idx) / max(n_valid, 1))))
     search_tolerance = tolerance_at(tolerance, search_idx)
+    centred = _centred(ray, center)
     found, reason, region, capped = sequential_search(search, search_tolerance, max_planes, search_min, probability,
                                                       max_iterations, rng, n_total=n_valid, neighbours=neighbours,
-                                                      allows=allows)
+                                                      allows=allows, ray=centred)
     if not found:
         return Segmentation(labels=np.full(len(pts), -1, dtype=np.int32), planes=(), tolerance=tolerance,
                             n_valid=n_valid, reason=reason)
     # each region's plane refitted on its own points, the borders settled by nearest plane, one surface's regions merged
     searched = len(found)
-    region, found = _settled(search, region, found, search_tolerance, neighbours, viewpoint - center, allows)
+    region, found = _settled(search, region, found, search_tolerance, neighbours, viewpoint - center, allows,
+                             centred)
     for _ in range(RESUME_ROUNDS):
         # the merges freed some of the max_planes: the search goes on over the points left, as a search that had not
         # spent them on pieces of one surface would have (a noisy far wall's pieces left a room's boxes unsearched)
@@ -58,13 +62,13 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
             break
         more, more_reason, more_region, capped = sequential_search(
             search, search_tolerance, max_planes - len(found), search_min, probability, max_iterations, rng,
-            n_total=n_valid, neighbours=neighbours, allows=allows, start=np.flatnonzero(region < 0))
+            n_total=n_valid, neighbours=neighbours, allows=allows, start=np.flatnonzero(region < 0), ray=centred)
         reason, searched = more_reason, searched + len(more)
         if not more:
             break
         region = np.where(more_region >= 0, more_region + len(found), region)
         region, found = _settled(search, region, found + more, search_tolerance, neighbours, viewpoint - center,
-                                 allows)
+                                 allows, centred)
     if len(found) < searched:
         reason += f'; merged {searched - len(found)} region(s) into another region of the same surface'
     region, found, (ridges, tents) = split_folds(search, region, found, search_tolerance, max_planes, search_min,
@@ -79,7 +83,8 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
     region, found = settle_folds(search, region, found, search_tolerance, neighbours, allows)
     if step:
         uncentred = [(normal, offset - float(normal @ center)) for normal, offset in found]
-        labels, rows, bounds, squares = spread_grid(pts, finite, shape, step, region, neighbours, uncentred, tolerance)
+        labels, rows, bounds, squares = spread_grid(pts, finite, shape, step, region, neighbours, uncentred, tolerance,
+                                                    ray)
     elif len(search_idx) == n_valid:
         labels = np.full(len(pts), -1, dtype=np.int32)
         own = np.where(region >= 0, region, 0)
@@ -117,6 +122,14 @@ def detect_regions(pts: np.ndarray, finite: np.ndarray, tolerance: Tolerance, ma
                         capped=capped)
 
 
+def _centred(ray: np.ndarray, center: np.ndarray) -> np.ndarray:
+    """The ``ray`` of :func:`.noise.ray_band` (4,) with its viewpoint in the coordinates of points less ``center``
+    (3,); kernels.NO_RAY as is."""
+    if len(ray) == 0:
+        return ray
+    return np.append(ray[:3] - center, ray[3])
+
+
 def _members(labels: np.ndarray, k: int, residual: np.ndarray | None
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """The rows of each of the ``k`` regions of ``labels`` (N,), ascending, one after another, and where each
@@ -138,19 +151,20 @@ MERGE_SPREAD = 1.5
 
 
 def _settled(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance, neighbours: Neighbours,
-             viewpoint: np.ndarray, allows: Allows) -> tuple[np.ndarray, list]:
+             viewpoint: np.ndarray, allows: Allows, ray: np.ndarray = kernels.NO_RAY) -> tuple[np.ndarray, list]:
     """(region, found) of the searched points ``search`` (3, m) m after each region's plane is refitted on its own
     points, the borders settled by nearest plane (``viewpoint`` (3,) m, centred as ``search``) and the regions of
     one surface merged, touching or apart (:func:`_merge_coplanar`, :func:`.occluded.merge_occluded`)."""
     found = refit_regions(search, region, found, allows)
-    region = _compete(search, region, found, tolerance, neighbours, viewpoint)
+    region = _compete(search, region, found, tolerance, neighbours, viewpoint, ray)
     found = refit_regions(search, region, found, allows)
-    region, found = _merge_coplanar(search, region, found, tolerance, neighbours, allows)
+    region, found = _merge_coplanar(search, region, found, tolerance, neighbours, allows, ray)
     return merge_occluded(search, region, found, tolerance, viewpoint, MERGE_KEEP, MERGE_SPREAD, allows)
 
 
 def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance,
-                    neighbours: Neighbours, allows: Allows = None) -> tuple[np.ndarray, list]:
+                    neighbours: Neighbours, allows: Allows = None, ray: np.ndarray = kernels.NO_RAY
+                    ) -> tuple[np.ndarray, list]:
     """Merge touching regions of one surface: a pair of regions joined by a neighbour pair whose
     joint least-squares plane has MERGE_KEEP of their points (3, m) within ``tolerance`` becomes one
     region (the earlier one's number), with that plane. Regions renumbered in order. Each pair's points, fit and tests
@@ -177,12 +191,13 @@ def _merge_coplanar(search: np.ndarray, region: np.ndarray, found: list, toleran
         # one call finds their points, fits them and tests the fit; with an orientation constraint, the test waits
         # for it
         same, normal, offset, members = kernels.merge_pair(cols, region, i, j, own, tol, src, dst, a, b, root, normals,
-                                                           NORMAL_MIN_COS, MERGE_KEEP, MERGE_SPREAD, allows is None)
+                                                           NORMAL_MIN_COS, MERGE_KEEP, MERGE_SPREAD, allows is None,
+                                                           ray)
         if allows is not None:
             if not allows_normal(allows, normal):
                 continue  # their joint plane leaves the orientation constraint
             same = kernels.merge_test(cols, members, region, i, j, plane_rows([(normal, offset)])[0], own, tol, src,
-                                      dst, a, b, root, normals, NORMAL_MIN_COS, MERGE_KEEP, MERGE_SPREAD)
+                                      dst, a, b, root, normals, NORMAL_MIN_COS, MERGE_KEEP, MERGE_SPREAD, ray)
         if not same:
             continue
         region[members] = i
@@ -203,7 +218,8 @@ def _renumbered(region: np.ndarray, found: list, root: np.ndarray) -> tuple[np.n
 
 
 def _merge_coplanar_numpy(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance,
-                          neighbours: Neighbours, allows: Allows = None) -> tuple[np.ndarray, list]:
+                          neighbours: Neighbours, allows: Allows = None, ray: np.ndarray = kernels.NO_RAY
+                          ) -> tuple[np.ndarray, list]:
     """Merge touching regions of one surface: a pair of regions joined by a neighbour pair whose
     joint least-squares plane has MERGE_KEEP of their points (3, m) within ``tolerance`` becomes one
     region (the earlier one's number), with that plane. Regions renumbered in order. The reference of
@@ -235,7 +251,11 @@ def _merge_coplanar_numpy(search: np.ndarray, region: np.ndarray, found: list, t
         joint = plane_distances(cols, normal[None, :], np.array([offset]))[0]
         on_i = region[members] == i
         own = np.where(on_i, found[i][0] @ cols + found[i][1], found[j][0] @ cols + found[j][1])
-        if np.count_nonzero(joint <= tolerance_at(tolerance, members)) >= MERGE_KEEP * cols.shape[1] and \
+        near = joint <= tolerance_at(tolerance, members) * ray_share(cols.T, normal[None, :], ray)[0]
+        if len(ray) and not (np.count_nonzero(near[on_i]) >= MERGE_KEEP * np.count_nonzero(on_i) and
+                             np.count_nonzero(near[~on_i]) >= MERGE_KEEP * np.count_nonzero(~on_i)):
+            continue  # along the rays, each region's own points must lie on the joint plane
+        if np.count_nonzero(near) >= MERGE_KEEP * cols.shape[1] and \
                 np.mean(joint ** 2) <= MERGE_SPREAD ** 2 * np.mean(own ** 2):
             region[points_of[j]] = i
             points_of[i], points_of[j] = members, members[:0]
@@ -258,7 +278,7 @@ GRAZING_DEG = 75.0
 
 
 def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tolerance,
-             neighbours: Neighbours, viewpoint: np.ndarray) -> np.ndarray:
+             neighbours: Neighbours, viewpoint: np.ndarray, ray: np.ndarray = kernels.NO_RAY) -> np.ndarray:
     """Settle the borders between regions: each searched point (3, m) takes, of its own region and
     its neighbours' regions (8 image neighbours, or graph neighbours), the one whose plane within
     ``tolerance`` its ray from ``viewpoint`` (3,) meets nearest (see GRAZING_DEG), so a strip that
@@ -271,7 +291,7 @@ def _compete(search: np.ndarray, region: np.ndarray, found: list, tolerance: Tol
     tol = kernels.c_array(np.reshape(tolerance, -1), np.float64)  # (1,) or (m,)
     return neighbours.settle_planes(kernels.c_array(search, np.float64), planes, tol,
                                     kernels.c_array(viewpoint, np.float64), float(np.cos(np.radians(GRAZING_DEG))),
-                                    np.where(region >= 0, region, len(found)))
+                                    np.where(region >= 0, region, len(found)), ray)
 
 
 def _compete_distances_numpy(search: np.ndarray, found: list, tolerance: Tolerance, viewpoint: np.ndarray

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 
 from ..interrupts import keeps_interrupts
-from ..noise import NOISE_REFERENCE, tolerance_scale
+from ..noise import NOISE_REFERENCE, ray_band, tolerance_scale
 from ..orientation import Orientation
 from ..params import GRID_POINTS, MAX_ITERATIONS, MAX_PLANES, MIN_INLIERS, PROBABILITY, RANSAC_POINTS
 from .checks import (
@@ -68,7 +68,8 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX
     graph: the :func:`search_graph` of these points, shape, ransac_points and grid_points, to reuse across calls
         on one cloud (a tolerance sweep); None builds it here.
     noise_model: 'constant', or 'depth_quadratic': a point at range r from the sensor is within
-        t * max(1, (r / noise_reference)^2) of a plane (:mod:`.noise`).
+        t * max(1, (r / noise_reference)^2) of a plane (:mod:`.noise`), measured along its viewing ray in the
+        connected-regions search (times max(|n . u|, RAY_FLOOR): :func:`.noise.ray_band`).
     viewpoint: (3,) meters, where the sensor is in the cloud's frame (default the origin, as a driver
         publishes a scan): ranges for the noise model, the rays along which the neighbourhood
         graph of an unorganized cloud tells a spinning lidar's rings (:func:`.regions.graph_neighbours`), and
@@ -121,7 +122,7 @@ def detect_planes(points: np.ndarray, tolerance: float, *, max_planes: int = MAX
     rng = generator(seed)
     if connectivity:
         seg = detect_regions(pts, finite, point_tolerance, max_planes, min_inliers, probability, int(max_iterations),
-                             rng, ransac_points, shape, graph, view, grid_points, allows)
+                             rng, ransac_points, shape, graph, view, grid_points, allows, ray_band(view, noise_model))
     else:
         seg = detect_infinite(pts, point_tolerance, max_planes, min_inliers, probability, int(max_iterations), rng,
                               ransac_points, allows)

@@ -7,7 +7,8 @@ import functools
 import numpy as np
 
 from .. import kernels
-from .fit import plane_rows, tolerance_at
+from ..noise import ray_share
+from .fit import plane_rows
 from .neighbours_grid import EIGHT, GridNeighbours
 from .types import Tolerance
 
@@ -84,7 +85,7 @@ def grid_image_numpy(points: np.ndarray, finite: np.ndarray, shape: tuple[int, i
 
 
 def spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
-                neighbours: GridNeighbours, planes: list, tolerance: Tolerance
+                neighbours: GridNeighbours, planes: list, tolerance: Tolerance, ray: np.ndarray = kernels.NO_RAY
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Labels (N,) of every pixel of the image ``pts`` (N, 3; ``valid`` (N,): its finite rows) from
     the regions of the searched sub-grid: the region of the nearest sub-grid pixel when the pixel is
@@ -97,7 +98,7 @@ def spread_grid(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step
     tol = kernels.c_array(np.reshape(tolerance, -1), np.float64)  # (1,) or (N,)
     return kernels.grid_spread(kernels.c_array(pts, np.float64), kernels.c_array(valid, bool),
                                kernels.c_array(neighbours.pixel, np.int64), kernels.c_array(region, np.int64),
-                               *neighbours.shape, near_r, near_c, plane_rows(planes), tol, kernels.EIGHT)
+                               *neighbours.shape, near_r, near_c, plane_rows(planes), tol, kernels.EIGHT, ray)
 
 
 def _nearest_lines(shape: tuple[int, int], step: int, grid_shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
@@ -119,7 +120,8 @@ def _sub_regions(shape: tuple[int, int], step: int, region: np.ndarray, neighbou
 
 
 def spread_grid_numpy(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int], step: int, region: np.ndarray,
-                      neighbours: GridNeighbours, planes: list, tolerance: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+                      neighbours: GridNeighbours, planes: list, tolerance: Tolerance, ray: np.ndarray = kernels.NO_RAY
+                      ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`spread_grid`'s labels in numpy, and each pixel's distance to its label's plane (N,) meters (inf for
     none): the reference its kernel is tested against."""
     h, w = shape
@@ -132,20 +134,22 @@ def spread_grid_numpy(pts: np.ndarray, valid: np.ndarray, shape: tuple[int, int]
     np.abs(dist[:k], out=dist[:k])
     dist[k] = np.inf
     flat = dist.reshape(-1)
+    share = np.ones((k + 1, n))  # the share of each pixel's tolerance across each plane (row k: no region)
+    share[:k] = ray_share(pts, np.array([p[0] for p in planes]), ray)
+    band = (share * np.reshape(tolerance, (1, -1))).reshape(-1)  # (k + 1) * n: each pixel's tolerance for each plane
     # the nearest sub-grid pixel first, as whole images: most pixels take its region
     lab = sub.take(near_r, axis=0).take(near_c, axis=1).reshape(-1)
     d = flat[lab * n + np.arange(n)]
-    take = d <= tolerance
+    take = d <= band[lab * n + np.arange(n)]
     out = np.where(take, lab, -1).astype(np.int32)
     best = np.where(take, d, np.inf)
     todo = np.flatnonzero(~take & valid)  # valid pixels left
-    todo_tolerance = tolerance_at(tolerance, todo)
     r, c = np.divmod(todo, w)
     around = np.pad(sub, 1, constant_values=k).reshape(-1)  # off the image: no region
     centre = (near_r[r] + 1) * (gw + 2) + near_c[c] + 1
     for dr, dc in EIGHT:  # the rest: the eight sub-grid pixels around the nearest one
         lab = around[centre + dr * (gw + 2) + dc]
         d = flat[lab * n + todo]
-        better = (d <= todo_tolerance) & (d < best[todo])
+        better = (d <= band[lab * n + todo]) & (d < best[todo])
         out[todo[better]], best[todo[better]] = lab[better], d[better]
     return out, best

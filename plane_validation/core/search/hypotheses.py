@@ -226,7 +226,8 @@ class _CompiledScores:
     connected-regions search."""
 
     def __init__(self, ordered: np.ndarray, tolerance: Tolerance, point_normals: np.ndarray | None, pick: np.ndarray,
-                 head: int):
+                 head: int, ray: np.ndarray = kernels.NO_RAY):
+        self.ray = ray
         self.subset = ordered.take(pick, axis=1)  # C-ordered: a gather (take: several times faster than [:, pick])
         self.tolerance = _tolerances(tolerance_at(tolerance, pick))
         self.normals = _NO_NORMALS if point_normals is None else \
@@ -240,7 +241,7 @@ class _CompiledScores:
         self.held = kernels.score_hypotheses(self.subset, self.tolerance, self.normals,
                                              kernels.c_array(normals, np.float64), kernels.c_array(offsets, np.float64),
                                              self.head, NORMAL_MIN_COS, PRESCORE_SIGMAS, self.best_normals,
-                                             self.best_offsets, self.best_counts, self.held)
+                                             self.best_offsets, self.best_counts, self.held, self.ray)
         return self.best_counts[:self.held]
 
     def add_drawn(self, cols: np.ndarray, rng: np.random.Generator, count: int, sampler: GridSampler) -> np.ndarray:
@@ -249,7 +250,7 @@ class _CompiledScores:
         spread, local = _spread(cols, rng, count)
         self.held = kernels.grid_batch(cols, spread, *sampler.draws(rng, local), *sampler.grid, MIN_SINE, self.subset,
                                        self.tolerance, self.normals, self.head, NORMAL_MIN_COS, PRESCORE_SIGMAS,
-                                       self.best_normals, self.best_offsets, self.best_counts, self.held)
+                                       self.best_normals, self.best_offsets, self.best_counts, self.held, self.ray)
         return self.best_counts[:self.held]
 
     def counts(self) -> np.ndarray:
@@ -280,8 +281,8 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
     pick = _shuffled(m) if m <= SUBSET else rng.choice(m, SUBSET, replace=False)
     scored = len(pick)
     head = PRESCORE if scored > 2 * PRESCORE else scored
-    scorer = _CompiledScores(ordered, tolerance, point_normals, pick, head) if region_of is not None else \
-        _NumpyScores(cols, tolerance, point_normals, pick, head)
+    scorer = _NumpyScores(cols, tolerance, point_normals, pick, head) if region_of is None else \
+        _CompiledScores(ordered, tolerance, point_normals, pick, head, getattr(region_of, 'ray', kernels.NO_RAY))
     best_counts = scorer.counts()
     drawn = isinstance(scorer, _CompiledScores) and isinstance(sampler, GridSampler) and allows is None
     iterations = 0

@@ -235,7 +235,7 @@ class Neighbours(ABC):
         of its own and its neighbours' regions, the one nearest by ``dist`` (k + 1, m); -1 for none."""
 
     def settle_planes(self, search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, viewpoint: np.ndarray,
-                      min_cos: float, region: np.ndarray) -> np.ndarray:
+                      min_cos: float, region: np.ndarray, ray: np.ndarray = kernels.NO_RAY) -> np.ndarray:
         """:meth:`settle` by the distances :func:`.kernels.compete_distances` gives for the points ``search`` (3, m)
         meters, ``planes`` (k, 4), ``tolerance`` (1,) or (m,) meters, ``viewpoint`` (3,) and ``min_cos``; a form may
         work out only the distances it compares (the grid's does)."""

@@ -9,7 +9,7 @@ from the regions around them). Components come from ``scipy.ndimage.label``.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -179,11 +179,11 @@ class GridNeighbours(Neighbours):
         return settle_numpy(dist, region, self)
 
     def settle_planes(self, search: np.ndarray, planes: np.ndarray, tolerance: np.ndarray, viewpoint: np.ndarray,
-                      min_cos: float, region: np.ndarray) -> np.ndarray:
+                      min_cos: float, region: np.ndarray, ray: np.ndarray = kernels.NO_RAY) -> np.ndarray:
         """One compiled call (:func:`.kernels.grid_settle`, which works out only the distances it compares;
         :func:`.neighbours.settle_numpy` is its reference)."""
         region = kernels.grid_settle(search, planes, tolerance, viewpoint, min_cos, region, self.pixel, self.node,
-                                         self.shape[1], EIGHT, COMPETE_ROUNDS)
+                                         self.shape[1], EIGHT, COMPETE_ROUNDS, ray)
         return np.where(region < len(planes), region, -1)
 
 
@@ -214,6 +214,9 @@ class _GridRemaining(Remaining):
 
     neighbours: GridNeighbours
     rest_idx: np.ndarray
+    #: the viewpoint and floor of a tolerance along the rays (:func:`.noise.ray_band`) in scoring hypotheses and in the
+    #: region rule; kernels.NO_RAY: across the plane
+    ray: np.ndarray = field(default_factory=lambda: kernels.NO_RAY)
 
     @functools.cached_property
     def position(self) -> np.ndarray:
@@ -226,7 +229,7 @@ class _GridRemaining(Remaining):
         return rule(self.neighbours, self.rest_idx, mask, normal, support, above, self.position)
 
     def without(self, left: np.ndarray) -> Remaining:
-        return _GridRemaining(self.neighbours, self.rest_idx[left])
+        return _GridRemaining(self.neighbours, self.rest_idx[left], self.ray)
 
     def _compiled(self, point_normals: np.ndarray | None) -> tuple | None:
         """The sub-grid arguments of :func:`.kernels.grid_plane` and :func:`.kernels.grid_refit`, from the points'
@@ -248,7 +251,7 @@ class _GridRemaining(Remaining):
         if grid is None:
             return super().best(cols, tolerances, normals, offsets, point_normals, support, bound_cos)
         winner, _, _, region, taken = kernels.grid_plane(cols, tolerances, normals, offsets, support, bound_cos, *grid,
-                                                         0)
+                                                         0, self.ray, self.ray)
         return int(winner), region, taken
 
     def refitted(self, cols: np.ndarray, tolerances: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
@@ -258,7 +261,8 @@ class _GridRemaining(Remaining):
         grid = self._compiled(point_normals)
         if grid is None:
             return None
-        return kernels.grid_plane(cols, tolerances, normals, offsets, support, bound_cos, *grid, refits)[1:]
+        return kernels.grid_plane(cols, tolerances, normals, offsets, support, bound_cos, *grid, refits, self.ray,
+                                  self.ray)[1:]
 
     def refit(self, cols: np.ndarray, tolerances: np.ndarray, region: np.ndarray, support: float
               ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
@@ -266,7 +270,7 @@ class _GridRemaining(Remaining):
         grid = self._compiled(None)
         if grid is None:
             return super().refit(cols, tolerances, region, support)
-        return kernels.grid_refit(cols, region, tolerances, support, *grid)
+        return kernels.grid_refit(cols, region, tolerances, support, *grid, self.ray)
 
 
 def rest_positions(n: int, rest_idx: np.ndarray) -> np.ndarray:

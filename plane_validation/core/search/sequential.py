@@ -1,6 +1,8 @@
 """Sequential RANSAC: the best plane, its points taken out, and again, until none is large enough."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from .. import kernels
@@ -35,8 +37,8 @@ SCATTERED_SPREAD = 0.2
 
 def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, min_count: int, probability: float,
                       max_iterations: int, rng: np.random.Generator, n_total: int,
-                      neighbours: Neighbours | None = None, allows: Allows = None, start: np.ndarray | None = None
-                      ) -> tuple[list, str, np.ndarray | None, bool]:
+                      neighbours: Neighbours | None = None, allows: Allows = None, start: np.ndarray | None = None,
+                      ray: np.ndarray = kernels.NO_RAY) -> tuple[list, str, np.ndarray | None, bool]:
     """Sequential RANSAC on the points ``cols`` (3, n): the planes [(normal, offset)] in
     extraction order, why the search stopped, with ``neighbours`` the region of each point
     (n,) (-1: none), and whether it stopped at ``max_planes`` with ``min_count`` points left. ``start``: the points
@@ -51,6 +53,8 @@ def sequential_search(cols: np.ndarray, tolerance: Tolerance, max_planes: int, m
         tolerance = tolerance_at(tolerance, rest_idx)
     region = None if neighbours is None else np.full(n, -1, dtype=np.int64)
     remaining = None if neighbours is None else neighbours.remaining(rest_idx)
+    if len(ray) and hasattr(remaining, 'ray'):  # the sub-grid's kernels measure the tolerance along the rays
+        remaining = dataclasses.replace(remaining, ray=ray)
     rest_normals = None if neighbours is None or neighbours.normals is None else \
         kernels.columns_at(kernels.c_array(neighbours.normals, np.float64), kernels.c_array(rest_idx, np.int64),
                            _ORIGIN)  # (3, r), kept in step with rest
