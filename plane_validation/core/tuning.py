@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from . import kernels
 from .blas import single_blas_thread
 from .failures import Verdict
 from .indices import ValidityIndices, validity_indices
@@ -59,6 +60,7 @@ __all__ = ['CRITERIA', 'DEFAULT_CRITERION', 'TUNE_CANDIDATES', 'TUNE_POINTS',
 #: Default number of tuning candidates and the subsample a sweep runs on (points).
 TUNE_CANDIDATES = 12
 TUNE_POINTS = 20000
+_ORIGIN = np.zeros(3)
 #: The largest derived candidate is at most this share of the bounding-box diagonal (default_tolerances).
 TOP_DIAGONAL_SHARE = 1 / 8
 #: Default of tune_tolerance's ``extend``: a sweep with a derived top whose choice is its largest candidate
@@ -231,7 +233,24 @@ class PlaneCountResult:
 
 
 def _finite(points: np.ndarray) -> np.ndarray:
-    return np.compress(finite_rows(points), points, axis=0)
+    """The finite rows of ``points`` (n, 3): ``points`` itself when all are (no copy of a whole cloud)."""
+    finite = finite_rows(points)
+    return points if finite.all() else np.compress(finite, points, axis=0)
+
+
+def _rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``points[rows]`` ((n, 3) meters, ``rows`` (m,)) in one compiled pass (numpy's gather of 3-wide rows is several
+    times slower)."""
+    return kernels.rows_less(kernels.c_array(points, np.float64), kernels.c_array(rows, np.int64), _ORIGIN)
+
+
+def _diagonal(points: np.ndarray) -> float:
+    """The length of the bounding box's diagonal of ``points`` (n, 3) meters, n >= 1, in one compiled pass (numpy's
+    reductions along the rows of an (n, 3) array are several times slower)."""
+    if not len(points):
+        raise ValueError('no finite points: no bounding box')
+    lo, hi = kernels.coordinate_bounds(kernels.c_array(points, np.float64))
+    return float(np.linalg.norm(hi - lo))
 
 
 def local_noise(points: np.ndarray, *, k: int = 16, queries: int = 2000, seed=None) -> tuple[float, float]:
@@ -245,14 +264,14 @@ def local_noise(points: np.ndarray, *, k: int = 16, queries: int = 2000, seed=No
     pts = _finite(as_points(points))
     check_magnitude(pts)
     rng = generator(seed)
-    probe = pts if len(pts) <= 50000 else pts[rng.choice(len(pts), 50000, replace=False)]
+    probe = pts if len(pts) <= 50000 else _rows(pts, rng.choice(len(pts), 50000, replace=False))
     k = min(k, len(probe))
     q = probe if len(probe) <= queries else probe[rng.choice(len(probe), queries, replace=False)]
     dist, idx = cKDTree(probe).query(q, k=k)
     nn = dist[:, 1]
     spacing = float(np.median(nn[nn > 0])) if np.any(nn > 0) else 0.0
     spacing *= np.sqrt(len(probe) / len(pts))  # surfaces are 2-D: spacing ~ 1/sqrt(density)
-    nb = probe[idx]
+    nb = _rows(probe, idx.reshape(-1)).reshape(len(q), k, 3)
     centered = nb - nb.mean(axis=1, keepdims=True)
     smallest = np.linalg.eigvalsh(np.einsum('nki,nkj->nij', centered, centered) / k)[:, 0]
     return spacing, float(np.median(np.sqrt(np.maximum(smallest, 0.0))))
@@ -293,7 +312,7 @@ def default_tolerances(points: np.ndarray, count: int = TUNE_CANDIDATES, *, lo: 
     if lo is None or hi is None:
         if len(pts) < 3:
             raise ValueError(f'need at least 3 finite points to derive tolerances, got {len(pts)}')
-        diagonal = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+        diagonal = _diagonal(pts)
         if diagonal <= 0:
             raise ValueError('all points are identical: no tolerance can be derived')
         spacing, thickness = local_noise(pts, seed=seed)
@@ -454,7 +473,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     if not np.all(np.isfinite(cand)) or cand[0] <= 0:
         raise ValueError('tolerances must be finite and > 0')
     # a derived top may be extended up to TOP_DIAGONAL_SHARE of the diagonal (``extend``); a given range is kept
-    top = TOP_DIAGONAL_SHARE * float(np.linalg.norm(np.ptp(finite, axis=0))) / factor \
+    top = TOP_DIAGONAL_SHARE * _diagonal(finite) / factor \
         if extend and tolerances is None and t_max is None and len(cand) > 1 and criterion not in SEPARATION_CRITERIA \
         else 0.0
     top = min(top, bound)  # the extension keeps to the bound too
@@ -465,7 +484,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         sweep_pts, sweep_shape = grid.reshape(-1, 3), grid.shape[:2]
     else:  # unorganized, or an image too thin for a 2-D grid
         sweep_pts = finite if tune_points is None or len(finite) <= tune_points else \
-            finite[rng.choice(len(finite), tune_points, replace=False)]
+            _rows(finite, rng.choice(len(finite), tune_points, replace=False))
     n_sweep = int(np.count_nonzero(finite_rows(sweep_pts)))
     ransac_seed, index_seed = rng.integers(0, 2**63, size=2)
     opts = dict(max_planes=max_planes, min_inliers=min_inliers, probability=probability,
