@@ -96,6 +96,19 @@ def test_read_only_input_is_copied_not_recompiled():
     assert kernels.c_array(same, np.float64) is same
 
 
+def test_c_array_gives_back_a_kernels_output_itself_and_converts_the_rest():
+    """A compiled kernel's output (numpy would wrap it in a new view) is returned itself, so an identity test on it
+    (VoxelIndex.query's of the indexed points) holds; another dtype, a strided view, a subclass or a 0-d value is
+    converted to a C-ordered ndarray of the dtype."""
+    out = kernels.rows_less(np.arange(12.0).reshape(4, 3), np.array([2, 0], np.int64), np.zeros(3))
+    assert np.ascontiguousarray(out, dtype=np.float64) is not out  # what the identity path is for
+    assert kernels.c_array(out, np.float64) is out
+    for values in (np.zeros((4, 3), np.float32), np.zeros((3, 4)).T, np.ma.zeros((4, 3)), np.float64(2.0)):
+        arr = kernels.c_array(values, np.float64)
+        assert type(arr) is np.ndarray and arr.dtype == np.float64 and arr.flags.c_contiguous and arr.ndim >= 1
+        assert arr is not values
+
+
 def test_warm_loads_every_kernel_and_says_whether_it_compiled():
     first = kernels.warm()
     again = kernels.warm()

@@ -1,7 +1,7 @@
 """The organized detect block 5 (core/kernels.py, ``# --- organized detect 5 ---``) against plain-numpy references, on
-random inputs: a RANSAC batch on a sub-grid drawn, fitted and scored in one call, and every stride-th valid row. (The
-full-resolution labelling and grouping, :func:`.kernels.grid_spread`, is checked in test_kernels.py against
-:func:`.grid.spread_grid_numpy`.)"""
+random inputs: a RANSAC batch on a sub-grid drawn, fitted and scored in one call, every stride-th valid row, and rows
+gathered less a centre. (The full-resolution labelling and grouping, :func:`.kernels.grid_spread`, is checked in
+test_kernels.py against :func:`.grid.spread_grid_numpy`.)"""
 from __future__ import annotations
 
 import numpy as np
@@ -60,13 +60,21 @@ def test_strided_rows_are_every_stride_th_valid_row(flags, stride):
 
 @SETTINGS
 @given(st.integers(0, 2**32 - 1), st.integers(0, 200))
-def test_columns_at_are_the_rows_less_the_centre(seed, m):
-    """numpy's gather, subtraction and transposed copy, bit for bit (NaN rows too)."""
+def test_columns_at_and_rows_less_are_the_rows_less_the_centre(seed, m):
+    """numpy's gather and subtraction, bit for bit (NaN and infinite rows; a zero centre keeps -0.0): as columns, a
+    transposed copy (columns_at), or as rows (rows_less), each C-ordered."""
     rng = np.random.default_rng(seed)
     values = rng.normal(scale=10.0 ** rng.integers(-3, 4), size=(int(rng.integers(1, 300)), 3))
     values[rng.random(len(values)) < 0.1] = np.nan
+    values[rng.random(len(values)) < 0.05] = -np.inf
+    values[rng.random(len(values)) < 0.05] = -0.0
     rows = rng.integers(0, len(values), m)
     center = rng.normal(size=3) if seed % 2 else np.zeros(3)
+    want = values[rows] - center
     got = kernels.columns_at(values, rows, center)
-    np.testing.assert_array_equal(got, np.ascontiguousarray((values.take(rows, axis=0) - center).T))
+    np.testing.assert_array_equal(got, np.ascontiguousarray(want.T))
     assert got.shape == (3, m) and got.flags.c_contiguous
+    got = kernels.rows_less(values, rows, center)
+    np.testing.assert_array_equal(got, want)
+    assert np.array_equal(np.signbit(got), np.signbit(want))
+    assert got.shape == (m, 3) and got.flags.c_contiguous

@@ -85,6 +85,7 @@ VOXEL_SPAN = 1 << 20
 
 
 _NO_POINTS = np.empty((0, 3))
+_ORIGIN = np.zeros(3)
 _NO_FLAGS = np.empty(0, bool)
 _NO_DIST, _NO_IDX, _NO_REACH = np.empty((0, 1)), np.empty((0, 1), np.int64), np.empty(0)
 
@@ -152,7 +153,8 @@ def _across(tree: cKDTree, coords: np.ndarray, rows: np.ndarray, test: _Across, 
         parts = [_across(tree, coords, rows[i:i + step], test, candidates, skip, stride)
                  for i in range(0, len(rows), step)]
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-    _, near = tree.query(coords[rows], k=candidates)
+    queries = kernels.rows_less(kernels.c_array(coords, np.float64), kernels.c_array(rows, np.int64), _ORIGIN)
+    _, near = tree.query(queries, k=candidates)
     near = near.reshape(len(rows), -1)[:, skip:]
     near = np.where(near < tree.n, near * stride, rows[:, None])  # no neighbour found: the point itself
     return test.first(rows, near)
@@ -223,7 +225,7 @@ class VoxelIndex:
     @functools.cached_property
     def ordered(self) -> np.ndarray:
         """(m, 3) the points voxel by voxel (in the grid's order)."""
-        return self.points[self.grid[0]]
+        return kernels.rows_less(self.points, self.grid[0], _ORIGIN)
 
     def query(self, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """The ``k`` nearest points to each of ``queries`` (q, 3), inside the voxels, as cKDTree.query gives them

@@ -7,20 +7,40 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from . import kernels
 from .ransac import as_points, check_magnitude, finite_rows, generator
 
 __all__ = ['TUNE_CANDIDATES', 'TOP_DIAGONAL_SHARE', 'local_noise', 'quick_tolerance', 'default_tolerances',
-           'finite_points']
+           'finite_points', 'gathered_rows', 'box_diagonal']
 
 #: Default number of tuning candidates.
 TUNE_CANDIDATES = 12
 #: The largest derived candidate is at most this share of the bounding-box diagonal (default_tolerances).
 TOP_DIAGONAL_SHARE = 1 / 8
+#: rows_less subtracts nothing from the rows gathered.
+_ORIGIN = np.zeros(3)
 
 
 def finite_points(points: np.ndarray) -> np.ndarray:
-    """The rows of ``points`` (N, 3) whose three coordinates are finite."""
-    return np.compress(finite_rows(points), points, axis=0)
+    """The rows of ``points`` (N, 3) whose three coordinates are finite: ``points`` itself when all are (no copy of a
+    whole cloud)."""
+    finite = finite_rows(points)
+    return points if finite.all() else np.compress(finite, points, axis=0)
+
+
+def gathered_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``points[rows]`` ((N, 3) meters, ``rows`` (m,)) in one compiled pass (numpy's gather of 3-wide rows is several
+    times slower)."""
+    return kernels.rows_less(kernels.c_array(points, np.float64), kernels.c_array(rows, np.int64), _ORIGIN)
+
+
+def box_diagonal(points: np.ndarray) -> float:
+    """The length (m) of the bounding box's diagonal of ``points`` (n, 3) meters, n >= 1, in one compiled pass
+    (numpy's reductions along the rows of an (n, 3) array are several times slower)."""
+    if not len(points):
+        raise ValueError('no finite points: no bounding box')
+    lo, hi = kernels.coordinate_bounds(kernels.c_array(points, np.float64))
+    return float(np.linalg.norm(hi - lo))
 
 
 def local_noise(points: np.ndarray, *, k: int = 16, queries: int = 2000, seed=None) -> tuple[float, float]:
@@ -34,14 +54,14 @@ def local_noise(points: np.ndarray, *, k: int = 16, queries: int = 2000, seed=No
     pts = finite_points(as_points(points))
     check_magnitude(pts)
     rng = generator(seed)
-    probe = pts if len(pts) <= 50000 else pts[rng.choice(len(pts), 50000, replace=False)]
+    probe = pts if len(pts) <= 50000 else gathered_rows(pts, rng.choice(len(pts), 50000, replace=False))
     k = min(k, len(probe))
     q = probe if len(probe) <= queries else probe[rng.choice(len(probe), queries, replace=False)]
     dist, idx = cKDTree(probe).query(q, k=k)
     nn = dist[:, 1]
     spacing = float(np.median(nn[nn > 0])) if np.any(nn > 0) else 0.0
     spacing *= np.sqrt(len(probe) / len(pts))  # surfaces are 2-D: spacing ~ 1/sqrt(density)
-    nb = probe[idx]
+    nb = gathered_rows(probe, idx.reshape(-1)).reshape(len(q), k, 3)
     centered = nb - nb.mean(axis=1, keepdims=True)
     smallest = np.linalg.eigvalsh(np.einsum('nki,nkj->nij', centered, centered) / k)[:, 0]
     return spacing, float(np.median(np.sqrt(np.maximum(smallest, 0.0))))
@@ -82,7 +102,7 @@ def default_tolerances(points: np.ndarray, count: int = TUNE_CANDIDATES, *, lo: 
     if lo is None or hi is None:
         if len(pts) < 3:
             raise ValueError(f'need at least 3 finite points to derive tolerances, got {len(pts)}')
-        diagonal = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+        diagonal = box_diagonal(pts)
         if diagonal <= 0:
             raise ValueError('all points are identical: no tolerance can be derived')
         spacing, thickness = local_noise(pts, seed=seed)

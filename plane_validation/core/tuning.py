@@ -48,7 +48,14 @@ from .ransac import (
     min_inliers_number,
     search_graph,
 )
-from .tolerance_grid import TOP_DIAGONAL_SHARE, TUNE_CANDIDATES, default_tolerances, finite_points
+from .tolerance_grid import (
+    TOP_DIAGONAL_SHARE,
+    TUNE_CANDIDATES,
+    box_diagonal,
+    default_tolerances,
+    finite_points,
+    gathered_rows,
+)
 from .verdict import (
     RELIABLE_GS_PLANES,
     SINGLE_PLANE_THICKNESS,
@@ -335,7 +342,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
     if not np.all(np.isfinite(cand)) or cand[0] <= 0:
         raise ValueError('tolerances must be finite and > 0')
     # a derived top may be extended up to TOP_DIAGONAL_SHARE of the diagonal (``extend``); a given range is kept
-    top = TOP_DIAGONAL_SHARE * float(np.linalg.norm(np.ptp(finite, axis=0))) / factor \
+    top = TOP_DIAGONAL_SHARE * box_diagonal(finite) / factor \
         if extend and tolerances is None and t_max is None and len(cand) > 1 and criterion not in SEPARATION_CRITERIA \
         else 0.0
     top = min(top, bound)  # the extension keeps to the bound too
@@ -346,7 +353,7 @@ def tune_tolerance(points: np.ndarray, tolerances=None, criterion: str = DEFAULT
         sweep_pts, sweep_shape = grid.reshape(-1, 3), grid.shape[:2]
     else:  # unorganized, or an image too thin for a 2-D grid
         sweep_pts = finite if tune_points is None or len(finite) <= tune_points else \
-            finite[rng.choice(len(finite), tune_points, replace=False)]
+            gathered_rows(finite, rng.choice(len(finite), tune_points, replace=False))
     n_sweep = int(np.count_nonzero(finite_rows(sweep_pts)))
     ransac_seed, index_seed = rng.integers(0, 2**63, size=2)
     opts = dict(max_planes=max_planes, min_inliers=min_inliers, probability=probability,

@@ -79,7 +79,8 @@ class VoxelNodes:
             c_array(rows, np.int64), c_array(center, np.float64), index.ordered, *index.grid, index.origin, index.cell,
             index.dims))
         if len(doubt):  # kept: later calls on this graph (a sweep over one prebuilt graph) need not ask again
-            self.node[doubt] = self.index.query(pts[rows[doubt]] - center, 1)[1][:, 0]
+            queries = kernels.rows_less(c_array(pts, np.float64), rows[doubt], center)
+            self.node[doubt] = index.query(queries, 1)[1][:, 0]
             self.exact[doubt] = True
         return self.node
 
@@ -142,7 +143,7 @@ def build_search_graph(pts: np.ndarray, finite: np.ndarray, shape: tuple[int, in
             if rng is None:
                 return None
             search_idx = valid_idx[np.sort(rng.choice(n_valid, int(ransac_points), replace=False))]
-        searched = pts[search_idx] - center
+        searched = kernels.rows_less(kernels.c_array(pts, np.float64), search_idx, center)
         index = None
         if len(search_idx) < n_valid:
             nearest, index = _nearest_searched(searched, pts, valid_idx, center)
@@ -171,7 +172,8 @@ def _nearest_searched(searched: np.ndarray, cloud: np.ndarray, rows: np.ndarray,
     exact = voxel < 0  # no searched point in its voxel: the nearest, now
     alone = np.flatnonzero(exact)
     if len(alone):
-        node[alone] = index.query(every[alone] - center, 1)[1][:, 0]
+        queries = kernels.rows_less(kernels.c_array(cloud, np.float64), rows[alone], center)
+        node[alone] = index.query(queries, 1)[1][:, 0]
     return VoxelNodes(index, node, voxel, d2, near, exact), index
 
 

@@ -28,6 +28,7 @@ __all__ = ['GraphNeighbours', 'GraphSampler', 'graph_region', 'graph_region_nump
 #: of a larger one, from the whole graph with the edges leaving it cut (faster then).
 COMPACT_SHARE = 0.5
 _NO_NORMALS = np.empty((0, 3))
+_ORIGIN = np.zeros(3)
 _SCALES = np.array(NEARBY_SCALES, np.int64)
 
 
@@ -109,8 +110,9 @@ class GraphNeighbours(Neighbours):
         pass (:func:`.kernels.kept_edges`; :meth:`subgraph_numpy` is its reference). Components of points among
         them are the same as in the whole graph."""
         edges, starts = kernels.kept_edges(self.c_edges, kernels.c_array(keep, np.int64), self.n)
-        return GraphNeighbours(n=len(keep), edges=edges, normals=None if self.normals is None else self.normals[keep],
-                               edge_starts=starts)
+        normals = None if self.normals is None else \
+            kernels.rows_less(kernels.c_array(self.normals, np.float64), kernels.c_array(keep, np.int64), _ORIGIN)
+        return GraphNeighbours(n=len(keep), edges=edges, normals=normals, edge_starts=starts)
 
     def subgraph_numpy(self, keep: np.ndarray) -> GraphNeighbours:
         """:meth:`subgraph` in numpy."""
