@@ -141,9 +141,9 @@ class PipelineConfig:
                               'about z, from the viewpoint) and searched as an organized cloud, 5-6 times faster than '
                               'the neighbourhood graph (docs/performance.md); false = the graph')
     noise_model: str = _p(AUTO, 'how t grows with range r from the sensor: constant, or depth_quadratic '
-                          '(t * max(1, (r / noise_reference)^2) along the sensor\'s rays, a depth camera; t is then the tolerance '
-                          'up to noise_reference), or auto: the auto-tune chooses one from the noise it measures '
-                          '(depth_quadratic where it grows with range) and a fixed t is constant',
+                          '(t * max(1, (r / noise_reference)^2) along the sensor\'s rays, a depth camera; t is '
+                          'then the tolerance up to noise_reference), or auto: the auto-tune chooses one from the '
+                          'noise it measures (depth_quadratic where it grows with range) and a fixed t is constant',
                           choices=TUNED_NOISE_MODELS)
     noise_reference: float = _p(NOISE_REFERENCE, 'range up to which depth_quadratic keeps t', low=0.01, high=100.0,
                                 unit='m')
