@@ -19,6 +19,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import kernels
+from .search.checks import gathered_rows
 from .search.neighbours import NORMAL_MIN_COS, Neighbours, row_starts
 from .search.neighbours_graph import GraphNeighbours
 
@@ -85,7 +86,6 @@ VOXEL_SPAN = 1 << 20
 
 
 _NO_POINTS = np.empty((0, 3))
-_ORIGIN = np.zeros(3)
 _NO_FLAGS = np.empty(0, bool)
 _NO_DIST, _NO_IDX, _NO_REACH = np.empty((0, 1)), np.empty((0, 1), np.int64), np.empty(0)
 
@@ -153,7 +153,7 @@ def _across(tree: cKDTree, coords: np.ndarray, rows: np.ndarray, test: _Across, 
         parts = [_across(tree, coords, rows[i:i + step], test, candidates, skip, stride)
                  for i in range(0, len(rows), step)]
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-    queries = kernels.rows_less(kernels.c_array(coords, np.float64), kernels.c_array(rows, np.int64), _ORIGIN)
+    queries = gathered_rows(coords, rows)
     _, near = tree.query(queries, k=candidates)
     near = near.reshape(len(rows), -1)[:, skip:]
     near = np.where(near < tree.n, near * stride, rows[:, None])  # no neighbour found: the point itself
@@ -225,7 +225,7 @@ class VoxelIndex:
     @functools.cached_property
     def ordered(self) -> np.ndarray:
         """(m, 3) the points voxel by voxel (in the grid's order)."""
-        return kernels.rows_less(self.points, self.grid[0], _ORIGIN)
+        return gathered_rows(self.points, self.grid[0])
 
     def query(self, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """The ``k`` nearest points to each of ``queries`` (q, 3), inside the voxels, as cKDTree.query gives them

@@ -9,16 +9,15 @@ from scipy.spatial import cKDTree
 
 from . import kernels
 from .ransac import as_points, check_magnitude, finite_rows, generator
+from .search.checks import gathered_rows
 
 __all__ = ['TUNE_CANDIDATES', 'TOP_DIAGONAL_SHARE', 'local_noise', 'quick_tolerance', 'default_tolerances',
-           'finite_points', 'gathered_rows', 'box_diagonal']
+           'finite_points', 'box_diagonal']
 
 #: Default number of tuning candidates.
 TUNE_CANDIDATES = 12
 #: The largest derived candidate is at most this share of the bounding-box diagonal (default_tolerances).
 TOP_DIAGONAL_SHARE = 1 / 8
-#: rows_less subtracts nothing from the rows gathered.
-_ORIGIN = np.zeros(3)
 
 
 def finite_points(points: np.ndarray) -> np.ndarray:
@@ -26,12 +25,6 @@ def finite_points(points: np.ndarray) -> np.ndarray:
     whole cloud)."""
     finite = finite_rows(points)
     return points if finite.all() else np.compress(finite, points, axis=0)
-
-
-def gathered_rows(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """``points[rows]`` ((N, 3) meters, ``rows`` (m,)) in one compiled pass (numpy's gather of 3-wide rows is several
-    times slower)."""
-    return kernels.rows_less(kernels.c_array(points, np.float64), kernels.c_array(rows, np.int64), _ORIGIN)
 
 
 def box_diagonal(points: np.ndarray) -> float:

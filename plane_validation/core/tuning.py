@@ -48,13 +48,13 @@ from .ransac import (
     min_inliers_number,
     search_graph,
 )
+from .search.checks import gathered_rows
 from .tolerance_grid import (
     TOP_DIAGONAL_SHARE,
     TUNE_CANDIDATES,
     box_diagonal,
     default_tolerances,
     finite_points,
-    gathered_rows,
 )
 from .verdict import (
     RELIABLE_GS_PLANES,

@@ -12,7 +12,8 @@ from .types import Viewpoint
 
 __all__ = ['generator', 'check_integer', 'check_number', 'check_flag', 'as_points', 'finite_rows', 'finite_extent',
            'no_returns_as_nan', 'no_returns_note', 'check_magnitude', 'min_inliers_number', 'resolve_min_inliers',
-           'check_shape', 'check_viewpoint', 'check_search_size', 'AT_VIEWPOINT', 'MAX_COORDINATE', 'MAX_SPREAD']
+           'check_shape', 'check_viewpoint', 'check_search_size', 'gathered_rows', 'AT_VIEWPOINT', 'MAX_COORDINATE',
+           'MAX_SPREAD']
 
 
 def generator(seed: int | np.random.Generator | None) -> np.random.Generator:
@@ -74,6 +75,16 @@ def as_points(points: np.ndarray) -> np.ndarray:
     if isinstance(points, np.ma.MaskedArray) and np.ma.is_masked(points):
         return np.where(np.ma.getmaskarray(points), np.nan, arr.astype(np.float64))
     return arr.astype(np.float64, copy=False)
+
+
+#: rows_less subtracts nothing from the rows gathered.
+_ORIGIN = np.zeros(3)
+
+
+def gathered_rows(values: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``values[rows]`` ((n, 3), ``rows`` (m,)) in one compiled pass (:func:`.kernels.rows_less`; numpy's gather of
+    3-wide rows is several times slower)."""
+    return kernels.rows_less(kernels.c_array(values, np.float64), kernels.c_array(rows, np.int64), _ORIGIN)
 
 
 def finite_rows(points: np.ndarray) -> np.ndarray:

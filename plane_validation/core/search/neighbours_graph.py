@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import kernels
+from .checks import gathered_rows
 from .neighbours import (
     COMPETE_ROUNDS,
     NEARBY_SCALES,
@@ -28,7 +29,6 @@ __all__ = ['GraphNeighbours', 'GraphSampler', 'graph_region', 'graph_region_nump
 #: of a larger one, from the whole graph with the edges leaving it cut (faster then).
 COMPACT_SHARE = 0.5
 _NO_NORMALS = np.empty((0, 3))
-_ORIGIN = np.zeros(3)
 _SCALES = np.array(NEARBY_SCALES, np.int64)
 
 
@@ -111,7 +111,7 @@ class GraphNeighbours(Neighbours):
         them are the same as in the whole graph."""
         edges, starts = kernels.kept_edges(self.c_edges, kernels.c_array(keep, np.int64), self.n)
         normals = None if self.normals is None else \
-            kernels.rows_less(kernels.c_array(self.normals, np.float64), kernels.c_array(keep, np.int64), _ORIGIN)
+            gathered_rows(self.normals, keep)
         return GraphNeighbours(n=len(keep), edges=edges, normals=normals, edge_starts=starts)
 
     def subgraph_numpy(self, keep: np.ndarray) -> GraphNeighbours:
