@@ -232,6 +232,8 @@ RING_REGULAR = 0.5
 #: ... and at most this share of the points falls on a pixel another point took (dual returns, two scans merged:
 #: only one point per pixel is searched).
 RING_COLLISIONS = 0.02
+#: A full turn (radians).
+TURN = 2 * np.pi
 
 
 def beam_numbers(ring: np.ndarray) -> np.ndarray:
@@ -271,42 +273,59 @@ def ring_image(points: np.ndarray, ring: np.ndarray, viewpoint=(0.0, 0.0, 0.0)
     if not 3 <= len(ids) <= MAX_RINGS:
         raise ValueError(f'{len(ids)} rings (need 3 to {MAX_RINGS})')
     rays = points - np.asarray(viewpoint, dtype=float)
-    turn = 2 * np.pi
-    azimuth = np.arctan2(rays[:, 1], rays[:, 0]) % turn
-    order = np.lexsort((azimuth, row))
-    same_ring = np.diff(row[order]) == 0
-    gaps = np.diff(azimuth[order])[same_ring]
-    gaps = gaps[gaps > 0]
-    width = int(round(turn / float(np.median(gaps)))) if len(gaps) else 0
+    azimuth = np.arctan2(rays[:, 1], rays[:, 0]) % TURN
+    elevation = np.arctan2(rays[:, 2], np.hypot(rays[:, 0], rays[:, 1]))
+    gaps, median_elevation, spread = kernels.ring_steps(row, azimuth, elevation, len(ids))
+    width = int(round(TURN / float(np.median(gaps)))) if len(gaps) else 0
     if not 3 <= width <= MAX_RING_COLUMNS:
-        raise ValueError(f'an azimuth step of {turn / max(width, 1):.3g} rad ({width} columns, need 3 to '
+        raise ValueError(f'an azimuth step of {TURN / max(width, 1):.3g} rad ({width} columns, need 3 to '
                          f'{MAX_RING_COLUMNS})')
-    step = turn / width
+    step = TURN / width
     regular = float(np.mean(np.abs(gaps / step - 1.0) < 0.5))
     if regular < RING_REGULAR:
         raise ValueError(f'only {regular:.0%} of the steps along the rings are one azimuth step (need '
                          f'{RING_REGULAR:.0%}): thinned or filtered')
-    elevation = np.arctan2(rays[:, 2], np.hypot(rays[:, 0], rays[:, 1]))
-    starts = np.r_[0, np.flatnonzero(~same_ring) + 1]
-    ends = np.r_[starts[1:], len(order)]
-    median_elevation = np.array([np.median(elevation[order[a:b]]) for a, b in zip(starts, ends)])
-    spread = np.array([np.median(np.abs(elevation[order[a:b]] - m)) for a, b, m in zip(starts, ends, median_elevation)])
     if np.median(spread) > RING_SPREAD * np.median(np.diff(np.sort(median_elevation))):
         raise ValueError('the rings\' elevations overlap: the field does not number beams')
     rank = np.empty(len(ids), np.int64)
     rank[np.argsort(-median_elevation, kind='stable')] = np.arange(len(ids))  # the top ring first
     # a ring's azimuths sit at phase + k * step (its own phase: beams may fire at other azimuths)
-    turns = np.exp(1j * turn * azimuth / step)
-    sums = np.bincount(row, weights=turns.real, minlength=len(ids)) + 1j * np.bincount(row, weights=turns.imag,
-                                                                                       minlength=len(ids))
-    phase = np.angle(sums) * step / turn
+    cos_sum, sin_sum = kernels.ring_turns(azimuth, row, len(ids), TURN, 1.0 / step)
+    phase = np.arctan2(sin_sum, cos_sum) * step / TURN
     column = np.round((azimuth - phase[row]) / step).astype(np.int64) % width
     pixel = rank[row] * width + column
-    first = np.unique(pixel, return_index=True)[1]  # the first point on each pixel
-    shared = 1.0 - len(first) / len(pixel)
+    image, taken = kernels.ring_scatter(kernels.c_array(points, np.float64), pixel, len(ids) * width)
+    shared = 1.0 - taken / len(pixel)
     if shared > RING_COLLISIONS:
         raise ValueError(f'{shared:.1%} of the points share a pixel (dual returns, or scans merged; at most '
                          f'{RING_COLLISIONS:.0%})')
-    image = np.full((len(ids) * width, 3), np.nan)
-    image[pixel[first]] = points[first]
     return image, (len(ids), width), pixel
+
+
+def ring_steps_numpy(row: np.ndarray, azimuth: np.ndarray, elevation: np.ndarray, rings: int
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`.kernels.ring_steps` in numpy."""
+    order = np.lexsort((azimuth, row))
+    same_ring = np.diff(row[order]) == 0
+    gaps = np.diff(azimuth[order])[same_ring]
+    bounds = np.searchsorted(row[order], np.arange(rings + 1))
+    parts = [elevation[order[a:b]] for a, b in zip(bounds[:-1], bounds[1:])]
+    middle = np.array([np.median(part) for part in parts])
+    spread = np.array([np.median(np.abs(part - m)) for part, m in zip(parts, middle)])
+    return gaps[gaps > 0], middle, spread
+
+
+def ring_turns_numpy(azimuth: np.ndarray, row: np.ndarray, rings: int, turn: float, per_step: float
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`.kernels.ring_turns` in numpy."""
+    turns = np.exp(1j * turn * azimuth * per_step)
+    return (np.bincount(row, weights=turns.real, minlength=rings),
+            np.bincount(row, weights=turns.imag, minlength=rings))
+
+
+def ring_scatter_numpy(points: np.ndarray, pixel: np.ndarray, size: int) -> tuple[np.ndarray, int]:
+    """:func:`.kernels.ring_scatter` in numpy."""
+    first = np.unique(pixel, return_index=True)[1]
+    image = np.full((size, 3), np.nan)
+    image[pixel[first]] = points[first]
+    return image, len(first)

@@ -35,7 +35,8 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'grid_spread', 'strided_rows', 'columns_at', 'rows_less', 'grid_batch', 'kept_edges', 'graph_contacts',
            'graph_settle',
            'graph_plane',
-           'voxel_count', 'tent_fit', 'leftover_rows', 'leftover_best', 'seeded_draws', 'polygon_distances', 'warm',
+           'voxel_count', 'tent_fit', 'leftover_rows', 'leftover_best', 'seeded_draws', 'polygon_distances',
+           'ring_steps', 'ring_turns', 'ring_scatter', 'warm',
            'warm_probe',
            'Warmup']
 
@@ -4613,6 +4614,84 @@ def polygon_distances(p: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     return out
 
 
+# -- a spinning lidar's ring image (geometry.ring_image) -------------------------------------------------------------
+
+@numba.njit(**_JIT)
+def ring_steps(row: np.ndarray, azimuth: np.ndarray, elevation: np.ndarray, rings: int
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per ring ``row`` (n,) 0..rings-1 of the points' ``azimuth`` and ``elevation`` (n,) radians: the positive steps
+    between azimuths neighbouring in the ring (g,), ring by ring; each ring's median elevation and median absolute
+    deviation from it (rings,) (:func:`.geometry.ring_steps_numpy` is its reference)."""
+    n = row.shape[0]
+    bounds = np.zeros(rings + 1, np.int64)
+    for i in range(n):
+        bounds[row[i] + 1] += 1
+    for r in range(rings):
+        bounds[r + 1] += bounds[r]
+    fill = bounds[:-1].copy()
+    az = np.empty(n)
+    el = np.empty(n)
+    for i in range(n):
+        at = fill[row[i]]
+        az[at] = azimuth[i]
+        el[at] = elevation[i]
+        fill[row[i]] = at + 1
+    gaps = np.empty(n)
+    count = 0
+    middle = np.empty(rings)
+    spread = np.empty(rings)
+    for r in range(rings):
+        a, b = bounds[r], bounds[r + 1]
+        ordered = np.sort(az[a:b])
+        for k in range(1, b - a):
+            gap = ordered[k] - ordered[k - 1]
+            if gap > 0:
+                gaps[count] = gap
+                count += 1
+        middle[r] = np.median(el[a:b])
+        spread[r] = np.median(np.abs(el[a:b] - middle[r]))
+    return gaps[:count], middle, spread
+
+
+@numba.njit(**_JIT)
+def ring_turns(azimuth: np.ndarray, row: np.ndarray, rings: int, turn: float, per_step: float
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Per ring ``row`` (n,) 0..rings-1 the sums of cos and sin (rings,) of ``turn * azimuth * per_step`` (``azimuth``
+    (n,) radians; ``per_step`` 1 / the azimuth step): each ring's phase (:func:`.geometry.ring_turns_numpy` is its
+    reference)."""
+    cos_sum = np.zeros(rings)
+    sin_sum = np.zeros(rings)
+    for i in range(row.shape[0]):
+        angle = (turn * azimuth[i]) * per_step
+        cos_sum[row[i]] += np.cos(angle)
+        sin_sum[row[i]] += np.sin(angle)
+    return cos_sum, sin_sum
+
+
+@numba.njit(**_JIT)
+def ring_scatter(points: np.ndarray, pixel: np.ndarray, size: int) -> tuple[np.ndarray, int]:
+    """The image (size, 3) of ``points`` (n, 3) on their ``pixel`` (n,) 0..size-1, NaN where none, the first point
+    standing for a pixel several fall on; and how many pixels hold a point (:func:`.geometry.ring_scatter_numpy` is
+    its reference)."""
+    image = np.full((size, 3), np.nan)
+    taken = np.zeros(size, np.bool_)
+    count = 0
+    for i in range(pixel.shape[0]):
+        p = pixel[i]
+        if not taken[p]:
+            taken[p] = True
+            count += 1
+            image[p, 0], image[p, 1], image[p, 2] = points[i, 0], points[i, 1], points[i, 2]
+    return image, count
+
+
+def _warm_rings() -> None:
+    row, values = np.array([0, 1, 0, 1], np.int64), np.zeros(4)
+    ring_steps(row, values, values, 2)
+    ring_turns(values, row, 2, 1.0, 1.0)
+    ring_scatter(np.zeros((4, 3)), row, 2)
+
+
 def _warm_outside() -> None:
     pts, index = np.zeros((4, 3)), np.arange(4, dtype=np.int64)
     labels = np.array([0, -1, 0, 1], np.int32)
@@ -4728,7 +4807,8 @@ def _warm_plain_graph() -> None:
 _WARM_STEPS = (_warm_outside, _warm_fits, _warm_regions, _warm_voxel_nearest, _warm_voxel_knn, _warm_patches,
                _warm_frame, _warm_silhouette, _warm_grid_search, _warm_indices, _warm_planes,
                _warm_judge, _warm_detect, _warm_unorganized, _warm_organized_detect, _warm_frame_ids,
-               _warm_beyond_rows, _warm_organized_batch, _warm_plain_graph, _warm_tent, _warm_leftover)
+               _warm_beyond_rows, _warm_organized_batch, _warm_plain_graph, _warm_tent, _warm_leftover,
+               _warm_rings)
 
 
 def _compiles() -> int:
@@ -4802,4 +4882,4 @@ _KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components
             kept_edges,
             graph_contacts,
             graph_settle, graph_plane, voxel_count, tent_fit, leftover_rows, leftover_best, seeded_draws,
-            polygon_distances)
+            polygon_distances, ring_steps, ring_turns, ring_scatter)
