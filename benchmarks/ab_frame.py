@@ -9,8 +9,12 @@ medians (``process_time``, ms) of both and the median of the paired ratios new /
 from run to run. Process-wide settings (one BLAS thread, glibc's thresholds of core/allocator.py, as the node sets
 them) hold for both: a change to them is measured in alternating processes instead.
 
+With ``--lidar``, bench_lidar.py's four scans instead, through the pipeline on their ring image and on the graph
+(``--calls ring,graph``).
+
 Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/ab_frame.py REV [PCD ...] [--repeat 15]
          [--calls organized,plain,infinite,tune]
+     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/ab_frame.py REV --lidar [--calls ring,graph]
 """
 from __future__ import annotations
 
@@ -24,7 +28,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from pvbench.frame_calls import frame_calls  # noqa: E402
+from pvbench.frame_calls import frame_calls, scan_calls  # noqa: E402
 from pvbench.node_e2e import cloud_message  # noqa: E402
 
 from plane_validation.core.allocator import reuse_freed_memory  # noqa: E402
@@ -41,7 +45,8 @@ def main() -> None:
     parser.add_argument('rev', help='the git revision to compare the working tree with')
     parser.add_argument('clouds', nargs='*', default=[str(p) for p in sorted(DATA.glob('*.pcd'))])
     parser.add_argument('--repeat', type=int, default=15)
-    parser.add_argument('--calls', default='organized,plain,infinite')
+    parser.add_argument('--calls', default=None, help='default organized,plain,infinite (--lidar: ring,graph)')
+    parser.add_argument('--lidar', action='store_true', help="bench_lidar.py's scans instead of the frames")
     parser.add_argument('--keep', type=Path, default=Path.home() / '.cache' / 'plane_validation_ab',
                         help='where the revision is extracted (kept, so its compiled kernels are too)')
     args = parser.parse_args()
@@ -50,16 +55,31 @@ def main() -> None:
     reuse_freed_memory()  # as the node: a frame's arrays from the heap (core/allocator.py)
     for name in (old, NEW):
         start = time.perf_counter()
-        __import__(f'{name}.core.kernels', fromlist=['warm']).warm()
+        try:
+            warm = __import__(f'{name}.core.kernels', fromlist=['warm']).warm
+        except ModuleNotFoundError as err:
+            if err.name != f'{name}.core.kernels':
+                raise
+            continue  # a revision before the compiled kernels
+        warm()
         print(f'{name}: kernels ready in {time.perf_counter() - start:.1f} s', flush=True)
-    names = args.calls.split(',')
+    names = (args.calls or ('ring,graph' if args.lidar else 'organized,plain,infinite')).split(',')
     print(f'\nCPU medians (ms), {args.rev} -> working tree, and the median of the paired ratios\n')
     print('| frame | ' + ' | '.join(f'{n} old | {n} new | {n} new / old' for n in names) + ' |')
     print('|---|' + '--:|--:|--:|' * len(names))
+    if args.lidar:
+        from bench_lidar import SCANS
+        for label, make in SCANS.items():
+            scene = make()
+            _interleaved(label, {pkg: scan_calls(pkg, scene.points, scene.rings) for pkg in (old, NEW)}, old, names,
+                         args.repeat)
+        return
     for path in args.clouds:
         points, shape = load_cloud(path)
         if shape == (480, 640):
-            _frame(Path(path).name, points, shape, old, names, args.repeat)
+            msg = cloud_message(points, *shape)
+            _interleaved(Path(path).name, {pkg: frame_calls(pkg, msg, points, shape) for pkg in (old, NEW)}, old,
+                         names, args.repeat, msg)
 
 
 def _extract(rev: str, keep: Path) -> str:
@@ -81,12 +101,13 @@ def _extract(rev: str, keep: Path) -> str:
     return name
 
 
-def _frame(label: str, points, shape: tuple[int, int], old: str, names: list[str], repeat: int) -> None:
-    msg = cloud_message(points, *shape)
-    calls = {pkg: frame_calls(pkg, msg, points, shape) for pkg in (old, NEW)}
+def _interleaved(label: str, calls: dict, old: str, names: list[str], repeat: int, msg=None) -> None:
+    """Print one row: ``calls`` per package (old and new) per name, run ``repeat`` + 1 times alternating (the first a
+    warm-up); ``msg``: the frame's message, whose stamp advances from run to run."""
     times: dict[tuple[str, str], list[float]] = {(pkg, n): [] for pkg in calls for n in names}
     for i in range(repeat + 1):
-        msg.header.stamp.sec = i + 1
+        if msg is not None:
+            msg.header.stamp.sec = i + 1
         for n in names:
             for pkg in ((old, NEW) if i % 2 else (NEW, old)):
                 start = time.process_time()

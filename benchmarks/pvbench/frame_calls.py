@@ -1,4 +1,4 @@
-"""The steady-state frame's three calls on one real frame, for any importable copy of the package.
+"""The steady-state frame's calls on one real frame or lidar scan, for any importable copy of the package.
 
 ``frame_calls('plane_validation', ...)`` times the working tree; ``ab_frame.py`` passes a renamed copy of
 another revision, so that both run call by call in one process. The settings are benchmarks/suite.py's:
@@ -34,3 +34,18 @@ def frame_calls(package: str, msg, points: np.ndarray, shape: tuple[int, int]
             'plain': lambda i: top.detect_planes(valid, 0.01, max_planes=5, min_inliers=0.01, seed=i),
             'infinite': lambda i: infinite.process(points, 10**9 * (i + 1), shape=shape),
             'tune': lambda i: top.tune_tolerance(valid, seed=i)}
+
+
+#: bench_lidar.py's settings: t = 5 cm, up to 10 planes, the pipeline's defaults otherwise.
+SCAN_SETTINGS = dict(auto_tune=False, tolerance=0.05, max_planes=10)
+
+
+def scan_calls(package: str, points: np.ndarray, rings: np.ndarray) -> dict[str, Callable[[int], object]]:
+    """Per name, a call of run ``i`` on an unorganized lidar scan ``points`` (N x 3, meters) with its ``rings`` (N,),
+    through the pipeline as bench_lidar.py runs it: ring (laid out as its ring image) and graph (organize_rings
+    False)."""
+    pipeline = importlib.import_module(f'{package}.app.pipeline')
+    pipes = {'ring': pipeline.FramePipeline(pipeline.PipelineConfig(**SCAN_SETTINGS)),
+             'graph': pipeline.FramePipeline(pipeline.PipelineConfig(**SCAN_SETTINGS, organize_rings=False))}
+    return {name: (lambda i, pipe=pipe: pipe.process(points, 10**9 * (i + 1), tune_inline=False, ring=rings))
+            for name, pipe in pipes.items()}
