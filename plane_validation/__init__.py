@@ -17,7 +17,7 @@ import importlib
 
 #: The public API: each name and the module of ``core`` that defines it.
 _API = {'Plane': 'ransac', 'Segmentation': 'ransac', 'detect_planes': 'ransac', 'fit_plane': 'ransac',
-        'ValidityIndices': 'indices', 'validity_indices': 'indices', 'TuningResult': 'tuning',
+        'ValidityIndices': 'indices', 'validity_indices': 'indices', 'TuningResult': 'tuning_result',
         'PlaneCountResult': 'plane_count', 'tune_tolerance': 'tuning', 'select_plane_count': 'plane_count',
         'Verdict': 'failures', 'Failure': 'failures', 'FailureKind': 'failures'}
 

@@ -453,7 +453,7 @@ def test_the_sweep_does_not_choose_clutter_cut_into_slabs_or_two_surfaces_taken_
     # and three slabs, F1 0.90), the sheets 5 cm apart to 43 mm and 2 cm apart to 17 mm (one plane, F1 0.50); each
     # choice fails the surface tests
     from plane_validation.core.scoring import segmentation_quality
-    from plane_validation.core.tuning import UNSOUND_SHARE
+    from plane_validation.core.tuning_result import UNSOUND_SHARE
     if case == 'bush':
         scene = scenes.clutter('bush', seed=0)
         points, labels = scene.points, scene.labels
@@ -505,10 +505,11 @@ def test_two_surfaces_with_little_noise_found_as_one_are_not_reliable():
 
 
 def test_an_unsound_choice_is_made_again_among_the_sound_candidates_below_it():
-    from plane_validation.core import tuning
+    from plane_validation.core import tuning, tuning_result
     base = pv.tune_tolerance(scenes.corner(600, noise=0.01, side=1.0, seed=0).points, seed=0).rows[-1]
 
-    def row(t: float, ps: float, volume: float = 0.0, merged: float = 0.0, counts=(100, 100)) -> tuning.TuningRow:
+    def row(t: float, ps: float, volume: float = 0.0, merged: float = 0.0, counts=(100, 100)
+            ) -> tuning_result.TuningRow:
         return dataclasses.replace(base, tolerance=t, indices=dataclasses.replace(base.indices, plane_silhouette=ps),
                                    n_planes=len(counts), inlier_counts=counts, volume_share=volume, merged_share=merged)
     below_noise = row(0.001, 0.5, volume=1.0)

@@ -26,7 +26,8 @@ from ..core.ransac import (
     detect_planes,
     finite_rows,
 )
-from ..core.tuning import TuningResult, noise_from_segmentation, tune_tolerance
+from ..core.tuning import noise_from_segmentation, tune_tolerance
+from ..core.tuning_result import TuningResult
 from ..core.verdict import judge
 from .config import PipelineConfig
 

@@ -24,7 +24,8 @@ import numpy as np
 
 from ..core import scenes
 from ..core.plane_count import PlaneCountResult, select_plane_count
-from ..core.tuning import TuningResult, tune_tolerance
+from ..core.tuning import tune_tolerance
+from ..core.tuning_result import TuningResult
 from ..formats.outputs import staged_files
 from .plot import plot_plane_count, plot_sweep
 

@@ -29,7 +29,8 @@ from ..core.ransac import (
     within_planes,
 )
 from ..core.tolerance_grid import quick_tolerance
-from ..core.tuning import TuningResult, noise_from_segmentation, tune_tolerance
+from ..core.tuning import noise_from_segmentation, tune_tolerance
+from ..core.tuning_result import TuningResult
 from ..core.verdict import judge
 from ..core.workers import TuningWorkerError
 from ..formats.pointcloud2 import ring_array, trailing_bytes, xyz_array, xyz_words

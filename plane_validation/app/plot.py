@@ -136,7 +136,7 @@ def plot_sweep(result, path: str | Path, *, title: str = '', unit: str = 'm',
                true_planes: int | None = None) -> Path:
     """The paper's Fig. 1/3/4/5/7 (indices vs t) and Fig. 6/8 (planes vs t) as one figure (:func:`figure_format`).
 
-    result: a :class:`~plane_validation.tuning.TuningResult`; four panels over the candidate
+    result: a :class:`~plane_validation.core.tuning_result.TuningResult`; four panels over the candidate
     tolerances t (in ``unit``): silhouette indices, Dunn, Davies-Bouldin, number of planes; the
     chosen t is a dashed vertical line in each. ``true_planes`` draws the known count.
     """

@@ -19,7 +19,7 @@ from ..core.indices import ValidityIndices
 from ..core.noise import noise_coefficient
 from ..core.plane_count import PlaneCountResult
 from ..core.ransac import Segmentation, as_points
-from ..core.tuning import TuningResult
+from ..core.tuning_result import TuningResult
 from .detection import Detection
 
 __all__ = ['jsonable', 'dumps', 'planes_json', 'indices_json', 'detection_document', 'sweep_document',
