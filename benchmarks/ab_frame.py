@@ -13,7 +13,7 @@ With ``--lidar``, bench_lidar.py's four scans instead, through the pipeline on t
 (``--calls ring,graph``).
 
 Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/ab_frame.py REV [PCD ...] [--repeat 15]
-         [--calls organized,plain,infinite,tune]
+         [--calls organized,plain,infinite,tune,organized_tune]
      OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/ab_frame.py REV --lidar [--calls ring,graph]
 """
 from __future__ import annotations

@@ -21,7 +21,8 @@ def frame_calls(package: str, msg, points: np.ndarray, shape: tuple[int, int]
     - organized: ``msg`` (an organized PointCloud2) to planes, indices, verdict and the five output messages;
     - plain: the valid rows of ``points`` (N x 3, meters) through ``detect_planes`` with regions;
     - infinite: the paper's infinite planes (``connectivity=False``) through the pipeline;
-    - tune: the valid rows through the full ``tune_tolerance`` with its defaults (issue 37's plain tune).
+    - tune: the valid rows through the full ``tune_tolerance`` with its defaults (issue 37's plain tune);
+    - organized_tune: the organized rows (``shape``) through it.
 
     The caller advances ``msg.header.stamp`` between runs (the node's frames have fresh stamps)."""
     top = importlib.import_module(package)
@@ -33,7 +34,8 @@ def frame_calls(package: str, msg, points: np.ndarray, shape: tuple[int, int]
     return {'organized': lambda i: frame_messages(msg.header, organized.process_cloud(msg), 'pv'),
             'plain': lambda i: top.detect_planes(valid, 0.01, max_planes=5, min_inliers=0.01, seed=i),
             'infinite': lambda i: infinite.process(points, 10**9 * (i + 1), shape=shape),
-            'tune': lambda i: top.tune_tolerance(valid, seed=i)}
+            'tune': lambda i: top.tune_tolerance(valid, seed=i),
+            'organized_tune': lambda i: top.tune_tolerance(points, seed=i, shape=shape)}
 
 
 #: bench_lidar.py's settings: t = 5 cm, up to 10 planes, the pipeline's defaults otherwise.
