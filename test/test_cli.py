@@ -754,3 +754,16 @@ def test_a_signal_exception_dropped_by_a_finalizer_is_delivered_again():
                 time.sleep(0.01)
     assert raised.value.signum == signal.SIGTERM
     assert signal.getsignal(signal.SIGTERM) is before and sys.unraisablehook is hook
+
+
+@pytest.mark.parametrize('cold', [True, False])
+def test_a_command_says_so_before_it_compiles_the_kernels_on_a_cold_cache(cold, monkeypatch, capsys):
+    """The first run on a machine compiles for minutes: it says why it is silent; a warm cache says nothing."""
+    from plane_validation.cli import run
+    from plane_validation.core import kernels
+    calls = []
+    monkeypatch.setattr(kernels, 'warm_probe', lambda: kernels.Warmup(0.1, cold))
+    monkeypatch.setattr(kernels, 'warm', lambda jobs=1, *, cold=False: calls.append(cold) or kernels.Warmup(0.1, cold))
+    run._load_kernels()
+    err = capsys.readouterr().err
+    assert (run.COLD_CACHE_NOTE in err) is cold and calls == [cold]

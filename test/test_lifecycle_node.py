@@ -153,4 +153,5 @@ def test_the_lifecycle_executable_prints_its_usage():
     proc = subprocess.run([sys.executable, '-m', 'plane_validation.ros.lifecycle_node', '--help'],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and 'min_output_rate_hz' in proc.stdout
+    assert proc.stdout.startswith('usage: plane_validation_lifecycle_node ') and 'starts unconfigured' in proc.stdout
     assert State.PRIMARY_STATE_ACTIVE == 3  # lifecycle_msgs is importable from the ros extra

@@ -115,3 +115,14 @@ def test_each_call_site_logs_each_of_its_severities(ros, capfd):
             assert any(f'[{level}]' in line and text in line for line in lines), (module, function, level, text, err)
     retuned = [line for line in lines if 'retuned: t = ' in line]
     assert [('[WARN]' in line, '[INFO]' in line) for line in retuned] == [(True, False), (False, True)], retuned
+
+
+def test_a_misspelt_parameter_is_named_in_a_warning_not_ignored_in_silence(ros, capfd):
+    node = PlaneValidationNode(parameter_overrides=[Parameter('tolerence', value=0.037),
+                                                    Parameter('max_planes', value=3)])
+    try:
+        assert node.pipeline.config.max_planes == 3 and node.pipeline.config.tolerance != 0.037
+    finally:
+        node.destroy_node()
+    warned = [line for line in capfd.readouterr().err.splitlines() if '[WARN]' in line and 'ignoring' in line]
+    assert len(warned) == 1 and 'tolerence' in warned[0] and 'max_planes' not in warned[0], warned

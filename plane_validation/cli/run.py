@@ -69,18 +69,26 @@ def _terminate_cleanly() -> Iterator[None]:
             signal.signal(sig, handler)
 
 
+#: What a command says before it compiles the kernels on a cold cache (the first run on a machine).
+COLD_CACHE_NOTE = ('plane-validation: compiling the kernels for this machine, once (about 1-2 minutes on an idle '
+                   '2-core machine; Ctrl-C stops when it ends); later runs load them from the cache')
+
+
 def _load_kernels() -> None:
     """Load (or compile) the compiled kernels with SIGINT, SIGTERM and SIGHUP held, then deliver the first one
     held: an exception raised inside numba's loader or compiler is dropped, or crashes it in a callback."""
     import os
     import signal
 
-    from ..core.kernels import warm
+    from ..core.kernels import warm, warm_probe
     caught: list[int] = []
     held = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
     previous = {sig: signal.signal(sig, lambda signum, _frame: caught.append(signum)) for sig in held}
     try:
-        warm(jobs=os.cpu_count() or 1)  # a cold cache compiles on every core
+        cold = warm_probe().compiled
+        if cold:  # minutes without a word would look like a hang
+            print(COLD_CACHE_NOTE, file=sys.stderr, flush=True)
+        warm(jobs=os.cpu_count() or 1, cold=cold)  # a cold cache compiles on every core
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

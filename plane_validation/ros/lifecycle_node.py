@@ -33,6 +33,11 @@ SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FA
 class PlaneValidationLifecycleNode(LifecycleNode):
     """The node's topics and parameters, brought up by lifecycle transitions."""
 
+    #: What its --help says of it.
+    ABOUT = ('A managed (lifecycle) node: it starts unconfigured; configure declares the parameters, activate '
+             'subscribes and publishes (ros2 lifecycle set NODE configure, then activate; or its ~/change_state '
+             'service).')
+
     def __init__(self, name: str = 'plane_validation', *, warmup: Warmup | None = None, **kwargs) -> None:
         """warmup: what main() did to the compiled kernels before the node existed (as the plain node's)."""
         super().__init__(name, **kwargs)

@@ -78,10 +78,11 @@ def spin(node: Node, executor: SingleThreadedExecutor | None = None) -> None:
         executor.remove_node(node)
 
 
-def usage() -> str:
-    """The node's --help: how to start it, its topics and its parameters (from the parameter tables)."""
-    lines = ['usage: plane_validation_node [--ros-args [-p NAME:=VALUE ...] [--params-file FILE] '
-             '[-r cloud:=TOPIC]]', '',
+def usage(prog: str = 'plane_validation_node', about: str = '') -> str:
+    """The --help of the node started as ``prog``: how to start it, ``about`` it (a line or none), its topics and its
+    parameters (from the parameter tables)."""
+    lines = [f'usage: {prog} [--ros-args [-p NAME:=VALUE ...] [--params-file FILE] '
+             '[-r cloud:=TOPIC]]', '', *([about] if about else []),
              'Subscribes to sensor_msgs/PointCloud2 on "cloud"; publishes '
              + ', '.join(f'~/{key}' for key in list(OUTPUTS)[:-1]) + ' and /diagnostics.',
              'config/params.yaml (installed in share/plane_validation/config) lists every parameter with its '
@@ -153,7 +154,7 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
         ros = own[own.index('--ros-args') + 1:]
         own = own[:own.index('--ros-args')] + (ros[ros.index('--') + 1:] if '--' in ros else [])
     if '-h' in own or '--help' in own:  # rclpy would ignore them and start the node
-        print(usage())
+        print(usage(prog, getattr(node_class, 'ABOUT', '')))
         return 0
     stopped, warmup = _warm_first()
     if stopped:

@@ -12,8 +12,8 @@ from rclpy.parameter import Parameter as RosParameter
 
 from ..app.config import PARAMETERS, Parameter, PipelineConfig
 
-__all__ = ['NODE_PARAMETERS', 'NodeOptions', 'descriptor', 'declare', 'checked_changes', 'apply_parameters',
-           'params_yaml', 'set_requests_whole']
+__all__ = ['NODE_PARAMETERS', 'NodeOptions', 'descriptor', 'declare', 'unknown_overrides', 'checked_changes',
+           'apply_parameters', 'params_yaml', 'set_requests_whole']
 
 #: Node-only parameters (the pipeline's are in app/config.py's table).
 NODE_PARAMETERS = {
@@ -60,8 +60,9 @@ def descriptor(spec: Parameter) -> ParameterDescriptor:
 
 def declare(node) -> tuple[PipelineConfig, NodeOptions]:
     """Declare every parameter not yet declared on ``node`` (overrides from the command line or a
-    params file apply) and return the validated values. Raises ValueError naming the first invalid one
-    (rclpy raises its own for a value outside a descriptor's range)."""
+    params file apply) and return the validated values; log a warning naming any override that is no parameter
+    (:func:`unknown_overrides`). Raises ValueError naming the first invalid one (rclpy raises its own for a value
+    outside a descriptor's range)."""
     values = {}
     for name, spec in {**PARAMETERS, **NODE_PARAMETERS}.items():
         param = node.get_parameter(name) if node.has_parameter(name) else \
@@ -69,7 +70,18 @@ def declare(node) -> tuple[PipelineConfig, NodeOptions]:
         values[name] = spec.converted(param.value)
     config = PipelineConfig(**{k: v for k, v in values.items() if k in PARAMETERS}).validate()
     options = NodeOptions(**{k: v for k, v in values.items() if k in NODE_PARAMETERS}).validate()
+    unknown = unknown_overrides(node)
+    if unknown:
+        node.get_logger().warning(f'ignoring {", ".join(unknown)}: not a parameter of this node (--help lists them)')
     return config, options
+
+
+def unknown_overrides(node) -> list[str]:
+    """The names given to ``node`` on the command line or in a params file that are none of its parameters, once
+    it has declared its own: rclpy ignores them without a word, so a misspelt ``tolerence`` would leave the
+    default in place unseen."""
+    given = getattr(node, '_parameter_overrides', None) or {}  # rclpy keeps them there (no public accessor)
+    return sorted(name for name in given if not node.has_parameter(name))
 
 
 def checked_changes(config: PipelineConfig, options: NodeOptions,
