@@ -1808,22 +1808,26 @@ NOT_FINITE = -2
 
 
 @numba.njit(**_JIT)
-def label_census(points: np.ndarray, labels: np.ndarray, compact: np.ndarray) -> tuple[int, int, int, np.ndarray]:
+def label_census(points: np.ndarray, labels: np.ndarray, compact: np.ndarray, finite: bool = False
+                 ) -> tuple[int, int, int, np.ndarray]:
     """Of the rows of ``points`` (N, 3) with three finite coordinates and their ``labels`` (N,) (every negative one
     counting as -1): (n such rows, m of them labelled >= 0, the smallest label, count (span,) rows per label from
     it on). Fills ``compact`` (N,) int32 with each row's label, NOT_FINITE where a coordinate is not finite, for
     :func:`rows_at_ranks` to read instead of the points and labels (a sixteenth of the memory). The count is
     empty when n = 0, when the labels span more than 4 n + 1024 values (a table that large is the caller's to
-    avoid) or when a label does not fit in int32 (then ``compact`` is not to be used)."""
+    avoid) or when a label does not fit in int32 (then ``compact`` is not to be used). With ``finite`` the caller
+    knows every row to be finite (rows a frame's read kept): the points are not read, only the labels (a
+    seventh of the memory)."""
     count = np.zeros(_TABLE_LABELS + 1, np.int64)  # labels -1 .. _TABLE_LABELS - 1
     n = 0
     low = high = np.int64(0)
     current, run, outside = np.int64(-2), 0, False
-    for i in range(points.shape[0]):
-        x, y, z = points[i, 0], points[i, 1], points[i, 2]
-        if not (x - x) + (y - y) + (z - z) == 0.0:  # NaN unless all three are finite
-            compact[i] = NOT_FINITE
-            continue
+    for i in range(labels.shape[0]):
+        if not finite:
+            x, y, z = points[i, 0], points[i, 1], points[i, 2]
+            if not (x - x) + (y - y) + (z - z) == 0.0:  # NaN unless all three are finite
+                compact[i] = NOT_FINITE
+                continue
         lab = np.int64(max(labels[i], -1))
         compact[i] = lab
         if lab != current:  # runs of one label are the rule: a count kept in a register, not one in memory per row
@@ -1845,7 +1849,7 @@ def label_census(points: np.ndarray, labels: np.ndarray, compact: np.ndarray) ->
     if not outside:
         return n, m, low, count[low + 1:high + 2].copy()
     count = np.zeros(high - low + 1, np.int64)
-    for i in range(points.shape[0]):
+    for i in range(labels.shape[0]):
         if compact[i] != NOT_FINITE:
             count[compact[i] - low] += 1
     return n, m, low, count
@@ -4456,7 +4460,8 @@ def _warm_indices() -> None:
     group_by_label(codes, 2)
     compact = np.empty(4, np.int32)
     for ints in (codes, codes.astype(np.int32)):  # the label types the package passes
-        n, m, low, count = label_census(pts, ints, compact)
+        for finite in (False, True):
+            n, m, low, count = label_census(pts, ints, compact, finite)
     rows_at_ranks(compact, low, np.arange(len(count)) - 1, np.zeros(2, np.int64), np.array([0, 1, 2]))
     sizes = np.array([2, 2], np.int64)
     cluster_distance_pass(pts, np.array([0, 2], np.int64), sizes)
