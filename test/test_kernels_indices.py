@@ -67,6 +67,18 @@ def test_label_census_of_rows_known_finite_reads_only_the_labels(seed, n, spread
 
 
 @SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 100), st.sampled_from([np.int32, np.int64]))
+def test_run_end_finds_where_a_run_stops_as_numpy(seed, n, dtype):
+    """Eight values at a time and then one by one: runs shorter and longer than eight, at the end and not."""
+    rng = np.random.default_rng(seed)
+    values = np.repeat(rng.integers(-2, 3, n), rng.integers(1, 20, n)).astype(dtype)
+    for start in range(len(values) + 1):
+        value = values[start] if start < len(values) else dtype(0)
+        other = np.flatnonzero(values[start:] != value)
+        assert kernels._run_end(values, start, value) == (start + other[0] if len(other) else len(values))
+
+
+@SETTINGS
 @given(st.integers(0, 2**32 - 1), st.integers(3, 300), st.sampled_from([1, 4, 40]), st.booleans())
 def test_validity_indices_of_rows_known_finite_are_the_checked_ones(seed, n, spread, separation):
     pts, labels = _cloud(seed, n, spread)
