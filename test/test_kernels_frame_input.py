@@ -143,3 +143,39 @@ def test_hull_vertices_use_the_wrapper_and_fall_back_to_convex_hull(monkeypatch)
     np.testing.assert_array_equal(geometry.hull_vertices(points), ConvexHull(points).vertices)
     with pytest.raises(ValueError):
         geometry.hull_vertices(np.full((5, 2), np.nan))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 400), st.integers(0, 3), st.sampled_from([0.0, 1e-9, 1e-3]),
+       st.booleans())
+def test_outside_polygon_matches_numpy(seed, m, kind, margin, extremes):
+    """Corners the points' extremes (as the outlines take them, repeats included) or any of them in any order."""
+    local = np.ascontiguousarray(_hull_points(seed, max(m, 1), kind).T)[:, :m]
+    rng = np.random.default_rng(seed)
+    if m == 0:
+        corners = rng.normal(size=(2, 8))
+    elif extremes:
+        corners = local[:, np.argmax(geometry._DIRECTIONS @ local, axis=1)]
+    else:
+        corners = local[:, rng.integers(0, m, rng.integers(1, 9))]
+    corners = np.ascontiguousarray(corners)
+    np.testing.assert_array_equal(kernels.outside_polygon(local, corners, margin),
+                                  geometry.outside_polygon_numpy(local, corners, margin))
+
+
+@pytest.mark.parametrize('kind', range(4))
+def test_hulls_of_the_points_outside_the_extremes_polygon_have_the_whole_sets_corners(kind, monkeypatch):
+    """The outlines' hulls without the points inside the polygon of their extremes: the same corners from the same
+    start, as Qhull gives them on every point (grids repeat points: the same coordinates, maybe another copy's index);
+    and the filter does leave points out."""
+    cases = [(seed, m) for seed in range(60) for m in (65, 300, 2056)]
+    filtered = {}
+    for seed, m in cases:
+        local = np.ascontiguousarray(_hull_points(seed, m, kind).T)
+        filtered[seed, m] = local[:, geometry._hull(local)], len(geometry._outer(local))
+    monkeypatch.setattr(geometry, 'HULL_FILTER', 10**9)
+    for seed, m in cases:
+        local = np.ascontiguousarray(_hull_points(seed, m, kind).T)
+        np.testing.assert_array_equal(filtered[seed, m][0], local[:, geometry._hull(local)])
+    if kind == 0:  # a round blob: most points lie inside its extremes (a strip's or a line's need not)
+        assert all(filtered[case][1] < case[1] // 2 for case in cases if case[1] == 2056)

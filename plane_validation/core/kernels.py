@@ -29,7 +29,7 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
            'spread_nearest', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
-           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
+           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'outside_polygon', 'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
            'labels_where', 'graph_triples',
            'grid_spread', 'strided_rows', 'columns_at', 'rows_less', 'grid_batch', 'kept_edges', 'graph_contacts',
@@ -3197,6 +3197,38 @@ def graph_triples(first: np.ndarray, scale_pick: np.ndarray, steps: np.ndarray, 
 
 
 @numba.njit(**_JIT)
+def outside_polygon(local: np.ndarray, corners: np.ndarray, margin: float) -> np.ndarray:
+    """The positions (ascending) of the points ``local`` (2, m) not inside the polygon ``corners`` (2, c)
+    (counter-clockwise; a corner repeated next to itself makes no side): a point is inside when it lies left of
+    every side by more than ``margin`` times the side's larger coordinate span and the points' largest |coordinate|.
+    The numbers as :func:`.geometry.outside_polygon_numpy` computes them."""
+    m, c = local.shape[1], corners.shape[1]
+    scale = 0.0
+    for i in range(m):
+        scale = max(scale, max(abs(local[0, i]), abs(local[1, i])))
+    sx, sy, limit = np.empty(c), np.empty(c), np.empty(c)
+    for e in range(c):
+        f = e + 1 if e + 1 < c else 0
+        sx[e], sy[e] = corners[0, f] - corners[0, e], corners[1, f] - corners[1, e]
+        limit[e] = margin * max(abs(sx[e]), abs(sy[e])) * scale
+    out = np.empty(m, np.int64)
+    q = 0
+    for i in range(m):
+        x, y = local[0, i], local[1, i]
+        inside = True
+        for e in range(c):
+            if sx[e] == 0.0 and sy[e] == 0.0:
+                continue
+            if not sx[e] * (y - corners[1, e]) - sy[e] * (x - corners[0, e]) > limit[e]:
+                inside = False
+                break
+        if not inside:
+            out[q] = i
+            q += 1
+    return out[:q]
+
+
+@numba.njit(**_JIT)
 def read_rows(words: np.ndarray, columns: np.ndarray, view: np.ndarray, within: float, marks: bool
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int, float]:
     """One pass over a PointCloud2's points, the float32 ``words`` (N, w) with x, y, z at ``columns`` (3,): the rows
@@ -4420,6 +4452,7 @@ def _warm_frame() -> None:
     widen_xyz(np.zeros((4, 5), np.float32), np.arange(3))
     valid_rows(pts)
     read_rows(np.zeros((4, 5), np.float32), np.arange(3), np.zeros(3), 1e-6, True)
+    outside_polygon(np.zeros((2, 4)), np.zeros((2, 8)), 1e-9)
     frame_pass(pts, labels, flags, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.zeros((2, 8, 3)),
                np.empty(80, np.uint8), np.empty(48, np.uint8), False)
 
