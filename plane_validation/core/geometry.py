@@ -107,14 +107,15 @@ def _outer(local: np.ndarray) -> np.ndarray:
     """The points of ``local`` (2, m) (ascending) not inside the polygon of their extreme points along _DIRECTIONS
     (counter-clockwise, some of them repeated) by _INSIDE_MARGIN (:func:`.kernels.outside_polygon`). Such a point lies
     inside the hull, so that the hull of the others has the same corners."""
-    corners = local[:, np.argmax(_DIRECTIONS @ local, axis=1)]  # (2, 8)
-    return kernels.outside_polygon(kernels.c_array(local, np.float64), np.ascontiguousarray(corners), _INSIDE_MARGIN)
+    return kernels.outside_polygon(kernels.c_array(local, np.float64), _DIRECTIONS, _INSIDE_MARGIN)
 
 
-def outside_polygon_numpy(local: np.ndarray, corners: np.ndarray, margin: float) -> np.ndarray:
+def outside_polygon_numpy(local: np.ndarray, directions: np.ndarray, margin: float) -> np.ndarray:
     """:func:`.kernels.outside_polygon` in numpy: its reference."""
-    side = np.roll(corners, -1, axis=1) - corners  # (2, c)
-    limit = margin * np.maximum(np.abs(side[0]), np.abs(side[1])) * (float(np.abs(local).max()) if local.size else 0.0)
+    values = directions[:, 0, None] * local[0] + directions[:, 1, None] * local[1]  # (d, m), the kernel's sums
+    corners = local[:, np.argmax(values, axis=1)]  # (2, d)
+    side = np.roll(corners, -1, axis=1) - corners
+    limit = margin * np.maximum(np.abs(side[0]), np.abs(side[1])) * float(np.abs(local).max())
     cross = side[0][:, None] * (local[1] - corners[1][:, None]) - side[1][:, None] * (local[0] - corners[0][:, None])
     no_side = (side[0] == 0) & (side[1] == 0)
     inside = ((cross > limit[:, None]) | no_side[:, None]).all(axis=0)

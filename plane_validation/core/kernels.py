@@ -29,7 +29,8 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
            'spread_nearest', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
-           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'outside_polygon', 'voxel_nodes',
+           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'outside_polygon',
+           'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
            'labels_where', 'graph_triples',
            'grid_spread', 'strided_rows', 'columns_at', 'rows_less', 'grid_batch', 'kept_edges', 'graph_contacts',
@@ -3197,19 +3198,28 @@ def graph_triples(first: np.ndarray, scale_pick: np.ndarray, steps: np.ndarray, 
 
 
 @numba.njit(**_JIT)
-def outside_polygon(local: np.ndarray, corners: np.ndarray, margin: float) -> np.ndarray:
-    """The positions (ascending) of the points ``local`` (2, m) not inside the polygon ``corners`` (2, c)
-    (counter-clockwise; a corner repeated next to itself makes no side): a point is inside when it lies left of
-    every side by more than ``margin`` times the side's larger coordinate span and the points' largest |coordinate|.
-    The numbers as :func:`.geometry.outside_polygon_numpy` computes them."""
-    m, c = local.shape[1], corners.shape[1]
+def outside_polygon(local: np.ndarray, directions: np.ndarray, margin: float) -> np.ndarray:
+    """The positions (ascending) of the points ``local`` (2, m), m > 0, not inside the polygon of their extreme
+    points along ``directions`` (d, 2) (the first of equals; at increasing angles: the polygon counter-clockwise, a
+    corner repeated next to itself making no side): a point is inside when it lies left of every side by more than
+    ``margin`` times the side's larger coordinate span and the points' largest |coordinate|. The numbers as
+    :func:`.geometry.outside_polygon_numpy` computes them."""
+    m, c = local.shape[1], directions.shape[0]
     scale = 0.0
     for i in range(m):
         scale = max(scale, max(abs(local[0, i]), abs(local[1, i])))
+    cx, cy = np.empty(c), np.empty(c)
+    for e in range(c):
+        best, at = -np.inf, 0
+        for i in range(m):
+            value = directions[e, 0] * local[0, i] + directions[e, 1] * local[1, i]
+            if value > best:
+                best, at = value, i
+        cx[e], cy[e] = local[0, at], local[1, at]
     sx, sy, limit = np.empty(c), np.empty(c), np.empty(c)
     for e in range(c):
         f = e + 1 if e + 1 < c else 0
-        sx[e], sy[e] = corners[0, f] - corners[0, e], corners[1, f] - corners[1, e]
+        sx[e], sy[e] = cx[f] - cx[e], cy[f] - cy[e]
         limit[e] = margin * max(abs(sx[e]), abs(sy[e])) * scale
     out = np.empty(m, np.int64)
     q = 0
@@ -3219,7 +3229,7 @@ def outside_polygon(local: np.ndarray, corners: np.ndarray, margin: float) -> np
         for e in range(c):
             if sx[e] == 0.0 and sy[e] == 0.0:
                 continue
-            if not sx[e] * (y - corners[1, e]) - sy[e] * (x - corners[0, e]) > limit[e]:
+            if not sx[e] * (y - cy[e]) - sy[e] * (x - cx[e]) > limit[e]:
                 inside = False
                 break
         if not inside:
@@ -4452,7 +4462,7 @@ def _warm_frame() -> None:
     widen_xyz(np.zeros((4, 5), np.float32), np.arange(3))
     valid_rows(pts)
     read_rows(np.zeros((4, 5), np.float32), np.arange(3), np.zeros(3), 1e-6, True)
-    outside_polygon(np.zeros((2, 4)), np.zeros((2, 8)), 1e-9)
+    outside_polygon(np.zeros((2, 4)), np.zeros((8, 2)), 1e-9)
     frame_pass(pts, labels, flags, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.zeros((2, 8, 3)),
                np.empty(80, np.uint8), np.empty(48, np.uint8), False)
 
