@@ -143,3 +143,32 @@ def test_hull_vertices_use_the_wrapper_and_fall_back_to_convex_hull(monkeypatch)
     np.testing.assert_array_equal(geometry.hull_vertices(points), ConvexHull(points).vertices)
     with pytest.raises(ValueError):
         geometry.hull_vertices(np.full((5, 2), np.nan))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(1, 400), st.integers(0, 3), st.sampled_from([0.0, 1e-9, 1e-3]),
+       st.booleans())
+def test_outside_polygon_matches_numpy(seed, m, kind, margin, octagon):
+    """The outlines' 8 directions, or a few random ones in any order (a polygon that need not be convex)."""
+    local = np.ascontiguousarray(_hull_points(seed, m, kind).T)
+    directions = geometry._DIRECTIONS if octagon else np.random.default_rng(seed).normal(size=(seed % 7 + 1, 2))
+    np.testing.assert_array_equal(kernels.outside_polygon(local, directions, margin),
+                                  geometry.outside_polygon_numpy(local, directions, margin))
+
+
+@pytest.mark.parametrize('kind', range(4))
+def test_hulls_of_the_points_outside_the_extremes_polygon_have_the_whole_sets_corners(kind, monkeypatch):
+    """The outlines' hulls without the points inside the polygon of their extremes: the same corners from the same
+    start, as Qhull gives them on every point (grids repeat points: the same coordinates, maybe another copy's index);
+    and the filter does leave points out."""
+    cases = [(seed, m) for seed in range(60) for m in (65, 300, 2056)]
+    filtered = {}
+    for seed, m in cases:
+        local = np.ascontiguousarray(_hull_points(seed, m, kind).T)
+        filtered[seed, m] = local[:, geometry._hull(local)], len(geometry._outer(local))
+    monkeypatch.setattr(geometry, 'HULL_FILTER', 10**9)
+    for seed, m in cases:
+        local = np.ascontiguousarray(_hull_points(seed, m, kind).T)
+        np.testing.assert_array_equal(filtered[seed, m][0], local[:, geometry._hull(local)])
+    if kind == 0:  # a round blob: most points lie inside its extremes (a strip's or a line's need not)
+        assert all(filtered[case][1] < case[1] // 2 for case in cases if case[1] == 2056)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.distance import cdist
@@ -29,7 +30,7 @@ def test_label_census_counts_as_numpy(seed, n, spread, dtype):
     pts, labels = _cloud(seed, n, spread)
     labels = labels.astype(dtype) if spread < 2**31 else labels
     compact = np.empty(n, np.int32)
-    n_valid, n_assigned, low, count = kernels.label_census(pts, labels, compact)
+    n_valid, n_assigned, low, count = kernels.label_census(pts, labels, compact, False)
     finite = np.isfinite(pts).all(axis=1)
     merged = np.maximum(labels[finite], -1)
     assert n_valid == finite.sum() and n_assigned == (merged >= 0).sum()
@@ -46,12 +47,61 @@ def test_label_census_counts_as_numpy(seed, n, spread, dtype):
     assert np.all(compact[~finite] == kernels.NOT_FINITE)
 
 
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 400), st.sampled_from([1, 3, 12, 5000, 10**12]),
+       st.sampled_from([np.int32, np.int64]))
+def test_label_census_of_rows_known_finite_reads_only_the_labels(seed, n, spread, dtype):
+    """``finite``: the same counts and compact labels as the checking pass on finite rows, without the points."""
+    pts, labels = _cloud(seed, n, spread)
+    keep = np.isfinite(pts).all(axis=1)
+    pts, labels = np.ascontiguousarray(pts[keep]), labels[keep]
+    labels = labels.astype(dtype) if spread < 2**31 else labels
+    checked, known = np.empty(len(labels), np.int32), np.empty(len(labels), np.int32)
+    expected = kernels.label_census(pts, labels, checked, False)
+    unread = np.full_like(pts, np.nan)  # the points are not read: NaN rows still count as finite
+    got = kernels.label_census(unread, labels, known, True)
+    assert got[:3] == expected[:3]
+    np.testing.assert_array_equal(got[3], expected[3])
+    if len(expected[3]):
+        np.testing.assert_array_equal(known, checked)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 100), st.sampled_from([np.int32, np.int64]))
+def test_run_end_finds_where_a_run_stops_as_numpy(seed, n, dtype):
+    """Eight values at a time and then one by one: runs shorter and longer than eight, at the end and not."""
+    rng = np.random.default_rng(seed)
+    values = np.repeat(rng.integers(-2, 3, n), rng.integers(1, 20, n)).astype(dtype)
+    for start in range(len(values) + 1):
+        value = values[start] if start < len(values) else dtype(0)
+        other = np.flatnonzero(values[start:] != value)
+        assert kernels._run_end(values, start, value) == (start + other[0] if len(other) else len(values))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(3, 300), st.sampled_from([1, 4, 40]), st.booleans())
+def test_validity_indices_of_rows_known_finite_are_the_checked_ones(seed, n, spread, separation):
+    pts, labels = _cloud(seed, n, spread)
+    keep = np.isfinite(pts).all(axis=1)
+    pts, labels = pts[keep], labels[keep]
+    checked = indices.validity_indices(pts, labels, sample_size=50, seed=seed, sampled_separation=separation)
+    known = indices.validity_indices(pts, labels, sample_size=50, seed=seed, sampled_separation=separation,
+                                     finite=True)
+    assert repr(known) == repr(checked)  # NaN fields compare by their text
+
+
+def test_validity_indices_refuse_a_finite_flag_that_is_no_bool():
+    pts = np.random.default_rng(0).normal(size=(10, 3))
+    with pytest.raises(ValueError, match='finite must be True or False'):
+        indices.validity_indices(pts, np.zeros(10, int), finite='yes')
+
+
 def test_label_census_counts_labels_past_the_one_pass_table():
     rng = np.random.default_rng(0)
     pts = rng.normal(size=(2000, 3))
     labels = np.repeat([-1, 4100, 0, 4100, -7], 400)
     compact = np.empty(2000, np.int32)
-    n_valid, n_assigned, low, count = kernels.label_census(pts, labels, compact)
+    n_valid, n_assigned, low, count = kernels.label_census(pts, labels, compact, False)
     assert (n_valid, n_assigned, low) == (2000, 1200, -1) and len(count) == 4102
     assert count[0] == 800 and count[1] == 400 and count[4101] == 800 and count.sum() == 2000
 
@@ -62,7 +112,7 @@ def test_rows_at_ranks_picks_the_ranked_members(seed, n, one_cluster):
     rng = np.random.default_rng(seed)
     pts, labels = _cloud(seed, n, 6)
     compact = np.empty(n, np.int32)
-    _, _, low, count = kernels.label_census(pts, labels, compact)
+    _, _, low, count = kernels.label_census(pts, labels, compact, False)
     if len(count) == 0:
         return
     values = np.arange(low, low + len(count))

@@ -353,7 +353,7 @@ class FramePipeline:
                 # an organized frame's indices from its valid rows: the same values, no second NaN filter
                 scored = (valid, labels) if shape is not None or laid is not None else (work, seg.labels)
                 scores = validity_indices(*scored, sample_size=cfg.index_sample_size, seed=seed,
-                                          sampled_separation=not cfg.exact_indices)
+                                          sampled_separation=not cfg.exact_indices, finite=scored[0] is valid)
                 # the segmentation's own labels (of the rows of work) are grouped by its planes' inliers
                 tracked = (work, seg.labels) if inverse is None else (valid, labels)
                 found = self.tracker.update(*tracked, seg.coefficients, plane_rows(tracked[1], seg))

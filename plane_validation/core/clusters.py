@@ -134,13 +134,14 @@ class Census:
     table: np.ndarray
 
 
-def take_census(points: np.ndarray, labels: np.ndarray) -> Census:
-    """Check the input and count its clusters (see Census)."""
+def take_census(points: np.ndarray, labels: np.ndarray, finite: bool = False) -> Census:
+    """Check the input and count its clusters (see Census); ``finite``: every row of ``points`` is known to be
+    finite (a frame's valid rows), so that the count reads only the labels."""
     pts, lab = check_labelled(points, labels, convert=False)
     pts = kernels.c_array(pts, np.float64)
     lab = kernels.c_array(lab, lab.dtype if lab.dtype in (np.int32, np.int64) else np.int64)
     compact = np.empty(len(lab), np.int32)
-    n, n_assigned, low, count = kernels.label_census(pts, lab, compact)
+    n, n_assigned, low, count = kernels.label_census(pts, lab, compact, bool(finite))
     present = count > 0
     if n and not len(count):  # labels too far apart for a table: numbered by a sort
         ids, codes = dense_codes(np.maximum(lab[finite_rows(pts)], -1).astype(np.int64))

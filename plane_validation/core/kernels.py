@@ -29,7 +29,8 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
            'spread_nearest', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
-           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'voxel_nodes',
+           'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'outside_polygon',
+           'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
            'labels_where', 'graph_triples',
            'grid_spread', 'strided_rows', 'columns_at', 'rows_less', 'grid_batch', 'kept_edges', 'graph_contacts',
@@ -1809,24 +1810,37 @@ NOT_FINITE = -2
 
 
 @numba.njit(**_JIT)
-def label_census(points: np.ndarray, labels: np.ndarray, compact: np.ndarray) -> tuple[int, int, int, np.ndarray]:
+def label_census(points: np.ndarray, labels: np.ndarray, compact: np.ndarray, finite: bool = False
+                 ) -> tuple[int, int, int, np.ndarray]:
     """Of the rows of ``points`` (N, 3) with three finite coordinates and their ``labels`` (N,) (every negative one
     counting as -1): (n such rows, m of them labelled >= 0, the smallest label, count (span,) rows per label from
     it on). Fills ``compact`` (N,) int32 with each row's label, NOT_FINITE where a coordinate is not finite, for
     :func:`rows_at_ranks` to read instead of the points and labels (a sixteenth of the memory). The count is
     empty when n = 0, when the labels span more than 4 n + 1024 values (a table that large is the caller's to
-    avoid) or when a label does not fit in int32 (then ``compact`` is not to be used)."""
+    avoid) or when a label does not fit in int32 (then ``compact`` is not to be used). With ``finite`` the caller
+    knows every row to be finite (rows a frame's read kept): the points are not read, only the labels (a
+    seventh of the memory)."""
     count = np.zeros(_TABLE_LABELS + 1, np.int64)  # labels -1 .. _TABLE_LABELS - 1
     n = 0
     low = high = np.int64(0)
     current, run, outside = np.int64(-2), 0, False
-    for i in range(points.shape[0]):
-        x, y, z = points[i, 0], points[i, 1], points[i, 2]
-        if not (x - x) + (y - y) + (z - z) == 0.0:  # NaN unless all three are finite
-            compact[i] = NOT_FINITE
-            continue
+    i, rows = 0, labels.shape[0]
+    if finite:
+        for q in range(rows):  # no branch: a copy the compiler vectorizes
+            compact[q] = max(labels[q], -1)
+    while i < rows:
+        step = 1  # rows of this row's label taken at once: with finite, its whole run (found eight at a time)
+        if finite:
+            step = _run_end(labels, i + 1, labels[i]) - i
+        else:
+            x, y, z = points[i, 0], points[i, 1], points[i, 2]
+            if not (x - x) + (y - y) + (z - z) == 0.0:  # NaN unless all three are finite
+                compact[i] = NOT_FINITE
+                i += 1
+                continue
         lab = np.int64(max(labels[i], -1))
-        compact[i] = lab
+        if not finite:
+            compact[i] = lab
         if lab != current:  # runs of one label are the rule: a count kept in a register, not one in memory per row
             if n == 0 or lab < low:
                 low = lab
@@ -1836,8 +1850,9 @@ def label_census(points: np.ndarray, labels: np.ndarray, compact: np.ndarray) ->
                 count[current + 1] += run
             current, run = lab, 0
             outside |= lab >= _TABLE_LABELS
-        n += 1
-        run += 1
+        n += step
+        run += step
+        i += step
     if -1 <= current < _TABLE_LABELS:
         count[current + 1] += run
     m = n - count[0]
@@ -1846,10 +1861,28 @@ def label_census(points: np.ndarray, labels: np.ndarray, compact: np.ndarray) ->
     if not outside:
         return n, m, low, count[low + 1:high + 2].copy()
     count = np.zeros(high - low + 1, np.int64)
-    for i in range(points.shape[0]):
+    for i in range(labels.shape[0]):
         if compact[i] != NOT_FINITE:
             count[compact[i] - low] += 1
     return n, m, low, count
+
+
+@numba.njit(**_JIT)
+def _run_end(values: np.ndarray, start: int, value) -> int:
+    """The first index from ``start`` on where ``values`` (n,) is not ``value`` (n when there is none): eight values
+    compared at a time, a fixed count the compiler turns into vector compares (labels come in runs of hundreds)."""
+    n = values.shape[0]
+    end = start
+    while end + 8 <= n:
+        same = True
+        for t in range(8):
+            same &= values[end + t] == value
+        if not same:
+            break
+        end += 8
+    while end < n and values[end] == value:
+        end += 1
+    return end
 
 
 @numba.njit(**_JIT)
@@ -1867,9 +1900,7 @@ def rows_at_ranks(compact: np.ndarray, low: int, cluster: np.ndarray, ranks: np.
     i = 0
     while i < n and left > 0:  # run by run: labels come in runs, and a run's wanted rows follow from its start
         lab = compact[i]
-        end = i + 1
-        while end < n and compact[end] == lab:
-            end += 1
+        end = _run_end(compact, i + 1, lab)
         c = cluster[lab - low] if lab != NOT_FINITE else -1
         if c >= 0:
             first, stop = seen[c], seen[c] + (end - i)  # the run holds cluster c's members first .. stop - 1
@@ -3168,6 +3199,47 @@ def graph_triples(first: np.ndarray, scale_pick: np.ndarray, steps: np.ndarray, 
 
 
 @numba.njit(**_JIT)
+def outside_polygon(local: np.ndarray, directions: np.ndarray, margin: float) -> np.ndarray:
+    """The positions (ascending) of the points ``local`` (2, m), m > 0, not inside the polygon of their extreme
+    points along ``directions`` (d, 2) (the first of equals; at increasing angles: the polygon counter-clockwise, a
+    corner repeated next to itself making no side): a point is inside when it lies left of every side by more than
+    ``margin`` times the side's larger coordinate span and the points' largest |coordinate|. The numbers as
+    :func:`.geometry.outside_polygon_numpy` computes them."""
+    m, c = local.shape[1], directions.shape[0]
+    scale = 0.0
+    for i in range(m):
+        scale = max(scale, max(abs(local[0, i]), abs(local[1, i])))
+    cx, cy = np.empty(c), np.empty(c)
+    for e in range(c):
+        best, at = -np.inf, 0
+        for i in range(m):
+            value = directions[e, 0] * local[0, i] + directions[e, 1] * local[1, i]
+            if value > best:
+                best, at = value, i
+        cx[e], cy[e] = local[0, at], local[1, at]
+    sx, sy, limit = np.empty(c), np.empty(c), np.empty(c)
+    for e in range(c):
+        f = e + 1 if e + 1 < c else 0
+        sx[e], sy[e] = cx[f] - cx[e], cy[f] - cy[e]
+        limit[e] = margin * max(abs(sx[e]), abs(sy[e])) * scale
+    out = np.empty(m, np.int64)
+    q = 0
+    for i in range(m):
+        x, y = local[0, i], local[1, i]
+        inside = True
+        for e in range(c):
+            if sx[e] == 0.0 and sy[e] == 0.0:
+                continue
+            if not sx[e] * (y - cy[e]) - sy[e] * (x - cx[e]) > limit[e]:
+                inside = False
+                break
+        if not inside:
+            out[q] = i
+            q += 1
+    return out[:q]
+
+
+@numba.njit(**_JIT)
 def read_rows(words: np.ndarray, columns: np.ndarray, view: np.ndarray, within: float, marks: bool
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int, float]:
     """One pass over a PointCloud2's points, the float32 ``words`` (N, w) with x, y, z at ``columns`` (3,): the rows
@@ -4391,6 +4463,7 @@ def _warm_frame() -> None:
     widen_xyz(np.zeros((4, 5), np.float32), np.arange(3))
     valid_rows(pts)
     read_rows(np.zeros((4, 5), np.float32), np.arange(3), np.zeros(3), 1e-6, True)
+    outside_polygon(np.zeros((2, 4)), np.zeros((8, 2)), 1e-9)
     frame_pass(pts, labels, flags, np.zeros(3, np.int32), np.zeros(3, np.uint32), np.zeros((2, 8, 3)),
                np.empty(80, np.uint8), np.empty(48, np.uint8), False)
 
@@ -4457,7 +4530,8 @@ def _warm_indices() -> None:
     group_by_label(codes, 2)
     compact = np.empty(4, np.int32)
     for ints in (codes, codes.astype(np.int32)):  # the label types the package passes
-        n, m, low, count = label_census(pts, ints, compact)
+        for finite in (False, True):
+            n, m, low, count = label_census(pts, ints, compact, finite)
     rows_at_ranks(compact, low, np.arange(len(count)) - 1, np.zeros(2, np.int64), np.array([0, 1, 2]))
     sizes = np.array([2, 2], np.int64)
     cluster_distance_pass(pts, np.array([0, 2], np.int64), sizes)

@@ -102,7 +102,7 @@ def _census(points: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndar
         raise ValueError(f'{len(lab)} labels for {len(pts)} points')
     pts, lab = kernels.c_array(pts, np.float64), kernels.c_array(lab, np.int64)
     compact = np.empty(len(lab), np.int32)
-    n_valid, n_assigned, low, count = kernels.label_census(pts, lab, compact)
+    n_valid, n_assigned, low, count = kernels.label_census(pts, lab, compact, False)
     return pts, lab, compact, (n_valid, n_assigned, low, len(count))
 
 
