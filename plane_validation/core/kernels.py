@@ -4940,20 +4940,5 @@ def warm(jobs: int = 1, *, cold: bool = False) -> Warmup:
     return Warmup(time.perf_counter() - start, compiled)
 
 
-_KERNELS = (finite_mask, group_by_label, centroids_and_extremes, grid_components,
-            grid_region, graph_components, graph_region, coordinate_bounds,
-            voxel_grid, voxel_knn, voxel_knn_points, principal_axes, patch_fits, pair_graph, widen_xyz,
-            valid_rows, frame_pass, plane_patches, fold_line, grid_sample, grid_edges, grid_usable,
-            grid_normals, grid_chords, merge_test, compete_distances, plane_bands, band_counts,
-            triple_planes, coherent_inliers, largest_magnitude, label_census, rows_at_ranks,
-            cluster_distance_pass, region_scatter, region_extents, plane_silhouette_sum, marked_rows, near_count,
-            beyond_counts, beyond_rows, distinct_rows, coordinate_extent, silhouettes, patch_eigenvalues,
-            voxel_nearest, spread_nearest, spread_among, score_hypotheses, spread_test, fit_members,
-            fit_mask, fit_regions, plane_samples,
-            sorted_order, order_statistics, finite_extent, grid_contacts, label_rows, grid_triples,
-            graph_triples, read_rows, voxel_nodes, uncertain_nodes, first_across, grid_plane, grid_refit, grid_settle,
-            merge_pair, relabel_rows, labels_where, grid_spread, strided_rows, columns_at, rows_less, grid_batch,
-            kept_edges,
-            graph_contacts,
-            graph_settle, graph_plane, voxel_count, tent_fit, leftover_rows, leftover_best, seeded_draws,
-            polygon_distances, ring_steps, ring_turns, ring_scatter)
+#: Every kernel named in __all__ (what warm() and its probe count the compiles of).
+_KERNELS = tuple(globals()[name] for name in __all__ if isinstance(globals()[name], numba.core.dispatcher.Dispatcher))
