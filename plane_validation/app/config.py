@@ -138,7 +138,7 @@ class PipelineConfig:
                             'jump); false = every point within t of an infinite plane (the paper)')
     organize_rings: bool = _p(True, 'an unorganized scan whose PointCloud2 has a \'ring\' field (velodyne_pointcloud '
                               'and other spinning-lidar drivers) is laid out as its range image (rings x azimuth steps '
-                              'about z, from the viewpoint) and searched as an organized cloud, 5-6 times faster than '
+                              'about z, from the viewpoint) and searched as an organized cloud, 4-6 times faster than '
                               'the neighbourhood graph (docs/performance.md); false = the graph')
     noise_model: str = _p(AUTO, 'how t grows with range r from the sensor: constant, or depth_quadratic '
                           '(t * max(1, (r / noise_reference)^2) along the sensor\'s rays, a depth camera; t is '
