@@ -1,6 +1,13 @@
 """Test-wide set-up: every DDS participant of this test run stays on this machine, on a domain of
 its own, so parallel runs (or a robot on the same network) never see our topics."""
 import os
+import signal
+
+# Tests send Ctrl-C to the processes they start, as a terminal does to a foreground job. A run started in the
+# background (``./run test &`` in a script, nohup) has SIGINT ignored, and every process it starts inherits that: those
+# tests would see their Ctrl-C ignored. The default handler again (each child then gets SIGINT's default at exec).
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 os.environ['ROS_DOMAIN_ID'] = str(100 + os.getpid() % 100)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
