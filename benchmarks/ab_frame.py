@@ -68,11 +68,12 @@ def main() -> None:
     print('| frame | ' + ' | '.join(f'{n} old | {n} new | {n} new / old' for n in names) + ' |')
     print('|---|' + '--:|--:|--:|' * len(names))
     if args.lidar:
-        from bench_lidar import SCANS
+        from bench_lidar import SCANS, settings
+        configs = {'ring': settings('regions, ring image'), 'graph': settings('regions, graph')}
         for label, make in SCANS.items():
             scene = make()
-            _interleaved(label, {pkg: scan_calls(pkg, scene.points, scene.rings) for pkg in (old, NEW)}, old, names,
-                         args.repeat)
+            _interleaved(label, {pkg: scan_calls(pkg, scene.points, scene.rings, configs) for pkg in (old, NEW)}, old,
+                         names, args.repeat)
         return
     for path in args.clouds:
         points, shape = load_cloud(path)

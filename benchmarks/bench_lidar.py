@@ -41,6 +41,11 @@ METHODS = {
 }
 
 
+def settings(method: str) -> dict:
+    """The PipelineConfig arguments of one of METHODS: a fixed t of TOLERANCE, up to PLANES planes."""
+    return dict(auto_tune=False, tolerance=TOLERANCE, max_planes=PLANES, **METHODS[method])
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--repeat', type=int, default=5)
@@ -56,8 +61,7 @@ def table(repeat: int) -> None:
     print('|---|--:|' + '---|' * len(names))
     for scan, make in SCANS.items():
         scene = make()
-        pipes = {m: FramePipeline(PipelineConfig(auto_tune=False, tolerance=TOLERANCE, max_planes=PLANES, **kw))
-                 for m, kw in METHODS.items()}
+        pipes = {m: FramePipeline(PipelineConfig(**settings(m))) for m in METHODS}
         times: dict[str, list[float]] = {m: [] for m in names}
         f1: dict[str, float] = {}
         cloud = open3d_ref.to_cloud(scene.points) if 'Open3D' in names else None

@@ -38,16 +38,11 @@ def frame_calls(package: str, msg, points: np.ndarray, shape: tuple[int, int]
             'organized_tune': lambda i: top.tune_tolerance(points, seed=i, shape=shape)}
 
 
-#: bench_lidar.py's settings: t = 5 cm, up to 10 planes, the pipeline's defaults otherwise.
-SCAN_SETTINGS = dict(auto_tune=False, tolerance=0.05, max_planes=10)
-
-
-def scan_calls(package: str, points: np.ndarray, rings: np.ndarray) -> dict[str, Callable[[int], object]]:
-    """Per name, a call of run ``i`` on an unorganized lidar scan ``points`` (N x 3, meters) with its ``rings`` (N,),
-    through the pipeline as bench_lidar.py runs it: ring (laid out as its ring image) and graph (organize_rings
-    False)."""
+def scan_calls(package: str, points: np.ndarray, rings: np.ndarray, configs: dict[str, dict]
+               ) -> dict[str, Callable[[int], object]]:
+    """Per name of ``configs`` (PipelineConfig arguments), a call of run ``i`` on an unorganized lidar scan ``points``
+    (N x 3, meters) with its ``rings`` (N,) through the pipeline, as bench_lidar.py runs it."""
     pipeline = importlib.import_module(f'{package}.app.pipeline')
-    pipes = {'ring': pipeline.FramePipeline(pipeline.PipelineConfig(**SCAN_SETTINGS)),
-             'graph': pipeline.FramePipeline(pipeline.PipelineConfig(**SCAN_SETTINGS, organize_rings=False))}
+    pipes = {name: pipeline.FramePipeline(pipeline.PipelineConfig(**kw)) for name, kw in configs.items()}
     return {name: (lambda i, pipe=pipe: pipe.process(points, 10**9 * (i + 1), tune_inline=False, ring=rings))
             for name, pipe in pipes.items()}
