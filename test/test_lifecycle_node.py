@@ -147,6 +147,38 @@ def test_transitions_bring_the_node_up_and_down_and_deactivation_keeps_the_tuned
     assert sites == {('on_configure', 'ERROR'), ('refuse_out_of_order', 'WARN')}, sites
 
 
+def _set_over_dds(m: Manager, **params) -> list:
+    """SetParameters on the managed node, called over DDS as ``ros2 param set`` does; its results."""
+    from rcl_interfaces.srv import SetParameters
+    client = m.probe.create_client(SetParameters, f'{m.node.get_fully_qualified_name()}/set_parameters')
+    try:
+        assert client.wait_for_service(timeout_sec=10)
+        request = SetParameters.Request(parameters=[Parameter(k, value=v).to_parameter_msg()
+                                                    for k, v in params.items()])
+        return list(m._call(client, request).results)
+    finally:
+        m.probe.destroy_client(client)
+
+
+def test_parameters_can_be_set_over_dds_before_configure_and_configure_uses_them(ros):
+    """As with Navigation 2's managed nodes: the parameters exist while the node is unconfigured; a descriptor's
+    range is enforced at once, the checks between parameters at configure."""
+    m = Manager(PlaneValidationLifecycleNode())
+    try:
+        assert m.state() == 'unconfigured' and m.node.pipeline is None
+        assert all(r.successful for r in _set_over_dds(m, tolerance=0.035, max_planes=4))
+        refused = _set_over_dds(m, tolerance=-1.0)  # below the descriptor's range
+        assert not refused[0].successful and m.node.get_parameter('tolerance').value == 0.035
+        assert all(r.successful for r in _set_over_dds(m, tune_min=0.5, tune_max=0.1))  # checked together later
+        assert not m.transition(Transition.TRANSITION_CONFIGURE) and m.state() == 'unconfigured'
+        assert all(r.successful for r in _set_over_dds(m, tune_min=0.0, tune_max=0.0))
+        assert m.transition(Transition.TRANSITION_CONFIGURE) and m.state() == 'inactive'
+        config = m.node.pipeline.config
+        assert (config.tolerance, config.max_planes, config.tune_min) == (0.035, 4, 0.0)
+    finally:
+        m.close()
+
+
 def test_the_lifecycle_executable_prints_its_usage():
     import subprocess
     import sys

@@ -4,8 +4,9 @@ lifecycle transitions (Navigation 2's lifecycle manager, launch_ros' LifecycleNo
     ros2 run plane_validation plane_validation_lifecycle_node --ros-args -r cloud:=/camera/depth/points
     ros2 lifecycle set /plane_validation configure   # then activate
 
-configure declares and validates the parameters (an invalid set is refused; the node stays
-unconfigured) and creates the publishers; activate subscribes to ``cloud`` and publishes;
+The parameters are declared when the node is made, so that they can be set while it is unconfigured (as
+Navigation 2's nodes allow); configure validates them (an invalid set is refused; the node stays unconfigured) and
+creates the publishers; activate subscribes to ``cloud`` and publishes;
 deactivate unsubscribes and stops publishing, keeping the tuned tolerance and the plane tracks;
 cleanup releases them all. Topics and parameters are the plain node's (:mod:`.node`), and so is the
 data flow (:class:`~.worker.FrameWorker`).
@@ -22,7 +23,7 @@ from ..app.pipeline import FramePipeline
 from ..core.kernels import Warmup
 from .messages import status_name
 from .node import main as run_node
-from .parameters import apply_parameters, declare, set_requests_whole
+from .parameters import apply_parameters, declare, declare_each, set_requests_whole
 from .worker import FrameWorker, input_qos, output_publishers, warm_kernels
 
 __all__ = ['PlaneValidationLifecycleNode', 'main']
@@ -34,9 +35,9 @@ class PlaneValidationLifecycleNode(LifecycleNode):
     """The node's topics and parameters, brought up by lifecycle transitions."""
 
     #: What its --help says of it.
-    ABOUT = ('A managed (lifecycle) node: it starts unconfigured; configure declares the parameters, activate '
-             'subscribes and publishes (ros2 lifecycle set NODE configure, then activate; or its ~/change_state '
-             'service).')
+    ABOUT = ('A managed (lifecycle) node: it starts unconfigured, its parameters settable; configure validates '
+             'them, activate subscribes and publishes (ros2 lifecycle set NODE configure, then activate; or its '
+             '~/change_state service).')
 
     def __init__(self, name: str = 'plane_validation', *, warmup: Warmup | None = None, **kwargs) -> None:
         """warmup: what main() did to the compiled kernels before the node existed (as the plain node's)."""
@@ -47,6 +48,7 @@ class PlaneValidationLifecycleNode(LifecycleNode):
         self.options = None
         self._pubs: dict[str, object] = {}
         self._subscription = None
+        declare_each(self)  # settable before configure; an override rclpy refuses is named by configure
         self.add_on_set_parameters_callback(lambda params: apply_parameters(self, params))
         set_requests_whole(self)
         # a transition that does not start from the current state makes rclpy's ChangeState callback raise,

@@ -12,7 +12,8 @@ from rclpy.parameter import Parameter as RosParameter
 
 from ..app.config import PARAMETERS, Parameter, PipelineConfig
 
-__all__ = ['NODE_PARAMETERS', 'NodeOptions', 'descriptor', 'declare', 'unknown_overrides', 'checked_changes',
+__all__ = ['NODE_PARAMETERS', 'NodeOptions', 'descriptor', 'declare', 'declare_each', 'unknown_overrides',
+           'checked_changes',
            'apply_parameters', 'params_yaml', 'set_requests_whole']
 
 #: Node-only parameters (the pipeline's are in app/config.py's table).
@@ -56,6 +57,20 @@ def descriptor(spec: Parameter) -> ParameterDescriptor:
         elif spec.type is int:
             desc.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi), step=1)]
     return desc
+
+
+def declare_each(node) -> list[str]:
+    """Declare every parameter not yet declared on ``node`` with its descriptor, overrides from the command line or
+    a params file applied, and return the names whose override rclpy refused (out of range, wrong type): those stay
+    undeclared, and :func:`declare` names the problem."""
+    refused = []
+    for name, spec in {**PARAMETERS, **NODE_PARAMETERS}.items():
+        if not node.has_parameter(name):
+            try:
+                node.declare_parameter(name, spec.default, descriptor(spec))
+            except Exception:  # rclpy's exception names the value; declare() raises it again with its message
+                refused.append(name)
+    return refused
 
 
 def declare(node) -> tuple[PipelineConfig, NodeOptions]:
