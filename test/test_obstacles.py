@@ -45,6 +45,29 @@ def test_the_pipeline_finds_the_obstacles_of_a_room_in_a_z_up_frame_and_removes_
     assert (np.abs(ground.points[ground.obstacles, 2]) > 0.09).all()
 
 
+def test_in_a_cameras_optical_frame_ground_up_names_the_floor_that_z_up_would_miss():
+    """The same room in the camera's own optical frame (y down, z forward, pitched 10 degrees down): with
+    ground_up 0, -1, 0 the ground is the floor, as in the z-up frame; with the default z up the floor is not
+    taken for it (here no plane is: none lies within 20 degrees of the camera's z)."""
+    import pytest
+    eye, target = np.array([4.6, 0.4, 1.5]), np.array([1.5, 3.6, 0.7])
+    scene = depth_camera('room', width=160, height=120, seed=1)
+    to_world = _look_at(eye, target)
+    base = dict(auto_tune=False, tolerance=0.004, noise_model='depth_quadratic', seed=1, ground_margin=0.1)
+    found = {}
+    for up in ((0.0, 0.0, 1.0), (0.0, -1.0, 0.0)):
+        cfg = PipelineConfig(**base, ground_up_x=up[0], ground_up_y=up[1], ground_up_z=up[2])
+        out = FramePipeline(cfg).process(scene.points, 10**9, shape=scene.shape)
+        ground = out.diagnostic.get('ground_plane')
+        plane = None if ground == 'none' else out.segmentation.planes[out.plane_ids.index(int(ground))]
+        found[up] = None if plane is None else abs(float((to_world @ plane.normal)[2]))
+    assert found[(0.0, -1.0, 0.0)] is not None and found[(0.0, -1.0, 0.0)] > 0.99  # the floor
+    assert found[(0.0, 0.0, 1.0)] is None or found[(0.0, 0.0, 1.0)] < 0.5  # a wall, or none
+    with pytest.raises(ValueError, match='ground_up'):
+        PipelineConfig(ground_margin=0.1, ground_up_z=0.0).validate()
+    PipelineConfig(ground_up_z=0.0).validate()  # unused without ground_margin
+
+
 def test_the_obstacle_cloud_packed_in_one_pass_matches_the_generic_writer():
     """ros/messages.obstacle_cloud writes the records in the frame pass (kernels.frame_pass); the generic writer
     (create_cloud, used for float64 coordinates) is its reference, for an organized frame (NaN off the obstacles, an

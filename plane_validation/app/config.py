@@ -174,9 +174,16 @@ class PipelineConfig:
     voxel_size: float = _p(0.0, 'voxel grid applied before detection (each point then takes its voxel\'s plane '
                            'if within t of it); 0 = off', low=1e-6, high=MAX_DISTANCE, special=0.0, unit='m')
     ground_margin: float = _p(0.0, '~/obstacles also leaves out the points within this distance of the largest '
-                              'horizontal plane (normal within 20 degrees of the cloud frame\'s z axis: the '
-                              'ground in base_link or odom); 0 = off (every valid point on no plane is an obstacle)',
+                              'horizontal plane (normal within 20 degrees of ground_up: the ground); 0 = off (every '
+                              'valid point on no plane is an obstacle)',
                               low=1e-6, high=MAX_DISTANCE, special=0.0, unit='m')
+    ground_up_x: float = _p(0.0, 'the up direction in the cloud\'s frame for ground_margin, x (any length but 0; '
+                            '0, 0, 1 in base_link or odom, 0, -1, 0 in a camera\'s optical frame, whose y points '
+                            'down)', low=-MAX_DISTANCE, high=MAX_DISTANCE)
+    ground_up_y: float = _p(0.0, 'the up direction for ground_margin, y (see ground_up_x)',
+                            low=-MAX_DISTANCE, high=MAX_DISTANCE)
+    ground_up_z: float = _p(1.0, 'the up direction for ground_margin, z (see ground_up_x)',
+                            low=-MAX_DISTANCE, high=MAX_DISTANCE)
     seed: int = _p(0, 'random seed; frames are seeded by (seed, header stamp); -1 = fresh entropy every frame',
                    low=-1, high=2**31 - 1)
 
@@ -191,6 +198,11 @@ class PipelineConfig:
         axis_mode is set and the axis is (0, 0, 0)."""
         return orientation((self.normal_axis_x, self.normal_axis_y, self.normal_axis_z), self.axis_angle,
                            self.axis_mode)
+
+    @property
+    def ground_up(self) -> tuple[float, float, float]:
+        """(x, y, z): ground_up_x, ground_up_y, ground_up_z, the up direction (any length) ground_margin uses."""
+        return self.ground_up_x, self.ground_up_y, self.ground_up_z
 
     @property
     def search(self) -> SearchParams:
@@ -219,6 +231,8 @@ class PipelineConfig:
             raise ValueError(f'tune_max must be greater than tune_min, got tune_min={self.tune_min}, '
                              f'tune_max={self.tune_max}')
         _ = self.orientation  # a set axis_mode needs an axis
+        if self.ground_margin > 0 and not any(self.ground_up):
+            raise ValueError('ground_up_x, ground_up_y, ground_up_z must not all be 0 when ground_margin is set')
         return self
 
 

@@ -370,7 +370,7 @@ class FramePipeline:
             level, message = WARN, f'{tune_problem}; detected with {used} t={tolerance:.4g} m: {message}'
         counts = np.array([len(rows) for rows in plane_rows(labels if inverse is not None else seg.labels, seg)],
                           np.int64)
-        obstacles = obstacle_mask(valid, labels, seg, counts, cfg.ground_margin)
+        obstacles = obstacle_mask(valid, labels, seg, counts, cfg.ground_margin, cfg.ground_up)
         # an organized input's outputs are laid out on its rows: its labels there too
         image_labels = None if not image else seg.labels if shape is not None else on_rows(labels, finite, -1)
         values = frame_values(cfg, tolerance, source, n_input, len(valid), (no_returns, infinite),
@@ -380,7 +380,7 @@ class FramePipeline:
                    ('reliable', str(verdict.reliable).lower()),
                    ('verdict_failures', ' '.join(f.kind.value for f in verdict.failures) or 'none'))
         if cfg.ground_margin > 0:
-            ground = ground_plane(seg, counts)
+            ground = ground_plane(seg, counts, cfg.ground_up)
             values += (('ground_plane', 'none' if ground is None else str(ids[ground])),)
         if agreement is not None:
             values += (('seed_agreement', fmt(agreement)),)
