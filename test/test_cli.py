@@ -121,6 +121,23 @@ def test_detect_json_equals_the_python_api(corner_npy, mode):
     assert proc.stderr == ''  # piped: no progress bar
 
 
+def test_detect_sweeps_by_the_criterion_and_in_the_range_given(corner_npy):
+    """detect's --criterion, --tune-min, --tune-max and --tune-count (as replay's): the same t and planes as
+    tune_tolerance with those arguments."""
+    proc = _run('detect', str(corner_npy), '--json', '--seed', '7', '--criterion', 'davies_bouldin',
+                '--tune-min', '0.005', '--tune-max', '0.05', '--tune-count', '5')
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)
+    tuned = pv.tune_tolerance(load_points(corner_npy), seed=7, criterion='davies_bouldin', t_min=0.005, t_max=0.05,
+                              count=5)
+    assert doc['tuning']['criterion'] == 'davies_bouldin' and doc['tuning']['candidates'] == len(tuned.rows) == 5
+    assert (doc['tuning']['t_min'], doc['tuning']['t_max']) == pytest.approx((0.005, 0.05), rel=1e-12)
+    assert doc['tolerance'] == pytest.approx(tuned.tolerance, rel=1e-12)
+    assert [p['inliers'] for p in doc['planes']] == [len(p.inliers) for p in tuned.segmentation.planes]
+    bad = _run('detect', str(corner_npy), '--tune-min', '0.05', '--tune-max', '0.01')
+    assert bad.returncode == 2 and 'tune_max must be greater than tune_min' in bad.stderr
+
+
 def test_detect_text_and_labelled_outputs(corner_npy, tmp_path, capsys):
     from plyfile import PlyData
     ply, pcd = tmp_path / 'labelled.ply', tmp_path / 'labelled.pcd'

@@ -17,7 +17,7 @@ from ..core.failures import Verdict
 from ..core.geometry import ring_image
 from ..core.indices import ValidityIndices, validity_indices
 from ..core.noise import noise_coefficient
-from ..core.params import SearchParams
+from ..core.params import SearchParams, TuneParams
 from ..core.ransac import (
     Segmentation,
     Viewpoint,
@@ -109,12 +109,13 @@ def tune_scan(points: np.ndarray, *, search: SearchParams | None = None, ring: n
 
 def detect(points: np.ndarray, tolerance: float | None = None, *, search: SearchParams | None = None, seed: int = 0,
            progress: Callable[[int, int], None] | None = None, shape: tuple[int, int] | None = None, jobs: int = 1,
-           ring: np.ndarray | None = None, organize_rings: bool = True) -> Detection:
+           ring: np.ndarray | None = None, organize_rings: bool = True, tune: TuneParams | None = None) -> Detection:
     """Planes of (N, 3) ``points`` at ``tolerance`` meters, or at the auto-tuned t when None, searched with
     ``search`` (None: the parameter table's defaults); ``shape`` (H, W) for an organized cloud; ``jobs`` as in
-    :func:`tune_tolerance`. ``ring`` (N,): each point's beam of an unorganized lidar scan, which is then searched
-    (and tuned) on its ring image as the node does (:func:`ring_layout`; with ``organize_rings`` and
-    connectivity), and its planes carried back to the points.
+    :func:`tune_tolerance`; ``tune``: how to sweep (criterion, range, candidates, and jobs instead of ``jobs``;
+    None: :func:`tune_tolerance`'s defaults). ``ring`` (N,): each point's beam of an unorganized lidar scan, which
+    is then searched (and tuned) on its ring image as the node does (:func:`ring_layout`; with ``organize_rings``
+    and connectivity), and its planes carried back to the points.
 
     Equivalent Python API calls (same results without ``ring``): fixed t -> ``detect_planes(points, t,
     seed=seed, **search.at_tolerance())`` and ``validity_indices(points, labels, seed=seed)``; auto ->
@@ -124,8 +125,9 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, search: Search
     start = time.perf_counter()
     search = PipelineConfig().search if search is None else search
     if tolerance is None:
+        sweep = {'jobs': jobs} if tune is None else tune.kwargs()
         tuned, note = tune_scan(pts, search=search, ring=ring, organize_rings=organize_rings, shape=shape, seed=seed,
-                                progress=progress, jobs=jobs)
+                                progress=progress, **sweep)
         return Detection(points=pts, segmentation=tuned.segmentation, indices=tuned.indices,
                          tolerance=tuned.tolerance, tolerance_source='auto',
                          verdict=tuned.verdict, noise_estimate=tuned.noise_estimate, seed=seed,

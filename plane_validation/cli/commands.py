@@ -187,8 +187,12 @@ def cmd_detect(args: argparse.Namespace) -> int:
     tolerance = None if args.auto else args.tolerance
     with _about(args.cloud), progress_bar('tuning t', quiet=args.json) as progress:
         points, shape, ring, read = _load(args)
-        det = detect(points, tolerance, search=_config(args).search, seed=args.seed, progress=progress,
-                     shape=shape, jobs=args.tune_jobs, ring=ring, organize_rings=args.organize_rings)
+        cfg = _config(args)
+        # the sweep as tune_tolerance sweeps by default (Dunn and Davies-Bouldin exact on small clouds), in the range
+        # and by the criterion given
+        tune = dataclasses.replace(cfg.tune, sampled_separation=None)
+        det = detect(points, tolerance, search=cfg.search, seed=args.seed, progress=progress, shape=shape,
+                     ring=ring, organize_rings=args.organize_rings, tune=tune)
     from ..formats.files import is_bag_output
     bag = args.out is not None and is_bag_output(args.out)
     files = [path for path in (None if bag else args.out, args.png) if path]

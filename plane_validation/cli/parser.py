@@ -213,6 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f'auto-tune t by a sweep chosen by {DEFAULT_CRITERION} (the default without --tolerance)')
     _add_detection_options(detect)
     _add_search_options(detect)
+    _add_table_options(detect, (('criterion', 'NAME'), ('tune_min', 'A'), ('tune_max', 'B'), ('tune_count', 'N')))
     detect.add_argument('--json', action='store_true', help='print one JSON document (schema in docs/cli.md) '
                         'and nothing else on stdout')
     detect.add_argument('--out', metavar='FILE', help='write the labelled cloud: .ply (plane_id), .pcd (label), '
