@@ -14,8 +14,9 @@ from plane_validation.core import kernels
 from plane_validation.core.orientation import orientation
 from plane_validation.core.search import hypotheses
 from plane_validation.core.search.connected import GRAZING_DEG, _merge_coplanar, _merge_coplanar_numpy
+from plane_validation.core.search.grid_build import median
 from plane_validation.core.search.neighbours import settle_numpy
-from plane_validation.core.search.neighbours_grid import GridNeighbours, _GridRemaining, median
+from plane_validation.core.search.neighbours_grid import GridNeighbours, _GridRemaining
 
 SETTINGS = settings(max_examples=80, deadline=None)
 

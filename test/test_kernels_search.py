@@ -40,7 +40,7 @@ def test_grid_neighbours_match_numpy(seed, kind):
     """The sub-grid's ranges, depth jumps, usable pixels, pitch and normals (bends too) from the kernels, exactly as
     the numpy passes give them: on random surfaces with steps and holes, on noise, and on a lidar-like image (pixels
     coarser down than across: wider normals and the bend test)."""
-    from plane_validation.core.search.neighbours_grid import grid_neighbours, grid_neighbours_numpy
+    from plane_validation.core.search.grid_build import grid_neighbours, grid_neighbours_numpy
     rng = np.random.default_rng(seed)
     h, w = (int(v) for v in rng.integers(1, 24, 2))
     if kind == 'lidar':
@@ -70,7 +70,7 @@ def _stripes_case(seed: int):
     """A small organized image of vertical stripes on 2-3 planes (some stripes coplanar), with noise and holes; its
     searched points (3, m), grid neighbours, regions (a stripe each, some points none) and their fitted planes."""
     from plane_validation.core.search.fit import fit_columns
-    from plane_validation.core.search.neighbours_grid import grid_neighbours
+    from plane_validation.core.search.grid_build import grid_neighbours
     rng = np.random.default_rng(seed)
     h, w = (int(v) for v in rng.integers(8, 30, 2))
     stripes = int(rng.integers(2, 5))

@@ -179,8 +179,8 @@ def test_nearby_points_lie_in_the_window_or_at_the_end_of_a_short_walk():
     from scipy.sparse.csgraph import shortest_path
 
     from plane_validation.core.regions import graph_neighbours
+    from plane_validation.core.search.grid_build import grid_neighbours
     from plane_validation.core.search.neighbours import NEARBY_SCALES
-    from plane_validation.core.search.neighbours_grid import grid_neighbours
     rng = np.random.default_rng(0)
     pts, _ = _wall_with_box()
     image, valid = pts.reshape(120, 160, 3), np.isfinite(pts).all(axis=1).reshape(120, 160)
@@ -433,7 +433,7 @@ def test_a_seam_behind_missing_returns_still_wraps():
 
 
 def test_lidar_regions_span_short_runs_of_holes_but_not_a_depth_jump_behind_one():
-    from plane_validation.core.search.neighbours_grid import HOLE_BRIDGE, grid_neighbours
+    from plane_validation.core.search.grid_build import HOLE_BRIDGE, grid_neighbours
     # a lidar's image: its rows (rings) 10 times farther apart in angle than its columns
     v, u = np.mgrid[0:20, 0:40]
     depth = np.where(u < 20, 2.0, 1.0)  # the right half 1 m nearer: a depth jump at column 20
@@ -453,7 +453,7 @@ def test_lidar_regions_span_short_runs_of_holes_but_not_a_depth_jump_behind_one(
 
 
 def test_only_a_scan_whose_last_column_is_next_to_its_first_wraps_around():
-    from plane_validation.core.search.neighbours_grid import grid_neighbours
+    from plane_validation.core.search.grid_build import grid_neighbours
     for scene, wraps in ((scenes.lidar(organized=True, rings=16, seed=1), True),
                          (scenes.depth_camera('room', width=160, height=120, seed=0), False)):
         image = scene.points.reshape(*scene.shape, 3)
@@ -582,7 +582,7 @@ def test_a_viewpoint_must_be_three_finite_coordinates_and_match_a_prebuilt_graph
 def test_grid_normals_of_a_lidar_image_look_one_ring_away():
     # a lidar's rings lie 13 times farther apart than its returns along a ring: normals from 3 rings away
     # reached past a wall that 5 rings cross, and the wall fell apart (no region of it above 341 points)
-    from plane_validation.core.search.neighbours_grid import _reach
+    from plane_validation.core.search.grid_build import _reach
     scan = scenes.lidar(rings=16, seed=1, organized=True)
     image = scan.points.reshape(*scan.shape, 3)
     valid = np.isfinite(image).all(axis=2)
@@ -599,11 +599,11 @@ def test_noisy_normals_of_a_lidar_image_are_unknown_not_wrong(monkeypatch):
     # 3 cm range noise in a 2.4 m corridor: a normal over one ring is noise, and such normals cut the floor
     # and walls apart (0/8 correct, F1 0.41, where only the inliers connect a region, and the pieces are not
     # joined again); unknown, they let any plane keep the point
-    from plane_validation.core.search import connected, hypotheses, neighbours_grid, sequential
+    from plane_validation.core.search import connected, grid_build, hypotheses, sequential
     scan = scenes.lidar(**{**scenes.VLP16_CORRIDOR, 'sigma': 0.03}, seed=1, organized=True)
     seg = pv.detect_planes(scan.points, 0.05, seed=0, shape=scan.shape)
     assert segmentation_quality(seg.labels, scan.labels).f1 > 0.9
-    monkeypatch.setattr(neighbours_grid, 'LIDAR_BEND', np.inf)  # no normal unknown for noise
+    monkeypatch.setattr(grid_build, 'LIDAR_BEND', np.inf)  # no normal unknown for noise
     monkeypatch.setattr(hypotheses, 'SUPPORT', 1.0)
     monkeypatch.setattr(connected, 'merge_occluded', lambda search, region, found, *args: (region, found))
     monkeypatch.setattr(sequential, 'SET_ASIDE', 0)  # nor a scattered surface joined whatever its normals
@@ -633,7 +633,7 @@ def test_components_of_joined_pairs_equal_scipys_connected_components(n):
 def test_a_bridge_within_a_wrapping_row_is_found_once_and_not_taken_for_the_seam():
     # the row's end pixels were scanned twice (the row extended past its end for the seam): a bridge from
     # column 0 to 2 came out a second time flagged as crossing the seam, and its steps beside it differed
-    from plane_validation.core.search.neighbours_grid import _bridges
+    from plane_validation.core.search.grid_build import _bridges
     x = np.array([0.0, np.nan, 0.05, 0.06, 0.07, 0.08, 0.09, 0.10, 0.11, -0.04])
     image = np.stack([x, np.zeros(10), np.full(10, 5.0)], -1)[None]
     valid = np.isfinite(image).all(-1)

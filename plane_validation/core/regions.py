@@ -1,6 +1,6 @@
 """How an unorganized cloud's neighbourhood graph is built: :func:`graph_neighbours`, the
 :class:`.search.neighbours_graph.GraphNeighbours` of the searched points (an image's grid form is built by
-:func:`.search.neighbours_grid.grid_neighbours`; both answer the search through one interface,
+:func:`.search.grid_build.grid_neighbours`; both answer the search through one interface,
 :class:`.search.neighbours.Neighbours`).
 
 Each point is joined to its ``NEIGHBOURS`` nearest neighbours within ``RADIUS`` median neighbour spacings (exact,

@@ -5,8 +5,8 @@
   * :mod:`.infinite`: the paper's infinite planes (``connectivity=False``);
   * :mod:`.connected`: connected planar regions over a :mod:`.graph` (:class:`~.graph.SearchGraph`: the searched
     points, on an image's :mod:`.grid` or a sample of an unorganized cloud, and their neighbourhood: one
-    interface, :class:`~.neighbours.Neighbours`, in two forms, :mod:`.neighbours_grid` and
-    :mod:`.neighbours_graph`, chosen once when the graph is built);
+    interface, :class:`~.neighbours.Neighbours`, in two forms, :mod:`.neighbours_grid` (built by :mod:`.grid_build`)
+    and :mod:`.neighbours_graph`, chosen once when the graph is built);
 * :mod:`.sequential`: both searches take planes one by one, each from a RANSAC run (:mod:`.hypotheses`) with
   least-squares fits (:mod:`.fit`);
 * :mod:`.types`: the results (:class:`~.types.Plane`, :class:`~.types.Segmentation`); :mod:`.carry`: labels

@@ -13,8 +13,8 @@ from ..regions import VoxelIndex, graph_neighbours, voxel_index
 from .checks import as_points, check_search_size, check_shape, check_viewpoint, finite_rows
 from .fit import plane_rows
 from .grid import grid_image, grid_step
+from .grid_build import grid_neighbours
 from .neighbours import Neighbours
-from .neighbours_grid import grid_neighbours
 from .types import Tolerance, Viewpoint
 
 __all__ = ['SearchGraph', 'VoxelNodes', 'search_graph', 'build_search_graph', 'checked_search_graph', 'spread_nearest',
