@@ -784,3 +784,43 @@ def test_a_command_says_so_before_it_compiles_the_kernels_on_a_cold_cache(cold, 
     run._load_kernels()
     err = capsys.readouterr().err
     assert (run.COLD_CACHE_NOTE in err) is cold and calls == [cold]
+
+
+def test_ctrl_c_during_a_cold_compile_stops_the_command_at_once_and_its_workers_with_it(tmp_path):
+    """A cold cache compiles for minutes in worker processes that ignore Ctrl-C: the command stops within seconds
+    with status 130, and no worker is left compiling."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from plane_validation.cli import run
+    cloud = tmp_path / 'corner.npy'
+    np.save(cloud, pv.scenes.corner(500, 0.0, seed=0).points)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / 'cache'))
+    proc = subprocess.Popen([sys.executable, '-m', 'plane_validation.cli', 'detect', str(cloud)], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        line = proc.stderr.readline()
+        assert line.strip() == run.COLD_CACHE_NOTE, line
+        time.sleep(2)  # the workers are compiling
+        assert proc.poll() is None
+        proc.send_signal(signal.SIGINT)
+        start = time.monotonic()
+        assert proc.wait(timeout=20) == 130
+        assert time.monotonic() - start < 10
+        assert 'stopped while compiling the kernels' in proc.stderr.read()
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:  # the session the command started holds no process any more
+            try:
+                os.killpg(proc.pid, 0)
+            except ProcessLookupError:
+                break
+            time.sleep(0.1)
+        else:
+            raise AssertionError('a warm-up worker outlived the command')
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()

@@ -71,12 +71,25 @@ def _terminate_cleanly() -> Iterator[None]:
 
 #: What a command says before it compiles the kernels on a cold cache (the first run on a machine).
 COLD_CACHE_NOTE = ('plane-validation: compiling the kernels for this machine, once (about 1-2 minutes on an idle '
-                   '2-core machine; Ctrl-C stops when it ends); later runs load them from the cache')
+                   '2-core machine; Ctrl-C stops it, keeping what is compiled); later runs load them from the cache')
+
+
+def _stop_compiling(signum: int, _frame) -> None:
+    """SIGINT, SIGTERM or SIGHUP during a cold compile: the compiling workers are killed and the command exits at
+    once with the signal's status. Nothing else is under way (the command has not started), and numba writes each
+    cache file whole (a temporary file renamed), so what was compiled stays cached and the rest compiles next time."""
+    import multiprocessing
+    import os
+    for child in multiprocessing.active_children():  # the warm-up's workers, which ignore the signal
+        child.kill()
+    print('plane-validation: stopped while compiling the kernels', file=sys.stderr, flush=True)
+    os._exit(128 + signum)
 
 
 def _load_kernels() -> None:
     """Load (or compile) the compiled kernels with SIGINT, SIGTERM and SIGHUP held, then deliver the first one
-    held: an exception raised inside numba's loader or compiler is dropped, or crashes it in a callback."""
+    held: an exception raised inside numba's loader or compiler is dropped, or crashes it in a callback. Once a cold
+    cache is found (minutes of compiling) a signal stops the command at once instead (:func:`_stop_compiling`)."""
     import os
     import signal
 
@@ -86,8 +99,12 @@ def _load_kernels() -> None:
     previous = {sig: signal.signal(sig, lambda signum, _frame: caught.append(signum)) for sig in held}
     try:
         cold = warm_probe().compiled
-        if cold:  # minutes without a word would look like a hang
+        if cold:  # minutes without a word would look like a hang, and minutes of a held Ctrl-C too
             print(COLD_CACHE_NOTE, file=sys.stderr, flush=True)
+            for sig in held:
+                signal.signal(sig, _stop_compiling)
+            for signum in caught[:1]:  # one came while the first kernels compiled
+                _stop_compiling(signum, None)
         warm(jobs=os.cpu_count() or 1, cold=cold)  # a cold cache compiles on every core
     finally:
         for sig, handler in previous.items():
