@@ -786,9 +786,10 @@ def test_a_command_says_so_before_it_compiles_the_kernels_on_a_cold_cache(cold, 
     assert (run.COLD_CACHE_NOTE in err) is cold and calls == [cold]
 
 
-def test_ctrl_c_during_a_cold_compile_stops_the_command_at_once_and_its_workers_with_it(tmp_path):
-    """A cold cache compiles for minutes in worker processes that ignore Ctrl-C: the command stops within seconds
-    with status 130, and no worker is left compiling."""
+@pytest.mark.parametrize('command', ['detect', 'warmup'])
+def test_ctrl_c_during_a_cold_compile_stops_the_command_at_once_and_its_workers_with_it(tmp_path, command):
+    """A cold cache compiles for minutes in worker processes that ignore Ctrl-C: the command (one that then
+    detects, or warmup) stops within seconds with status 130, and no worker is left compiling."""
     import os
     import signal
     import subprocess
@@ -799,12 +800,14 @@ def test_ctrl_c_during_a_cold_compile_stops_the_command_at_once_and_its_workers_
     cloud = tmp_path / 'corner.npy'
     np.save(cloud, pv.scenes.corner(500, 0.0, seed=0).points)
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / 'cache'))
-    proc = subprocess.Popen([sys.executable, '-m', 'plane_validation.cli', 'detect', str(cloud)], env=env,
+    args = [str(cloud)] if command == 'detect' else ['--jobs', '2']
+    proc = subprocess.Popen([sys.executable, '-m', 'plane_validation.cli', command, *args], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
-        line = proc.stderr.readline()
-        assert line.strip() == run.COLD_CACHE_NOTE, line
-        time.sleep(2)  # the workers are compiling
+        if command == 'detect':  # it says so first; warmup is asked to compile
+            line = proc.stderr.readline()
+            assert line.strip() == run.COLD_CACHE_NOTE, line
+        time.sleep(2 if command == 'detect' else 8)  # the workers are compiling
         assert proc.poll() is None
         proc.send_signal(signal.SIGINT)
         start = time.monotonic()

@@ -86,6 +86,13 @@ def _stop_compiling(signum: int, _frame) -> None:
     os._exit(128 + signum)
 
 
+def _stop_at_signals() -> None:
+    """From now on SIGINT, SIGTERM and SIGHUP stop the process at once (:func:`_stop_compiling`)."""
+    import signal
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, _stop_compiling)
+
+
 def _load_kernels() -> None:
     """Load (or compile) the compiled kernels with SIGINT, SIGTERM and SIGHUP held, then deliver the first one
     held: an exception raised inside numba's loader or compiler is dropped, or crashes it in a callback. Once a cold
@@ -101,8 +108,7 @@ def _load_kernels() -> None:
         cold = warm_probe().compiled
         if cold:  # minutes without a word would look like a hang, and minutes of a held Ctrl-C too
             print(COLD_CACHE_NOTE, file=sys.stderr, flush=True)
-            for sig in held:
-                signal.signal(sig, _stop_compiling)
+            _stop_at_signals()
             for signum in caught[:1]:  # one came while the first kernels compiled
                 _stop_compiling(signum, None)
         warm(jobs=os.cpu_count() or 1, cold=cold)  # a cold cache compiles on every core
@@ -127,6 +133,8 @@ def main(argv: list[str] | None = None) -> int:
         with _terminate_cleanly(), workers_ignore_sigint():
             if args.func not in (cmd_scene, cmd_warmup):
                 _load_kernels()
+            elif args.func is cmd_warmup:  # all it does is compile or load the kernels: a signal stops it at once
+                _stop_at_signals()
             return args.func(args)
     except KeyboardInterrupt:
         return 130
