@@ -74,29 +74,17 @@ COLD_CACHE_NOTE = ('plane-validation: compiling the kernels for this machine, on
                    '2-core machine; Ctrl-C stops it, keeping what is compiled); later runs load them from the cache')
 
 
-def _stop_compiling(signum: int, _frame) -> None:
-    """SIGINT, SIGTERM or SIGHUP during a cold compile: the compiling workers are killed and the command exits at
-    once with the signal's status. Nothing else is under way (the command has not started), and numba writes each
-    cache file whole (a temporary file renamed), so what was compiled stays cached and the rest compiles next time."""
-    import multiprocessing
-    import os
-    for child in multiprocessing.active_children():  # the warm-up's workers, which ignore the signal
-        child.kill()
-    print('plane-validation: stopped while compiling the kernels', file=sys.stderr, flush=True)
-    os._exit(128 + signum)
-
-
 def _stop_at_signals() -> None:
-    """From now on SIGINT, SIGTERM and SIGHUP stop the process at once (:func:`_stop_compiling`)."""
-    import signal
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, _stop_compiling)
+    """From now on SIGINT, SIGTERM and SIGHUP stop the command at once, with the signal's exit status: while it
+    compiles the kernels, before it has started (:func:`~..core.interrupts.stop_at_signals`)."""
+    from ..core.interrupts import stop_at_signals
+    stop_at_signals(lambda signum: 128 + signum, 'plane-validation: stopped while compiling the kernels')
 
 
 def _load_kernels() -> None:
     """Load (or compile) the compiled kernels with SIGINT, SIGTERM and SIGHUP held, then deliver the first one
     held: an exception raised inside numba's loader or compiler is dropped, or crashes it in a callback. Once a cold
-    cache is found (minutes of compiling) a signal stops the command at once instead (:func:`_stop_compiling`)."""
+    cache is found (minutes of compiling) a signal stops the command at once instead (:func:`_stop_at_signals`)."""
     import os
     import signal
 
@@ -110,7 +98,7 @@ def _load_kernels() -> None:
             print(COLD_CACHE_NOTE, file=sys.stderr, flush=True)
             _stop_at_signals()
             for signum in caught[:1]:  # one came while the first kernels compiled
-                _stop_compiling(signum, None)
+                signal.raise_signal(signum)
         warm(jobs=os.cpu_count() or 1, cold=cold)  # a cold cache compiles on every core
     finally:
         for sig, handler in previous.items():

@@ -9,7 +9,7 @@ from __future__ import annotations
 import functools
 from typing import Callable, TypeVar
 
-__all__ = ['interrupt_of', 'keeps_interrupts']
+__all__ = ['interrupt_of', 'keeps_interrupts', 'stop_at_signals']
 
 F = TypeVar('F', bound=Callable)
 
@@ -37,3 +37,23 @@ def keeps_interrupts(func: F) -> F:
                 raise
             raise KeyboardInterrupt from interrupt
     return wrapper
+
+
+def stop_at_signals(status: Callable[[int], int], note: str) -> None:
+    """From now on SIGINT, SIGTERM and SIGHUP end the process at once with ``status(signum)``, after killing the
+    child processes that multiprocessing started (a cold compile's workers, which ignore those signals) and printing
+    ``note`` on stderr. For a process that is compiling the kernels before it does anything else: numba writes each
+    cache file whole (a temporary file renamed), so what was compiled stays cached and the rest compiles next time,
+    where holding the signal (numba's compiler swallows a KeyboardInterrupt) kept it for the minutes of the compile."""
+    import multiprocessing
+    import os
+    import signal
+    import sys
+
+    def stop(signum: int, _frame) -> None:
+        for child in multiprocessing.active_children():
+            child.kill()
+        print(note, file=sys.stderr, flush=True)
+        os._exit(status(signum))
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, stop)

@@ -22,6 +22,7 @@ from sensor_msgs.msg import PointCloud2
 
 from ..app.config import PARAMETERS
 from ..app.pipeline import FramePipeline, limit_blas_threads, reuse_freed_memory
+from ..core.interrupts import stop_at_signals
 from ..core.kernels import Warmup, warm_probe
 from ..core.workers import stop_workers
 from .messages import OUTPUTS, status_name
@@ -95,17 +96,20 @@ def usage(prog: str = 'plane_validation_node', about: str = '') -> str:
 
 def _warm_first() -> tuple[bool, Warmup]:
     """Before rclpy starts, tell whether the kernel cache is cold (:func:`~..core.kernels.warm_probe`) and if so
-    compile every kernel, holding SIGINT, SIGTERM and SIGHUP meanwhile (numba's compiler swallows the
-    KeyboardInterrupt a Ctrl-C raises inside it, so a node stopped during a first, cold compile went on starting):
-    the node appears on the graph ready to answer. A warm cache's other kernels load in the node (its subscription
-    is being discovered meanwhile). Returns whether such a signal came (the node then does not start), and what
-    was done."""
+    compile every kernel: the node appears on the graph ready to answer. SIGINT, SIGTERM and SIGHUP are held while
+    the probe runs (numba's compiler swallows the KeyboardInterrupt a Ctrl-C raises inside it), and end the process
+    at once, status 0, during a cold compile (:func:`~..core.interrupts.stop_at_signals`). A warm cache's other
+    kernels load in the node (its subscription is being discovered meanwhile). Returns whether such a signal came
+    (the node then does not start), and what was done."""
     caught: list[int] = []
     held = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
     previous = {sig: signal.signal(sig, lambda signum, _frame: caught.append(signum)) for sig in held}
     try:
         done = warm_probe()
-        if done.compiled:
+        if done.compiled:  # minutes of compiling before the node exists: a signal ends it at once, quietly
+            stop_at_signals(lambda _signum: 0, 'plane_validation_node: stopped while compiling the kernels')
+            for signum in caught[:1]:  # one came while the first kernels compiled
+                signal.raise_signal(signum)
             gc.enable()  # compiling makes garbage cycles (numba's IR): collected as usual
             done = warm_kernels(rclpy.logging.get_logger('plane_validation'), done)
     finally:
