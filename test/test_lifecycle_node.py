@@ -179,6 +179,22 @@ def test_parameters_can_be_set_over_dds_before_configure_and_configure_uses_them
         m.close()
 
 
+def test_a_value_not_allowed_on_its_own_is_refused_at_once_while_unconfigured(ros):
+    """A choice or a type is no check between parameters: refused when set, as on a configured node (it was taken
+    and configure then failed on it), while a pair that only fails together still waits for configure."""
+    m = Manager(PlaneValidationLifecycleNode())
+    try:
+        bogus = _set_over_dds(m, noise_model='bogus')
+        assert not bogus[0].successful and 'noise_model must be one of' in bogus[0].reason
+        word = _set_over_dds(m, tolerance='abc')
+        assert not word[0].successful and 'tolerance must be a float' in word[0].reason
+        assert m.node.get_parameter('noise_model').value == 'auto'
+        assert all(r.successful for r in _set_over_dds(m, ground_margin=0.1, ground_up_z=0.0))
+        assert not m.transition(Transition.TRANSITION_CONFIGURE) and m.state() == 'unconfigured'
+    finally:
+        m.close()
+
+
 def test_the_lifecycle_executable_prints_its_usage():
     import subprocess
     import sys

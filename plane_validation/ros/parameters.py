@@ -13,8 +13,7 @@ from rclpy.parameter import Parameter as RosParameter
 from ..app.config import PARAMETERS, Parameter, PipelineConfig
 
 __all__ = ['NODE_PARAMETERS', 'NodeOptions', 'descriptor', 'declare', 'declare_each', 'unknown_overrides',
-           'checked_changes',
-           'apply_parameters', 'params_yaml', 'set_requests_whole']
+           'checked_changes', 'each_checked', 'apply_parameters', 'params_yaml', 'set_requests_whole']
 
 #: Node-only parameters (the pipeline's are in app/config.py's table).
 NODE_PARAMETERS = {
@@ -125,12 +124,24 @@ def params_yaml() -> str:
     return '\n'.join(lines) + '\n'
 
 
+def each_checked(params) -> SetParametersResult:
+    """Whether each of a SetParameters request's values is allowed on its own (type, choices, range: what does not
+    depend on the order parameters are set in), or the refusal naming the first that is not."""
+    specs = {**PARAMETERS, **NODE_PARAMETERS}
+    for param in params:
+        spec = specs.get(param.name)
+        why = None if spec is None else spec.problem(param.value)
+        if why is not None:
+            return SetParametersResult(successful=False, reason=why)
+    return SetParametersResult(successful=True)
+
+
 def apply_parameters(node, params):
     """The on-set-parameters callback of both nodes: validate the request as a whole against the current
     values, then hand the new configuration to the pipeline and the worker. A managed node that is not
-    configured takes any value: configuring validates them all."""
+    configured takes any value allowed on its own: configuring checks them together."""
     if node.pipeline is None:
-        return SetParametersResult(successful=True)
+        return each_checked(params)
     checked = checked_changes(node.pipeline.config, node.options, params)
     if isinstance(checked, SetParametersResult):
         return checked
