@@ -101,9 +101,11 @@ def _load_kernels() -> None:
         cold = warm_probe().compiled
         if cold:  # minutes without a word would look like a hang, and minutes of a held Ctrl-C too
             print(COLD_CACHE_NOTE, file=sys.stderr, flush=True)
-            for sig in held:
+            # not a signal the process was started ignoring (SIGINT in a script's background job)
+            stoppers = [sig for sig in held if previous[sig] is not signal.SIG_IGN]
+            for sig in stoppers:
                 signal.signal(sig, _stop_compiling)
-            for signum in caught[:1]:  # one came while the first kernels compiled
+            for signum in [sig for sig in caught if sig in stoppers][:1]:  # one came while the first kernels compiled
                 _stop_compiling(signum, None)
         warm(jobs=os.cpu_count() or 1, cold=cold)  # a cold cache compiles on every core
     finally:
