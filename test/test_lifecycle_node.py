@@ -195,6 +195,24 @@ def test_a_value_not_allowed_on_its_own_is_refused_at_once_while_unconfigured(ro
         m.close()
 
 
+def test_an_override_refused_at_start_fails_configure_until_the_parameter_is_set(ros):
+    """An override out of range (``-p tolerance:=-1.0``) refuses configure, naming it; the parameter exists at its
+    default, so setting it lets configure go on (it stayed undeclared: it could not be set, and the node could not
+    be configured again until it was restarted)."""
+    node = PlaneValidationLifecycleNode(cli_args=['--ros-args', '-p', 'tolerance:=-1.0', '-p', 'max_planes:=4'])
+    m = Manager(node)
+    try:
+        assert node.get_parameter('max_planes').value == 4 and node.has_parameter('tolerance')
+        for _ in range(2):
+            assert not m.transition(Transition.TRANSITION_CONFIGURE) and m.state() == 'unconfigured'
+        assert not _set_over_dds(m, tolerance=-2.0)[0].successful
+        assert not m.transition(Transition.TRANSITION_CONFIGURE)
+        assert all(r.successful for r in _set_over_dds(m, tolerance=0.03))
+        assert m.transition(Transition.TRANSITION_CONFIGURE) and m.state() == 'inactive'
+        assert (node.pipeline.config.tolerance, node.pipeline.config.max_planes) == (0.03, 4)
+    finally:
+        m.close()
+
 def test_the_lifecycle_executable_prints_its_usage():
     import subprocess
     import sys

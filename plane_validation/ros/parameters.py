@@ -7,7 +7,11 @@ from dataclasses import dataclass
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rcl_interfaces.srv import SetParameters
-from rclpy.exceptions import ParameterNotDeclaredException
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    ParameterNotDeclaredException,
+)
 from rclpy.parameter import Parameter as RosParameter
 
 from ..app.config import PARAMETERS, Parameter, PipelineConfig
@@ -58,17 +62,19 @@ def descriptor(spec: Parameter) -> ParameterDescriptor:
     return desc
 
 
-def declare_each(node) -> list[str]:
+def declare_each(node) -> dict[str, str]:
     """Declare every parameter not yet declared on ``node`` with its descriptor, overrides from the command line or
-    a params file applied, and return the names whose override rclpy refused (out of range, wrong type): those stay
-    undeclared, and :func:`declare` names the problem."""
-    refused = []
+    a params file applied, and return why rclpy refused an override (out of range, wrong type), by name: such a
+    parameter is declared at its default, so that it can be set right (undeclared, it could not, and every
+    configure failed on the override again)."""
+    refused = {}
     for name, spec in {**PARAMETERS, **NODE_PARAMETERS}.items():
         if not node.has_parameter(name):
             try:
                 node.declare_parameter(name, spec.default, descriptor(spec))
-            except Exception:  # rclpy's exception names the value; declare() raises it again with its message
-                refused.append(name)
+            except (InvalidParameterTypeException, InvalidParameterValueException) as exc:
+                refused[name] = str(exc)
+                node.declare_parameter(name, spec.default, descriptor(spec), ignore_override=True)
     return refused
 
 
