@@ -827,3 +827,33 @@ def test_ctrl_c_during_a_cold_compile_stops_the_command_at_once_and_its_workers_
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
+
+
+def test_a_signal_the_command_was_started_ignoring_does_not_stop_a_cold_compile(tmp_path):
+    """SIGINT ignored from the start (a script's background job, which the terminal's Ctrl-C must not stop): the
+    compile goes on (it stopped with 130), and SIGTERM still stops it at once."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from plane_validation.cli import run
+    cloud = tmp_path / 'corner.npy'
+    np.save(cloud, pv.scenes.corner(500, 0.0, seed=0).points)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / 'cache'))
+    proc = subprocess.Popen([sys.executable, '-m', 'plane_validation.cli', 'detect', str(cloud)], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    try:
+        line = proc.stderr.readline()
+        assert line.strip() == run.COLD_CACHE_NOTE, line
+        proc.send_signal(signal.SIGINT)
+        time.sleep(3)
+        assert proc.poll() is None  # still compiling
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=20) == 128 + signal.SIGTERM
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()

@@ -179,6 +179,40 @@ def test_parameters_can_be_set_over_dds_before_configure_and_configure_uses_them
         m.close()
 
 
+def test_a_value_not_allowed_on_its_own_is_refused_at_once_while_unconfigured(ros):
+    """A choice or a type is no check between parameters: refused when set, as on a configured node (it was taken
+    and configure then failed on it), while a pair that only fails together still waits for configure."""
+    m = Manager(PlaneValidationLifecycleNode())
+    try:
+        bogus = _set_over_dds(m, noise_model='bogus')
+        assert not bogus[0].successful and 'noise_model must be one of' in bogus[0].reason
+        word = _set_over_dds(m, tolerance='abc')
+        assert not word[0].successful and 'tolerance must be a float' in word[0].reason
+        assert m.node.get_parameter('noise_model').value == 'auto'
+        assert all(r.successful for r in _set_over_dds(m, ground_margin=0.1, ground_up_z=0.0))
+        assert not m.transition(Transition.TRANSITION_CONFIGURE) and m.state() == 'unconfigured'
+    finally:
+        m.close()
+
+
+def test_an_override_refused_at_start_fails_configure_until_the_parameter_is_set(ros):
+    """An override out of range (``-p tolerance:=-1.0``) refuses configure, naming it; the parameter exists at its
+    default, so setting it lets configure go on (it stayed undeclared: it could not be set, and the node could not
+    be configured again until it was restarted)."""
+    node = PlaneValidationLifecycleNode(cli_args=['--ros-args', '-p', 'tolerance:=-1.0', '-p', 'max_planes:=4'])
+    m = Manager(node)
+    try:
+        assert node.get_parameter('max_planes').value == 4 and node.has_parameter('tolerance')
+        for _ in range(2):
+            assert not m.transition(Transition.TRANSITION_CONFIGURE) and m.state() == 'unconfigured'
+        assert not _set_over_dds(m, tolerance=-2.0)[0].successful
+        assert not m.transition(Transition.TRANSITION_CONFIGURE)
+        assert all(r.successful for r in _set_over_dds(m, tolerance=0.03))
+        assert m.transition(Transition.TRANSITION_CONFIGURE) and m.state() == 'inactive'
+        assert (node.pipeline.config.tolerance, node.pipeline.config.max_planes) == (0.03, 4)
+    finally:
+        m.close()
+
 def test_the_lifecycle_executable_prints_its_usage():
     import subprocess
     import sys

@@ -27,6 +27,17 @@ def test_points_on_no_plane_and_without_those_near_the_largest_horizontal_plane(
     assert obstacle_mask(points, labels, wall, (9, 5), ground_margin=0.05).sum() == 3
 
 
+def test_the_up_direction_may_have_any_length_but_0():
+    """ground_up 1e-200 (its length underflowed to 0, and every plane passed for horizontal: the wall was taken for
+    the ground) or 1000 is the same direction as 1."""
+    import pytest
+    labels = np.array([0, 0, 1], np.int32)
+    seg = _segmentation(labels, (1, 0, 0, 0), (0, 0, 1, 0))  # a wall with more points, and the floor
+    for z in (1.0, 1000.0, -1e-200, 5e-324):
+        assert ground_plane(seg, (9, 5), (0.0, 0.0, z)) == 1, z
+    with pytest.raises(ValueError, match='up direction'):
+        ground_plane(seg, (9, 5), (0.0, 0.0, 0.0))
+
 def test_the_pipeline_finds_the_obstacles_of_a_room_in_a_z_up_frame_and_removes_the_ground():
     eye, target = np.array([4.6, 0.4, 1.5]), np.array([1.5, 3.6, 0.7])
     scene = depth_camera('room', width=160, height=120, seed=1)

@@ -16,7 +16,11 @@ def ground_plane(seg: Segmentation, counts: tuple[int, ...] | np.ndarray,
     """Index of the horizontal plane (normal within GROUND_MAX_TILT_DEG of ``up``, any length but 0) with the most
     labelled points (``counts``, one per plane), or None when no plane is horizontal."""
     axis = np.asarray(up, float)
-    cos = np.cos(np.radians(GROUND_MAX_TILT_DEG)) * float(np.linalg.norm(axis))
+    if not axis.any():
+        raise ValueError(f'the up direction must not be (0, 0, 0), got {up!r}')
+    axis = axis / np.abs(axis).max()  # scaled first: the squares of a tiny vector's parts underflow to a length 0
+    axis = axis / np.linalg.norm(axis)
+    cos = np.cos(np.radians(GROUND_MAX_TILT_DEG))
     horizontal = [k for k, p in enumerate(seg.planes) if abs(float(p.normal @ axis)) >= cos]
     return max(horizontal, key=lambda k: (counts[k], -k)) if horizontal else None
 

@@ -204,13 +204,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     detect = sub.add_parser('detect', help='detect planes in a cloud: planes, tolerance, every index, verdict',
                             description='Detect planes in one cloud and score them. Without --tolerance the '
-                            f'tolerance is auto-tuned (a sweep chosen by {DEFAULT_CRITERION}).')
+                            f'tolerance is auto-tuned (a sweep chosen by --criterion, {DEFAULT_CRITERION} by default).')
     detect.add_argument('cloud', metavar='CLOUD', help=CLOUD_HELP)
     which = detect.add_mutually_exclusive_group()
     which.add_argument('--tolerance', type=_table_type('tolerance'), metavar='T',
                        help=f'fixed RANSAC tolerance t in meters ({PARAMETERS["tolerance"].allowed})')
     which.add_argument('--auto', '--tune', dest='auto', action='store_true',
-                       help=f'auto-tune t by a sweep chosen by {DEFAULT_CRITERION} (the default without --tolerance)')
+                       help='auto-tune t by a sweep chosen by --criterion (the default without --tolerance)')
     _add_detection_options(detect)
     _add_search_options(detect)
     _add_table_options(detect, (('criterion', 'NAME'), ('tune_min', 'A'), ('tune_max', 'B'), ('tune_count', 'N')))

@@ -74,11 +74,14 @@ COLD_CACHE_NOTE = ('plane-validation: compiling the kernels for this machine, on
                    '2-core machine; Ctrl-C stops it, keeping what is compiled); later runs load them from the cache')
 
 
-def _stop_at_signals() -> None:
+def _stop_at_signals(handlers: dict | None = None) -> tuple[int, ...]:
     """From now on SIGINT, SIGTERM and SIGHUP stop the command at once, with the signal's exit status: while it
-    compiles the kernels, before it has started (:func:`~..core.interrupts.stop_at_signals`)."""
-    from ..core.interrupts import stop_at_signals
-    stop_at_signals(lambda signum: 128 + signum, 'plane-validation: stopped while compiling the kernels')
+    compiles the kernels, before it has started (:func:`~..core.interrupts.stop_at_signals`). Not one whose handler
+    (in ``handlers``, else the current one) is to ignore it: a script's background job starts with SIGINT ignored.
+    Returns the signals that now stop it."""
+    from ..core.interrupts import stop_at_signals, unignored
+    return stop_at_signals(lambda signum: 128 + signum, 'plane-validation: stopped while compiling the kernels',
+                           unignored(handlers))
 
 
 def _load_kernels() -> None:
@@ -96,8 +99,8 @@ def _load_kernels() -> None:
         cold = warm_probe().compiled
         if cold:  # minutes without a word would look like a hang, and minutes of a held Ctrl-C too
             print(COLD_CACHE_NOTE, file=sys.stderr, flush=True)
-            _stop_at_signals()
-            for signum in caught[:1]:  # one came while the first kernels compiled
+            stoppers = _stop_at_signals(previous)
+            for signum in [sig for sig in caught if sig in stoppers][:1]:  # one came while the first kernels compiled
                 signal.raise_signal(signum)
         warm(jobs=os.cpu_count() or 1, cold=cold)  # a cold cache compiles on every core
     finally:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import functools
 from typing import Callable, TypeVar
 
-__all__ = ['interrupt_of', 'keeps_interrupts', 'stop_at_signals']
+__all__ = ['interrupt_of', 'keeps_interrupts', 'stop_at_signals', 'unignored']
 
 F = TypeVar('F', bound=Callable)
 
@@ -39,12 +39,22 @@ def keeps_interrupts(func: F) -> F:
     return wrapper
 
 
-def stop_at_signals(status: Callable[[int], int], note: str) -> None:
-    """From now on SIGINT, SIGTERM and SIGHUP end the process at once with ``status(signum)``, after killing the
-    child processes that multiprocessing started (a cold compile's workers, which ignore those signals) and printing
-    ``note`` on stderr. For a process that is compiling the kernels before it does anything else: numba writes each
-    cache file whole (a temporary file renamed), so what was compiled stays cached and the rest compiles next time,
-    where holding the signal (numba's compiler swallows a KeyboardInterrupt) kept it for the minutes of the compile."""
+def unignored(handlers: dict | None = None) -> tuple[int, ...]:
+    """Of SIGINT, SIGTERM and SIGHUP, those whose handler (in ``handlers``, signal -> handler, else the current one)
+    is not to ignore them."""
+    import signal
+    stops = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+    return tuple(sig for sig in stops if (signal.getsignal(sig) if handlers is None else handlers[sig])
+                 is not signal.SIG_IGN)
+
+
+def stop_at_signals(status: Callable[[int], int], note: str, signals: tuple[int, ...]) -> tuple[int, ...]:
+    """From now on each of ``signals`` ends the process at once with ``status(signum)``, after killing the child
+    processes that multiprocessing started (a cold compile's workers, which ignore those signals) and printing
+    ``note`` on stderr; returns ``signals``. For a process that is compiling the kernels before it does anything
+    else: numba writes each cache file whole (a temporary file renamed), so what was compiled stays cached and the
+    rest compiles next time, where holding the signal (numba's compiler swallows a KeyboardInterrupt) kept it for
+    the minutes of the compile."""
     import multiprocessing
     import os
     import signal
@@ -55,5 +65,6 @@ def stop_at_signals(status: Callable[[int], int], note: str) -> None:
             child.kill()
         print(note, file=sys.stderr, flush=True)
         os._exit(status(signum))
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+    for sig in signals:
         signal.signal(sig, stop)
+    return signals

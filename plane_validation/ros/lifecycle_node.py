@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import sys
 
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from sensor_msgs.msg import PointCloud2
@@ -48,8 +49,9 @@ class PlaneValidationLifecycleNode(LifecycleNode):
         self.options = None
         self._pubs: dict[str, object] = {}
         self._subscription = None
-        declare_each(self)  # settable before configure; an override rclpy refuses is named by configure
-        self.add_on_set_parameters_callback(lambda params: apply_parameters(self, params))
+        # settable before configure; an override rclpy refuses fails configure until the parameter is set
+        self._refused = declare_each(self)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
         set_requests_whole(self)
         # a transition that does not start from the current state makes rclpy's ChangeState callback raise,
         # which ends the executor's spin: it is refused instead (success false) and the node serves on
@@ -66,8 +68,18 @@ class PlaneValidationLifecycleNode(LifecycleNode):
                 return response
         self._service_change_state.callback = refuse_out_of_order
 
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        result = apply_parameters(self, params)
+        if result.successful:  # an override refused at start is replaced
+            for param in params:
+                self._refused.pop(param.name, None)
+        return result
+
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
         try:
+            if self._refused:
+                name, why = next(iter(self._refused.items()))
+                raise ValueError(f'{why} (given at start; set {name} to replace it)')
             config, options = declare(self)
         except Exception as exc:  # out of range, wrong type, inconsistent: refused, stays unconfigured
             self.get_logger().error(f'configure refused: {exc}')

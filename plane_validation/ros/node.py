@@ -22,7 +22,7 @@ from sensor_msgs.msg import PointCloud2
 
 from ..app.config import PARAMETERS
 from ..app.pipeline import FramePipeline, limit_blas_threads, reuse_freed_memory
-from ..core.interrupts import stop_at_signals
+from ..core.interrupts import stop_at_signals, unignored
 from ..core.kernels import Warmup, warm_probe
 from ..core.workers import stop_workers
 from .messages import OUTPUTS, status_name
@@ -107,8 +107,9 @@ def _warm_first() -> tuple[bool, Warmup]:
     try:
         done = warm_probe()
         if done.compiled:  # minutes of compiling before the node exists: a signal ends it at once, quietly
-            stop_at_signals(lambda _signum: 0, 'plane_validation_node: stopped while compiling the kernels')
-            for signum in caught[:1]:  # one came while the first kernels compiled
+            stoppers = stop_at_signals(lambda _signum: 0, 'plane_validation_node: stopped while compiling the kernels',
+                                       unignored(previous))  # not one the node was started ignoring (nohup)
+            for signum in [sig for sig in caught if sig in stoppers][:1]:  # one came while the first kernels compiled
                 signal.raise_signal(signum)
             gc.enable()  # compiling makes garbage cycles (numba's IR): collected as usual
             done = warm_kernels(rclpy.logging.get_logger('plane_validation'), done)

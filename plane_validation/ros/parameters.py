@@ -7,14 +7,17 @@ from dataclasses import dataclass
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rcl_interfaces.srv import SetParameters
-from rclpy.exceptions import ParameterNotDeclaredException
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    ParameterNotDeclaredException,
+)
 from rclpy.parameter import Parameter as RosParameter
 
 from ..app.config import PARAMETERS, Parameter, PipelineConfig
 
 __all__ = ['NODE_PARAMETERS', 'NodeOptions', 'descriptor', 'declare', 'declare_each', 'unknown_overrides',
-           'checked_changes',
-           'apply_parameters', 'params_yaml', 'set_requests_whole']
+           'checked_changes', 'each_checked', 'apply_parameters', 'params_yaml', 'set_requests_whole']
 
 #: Node-only parameters (the pipeline's are in app/config.py's table).
 NODE_PARAMETERS = {
@@ -59,17 +62,19 @@ def descriptor(spec: Parameter) -> ParameterDescriptor:
     return desc
 
 
-def declare_each(node) -> list[str]:
+def declare_each(node) -> dict[str, str]:
     """Declare every parameter not yet declared on ``node`` with its descriptor, overrides from the command line or
-    a params file applied, and return the names whose override rclpy refused (out of range, wrong type): those stay
-    undeclared, and :func:`declare` names the problem."""
-    refused = []
+    a params file applied, and return why rclpy refused an override (out of range, wrong type), by name: such a
+    parameter is declared at its default, so that it can be set right (undeclared, it could not, and every
+    configure failed on the override again)."""
+    refused = {}
     for name, spec in {**PARAMETERS, **NODE_PARAMETERS}.items():
         if not node.has_parameter(name):
             try:
                 node.declare_parameter(name, spec.default, descriptor(spec))
-            except Exception:  # rclpy's exception names the value; declare() raises it again with its message
-                refused.append(name)
+            except (InvalidParameterTypeException, InvalidParameterValueException) as exc:
+                refused[name] = str(exc)
+                node.declare_parameter(name, spec.default, descriptor(spec), ignore_override=True)
     return refused
 
 
@@ -125,12 +130,24 @@ def params_yaml() -> str:
     return '\n'.join(lines) + '\n'
 
 
+def each_checked(params) -> SetParametersResult:
+    """Whether each of a SetParameters request's values is allowed on its own (type, choices, range: what does not
+    depend on the order parameters are set in), or the refusal naming the first that is not."""
+    specs = {**PARAMETERS, **NODE_PARAMETERS}
+    for param in params:
+        spec = specs.get(param.name)
+        why = None if spec is None else spec.problem(param.value)
+        if why is not None:
+            return SetParametersResult(successful=False, reason=why)
+    return SetParametersResult(successful=True)
+
+
 def apply_parameters(node, params):
     """The on-set-parameters callback of both nodes: validate the request as a whole against the current
     values, then hand the new configuration to the pipeline and the worker. A managed node that is not
-    configured takes any value: configuring validates them all."""
+    configured takes any value allowed on its own: configuring checks them together."""
     if node.pipeline is None:
-        return SetParametersResult(successful=True)
+        return each_checked(params)
     checked = checked_changes(node.pipeline.config, node.options, params)
     if isinstance(checked, SetParametersResult):
         return checked

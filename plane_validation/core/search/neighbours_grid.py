@@ -34,7 +34,7 @@ class GridNeighbours(Neighbours):
     """``shape`` (h, w) with point i at flat pixel ``pixel[i]``, ``node`` (h * w,) the point at each pixel (-1:
     none), ``usable`` (h * w,) the pixels that may join a region (valid, at no depth jump); ``wraps``: the last
     column is next to the first (a 360-degree lidar scan); ``bridges`` (b, 3): pixel pairs on either side of a run
-    of pixels without a point that a region spans (:func:`_bridges`), and whether the pair crosses the
+    of pixels without a point that a region spans (:func:`.grid_build._bridges`), and whether the pair crosses the
     image's seam (1)."""
 
     shape: tuple[int, int]
