@@ -85,6 +85,8 @@ def test_every_command_has_help(capsys):
         main(['detect', '--help'])
     text = ' '.join(capsys.readouterr().out.split())
     assert PARAMETERS['max_planes'].allowed == 'in [1, 100]' and '(default 10; in [1, 100])' in text
+    for name in ('criterion', 'noise_model', 'axis_mode'):  # the names such an option takes
+        assert '--' + name.replace('_', '-') + ' {' + ','.join(PARAMETERS[name].choices) + '}' in text, name
     assert f'meters ({PARAMETERS["tolerance"].allowed})' in text
 
 

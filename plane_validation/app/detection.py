@@ -119,7 +119,7 @@ def detect(points: np.ndarray, tolerance: float | None = None, *, search: Search
 
     Equivalent Python API calls (same results without ``ring``): fixed t -> ``detect_planes(points, t,
     seed=seed, **search.at_tolerance())`` and ``validity_indices(points, labels, seed=seed)``; auto ->
-    ``tune_tolerance(points, seed=seed, **search.kwargs())``.
+    ``tune_tolerance(points, seed=seed, **search.kwargs())`` (and ``**tune.kwargs()`` when ``tune`` is given).
     """
     pts = as_points(points)
     start = time.perf_counter()

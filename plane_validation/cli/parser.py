@@ -102,8 +102,9 @@ def _add_table_options(parser: argparse.ArgumentParser, names: tuple[tuple[str, 
             parser.add_argument(flag, dest=name, type=_table_type(name), default=None, metavar=metavar,
                                 help=f'{text} (default: a PCD file\'s VIEWPOINT, else {spec.default})')
         else:
-            allowed = f'; {spec.allowed}' if spec.allowed and not spec.choices else ''  # choices: argparse lists them
-            parser.add_argument(flag, dest=name, type=_table_type(name), default=spec.default, metavar=metavar,
+            allowed = f'; {spec.allowed}' if spec.allowed and not spec.choices else ''  # choices: the metavar
+            shown = '{' + ','.join(spec.choices) + '}' if spec.choices else metavar
+            parser.add_argument(flag, dest=name, type=_table_type(name), default=spec.default, metavar=shown,
                                 help=f'{text} (default {spec.default}{allowed})')
 
 
