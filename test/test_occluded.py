@@ -100,3 +100,43 @@ def test_a_far_floor_between_a_lidars_rings_is_out_of_its_view():
     view = occluded._view(np.array([[5.0, 5.0], [0.0, 0.0], [0.0, -1.0]]), np.zeros(3))  # rays at 0 and -11.3 deg
     unseen = occluded._unseen(np.radians([0.0, -5.0, -11.3, -40.0]), np.radians([0.5, 0.5, 0.5, 0.5]), view)
     assert unseen.tolist() == [False, True, False, True]
+
+
+def test_a_region_tilts_by_arctan_of_t_over_half_its_width():
+    """A strip 0.4 m wide (uniform across) with t = 0.1 m tilts by arctan(0.1 / 0.2) about its long axis; a region of
+    fewer than 3 points by 0."""
+    rng = np.random.default_rng(0)
+    strip = np.vstack([rng.uniform(-2, 2, 20000), rng.uniform(-0.2, 0.2, 20000), np.zeros(20000)])
+    tilt = occluded._tilts(strip, [np.arange(20000), np.arange(2)], 0.1)
+    assert abs(tilt[0] - np.arctan(0.1 / 0.2)) < 0.03  # its spread measured on about HULL_POINTS of them
+    assert tilt[1] == 0.0
+
+
+def test_pieces_of_a_noisy_wall_fitted_degrees_apart_are_tried_as_one_surface(monkeypatch):
+    """Two pieces of a wall, 0.3 m wide, apart, whose band (t = 0.1 m) lets their planes tilt 34 degrees: their planes
+    12 degrees apart are tried (and, their gap holding the wall's other points, merged); without the tilt gate they
+    stay two regions. A 12-degree pair of precise regions (t = 1 cm) is not tried."""
+    rng = np.random.default_rng(1)
+    n = 4000
+    def piece(x0):
+        return np.vstack([rng.uniform(x0, x0 + 1.0, n), rng.uniform(-0.15, 0.15, n), 4.0 + rng.uniform(-0.08, 0.08, n)])
+    gap = np.vstack([rng.uniform(1.0, 1.5, 800), rng.uniform(-0.15, 0.15, 800), 4.0 + rng.uniform(-0.08, 0.08, 800)])
+    search = np.hstack([piece(0.0), piece(1.5), gap])
+    region = np.r_[np.zeros(n, np.int64), np.ones(n, np.int64), np.full(800, -1)]
+    tilt = np.radians(12.0)
+    found = [(np.array([0.0, np.sin(tilt / 2), np.cos(tilt / 2)]), -4.0),
+             (np.array([0.0, -np.sin(tilt / 2), np.cos(tilt / 2)]), -4.0)]
+    viewpoint = np.array([1.25, 0.0, 0.0])
+    merged, planes = occluded.merge_occluded(search, region.copy(), found, 0.1, viewpoint, connected.MERGE_KEEP,
+                                             connected.MERGE_SPREAD)
+    assert len(planes) == 1 and set(np.unique(merged)) == {-1, 0}
+    monkeypatch.setattr(occluded, 'TILT_GATE', False)
+    _, planes = occluded.merge_occluded(search, region.copy(), found, 0.1, viewpoint, connected.MERGE_KEEP,
+                                        connected.MERGE_SPREAD)
+    assert len(planes) == 2
+    monkeypatch.setattr(occluded, 'TILT_GATE', True)
+    precise = search.copy()
+    precise[2] = 4.0 + rng.normal(0, 0.002, precise.shape[1])
+    _, planes = occluded.merge_occluded(precise, region.copy(), found, 0.01, viewpoint, connected.MERGE_KEEP,
+                                        connected.MERGE_SPREAD)
+    assert len(planes) == 2
