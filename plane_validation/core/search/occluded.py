@@ -21,12 +21,8 @@ from .types import Allows, Tolerance
 __all__ = ['merge_occluded', 'OCCLUDED_COS', 'CROSS_MARGIN', 'CROSS_CELLS', 'EXPLAINED', 'CELL_POINTS',
            'MAX_CELLS', 'MAX_TRIES', 'VIEW_MARGIN_DEG', 'HULL_POINTS', 'CROSS_POINTS', 'NEAR_SAMPLE', 'EVIDENCE_REACH']
 
-#: Only regions whose planes' normals lie within this angle's cosine (5 degrees) are tried ...
+#: Only regions whose planes' normals lie within this angle's cosine (5 degrees) are tried.
 OCCLUDED_COS = float(np.cos(np.radians(5.0)))
-#: ... or within the sum of the angles each region's plane can tilt about its shorter in-plane axis and still hold its
-#: points within t (:func:`_tilts`), when that is larger: a noisy far wall's pieces, whose band is wide beside their
-#: width, fit planes several degrees apart, though the joint plane holds them as well as their own.
-TILT_GATE = True
 #: A point at least this many t off the joint plane is seen through it (beyond it) or hides it (before it).
 CROSS_MARGIN = 2.0
 #: Rays crossing the joint plane in at least this many cells of the gap between the regions keep them apart
@@ -67,15 +63,11 @@ def merge_occluded(search: np.ndarray, region: np.ndarray, found: list, toleranc
     if k < 2:
         return region, found
     normals = np.array([n for n, _ in found])
-    cosines = np.abs(normals @ normals.T)
-    close = cosines >= OCCLUDED_COS
-    rows, bounds = kernels.group_by_label(kernels.c_array(region, np.int64), k)
-    members = [rows[bounds[j]:bounds[j + 1]] for j in range(k)]
-    if TILT_GATE:
-        tilt = _tilts(search, members, tolerance)
-        close |= cosines >= np.cos(np.minimum(tilt[:, None] + tilt[None, :], np.pi / 2))
+    close = np.abs(normals @ normals.T) >= OCCLUDED_COS
     if not np.triu(close, 1).any():
         return region, found
+    rows, bounds = kernels.group_by_label(kernels.c_array(region, np.int64), k)
+    members = [rows[bounds[j]:bounds[j + 1]] for j in range(k)]
     sizes = np.diff(bounds)
     pairs = [(i, j) for i, j in zip(*np.nonzero(np.triu(close, 1))) if sizes[i] >= 3 and sizes[j] >= 3]
     pairs.sort(key=lambda p: -(sizes[p[0]] + sizes[p[1]]))
@@ -111,22 +103,6 @@ def merge_occluded(search: np.ndarray, region: np.ndarray, found: list, toleranc
     renumber = np.full(k + 1, -1, dtype=np.int64)
     renumber[kept] = np.arange(len(kept))
     return renumber[region], [found[j] for j in kept]
-
-
-def _tilts(search: np.ndarray, members: list[np.ndarray], tolerance: Tolerance) -> np.ndarray:
-    """(k,) radians each region (its rows ``members``) can tilt its plane about its shorter in-plane axis with its
-    points kept within t: arctan(t / half its width), the width from the spread along that axis (a uniform strip of
-    width w spreads w / sqrt(12)), t the median of its points'. A region of under 3 points: 0."""
-    tilt = np.zeros(len(members))
-    for j, rows in enumerate(members):
-        if len(rows) < 3:
-            continue
-        some = rows[::max(1, len(rows) // HULL_POINTS)]
-        cols = search[:, some]
-        spread = np.linalg.eigvalsh(np.cov(cols))  # ascending: across the plane, the shorter, the longer axis
-        half_width = np.sqrt(3.0 * max(float(spread[1]), 0.0))
-        tilt[j] = np.arctan2(float(np.median(tolerance_at(tolerance, some))), half_width)
-    return tilt
 
 
 def _view(search: np.ndarray, viewpoint: np.ndarray) -> tuple[float, float, np.ndarray]:
