@@ -139,6 +139,8 @@ def test_detect_sweeps_by_the_criterion_and_in_the_range_given(corner_npy):
     assert [p['inliers'] for p in doc['planes']] == [len(p.inliers) for p in tuned.segmentation.planes]
     bad = _run('detect', str(corner_npy), '--tune-min', '0.05', '--tune-max', '0.01')
     assert bad.returncode == 2 and 'tune_max must be greater than tune_min' in bad.stderr
+    fixed = _run('detect', str(corner_npy), '--tolerance', '0.02', '--criterion', 'dunn', '--tune-count', '3')
+    assert fixed.returncode == 2 and '--criterion, --tune-count: how the sweep chooses t' in fixed.stderr
 
 
 def test_detect_text_and_labelled_outputs(corner_npy, tmp_path, capsys):

@@ -108,6 +108,9 @@ def _cloud_path(cloud: str) -> Path:
 
 #: Output options that write a figure, in the format of the file's extension (app.plot.figure_format).
 FIGURE_OPTIONS = ('png', 'plot')
+
+#: detect's options that choose how its sweep picks t: not with --tolerance.
+SWEEP_OPTIONS = ('criterion', 'tune_min', 'tune_max', 'tune_count')
 #: Their help: what the formats are.
 FIGURE_HELP = 'the format follows the extension: .png (also without one), .pdf, .svg, .jpg, ...'
 
@@ -184,6 +187,9 @@ def cmd_detect(args: argparse.Namespace) -> int:
     from ..app.report import detection_document, format_indices, noise_line
 
     _check_outputs(args, 'out', 'png')
+    sweep = ['--' + name.replace('_', '-') for name in SWEEP_OPTIONS if getattr(args, name) is not None]
+    if args.tolerance is not None and sweep:
+        raise ValueError(f'{", ".join(sweep)}: how the sweep chooses t, not with --tolerance (a fixed t)')
     tolerance = None if args.auto else args.tolerance
     with _about(args.cloud), progress_bar('tuning t', quiet=args.json) as progress:
         points, shape, ring, read = _load(args)

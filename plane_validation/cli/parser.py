@@ -14,6 +14,7 @@ from .commands import (
     EXIT_BROKEN_PIPE,
     FIGURE_HELP,
     PAPER_OUT,
+    SWEEP_OPTIONS,
     cmd_batch,
     cmd_demo,
     cmd_detect,
@@ -215,6 +216,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_detection_options(detect)
     _add_search_options(detect)
     _add_table_options(detect, (('criterion', 'NAME'), ('tune_min', 'A'), ('tune_max', 'B'), ('tune_count', 'N')))
+    detect.set_defaults(**dict.fromkeys(SWEEP_OPTIONS))  # None: not given (the table's default applies)
     detect.add_argument('--json', action='store_true', help='print one JSON document (schema in docs/cli.md) '
                         'and nothing else on stdout')
     detect.add_argument('--out', metavar='FILE', help='write the labelled cloud: .ply (plane_id), .pcd (label), '
