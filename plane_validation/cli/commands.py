@@ -108,11 +108,11 @@ def _cloud_path(cloud: str) -> Path:
 
 #: Output options that write a figure, in the format of the file's extension (app.plot.figure_format).
 FIGURE_OPTIONS = ('png', 'plot')
+#: Their help: what the formats are.
+FIGURE_HELP = 'the format follows the extension: .png (also without one), .pdf, .svg, .jpg, ...'
 
 #: detect's options that choose how its sweep picks t: not with --tolerance.
 SWEEP_OPTIONS = ('criterion', 'tune_min', 'tune_max', 'tune_count')
-#: Their help: what the formats are.
-FIGURE_HELP = 'the format follows the extension: .png (also without one), .pdf, .svg, .jpg, ...'
 
 
 def _check_outputs(args: argparse.Namespace, *names: str) -> None:

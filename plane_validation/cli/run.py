@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager, suppress
 
 from .commands import EXIT_BROKEN_PIPE, EXIT_USAGE, cmd_scene, cmd_warmup
@@ -74,14 +74,14 @@ COLD_CACHE_NOTE = ('plane-validation: compiling the kernels for this machine, on
                    '2-core machine; Ctrl-C stops it, keeping what is compiled); later runs load them from the cache')
 
 
-def _stop_at_signals(handlers: dict | None = None) -> tuple[int, ...]:
+def _stop_at_signals(handlers: dict | None = None, pending: Iterable[int] = ()) -> None:
     """From now on SIGINT, SIGTERM and SIGHUP stop the command at once, with the signal's exit status: while it
-    compiles the kernels, before it has started (:func:`~..core.interrupts.stop_at_signals`). Not one whose handler
-    (in ``handlers``, else the current one) is to ignore it: a script's background job starts with SIGINT ignored.
-    Returns the signals that now stop it."""
+    compiles the kernels, before it has started (:func:`~..core.interrupts.stop_at_signals`; the first of
+    ``pending``, held so far, at once). Not one whose handler (in ``handlers``, else the current one) is to ignore
+    it: a script's background job starts with SIGINT ignored."""
     from ..core.interrupts import stop_at_signals, unignored
-    return stop_at_signals(lambda signum: 128 + signum, 'plane-validation: stopped while compiling the kernels',
-                           unignored(handlers))
+    stop_at_signals(lambda signum: 128 + signum, 'plane-validation: stopped while compiling the kernels',
+                    unignored(handlers), pending)
 
 
 def _load_kernels() -> None:
@@ -99,9 +99,7 @@ def _load_kernels() -> None:
         cold = warm_probe().compiled
         if cold:  # minutes without a word would look like a hang, and minutes of a held Ctrl-C too
             print(COLD_CACHE_NOTE, file=sys.stderr, flush=True)
-            stoppers = _stop_at_signals(previous)
-            for signum in [sig for sig in caught if sig in stoppers][:1]:  # one came while the first kernels compiled
-                signal.raise_signal(signum)
+            _stop_at_signals(previous, caught)  # and at once for one held while the first kernels compiled
         warm(jobs=os.cpu_count() or 1, cold=cold)  # a cold cache compiles on every core
     finally:
         for sig, handler in previous.items():

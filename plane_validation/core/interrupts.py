@@ -7,7 +7,7 @@ kernels for long raise the KeyboardInterrupt itself."""
 from __future__ import annotations
 
 import functools
-from typing import Callable, TypeVar
+from typing import Callable, Iterable, TypeVar
 
 __all__ = ['interrupt_of', 'keeps_interrupts', 'stop_at_signals', 'unignored']
 
@@ -48,13 +48,14 @@ def unignored(handlers: dict | None = None) -> tuple[int, ...]:
                  is not signal.SIG_IGN)
 
 
-def stop_at_signals(status: Callable[[int], int], note: str, signals: tuple[int, ...]) -> tuple[int, ...]:
+def stop_at_signals(status: Callable[[int], int], note: str, signals: tuple[int, ...], pending: Iterable[int] = ()
+                    ) -> None:
     """From now on each of ``signals`` ends the process at once with ``status(signum)``, after killing the child
     processes that multiprocessing started (a cold compile's workers, which ignore those signals) and printing
-    ``note`` on stderr; returns ``signals``. For a process that is compiling the kernels before it does anything
-    else: numba writes each cache file whole (a temporary file renamed), so what was compiled stays cached and the
-    rest compiles next time, where holding the signal (numba's compiler swallows a KeyboardInterrupt) kept it for
-    the minutes of the compile."""
+    ``note`` on stderr; the first of ``pending`` (signals held until now) among them does so at once. For a process
+    that is compiling the kernels before it does anything else: numba writes each cache file whole (a temporary file
+    renamed), so what was compiled stays cached and the rest compiles next time, where holding the signal (numba's
+    compiler swallows a KeyboardInterrupt) kept it for the minutes of the compile."""
     import multiprocessing
     import os
     import signal
@@ -67,4 +68,5 @@ def stop_at_signals(status: Callable[[int], int], note: str, signals: tuple[int,
         os._exit(status(signum))
     for sig in signals:
         signal.signal(sig, stop)
-    return signals
+    for signum in [sig for sig in pending if sig in signals][:1]:
+        signal.raise_signal(signum)

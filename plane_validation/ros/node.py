@@ -107,10 +107,9 @@ def _warm_first() -> tuple[bool, Warmup]:
     try:
         done = warm_probe()
         if done.compiled:  # minutes of compiling before the node exists: a signal ends it at once, quietly
-            stoppers = stop_at_signals(lambda _signum: 0, 'plane_validation_node: stopped while compiling the kernels',
-                                       unignored(previous))  # not one the node was started ignoring (nohup)
-            for signum in [sig for sig in caught if sig in stoppers][:1]:  # one came while the first kernels compiled
-                signal.raise_signal(signum)
+            # not one the node was started ignoring (nohup); at once for one held while the first kernels compiled
+            stop_at_signals(lambda _signum: 0, 'plane_validation_node: stopped while compiling the kernels',
+                            unignored(previous), caught)
             gc.enable()  # compiling makes garbage cycles (numba's IR): collected as usual
             done = warm_kernels(rclpy.logging.get_logger('plane_validation'), done)
     finally:
