@@ -778,6 +778,23 @@ def test_a_signal_exception_dropped_by_a_finalizer_is_delivered_again():
     assert signal.getsignal(signal.SIGTERM) is before and sys.unraisablehook is hook
 
 
+def test_a_hangup_the_command_was_started_ignoring_stays_ignored():
+    """Under nohup SIGHUP is ignored from the start: closing the terminal must not stop the command (it was turned
+    into Terminated); SIGTERM still stops it."""
+    import signal
+
+    from plane_validation.cli.run import _raise_terminated, _terminate_cleanly
+    before = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        with _terminate_cleanly():
+            assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+            assert signal.getsignal(signal.SIGTERM) is _raise_terminated
+            signal.raise_signal(signal.SIGHUP)  # ignored: nothing happens
+        assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGHUP, before)
+
+
 @pytest.mark.parametrize('cold', [True, False])
 def test_a_command_says_so_before_it_compiles_the_kernels_on_a_cold_cache(cold, monkeypatch, capsys):
     """The first run on a machine compiles for minutes: it says why it is silent; a warm cache says nothing."""

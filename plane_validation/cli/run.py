@@ -41,12 +41,15 @@ def _raise_terminated(signum: int, _frame) -> None:
 @contextmanager
 def _terminate_cleanly() -> Iterator[None]:
     """SIGTERM and SIGHUP (timeout, systemd, docker stop, a closed terminal) raise Terminated in
-    the main thread, so every ``with``/``finally`` cleans up as for Ctrl-C."""
+    the main thread, so every ``with``/``finally`` cleans up as for Ctrl-C. A signal the process was started
+    ignoring (SIGHUP under nohup) stays ignored."""
     import signal
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = {sig: signal.signal(sig, _raise_terminated) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    from ..core.interrupts import unignored
+    previous = {sig: signal.signal(sig, _raise_terminated) for sig in (signal.SIGTERM, signal.SIGHUP)
+                if sig in unignored()}
     previous_hook = sys.unraisablehook
 
     def redeliver(unraisable) -> None:
