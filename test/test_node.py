@@ -411,14 +411,18 @@ def test_parameters_set_together_that_conflict_are_all_refused_over_dds(harness,
     assert not alone[0].successful and harness.node.pipeline.config.tune_max == 0.6
 
 
-@pytest.mark.parametrize('sig', ['SIGINT', 'SIGTERM', 'SIGHUP'])
+@pytest.mark.parametrize('sig', ['SIGINT', 'SIGTERM', 'SIGHUP', 'nohup'])
 def test_node_process_stops_cleanly_on_signal(ros, sig):
+    """The node ends with status 0 on SIGINT, SIGTERM and SIGHUP; started under nohup (SIGHUP ignored from the
+    start) a hangup leaves it running, and SIGTERM ends it."""
     import os
     import signal
     import subprocess
     import sys
+    ignore = (lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN)) if sig == 'nohup' else None
     proc = subprocess.Popen([sys.executable, '-m', 'plane_validation.ros.node'], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=dict(os.environ), start_new_session=True)
+                            stderr=subprocess.PIPE, text=True, env=dict(os.environ), start_new_session=True,
+                            preexec_fn=ignore)
     probe = rclpy.create_node('signal_probe')
     try:
         # the signal once the node is up (rclpy handles it from then on), however slow the start on a busy
@@ -429,7 +433,11 @@ def test_node_process_stops_cleanly_on_signal(ros, sig):
             time.sleep(0.1)
         time.sleep(0.5)
         assert proc.poll() is None, proc.communicate()
-        proc.send_signal(getattr(signal, sig))
+        if sig == 'nohup':
+            proc.send_signal(signal.SIGHUP)
+            time.sleep(1.0)
+            assert proc.poll() is None, proc.communicate()
+        proc.send_signal(signal.SIGTERM if sig == 'nohup' else getattr(signal, sig))
         out, err = proc.communicate(timeout=15)
     finally:
         probe.destroy_node()

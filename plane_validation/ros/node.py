@@ -170,8 +170,10 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
         # rclpy shuts down on SIGINT and SIGTERM; SIGHUP (a closed terminal or session) would end the process
         # on the spot, leaving the sweep's worker processes behind: it becomes a SIGTERM. Not try_shutdown() here:
         # this handler runs in the main thread between two bytecodes, maybe inside Context.ok(), whose lock
-        # try_shutdown() takes too: the node would wait for itself
-        signal.signal(signal.SIGHUP, lambda signum, frame: os.kill(os.getpid(), signal.SIGTERM))
+        # try_shutdown() takes too: the node would wait for itself. Not under nohup: a SIGHUP it was started
+        # ignoring stays ignored
+        if signal.getsignal(signal.SIGHUP) is not signal.SIG_IGN:
+            signal.signal(signal.SIGHUP, lambda signum, frame: os.kill(os.getpid(), signal.SIGTERM))
     except KeyboardInterrupt:  # Ctrl-C while starting: as quiet as while spinning
         _shutdown()
         return 0
