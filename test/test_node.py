@@ -435,7 +435,7 @@ def test_node_process_stops_cleanly_on_signal(ros, sig):
         assert proc.poll() is None, proc.communicate()
         if sig == 'nohup':
             proc.send_signal(signal.SIGHUP)
-            time.sleep(1.0)
+            time.sleep(3.0)  # a node that takes it for SIGTERM has ended by then
             assert proc.poll() is None, proc.communicate()
         proc.send_signal(signal.SIGTERM if sig == 'nohup' else getattr(signal, sig))
         out, err = proc.communicate(timeout=15)
