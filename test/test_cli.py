@@ -811,7 +811,8 @@ def test_a_command_says_so_before_it_compiles_the_kernels_on_a_cold_cache(cold, 
 @pytest.mark.parametrize('command', ['detect', 'warmup'])
 def test_ctrl_c_during_a_cold_compile_stops_the_command_at_once_and_its_workers_with_it(tmp_path, command):
     """A cold cache compiles for minutes in worker processes that ignore Ctrl-C: the command (one that then
-    detects, or warmup) stops within seconds with status 130, and no worker is left compiling."""
+    detects, or warmup) stops within seconds with status 130, no worker is left compiling, and no warning of
+    leaked semaphores follows."""
     import os
     import signal
     import subprocess
@@ -835,7 +836,8 @@ def test_ctrl_c_during_a_cold_compile_stops_the_command_at_once_and_its_workers_
         start = time.monotonic()
         assert proc.wait(timeout=20) == 130
         assert time.monotonic() - start < 10
-        assert 'stopped while compiling the kernels' in proc.stderr.read()
+        err = proc.stderr.read()  # to its end: multiprocessing's resource tracker, if left to clean up, warns here
+        assert 'stopped while compiling the kernels' in err and 'leaked' not in err, err
         assert session_ended(proc.pid), 'a warm-up worker outlived the command'
     finally:
         if proc.poll() is None:

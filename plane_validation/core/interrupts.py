@@ -57,6 +57,7 @@ def stop_at_signals(status: Callable[[int], int], note: str, signals: tuple[int,
     renamed), so what was compiled stays cached and the rest compiles next time, where holding the signal (numba's
     compiler swallows a KeyboardInterrupt) kept it for the minutes of the compile."""
     import multiprocessing
+    import multiprocessing.util
     import os
     import signal
     import sys
@@ -64,6 +65,9 @@ def stop_at_signals(status: Callable[[int], int], note: str, signals: tuple[int,
     def stop(signum: int, _frame) -> None:
         for child in multiprocessing.active_children():
             child.kill()
+        # what exiting would clean up, os._exit does not: the pool's semaphores are removed here, or multiprocessing's
+        # resource tracker removes them and warns of "leaked semaphore objects" after the note
+        multiprocessing.util._run_finalizers(0)
         print(note, file=sys.stderr, flush=True)
         os._exit(status(signum))
     for sig in signals:
