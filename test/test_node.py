@@ -411,6 +411,17 @@ def test_parameters_set_together_that_conflict_are_all_refused_over_dds(harness,
     assert not alone[0].successful and harness.node.pipeline.config.tune_max == 0.6
 
 
+@pytest.mark.parametrize('service', ['set_parameters', 'set_parameters_atomically'])
+def test_a_misspelt_parameter_set_over_dds_is_refused_naming_it(harness, service):
+    """rclpy's own reason names no parameter ('Invalid access to undeclared parameter(s): []'): what
+    `ros2 param set /plane_validation tolerence 0.01` printed. The whole request is refused, its valid part too."""
+    config = harness.node.pipeline.config
+    results = _set_parameters(harness, service, {'tolerence': 0.01, 'max_planes': config.max_planes + 1})
+    assert results and not any(r.successful for r in results), results
+    assert all(r.reason == 'tolerence: not a parameter of this node (--help lists them)' for r in results), results
+    assert harness.node.pipeline.config == config
+
+
 @pytest.mark.parametrize('sig', ['SIGINT', 'SIGTERM', 'SIGHUP'])
 def test_node_process_stops_cleanly_on_signal(ros, sig):
     import os
