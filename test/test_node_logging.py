@@ -126,3 +126,18 @@ def test_a_misspelt_parameter_is_named_in_a_warning_not_ignored_in_silence(ros, 
         node.destroy_node()
     warned = [line for line in capfd.readouterr().err.splitlines() if '[WARN]' in line and 'ignoring' in line]
     assert len(warned) == 1 and 'tolerence' in warned[0] and 'max_planes' not in warned[0], warned
+
+
+@pytest.mark.parametrize('overrides, warns', [
+    ({'tolerance': 0.01}, True),                         # auto_tune on by default: t is swept, not 0.01
+    ({'tolerance': 0.01, 'auto_tune': False}, False),    # a fixed t: used
+    ({'tolerance': 0.02}, False),                        # the default (the shipped params.yaml): no request
+    ({'max_planes': 3}, False),
+])
+def test_a_tolerance_given_while_auto_tune_is_on_is_named_in_a_warning(ros, capfd, overrides, warns):
+    node = PlaneValidationNode(parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+    node.destroy_node()
+    warned = [line for line in capfd.readouterr().err.splitlines() if '[WARN]' in line and 'auto_tune' in line]
+    assert len(warned) == int(warns), warned
+    if warns:
+        assert 'tolerance 0.01 is not used while auto_tune is true' in warned[0] and 'auto_tune:=false' in warned[0]

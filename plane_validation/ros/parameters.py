@@ -17,7 +17,7 @@ from rclpy.parameter import Parameter as RosParameter
 from ..app.config import PARAMETERS, Parameter, PipelineConfig
 
 __all__ = ['NODE_PARAMETERS', 'NodeOptions', 'descriptor', 'declare', 'declare_each', 'unknown_overrides',
-           'checked_changes', 'each_checked', 'apply_parameters', 'params_yaml', 'not_declared',
+           'unused_tolerance', 'checked_changes', 'each_checked', 'apply_parameters', 'params_yaml', 'not_declared',
            'set_requests_whole']
 
 #: Node-only parameters (the pipeline's are in app/config.py's table).
@@ -94,7 +94,21 @@ def declare(node) -> tuple[PipelineConfig, NodeOptions]:
     unknown = unknown_overrides(node)
     if unknown:
         node.get_logger().warning(f'ignoring {", ".join(unknown)}: not a parameter of this node (--help lists them)')
+    unused = unused_tolerance(node, config)
+    if unused:
+        node.get_logger().warning(unused)
     return config, options
+
+
+def unused_tolerance(node, config: PipelineConfig) -> str | None:
+    """Why a ``tolerance`` given on the command line or in a params file will not be the t of the frames, or None:
+    with auto_tune on (the default) the sweep chooses t, so ``-p tolerance:=0.01`` alone changed nothing, where
+    ``replay --tolerance 0.01`` fixes t. A value equal to the default (the shipped params.yaml) is no request."""
+    given = (getattr(node, '_parameter_overrides', None) or {}).get('tolerance')
+    if given is None or not config.auto_tune or config.tolerance == PARAMETERS['tolerance'].default:
+        return None
+    return (f'tolerance {config.tolerance:g} is not used while auto_tune is true (the sweep chooses t): '
+            'set auto_tune:=false for a fixed t')
 
 
 def unknown_overrides(node) -> list[str]:
