@@ -555,6 +555,11 @@ def test_node_with_invalid_startup_parameters_exits_with_a_reason():
                            '/nonexistent/params.yaml'], capture_output=True, text=True, timeout=60,
                           env=dict(os.environ))
     assert proc.returncode == 2 and 'cannot start' in proc.stderr and 'Traceback' not in proc.stderr
+    # a parameter without its -p: rclpy said only "cannot start: ['tolerance:=0.01']"
+    proc = subprocess.run([sys.executable, '-m', 'plane_validation.ros.node', '--ros-args', 'tolerance:=0.01'],
+                          capture_output=True, text=True, timeout=60, env=dict(os.environ))
+    assert proc.returncode == 2 and 'Traceback' not in proc.stderr
+    assert "not ROS arguments after --ros-args: ['tolerance:=0.01'] (a parameter is -p NAME:=VALUE" in proc.stderr
 
 
 def test_whole_numbers_are_taken_for_float_parameters_and_other_types_are_not(ros):

@@ -16,6 +16,7 @@ import sys
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.signals import uninstall_signal_handlers
 from sensor_msgs.msg import PointCloud2
@@ -150,6 +151,15 @@ def _shutdown() -> None:
             raise
 
 
+def _start_problem(exc: Exception) -> str:
+    """What rclpy.init's failure says to the user. Its UnknownROSArgsError says only the arguments it did not take
+    ("['tolerance:=0.01']", for a -p left out), not that they are no ROS arguments nor what those look like."""
+    if isinstance(exc, _rclpy.UnknownROSArgsError):
+        return (f'not ROS arguments after --ros-args: {exc} (a parameter is -p NAME:=VALUE, a remapping '
+                '-r FROM:=TO, a parameters file --params-file FILE; --help lists the parameters)')
+    return str(exc)
+
+
 def main(args: list[str] | None = None, node_class: type | None = None, prog: str = 'plane_validation_node') -> int:
     """Start ``node_class`` (default :class:`PlaneValidationNode`) and serve it until a signal or shutdown."""
     node_class = node_class or PlaneValidationNode
@@ -176,7 +186,7 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
         _shutdown()
         return 0
     except Exception as exc:  # malformed --ros-args, a params file that is missing or not YAML
-        print(f'{prog}: cannot start: {exc}', file=sys.stderr)
+        print(f'{prog}: cannot start: {_start_problem(exc)}', file=sys.stderr)
         return 2
     try:
         node = node_class(warmup=warmup)
