@@ -31,6 +31,7 @@ EXPECTED = {
     ('worker.py', 'process', 'WARN'): 'WARN: no reliable planes',  # the first WARN frame (throttled after)
     ('worker.py', 'run', 'INFO'): 'retuned: t = ',
     ('worker.py', 'run', 'WARN'): ('retuned: t = ', 'retune failed, keeping t: '),
+    ('worker.py', 'subscribe', 'INFO'): 'listening for PointCloud2 on /cloud (best_effort); publishing ~/segmented',
 }
 
 
@@ -141,3 +142,11 @@ def test_a_tolerance_given_while_auto_tune_is_on_is_named_in_a_warning(ros, capf
     assert len(warned) == int(warns), warned
     if warns:
         assert 'tolerance 0.01 is not used while auto_tune is true' in warned[0] and 'auto_tune:=false' in warned[0]
+
+
+def test_the_start_names_the_topic_the_node_listens_on_and_where_it_publishes(ros, capfd):
+    node = PlaneValidationNode(cli_args=['--ros-args', '-r', 'cloud:=/camera/depth/points', '-r', '__ns:=/front'])
+    node.destroy_node()
+    said = [line for line in capfd.readouterr().err.splitlines() if '[INFO]' in line and 'listening' in line]
+    assert len(said) == 1 and 'listening for PointCloud2 on /camera/depth/points (best_effort)' in said[0], said
+    assert '(~ = /front/plane_validation) and /diagnostics' in said[0], said
