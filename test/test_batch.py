@@ -38,7 +38,9 @@ pytestmark = pytest.mark.ros
 
 ROOT = Path(__file__).resolve().parents[1]
 BAGS = ROOT / 'bags'
-NAMES = sorted(p.name for p in BAGS.iterdir() if (p / 'metadata.yaml').is_file())
+# the bundled bags, not a bags/<bag>.planes that `plane-validation replay bags/cube` (the README's example) leaves
+# there, which batch leaves out too
+NAMES = sorted(p.name for p in BAGS.iterdir() if (p / 'metadata.yaml').is_file() and not p.name.endswith('.planes'))
 #: Fewer tuning candidates than the default: the batch, not the sweep, is under test (a third faster).
 FAST = ['--tune-count', '6']
 FAST_CONFIG = PipelineConfig(tune_count=6)

@@ -2,6 +2,7 @@
 labelled and synthetic outputs read back, the paper run, and one-line errors with exit status 2."""
 from __future__ import annotations
 
+import argparse
 import csv
 import io
 import json
@@ -77,6 +78,9 @@ def test_every_command_has_help(capsys):
         assert 'usage: plane-validation' in capsys.readouterr().out
     top = build_parser().format_help()
     assert all(name in top for name in ('detect', 'sweep', 'planes', 'scene', 'paper', 'replay', 'demo'))
+    # each command's --help says what it does, not only its usage (replay's said nothing)
+    commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices
+    assert not [name for name, parser in commands.items() if not parser.description]
     with pytest.raises(SystemExit):
         main(['sweep', '--help'])
     assert '--tolerances A:B:N' in capsys.readouterr().out

@@ -411,6 +411,17 @@ def test_parameters_set_together_that_conflict_are_all_refused_over_dds(harness,
     assert not alone[0].successful and harness.node.pipeline.config.tune_max == 0.6
 
 
+@pytest.mark.parametrize('service', ['set_parameters', 'set_parameters_atomically'])
+def test_a_misspelt_parameter_set_over_dds_is_refused_naming_it(harness, service):
+    """rclpy's own reason names no parameter ('Invalid access to undeclared parameter(s): []'): what
+    `ros2 param set /plane_validation tolerence 0.01` printed. The whole request is refused, its valid part too."""
+    config = harness.node.pipeline.config
+    results = _set_parameters(harness, service, {'tolerence': 0.01, 'max_planes': config.max_planes + 1})
+    assert results and not any(r.successful for r in results), results
+    assert all(r.reason == 'tolerence: not a parameter of this node (--help lists them)' for r in results), results
+    assert harness.node.pipeline.config == config
+
+
 @pytest.mark.parametrize('sig', ['SIGINT', 'SIGTERM', 'SIGHUP', 'nohup'])
 def test_node_process_stops_cleanly_on_signal(ros, sig):
     """The node ends with status 0 on SIGINT, SIGTERM and SIGHUP; started under nohup (SIGHUP ignored from the
@@ -552,6 +563,11 @@ def test_node_with_invalid_startup_parameters_exits_with_a_reason():
                            '/nonexistent/params.yaml'], capture_output=True, text=True, timeout=60,
                           env=dict(os.environ))
     assert proc.returncode == 2 and 'cannot start' in proc.stderr and 'Traceback' not in proc.stderr
+    # a parameter without its -p: rclpy said only "cannot start: ['tolerance:=0.01']"
+    proc = subprocess.run([sys.executable, '-m', 'plane_validation.ros.node', '--ros-args', 'tolerance:=0.01'],
+                          capture_output=True, text=True, timeout=60, env=dict(os.environ))
+    assert proc.returncode == 2 and 'Traceback' not in proc.stderr
+    assert "not ROS arguments after --ros-args: ['tolerance:=0.01'] (a parameter is -p NAME:=VALUE" in proc.stderr
 
 
 def test_whole_numbers_are_taken_for_float_parameters_and_other_types_are_not(ros):

@@ -31,6 +31,7 @@ EXPECTED = {
     ('worker.py', 'process', 'WARN'): 'WARN: no reliable planes',  # the first WARN frame (throttled after)
     ('worker.py', 'run', 'INFO'): 'retuned: t = ',
     ('worker.py', 'run', 'WARN'): ('retuned: t = ', 'retune failed, keeping t: '),
+    ('worker.py', 'subscribe', 'INFO'): 'listening for PointCloud2 on /cloud (best_effort); publishing ~/segmented',
 }
 
 
@@ -126,3 +127,26 @@ def test_a_misspelt_parameter_is_named_in_a_warning_not_ignored_in_silence(ros, 
         node.destroy_node()
     warned = [line for line in capfd.readouterr().err.splitlines() if '[WARN]' in line and 'ignoring' in line]
     assert len(warned) == 1 and 'tolerence' in warned[0] and 'max_planes' not in warned[0], warned
+
+
+@pytest.mark.parametrize('overrides, warns', [
+    ({'tolerance': 0.01}, True),                         # auto_tune on by default: t is swept, not 0.01
+    ({'tolerance': 0.01, 'auto_tune': False}, False),    # a fixed t: used
+    ({'tolerance': 0.02}, False),                        # the default (the shipped params.yaml): no request
+    ({'max_planes': 3}, False),
+])
+def test_a_tolerance_given_while_auto_tune_is_on_is_named_in_a_warning(ros, capfd, overrides, warns):
+    node = PlaneValidationNode(parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+    node.destroy_node()
+    warned = [line for line in capfd.readouterr().err.splitlines() if '[WARN]' in line and 'auto_tune' in line]
+    assert len(warned) == int(warns), warned
+    if warns:
+        assert 'tolerance 0.01 is not used while auto_tune is true' in warned[0] and 'auto_tune:=false' in warned[0]
+
+
+def test_the_start_names_the_topic_the_node_listens_on_and_where_it_publishes(ros, capfd):
+    node = PlaneValidationNode(cli_args=['--ros-args', '-r', 'cloud:=/camera/depth/points', '-r', '__ns:=/front'])
+    node.destroy_node()
+    said = [line for line in capfd.readouterr().err.splitlines() if '[INFO]' in line and 'listening' in line]
+    assert len(said) == 1 and 'listening for PointCloud2 on /camera/depth/points (best_effort)' in said[0], said
+    assert '(~ = /front/plane_validation) and /diagnostics' in said[0], said

@@ -229,6 +229,12 @@ def test_cli_replay_prints_frames_and_summary(tmp_path, capsys):
     assert '5 frames from' in text
     assert cli_main(['replay', str(tmp_path / 'missing')]) == 2
     assert 'bag not found' in capsys.readouterr().err
+    # a point file is no bag: said so, not rosbags' "Unrecognized storage format '.pcd'"
+    (tmp_path / 'frame.pcd').write_text('VERSION .7\n')
+    assert cli_main(['replay', str(tmp_path / 'frame.pcd')]) == 2
+    err = capsys.readouterr().err
+    assert 'frame.pcd: not a bag (a rosbag2 directory, or a .mcap, .db3, .bag file): a point file, which detect' in err
+    assert 'Unrecognized' not in err
     # a tolerance on its own is used as is (auto-tuning off), as in detect
     assert cli_main(['replay', str(BAGS / 'cube'), '--out', str(tmp_path / 'p'), '--tolerance', '0.005']) == 0
     text = capsys.readouterr().out

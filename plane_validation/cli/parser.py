@@ -177,7 +177,12 @@ def build_parser() -> argparse.ArgumentParser:
                       help='playback speed (default 0.25: slow enough that the node answers every frame)')
     demo.set_defaults(func=cmd_demo)
 
-    replay = sub.add_parser('replay', help='replay a bag through the per-frame pipeline')
+    replay = sub.add_parser('replay', help='replay a bag through the per-frame pipeline',
+                            description='Run every cloud of a bag through the node\'s per-frame step. Offline (the '
+                            'default), as fast as it can, into an output bag holding the input clouds and every '
+                            'output at their timestamps; with --live, published over DDS at the recorded timing to '
+                            'the node, started in this process unless --no-node. A --tolerance given without '
+                            '--auto-tune is used as is (auto-tuning off).')
     replay.add_argument('bag', help='a rosbag2 directory, .mcap or .db3 file, or ROS 1 .bag with PointCloud2 messages')
     replay.add_argument('--out', help='output rosbag2 directory (default: <bag>.planes beside the bag)')
     replay.add_argument('--live', action='store_true', help='publish on ROS topics at the recorded timing')

@@ -49,6 +49,10 @@ def open_bag(bag: Path):
     from rosbags.highlevel import AnyReader, AnyReaderError
     if not bag.exists():
         raise BagError(f'bag not found: {bag}')
+    if bag.is_file() and bag.suffix.lower() not in BAG_SUFFIXES:  # rosbags: "Unrecognized storage format '.pcd'"
+        from .files import POINT_SUFFIXES
+        hint = ': a point file, which detect, sweep and planes read' if bag.suffix.lower() in POINT_SUFFIXES else ''
+        raise BagError(f'{bag}: not a bag (a rosbag2 directory, or a {", ".join(BAG_SUFFIXES)} file){hint}')
     if bag.is_dir() and not (bag / 'metadata.yaml').is_file():
         files = sorted(p.name for suffix in STORAGES.values() for p in bag.glob(f'*{suffix}'))
         if not files:

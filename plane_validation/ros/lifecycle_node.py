@@ -18,14 +18,13 @@ import sys
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
-from sensor_msgs.msg import PointCloud2
 
 from ..app.pipeline import FramePipeline
 from ..core.kernels import Warmup
 from .messages import status_name
 from .node import main as run_node
 from .parameters import apply_parameters, declare, declare_each, set_requests_whole
-from .worker import FrameWorker, input_qos, output_publishers, warm_kernels
+from .worker import FrameWorker, output_publishers, subscribe, warm_kernels
 
 __all__ = ['PlaneValidationLifecycleNode', 'main']
 
@@ -96,8 +95,7 @@ class PlaneValidationLifecycleNode(LifecycleNode):
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
         result = super().on_activate(state)  # enables the publishers before the first cloud can come
-        self._subscription = self.create_subscription(PointCloud2, 'cloud', self.worker.offer,
-                                                      input_qos(self.options.reliability))
+        self._subscription = subscribe(self, self.worker, self.options.reliability)
         return result
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:

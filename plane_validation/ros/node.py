@@ -16,9 +16,9 @@ import sys
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.signals import uninstall_signal_handlers
-from sensor_msgs.msg import PointCloud2
 
 from ..app.config import PARAMETERS
 from ..app.pipeline import FramePipeline, limit_blas_threads, reuse_freed_memory
@@ -27,7 +27,7 @@ from ..core.kernels import Warmup, warm_probe
 from ..core.workers import stop_workers
 from .messages import OUTPUTS, status_name
 from .parameters import NODE_PARAMETERS, apply_parameters, declare, descriptor, params_yaml, set_requests_whole
-from .worker import LOG_THROTTLE_S, SWEEP_STOP_S, FrameWorker, input_qos, output_publishers, warm_kernels
+from .worker import LOG_THROTTLE_S, SWEEP_STOP_S, FrameWorker, output_publishers, subscribe, warm_kernels
 
 __all__ = ['PlaneValidationNode', 'NODE_PARAMETERS', 'descriptor', 'params_yaml', 'spin', 'main',
            'LOG_THROTTLE_S', 'SWEEP_STOP_S', 'SPIN_CHECK_S']
@@ -52,7 +52,7 @@ class PlaneValidationNode(Node):
         pubs = output_publishers(self.create_publisher)
         self.worker = FrameWorker(self, self.pipeline, lambda key, msg: pubs[key].publish(msg),
                                   status_name(self.get_name()), min_output_rate_hz=self.options.min_output_rate_hz)
-        self.create_subscription(PointCloud2, 'cloud', self.worker.offer, input_qos(self.options.reliability))
+        subscribe(self, self.worker, self.options.reliability)
         # the kernels load once the subscription exists, while DDS discovers it (in its own threads) and the first
         # cloud travels: no frame is answered before the node spins
         self.warmup = warmup if warmup is not None and warmup.compiled else warm_kernels(self.get_logger(), warmup)
@@ -150,6 +150,15 @@ def _shutdown() -> None:
             raise
 
 
+def _start_problem(exc: Exception) -> str:
+    """What rclpy.init's failure says to the user. Its UnknownROSArgsError says only the arguments it did not take
+    ("['tolerance:=0.01']", for a -p left out), not that they are no ROS arguments nor what those look like."""
+    if isinstance(exc, _rclpy.UnknownROSArgsError):
+        return (f'not ROS arguments after --ros-args: {exc} (a parameter is -p NAME:=VALUE, a remapping '
+                '-r FROM:=TO, a parameters file --params-file FILE; --help lists the parameters)')
+    return str(exc)
+
+
 def main(args: list[str] | None = None, node_class: type | None = None, prog: str = 'plane_validation_node') -> int:
     """Start ``node_class`` (default :class:`PlaneValidationNode`) and serve it until a signal or shutdown."""
     node_class = node_class or PlaneValidationNode
@@ -178,7 +187,7 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
         _shutdown()
         return 0
     except Exception as exc:  # malformed --ros-args, a params file that is missing or not YAML
-        print(f'{prog}: cannot start: {exc}', file=sys.stderr)
+        print(f'{prog}: cannot start: {_start_problem(exc)}', file=sys.stderr)
         return 2
     try:
         node = node_class(warmup=warmup)

@@ -6,7 +6,7 @@ import dataclasses
 from dataclasses import dataclass
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
-from rcl_interfaces.srv import SetParameters
+from rcl_interfaces.srv import SetParameters, SetParametersAtomically
 from rclpy.exceptions import (
     InvalidParameterTypeException,
     InvalidParameterValueException,
@@ -17,7 +17,8 @@ from rclpy.parameter import Parameter as RosParameter
 from ..app.config import PARAMETERS, Parameter, PipelineConfig
 
 __all__ = ['NODE_PARAMETERS', 'NodeOptions', 'descriptor', 'declare', 'declare_each', 'unknown_overrides',
-           'checked_changes', 'each_checked', 'apply_parameters', 'params_yaml', 'set_requests_whole']
+           'unused_tolerance', 'checked_changes', 'each_checked', 'apply_parameters', 'params_yaml', 'not_declared',
+           'set_requests_whole']
 
 #: Node-only parameters (the pipeline's are in app/config.py's table).
 NODE_PARAMETERS = {
@@ -93,7 +94,21 @@ def declare(node) -> tuple[PipelineConfig, NodeOptions]:
     unknown = unknown_overrides(node)
     if unknown:
         node.get_logger().warning(f'ignoring {", ".join(unknown)}: not a parameter of this node (--help lists them)')
+    unused = unused_tolerance(node, config)
+    if unused:
+        node.get_logger().warning(unused)
     return config, options
+
+
+def unused_tolerance(node, config: PipelineConfig) -> str | None:
+    """Why a ``tolerance`` given on the command line or in a params file will not be the t of the frames, or None:
+    with auto_tune on (the default) the sweep chooses t, so ``-p tolerance:=0.01`` alone changed nothing, where
+    ``replay --tolerance 0.01`` fixes t. A value equal to the default (the shipped params.yaml) is no request."""
+    given = (getattr(node, '_parameter_overrides', None) or {}).get('tolerance')
+    if given is None or not config.auto_tune or config.tolerance == PARAMETERS['tolerance'].default:
+        return None
+    return (f'tolerance {config.tolerance:g} is not used while auto_tune is true (the sweep chooses t): '
+            'set auto_tune:=false for a fixed t')
 
 
 def unknown_overrides(node) -> list[str]:
@@ -158,19 +173,37 @@ def apply_parameters(node, params):
     return SetParametersResult(successful=True)
 
 
+def not_declared(node, params) -> SetParametersResult:
+    """The refusal of a request that names parameters ``node`` does not have, naming them: rclpy's own reason names
+    none ('Invalid access to undeclared parameter(s): []', its list built from a generator already spent), so
+    ``ros2 param set /plane_validation tolerence 0.01`` did not say which name was wrong."""
+    unknown = sorted({param.name for param in params if not node.has_parameter(param.name)})
+    return SetParametersResult(successful=False,
+                               reason=f'{", ".join(unknown)}: not a parameter of this node (--help lists them)')
+
+
 def set_requests_whole(node) -> None:
     """Make ``node``'s plain SetParameters service apply each request as one change, all or none, as
     SetParametersAtomically does. rclpy's sets the parameters one by one, each checked against the values before
     it: tune_min above tune_max, sent together, applied tune_min and refused tune_max, a configuration nobody
-    asked for (every later sweep failed), and two values valid together could be refused in one order."""
+    asked for (every later sweep failed), and two values valid together could be refused in one order. Both
+    services name the parameters a request has that the node does not (:func:`not_declared`)."""
+    def applied(params) -> SetParametersResult:
+        try:
+            return node.set_parameters_atomically(params)
+        except ParameterNotDeclaredException:
+            return not_declared(node, params)
+
     def whole(request, response):
         params = [RosParameter.from_parameter_msg(p) for p in request.parameters]
-        try:
-            result = node.set_parameters_atomically(params)
-        except ParameterNotDeclaredException as exc:
-            result = SetParametersResult(successful=False, reason=str(exc))
-        response.results = [result] * len(params)  # one answer per parameter, as the service defines
+        response.results = [applied(params)] * len(params)  # one answer per parameter, as the service defines
+        return response
+
+    def atomically(request, response):
+        response.result = applied([RosParameter.from_parameter_msg(p) for p in request.parameters])
         return response
     for service in node.services:
         if service.srv_type is SetParameters:
             service.callback = whole
+        elif service.srv_type is SetParametersAtomically:
+            service.callback = atomically

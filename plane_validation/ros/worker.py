@@ -19,6 +19,7 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from sensor_msgs.msg import PointCloud2
 
 from ..app.diagnostics import Level, fmt
 from ..app.frame_result import FrameResult
@@ -27,7 +28,8 @@ from ..app.rates import RateMeter
 from ..core.kernels import Warmup, warm
 from .messages import OUTPUTS, frame_messages, node_values
 
-__all__ = ['FrameWorker', 'input_qos', 'output_publishers', 'LOG_THROTTLE_S', 'SWEEP_STOP_S', 'RATE_WINDOW_S']
+__all__ = ['FrameWorker', 'input_qos', 'output_publishers', 'subscribe', 'LOG_THROTTLE_S', 'SWEEP_STOP_S',
+           'RATE_WINDOW_S']
 
 ERROR, WARN = Level.ERROR, Level.WARN
 #: Seconds between two log lines of the same kind.
@@ -50,6 +52,16 @@ def output_publishers(create) -> dict[str, object]:
     """One publisher per output made by ``create(cls, topic, depth)``: ~/<key>, and /diagnostics."""
     return {key: create(cls, '/diagnostics', 10) if key == 'diagnostics' else create(cls, f'~/{key}', 1)
             for key, cls in OUTPUTS.items()}
+
+
+def subscribe(node, worker: FrameWorker, reliability: str):
+    """``node``'s ``cloud`` subscription, handing each cloud to ``worker``, and a log line naming the topic it
+    resolved to and where the outputs go: a node started without ``-r cloud:=...`` waited on /cloud without a word."""
+    subscription = node.create_subscription(PointCloud2, 'cloud', worker.offer, input_qos(reliability))
+    outputs = ', '.join(f'~/{key}' for key in list(OUTPUTS)[:-1])
+    node.get_logger().info(f'listening for PointCloud2 on {subscription.topic_name} ({reliability}); publishing '
+                           f'{outputs} (~ = {node.get_fully_qualified_name()}) and /diagnostics')
+    return subscription
 
 
 def warm_kernels(logger, started: Warmup | None = None) -> Warmup:
