@@ -459,6 +459,22 @@ def test_node_process_stops_cleanly_on_signal(ros, sig):
     assert 'Traceback' not in err + out
 
 
+def test_a_starting_node_imports_what_its_frames_would_import_on_first_use():
+    """The tracker imports scipy.optimize on a node's second frame and the search scipy.ndimage on some frame: the
+    warm-up imports them, so that no frame after the first pays 0.1-0.2 s for it."""
+    import subprocess
+    import sys
+
+    from plane_validation.app.pipeline import FIRST_USE_MODULES
+    code = ('import logging, sys; from plane_validation.ros.worker import warm_kernels; '
+            f'names = {FIRST_USE_MODULES!r}; before = [n in sys.modules for n in names]; '
+            "warm_kernels(logging.getLogger('probe')); print(before, [n in sys.modules for n in names])")
+    run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split('\n')[-2] == f'{[False] * len(FIRST_USE_MODULES)} {[True] * len(FIRST_USE_MODULES)}', \
+        run.stdout
+
+
 def test_a_node_started_as_ros2_run_starts_it_says_its_kernels_are_ready_before_its_first_answer(ros, tmp_path):
     """Through the entry point (plane_validation.ros:main) and this process's warm kernel cache, the node loads the
     kernels once its subscription exists, says how long that took, and only then answers a frame."""

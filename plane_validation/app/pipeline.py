@@ -7,6 +7,7 @@ when it was tuned; everything else comes from :class:`~.config.PipelineConfig`.
 """
 from __future__ import annotations
 
+import importlib
 import threading
 import time
 from collections.abc import Callable
@@ -43,7 +44,7 @@ from .obstacles import ground_plane, obstacle_mask
 from .tracking import PlaneTracker
 
 __all__ = ['PipelineConfig', 'FrameResult', 'FramePipeline', 'header_stamp_ns', 'frame_seed', 'Level',
-           'limit_blas_threads', 'reuse_freed_memory',
+           'limit_blas_threads', 'reuse_freed_memory', 'FIRST_USE_MODULES', 'import_first_use_modules',
            'OK', 'WARN', 'ERROR']
 
 OK, WARN, ERROR = Level.OK, Level.WARN, Level.ERROR
@@ -61,6 +62,18 @@ RETRY_MAX_S = 60.0
 #: this much header time instead, as from a 10 Hz sensor: a failed sweep is retried and retune_period
 #: fires on such a stream too.
 FROZEN_FRAME_S = 0.1
+
+#: Modules the per-frame step imports where it first needs them (0.1-0.2 s each; a command on one file may never):
+#: the tracker's matching from the second frame on, the noise estimate's fits, the search's dilations.
+FIRST_USE_MODULES = ('scipy.optimize', 'scipy.ndimage')
+
+
+def import_first_use_modules() -> None:
+    """Import FIRST_USE_MODULES: a node does so as it starts, so that no frame after its first pays for them (the
+    second Kinect frame took 144 ms against 44-49 ms, its tracker importing scipy.optimize)."""
+    for name in FIRST_USE_MODULES:
+        importlib.import_module(name)
+
 
 #: Configuration fields whose change voids the tuned tolerance (and a sweep in progress).
 TUNING_FIELDS = ('auto_tune', 'tune_min', 'tune_max', 'tune_count', 'tune_points', 'criterion', 'max_planes',

@@ -23,7 +23,7 @@ from sensor_msgs.msg import PointCloud2
 
 from ..app.diagnostics import Level, fmt
 from ..app.frame_result import FrameResult
-from ..app.pipeline import FramePipeline, header_stamp_ns
+from ..app.pipeline import FramePipeline, header_stamp_ns, import_first_use_modules
 from ..app.rates import RateMeter
 from ..core.kernels import Warmup, warm
 from .messages import OUTPUTS, frame_messages, node_values
@@ -67,13 +67,15 @@ def subscribe(node, worker: FrameWorker, reliability: str):
 def warm_kernels(logger, started: Warmup | None = None) -> Warmup:
     """Compile or load the compiled kernels and say how long it took on ``logger`` (an rclpy logger), counting
     ``started``: what ``kernels.warm_probe()`` did before (when it compiled, the cache is cold: the others are
-    compiled on every core). A node calls this before it answers its first frame."""
+    compiled on every core), then import the modules the frames import on first use. A node calls this before it
+    answers its first frame."""
     cold = started is not None and started.compiled
     # in a thread of its own: Ctrl-C raises KeyboardInterrupt in the main thread, which must not be inside numba's
     # loading (a KeyboardInterrupt in llvmlite's ctypes callback crashed the process with SIGSEGV); here it ends
     # the wait and the start, and the loading finishes before the process exits
     with ThreadPoolExecutor(1, thread_name_prefix='plane_validation_warmup') as pool:
         ready = pool.submit(warm, jobs=os.cpu_count() or 1, cold=cold).result()
+        pool.submit(import_first_use_modules).result()
     seconds = ready.seconds + (started.seconds if started is not None else 0.0)
     logger.info(f'compiled kernels ready in {seconds:.2f} s ' + (
         '(compiled now and cached: later starts load them)' if ready.compiled else '(loaded from the cache)'))
