@@ -144,6 +144,24 @@ def test_a_tolerance_given_while_auto_tune_is_on_is_named_in_a_warning(ros, capf
         assert 'tolerance 0.01 is not used while auto_tune is true' in warned[0] and 'auto_tune:=false' in warned[0]
 
 
+@pytest.mark.parametrize('change, warns', [({'tolerance': 0.03}, True),
+                                           ({'tolerance': 0.03, 'auto_tune': False}, False),
+                                           ({'max_planes': 4}, False)])
+def test_a_tolerance_set_while_auto_tune_is_on_is_named_in_a_warning(ros, capfd, change, warns):
+    """`ros2 param set /plane_validation tolerance 0.03` is accepted and changes nothing while auto_tune is on."""
+    node = PlaneValidationNode()
+    try:
+        capfd.readouterr()
+        result = node.set_parameters_atomically([Parameter(k, value=v) for k, v in change.items()])
+        assert result.successful, result.reason
+    finally:
+        node.destroy_node()
+    warned = [line for line in capfd.readouterr().err.splitlines() if '[WARN]' in line and 'auto_tune' in line]
+    assert len(warned) == int(warns), warned
+    if warns:
+        assert 'tolerance 0.03 is not used while auto_tune is true' in warned[0], warned
+
+
 def test_the_start_names_the_topic_the_node_listens_on_and_where_it_publishes(ros, capfd):
     node = PlaneValidationNode(cli_args=['--ros-args', '-r', 'cloud:=/camera/depth/points', '-r', '__ns:=/front'])
     node.destroy_node()

@@ -107,7 +107,11 @@ def unused_tolerance(node, config: PipelineConfig) -> str | None:
     given = (getattr(node, '_parameter_overrides', None) or {}).get('tolerance')
     if given is None or not config.auto_tune or config.tolerance == PARAMETERS['tolerance'].default:
         return None
-    return (f'tolerance {config.tolerance:g} is not used while auto_tune is true (the sweep chooses t): '
+    return _tolerance_unused(config.tolerance)
+
+
+def _tolerance_unused(tolerance: float) -> str:
+    return (f'tolerance {tolerance:g} is not used while auto_tune is true (the sweep chooses t): '
             'set auto_tune:=false for a fixed t')
 
 
@@ -170,6 +174,8 @@ def apply_parameters(node, params):
     node.pipeline.reconfigure(config)
     if node.worker is not None:
         node.worker.min_output_rate_hz = node.options.min_output_rate_hz
+    if config.auto_tune and any(param.name == 'tolerance' for param in params):  # accepted, and changes nothing
+        node.get_logger().warning(_tolerance_unused(config.tolerance))
     return SetParametersResult(successful=True)
 
 
