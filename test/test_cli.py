@@ -243,6 +243,7 @@ def test_sweep_table_csv_plot_and_json(corner_npy, tmp_path, capsys):
                  '--plot', str(png)]) == 0
     text = capsys.readouterr().out
     assert 'chosen t = ' in text and text.count('\n') >= 10 and f'wrote {png}' in text
+    assert 'subsample' not in text and 'planes on all the points' not in text  # 900 points: all swept
     rows = list(csv.DictReader(csv_path.read_text(encoding='utf-8').splitlines()))
     np.testing.assert_allclose([float(r['tolerance']) for r in rows], np.linspace(0.002, 0.04, 8))
     assert [r['chosen'] for r in rows].count('1') == 1
@@ -257,6 +258,17 @@ def test_sweep_table_csv_plot_and_json(corner_npy, tmp_path, capsys):
     result = pv.tune_tolerance(CORNER.points, tolerances=np.linspace(0.002, 0.04, 8), seed=0)
     assert [row['n_planes'] for row in doc['sweep']] == [r.n_planes for r in result.rows]
     assert [row['gs_planes'] for row in doc['sweep']] == pytest.approx(list(result.scores('gs_planes')), rel=1e-9)
+
+
+def test_a_sweep_on_a_subsample_says_the_chosen_planes_are_those_of_all_the_points(tmp_path, capsys):
+    """The table's planes are the subsample's; the summary's count is the full cloud's at the chosen t (they can
+    differ: a user read 4 planes in the chosen row and 2 in the summary as a contradiction)."""
+    from plane_validation.core.tuning import TUNE_POINTS
+    path = tmp_path / 'big.npy'
+    np.save(path, scenes.corner(TUNE_POINTS + 5000, 1.0, scale=0.01, seed=4).points)
+    assert main(['sweep', str(path), '--tolerances', '0.005:0.03:3']) == 0
+    text = capsys.readouterr().out
+    assert f'scored on a {TUNE_POINTS}-point subsample' in text and 'planes on all the points;' in text, text
 
 
 def test_a_figure_takes_the_format_of_its_extension(corner_npy, tmp_path, capsys):

@@ -278,7 +278,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print(noise_line(result.segmentation, points))
     if result.at_largest:
         print(LARGEST_CANDIDATE)
-    print(f'chosen t = {result.tolerance:.4g} m by {result.criterion}; {result.segmentation.n_planes} planes; '
+    found = 'planes' if result.sweep_points >= result.segmentation.n_valid else 'planes on all the points'
+    print(f'chosen t = {result.tolerance:.4g} m by {result.criterion}; {result.segmentation.n_planes} {found}; '
           f'noise estimate {result.noise_estimate:.3g} m; {"reliable" if result.reliable else "NOT reliable"}: '
           f'{result.verdict}; {result.seconds:.1f} s')
     for path in written:
