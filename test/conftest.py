@@ -3,11 +3,14 @@ its own, so parallel runs (or a robot on the same network) never see our topics.
 import os
 import signal
 
-# Tests send Ctrl-C to the processes they start, as a terminal does to a foreground job. A run started in the
-# background (``./run test &`` in a script, nohup) has SIGINT ignored, and every process it starts inherits that: those
-# tests would see their Ctrl-C ignored. The default handler again (each child then gets SIGINT's default at exec).
+# Tests send Ctrl-C and hangups to the processes they start, as a terminal does to a foreground job. A run started in
+# the background (``./run test &`` in a script) has SIGINT ignored, one under nohup SIGHUP, and every process it starts
+# inherits that (and keeps it: a signal ignored at start stays ignored): those tests would see their signal ignored.
+# The default handlers again (each child then gets the signal's default at exec).
 if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
+if signal.getsignal(signal.SIGHUP) == signal.SIG_IGN:
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
 
 os.environ['ROS_DOMAIN_ID'] = str(100 + os.getpid() % 100)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
