@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from plane_validation.core import kernels
 from plane_validation.core.ransac import finite_rows
 from plane_validation.core.search.grid import spread_grid, spread_grid_numpy
+from plane_validation.core.search.neighbours import row_starts
 from plane_validation.core.search.neighbours_graph import GraphNeighbours
 from plane_validation.core.search.neighbours_grid import GridNeighbours
 
@@ -327,6 +328,8 @@ def test_pair_graph_matches_numpy(seed):
     np.testing.assert_array_equal(graph.edges, ref.edges)
     for part, ref_part in zip(graph.adjacency, ref.adjacency):
         np.testing.assert_array_equal(part, ref_part)
+    assert graph.edges.flags.c_contiguous  # as the kernels that take them read them: no copy
+    np.testing.assert_array_equal(graph.edge_rows, row_starts(ref.edges[:, 0], n))  # the kernel's, against numpy
 
 
 def _plane_patches_numpy(centred, axes, per_patch, min_count):

@@ -27,7 +27,8 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
            'beyond_rows',
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
-           'spread_nearest', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
+           'spread_nearest', 'spread_among', 'sensor_rays', 'score_hypotheses', 'spread_test', 'fit_members',
+           'fit_mask',
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'outside_polygon',
            'voxel_nodes',
@@ -422,16 +423,14 @@ def _graph_largest(ends: np.ndarray, edge_rows: np.ndarray, inside: np.ndarray, 
 @numba.njit(**_JIT)
 def coordinate_bounds(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The smallest and the largest coordinates (3,) each of ``points`` (n, 3), n >= 1."""
-    lo = points[0].copy()
-    hi = points[0].copy()
-    for i in range(1, points.shape[0]):
-        for a in range(3):
-            v = points[i, a]
-            if v < lo[a]:
-                lo[a] = v
-            elif v > hi[a]:
-                hi[a] = v
-    return lo, hi
+    lo0, lo1, lo2 = points[0, 0], points[0, 1], points[0, 2]
+    hi0, hi1, hi2 = lo0, lo1, lo2
+    for i in range(1, points.shape[0]):  # on scalars, without branches: about half the time of a loop over the axes
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        lo0, hi0 = x if x < lo0 else lo0, x if x > hi0 else hi0
+        lo1, hi1 = y if y < lo1 else lo1, y if y > hi1 else hi1
+        lo2, hi2 = z if z < lo2 else lo2, z if z > hi2 else hi2
+    return np.array([lo0, lo1, lo2]), np.array([hi0, hi1, hi2])
 
 
 @numba.njit(**_JIT)
@@ -456,6 +455,9 @@ def voxel_grid(points: np.ndarray, origin: np.ndarray, cell: float, dims: np.nda
         iy = int((points[i, 1] - origin[1]) / cell)
         iz = int((points[i, 2] - origin[2]) / cell)
         keys[i] = ix + dims[0] * (iy + dims[1] * iz)
+    total = dims[0] * dims[1] * dims[2]
+    if total <= max(DENSE_VOXELS, 8 * m):  # few enough voxels for a direct table: no hashing
+        return _counted_grid(keys, total)
     order = np.argsort(keys, kind='mergesort')
     c = 0
     for q in range(m):
@@ -471,12 +473,6 @@ def voxel_grid(points: np.ndarray, origin: np.ndarray, cell: float, dims: np.nda
             starts[c] = q
             c += 1
     starts[c] = m
-    total = dims[0] * dims[1] * dims[2]
-    if total <= max(DENSE_VOXELS, 8 * m):  # few enough voxels for a direct table: no hashing
-        table = np.full(total, -1, np.int64)
-        for j in range(c):
-            table[cell_keys[j]] = j
-        return order, cell_keys, starts, table
     size = 1
     while size < 2 * c + 2:
         size *= 2
@@ -487,6 +483,36 @@ def voxel_grid(points: np.ndarray, origin: np.ndarray, cell: float, dims: np.nda
             s = (s + 1) & (size - 1)
         table[s] = j
     return order, cell_keys, starts, table
+
+
+@numba.njit(**_JIT)
+def _counted_grid(keys: np.ndarray, total: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`voxel_grid`'s output with a direct table, from the points' voxel ``keys`` (m,), each below ``total``: the
+    points placed by a count per key (the table holds the counts first), in the order a stable sort of the keys gives,
+    in about half the time of that sort."""
+    m = keys.shape[0]
+    table = np.zeros(total, np.int64)
+    for i in range(m):
+        table[keys[i]] += 1
+    cell_keys = np.empty(m, np.int64)
+    starts = np.empty(m + 1, np.int64)
+    c = q = 0
+    for key in range(total):
+        n = table[key]
+        if n:
+            cell_keys[c], starts[c], table[key] = key, q, c
+            q += n
+            c += 1
+        else:
+            table[key] = -1
+    starts[c] = m
+    fill = starts[:c].copy()
+    order = np.empty(m, np.int64)
+    for i in range(m):
+        v = table[keys[i]]
+        order[fill[v]] = i
+        fill[v] += 1
+    return order, cell_keys[:c].copy(), starts[:c + 1].copy(), table
 
 
 @numba.njit(**_JIT)
@@ -668,8 +694,8 @@ def voxel_knn_points(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarra
     the 27 voxels around each are gathered once for all its queries, which mostly find their k nearest among them
     (the others go on ring by ring)."""
     m = points.shape[0]
-    dist = np.full((m, k), np.inf)
-    idx = np.full((m, k), -1, np.int64)
+    dist = np.empty((m, k))  # every row is written below: not filled first
+    idx = np.empty((m, k), np.int64)
     exact = np.zeros(m, np.bool_)
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * m)
@@ -704,6 +730,8 @@ def voxel_knn_points(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarra
             for p in range(found):
                 dist[q, p] = np.sqrt(d2[p])
                 idx[q, p] = order[best[p]]
+            for p in range(found, k):
+                dist[q, p], idx[q, p] = np.inf, -1
     return dist, idx, exact
 
 
@@ -999,12 +1027,13 @@ def _pair_rows(n: int, pairs: np.ndarray, dist: np.ndarray, idx: np.ndarray, rea
 
 @numba.njit(**_JIT)
 def pair_graph(n: int, pairs: np.ndarray, dist: np.ndarray, idx: np.ndarray, reach: np.ndarray, always: int
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The graph of n points joined by ``pairs`` (e, 2) (any order, repeats allowed) and each point i to its nearest
     neighbours ``idx[i, 1:]`` (``dist`` (n, k) meters, nearest first; the first column the point itself; (0, k): none)
-    that lie within ``reach[i]`` meters, or among its first ``always`` at a finite distance: (edges (2, u) each joined
-    pair once, smaller index first, sorted by it then by the other; indptr (n + 1,) and indices: each point's
-    neighbours, first the larger ones ascending, then the smaller ones ascending)."""
+    that lie within ``reach[i]`` meters, or among its first ``always`` at a finite distance: (edges (u, 2) each joined
+    pair once, smaller index first, sorted by it then by the other, C-ordered as the kernels that take them read them;
+    indptr (n + 1,) and indices: each point's neighbours, first the larger ones ascending, then the smaller ones
+    ascending; starts (n + 1,): where each point's edges to larger indices start in edges)."""
     count, larger = _pair_rows(n, pairs, dist, idx, reach, always)
     unique = 0
     degree = np.zeros(n, np.int64)
@@ -1031,7 +1060,7 @@ def pair_graph(n: int, pairs: np.ndarray, dist: np.ndarray, idx: np.ndarray, rea
                 degree[b] += 1
                 last = b
         count[i + 1] = unique  # now the bounds of the deduplicated rows
-    edges = np.empty((2, unique), np.int64)
+    edges = np.empty((unique, 2), np.int64)
     indptr = np.zeros(n + 1, np.int64)
     for i in range(n):
         indptr[i + 1] = indptr[i] + degree[i]
@@ -1040,7 +1069,7 @@ def pair_graph(n: int, pairs: np.ndarray, dist: np.ndarray, idx: np.ndarray, rea
     for i in range(n):
         for q in range(count[i], count[i + 1]):
             b = larger[q]
-            edges[0, q], edges[1, q] = i, b
+            edges[q, 0], edges[q, 1] = i, b
             indices[at[i]] = b
             at[i] += 1
     for i in range(n):
@@ -1048,7 +1077,7 @@ def pair_graph(n: int, pairs: np.ndarray, dist: np.ndarray, idx: np.ndarray, rea
             b = larger[q]
             indices[at[b]] = i
             at[b] += 1
-    return edges, indptr, indices
+    return edges, indptr, indices, count
 
 
 # --- frame pass ---
@@ -2502,6 +2531,25 @@ def spread_nearest(points: np.ndarray, rows: np.ndarray, center: np.ndarray, nea
             labels[i] = lab
             residual[i] = d
     return labels, residual
+
+
+@numba.njit(**_JIT)
+def sensor_rays(points: np.ndarray, viewpoint: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The rays from ``viewpoint`` (3,) to ``points`` (n, 3) meters, (n, 3), their elevations about the z axis (n,),
+    radians, and their directions (n, 3), unit (a zero ray as is), in one pass."""
+    n = points.shape[0]
+    rays = np.empty((n, 3))
+    elevation = np.empty(n)
+    unit = np.empty((n, 3))
+    for i in range(n):
+        x, y, z = points[i, 0] - viewpoint[0], points[i, 1] - viewpoint[1], points[i, 2] - viewpoint[2]
+        rays[i, 0], rays[i, 1], rays[i, 2] = x, y, z
+        elevation[i] = np.arctan2(z, np.hypot(x, y))
+        length = np.sqrt(x * x + y * y + z * z)
+        if not length > 0.0:
+            length = 1.0
+        unit[i, 0], unit[i, 1], unit[i, 2] = x / length, y / length, z / length
+    return rays, elevation, unit
 
 
 @numba.njit(**_JIT)
@@ -4492,6 +4540,7 @@ def _warm_voxel_nearest() -> None:
     voxel_nearest(pts, *grid, np.zeros(3), 1.0, dims, pts, 1)
     spread_nearest(pts, index, np.zeros(3), index, index, np.zeros((1, 4)), np.ones(1))
     spread_among(np.zeros(4), np.zeros((4, 2), np.int64))
+    sensor_rays(pts, np.zeros(3))
 
 
 def _warm_patches() -> None:

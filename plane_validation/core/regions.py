@@ -327,10 +327,7 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
         normals = _normals(values, vectors)
         line = values[:, 1] < 0.05 * values[:, 2]  # neighbours along a line: no normal, a ring
         normals[line] = np.nan
-        rays = points - viewpoint
-        elevation = np.arctan2(rays[:, 2], np.hypot(rays[:, 0], rays[:, 1]))
-        length = np.linalg.norm(rays, axis=1, keepdims=True)
-        unit = rays / np.where(length > 0, length, 1.0)
+        rays, elevation, unit = _sensor_rays(points, viewpoint)
         one_ring = kernels.spread_among(elevation, idx) <= ONE_RING
         flat_rows = np.flatnonzero(one_ring)  # of those, the ones whose widest neighbour is a ring's spacing off
         widest = np.einsum('nkd,nd->nk', unit[idx[flat_rows]], unit[flat_rows]).min(axis=1)
@@ -359,6 +356,21 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
         rows_l, target = search(np.flatnonzero(line), vectors[:, :, 2], False, True)
         edges.append(np.column_stack([rows_l, target]))
     return _neighbours(n, np.concatenate(edges), normals, (dist, idx, reach))
+
+
+def _sensor_rays(points: np.ndarray, viewpoint: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The rays from ``viewpoint`` (3,) to ``points`` (n, 3), their elevations about the z axis and their unit
+    directions (a zero ray as is), in one compiled pass (:func:`.kernels.sensor_rays`; :func:`_sensor_rays_numpy` is
+    its reference)."""
+    return kernels.sensor_rays(kernels.c_array(points, np.float64), kernels.c_array(viewpoint, np.float64))
+
+
+def _sensor_rays_numpy(points: np.ndarray, viewpoint: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_sensor_rays` in numpy."""
+    rays = points - viewpoint
+    elevation = np.arctan2(rays[:, 2], np.hypot(rays[:, 0], rays[:, 1]))
+    length = np.linalg.norm(rays, axis=1, keepdims=True)
+    return rays, elevation, rays / np.where(length > 0, length, 1.0)
 
 
 def _knn_edges_numpy(dist: np.ndarray, idx: np.ndarray, reach: np.ndarray) -> np.ndarray:
@@ -431,10 +443,11 @@ def _neighbours(n: int, edges: np.ndarray, normals: np.ndarray | None,
     if len(idx) not in (0, n) or dist.shape != idx.shape or len(reach) != len(idx) or \
             (idx.size and not 0 <= int(idx.min()) <= int(idx.max()) < n):
         raise ValueError(f'the nearest-neighbour lists must hold a row per point (of {n}) with indices below it')
-    unique, indptr, indices = kernels.pair_graph(n, kernels.c_array(edges.reshape(-1, 2), np.int64),
-                                                 kernels.c_array(dist, np.float64), kernels.c_array(idx, np.int64),
-                                                 kernels.c_array(reach, np.float64), ALWAYS_JOINED)
-    return GraphNeighbours(n=n, edges=unique.T, normals=normals, adjacency=(indptr, indices))
+    unique, indptr, indices, starts = kernels.pair_graph(n, kernels.c_array(edges.reshape(-1, 2), np.int64),
+                                                         kernels.c_array(dist, np.float64),
+                                                         kernels.c_array(idx, np.int64),
+                                                         kernels.c_array(reach, np.float64), ALWAYS_JOINED)
+    return GraphNeighbours(n=n, edges=unique, normals=normals, adjacency=(indptr, indices), edge_starts=starts)
 
 
 def _neighbours_numpy(n: int, edges: np.ndarray, normals: np.ndarray | None) -> GraphNeighbours:
