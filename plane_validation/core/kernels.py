@@ -3390,13 +3390,52 @@ def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel:
     """(q,) bool: the queries of :func:`voxel_nodes` (its ``node``, ``d2``, ``voxel`` and ``near``; the rows ``rows``
     of ``points`` (N, 3) meters less ``center`` (3,); ``ordered`` its hashed points voxel by voxel) whose nearest
     hashed point may lie in another region than their node (``region`` (m,), by the hashed points' rows before
-    hashing): not ``exact`` (the node known to be the nearest), and not ``near``, or one of the 26 voxels around their
-    own, no farther than the node, holds points of another region than the node's. A near query whose own voxel holds
-    several regions first takes the nearest point there as its node (``node`` and ``d2`` updated)."""
-    nv = cell_keys.shape[0]
+    hashing) and beyond the 27 voxels around their own: not ``exact`` (the node known to be the nearest) and not
+    ``near``. A near query whose own voxel holds several regions first takes the nearest point there as its node; when
+    one of the 26 voxels around its own, no farther than the node, holds points of another region than the node's, it
+    takes the nearest hashed point (as :func:`voxel_nearest` finds it; near, that lies in those 27 voxels) and becomes
+    ``exact`` (``node``, ``d2`` and ``exact`` updated)."""
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * order.shape[0])
-    label = np.empty(nv, np.int64)  # the region of a voxel's points, _MIXED where they differ
+    label, around, uniform = _voxel_regions(region, order, cell_keys, starts, table, dims, dense)
+    out = np.zeros(voxel.shape[0], np.bool_)
+    gap = np.empty((3, 3))  # squared gaps to the voxels below, level with and above along each axis
+    for q in range(voxel.shape[0]):
+        v = voxel[q]
+        if exact[q] or (near[q] and uniform[v]):
+            continue
+        if not near[q]:
+            out[q] = True
+            continue
+        x, y, z = points[rows[q], 0] - center[0], points[rows[q], 1] - center[1], points[rows[q], 2] - center[2]
+        b, bj = np.inf, -1  # the nearest of its own voxel (the first of equals)
+        for j in range(starts[v], starts[v + 1]):
+            ex, ey, ez = ordered[j, 0] - x, ordered[j, 1] - y, ordered[j, 2] - z
+            e = ex * ex + ey * ey + ez * ez
+            if e < b:
+                b, bj = e, j
+        if label[v] == _MIXED:  # the node is one near point of its voxel: the nearest there instead
+            node[q], d2[q] = order[bj], b
+        margin = _query_gaps(points, rows[q], center, origin, cell, cell_keys[v], dims, gap)
+        own = region[node[q]]
+        for a in range(27):
+            u = around[v, a]
+            if u >= 0 and u != v and label[u] != own and \
+                    gap[0, a % 3] + gap[1, (a // 3) % 3] + gap[2, a // 9] <= d2[q]:
+                b, bj = _nearest_around(ordered, starts, around[v], v, x, y, z, gap, margin, b, bj)
+                node[q], d2[q], exact[q] = order[bj], b, True
+                break
+    return out
+
+
+@numba.njit(**_JIT)
+def _voxel_regions(region: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
+                   dims: np.ndarray, dense: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For :func:`uncertain_nodes`, per occupied voxel of :func:`voxel_grid`: (label (c,): the region (``region`` (m,),
+    by the hashed points' rows before hashing) of its points, _MIXED where they differ; around (c, 27): the occupied
+    voxels around it, by offset (dz, dy, dx) + 1 in base 3, -1 where none; uniform (c,): those 27 hold one region)."""
+    nv = cell_keys.shape[0]
+    label = np.empty(nv, np.int64)
     for v in range(nv):
         first = region[order[starts[v]]]
         for j in range(starts[v] + 1, starts[v + 1]):
@@ -3404,8 +3443,8 @@ def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel:
                 first = _MIXED
                 break
         label[v] = first
-    around = np.full((nv, 27), -1, np.int64)  # the occupied voxels around each, by offset (dz, dy, dx) + 1 in base 3
-    uniform = label != _MIXED  # those 27 voxels hold one region
+    around = np.full((nv, 27), -1, np.int64)
+    uniform = label != _MIXED
     for v in range(nv):
         key = cell_keys[v]
         vx, vy, vz = key % dims[0], (key // dims[0]) % dims[1], key // (dims[0] * dims[1])
@@ -3416,38 +3455,45 @@ def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel:
                 around[v, a] = u
                 if u >= 0 and label[u] != label[v]:
                     uniform[v] = False
-    out = np.zeros(voxel.shape[0], np.bool_)
-    gap = np.empty((3, 3))  # squared gaps to the voxels below, level with and above along each axis
-    for q in range(voxel.shape[0]):
-        v = voxel[q]
-        if exact[q] or (near[q] and uniform[v]):
+    return label, around, uniform
+
+
+@numba.njit(**_JIT)
+def _query_gaps(points: np.ndarray, r: int, center: np.ndarray, origin: np.ndarray, cell: float, key: int,
+                dims: np.ndarray, gap: np.ndarray) -> float:
+    """Into ``gap`` (3, 3): the squared gaps (m^2) from the row ``r`` of ``points`` less ``center`` to the voxels below,
+    level with (0) and above its voxel (of ``key``) along each axis, as :func:`_faces` gives them; returns how far
+    (meters) it lies inside its voxel."""
+    margin = np.inf
+    for axis in range(3):
+        f = (points[r, axis] - center[axis] - origin[axis]) / cell
+        c = key % dims[0] if axis == 0 else (key // dims[0]) % dims[1] if axis == 1 else key // (dims[0] * dims[1])
+        below, above = (f - c) * cell, (c + 1 - f) * cell
+        gap[axis, 0], gap[axis, 1], gap[axis, 2] = below * below, 0.0, above * above
+        margin = min(margin, f - c, c + 1 - f)
+    return margin * cell
+
+
+@numba.njit(**_JIT)
+def _nearest_around(ordered: np.ndarray, starts: np.ndarray, around: np.ndarray, v: int, x: float, y: float, z: float,
+                    gap: np.ndarray, margin: float, b: float, bj: int) -> tuple[float, int]:
+    """:func:`voxel_nearest`'s answer for a query at (x, y, z) meters in the occupied voxel ``v`` whose nearest point
+    there is ``bj`` at squared distance ``b`` (the first of equals), ``margin`` meters inside it, with the occupied
+    voxels ``around`` (27,) it (as :func:`_voxel_regions` gives them) at squared gaps ``gap`` (3, 3): that point when it
+    is nearer than any face, else the nearest of the 27 voxels (equal distances: the first in the hash's order), as
+    (squared distance, position in the hash). Exact when some point lies within one voxel plus ``margin``."""
+    if b <= margin * margin:
+        return b, bj
+    for a in range(27):
+        u = around[a]
+        if u < 0 or u == v or gap[0, a % 3] + (gap[1, (a // 3) % 3] + gap[2, a // 9]) > b:
             continue
-        if not near[q]:
-            out[q] = True
-            continue
-        if label[v] == _MIXED:  # the node is one near point of its voxel: the nearest there instead
-            x, y, z = points[rows[q], 0] - center[0], points[rows[q], 1] - center[1], points[rows[q], 2] - center[2]
-            b, bj = np.inf, -1
-            for j in range(starts[v], starts[v + 1]):
-                ex, ey, ez = ordered[j, 0] - x, ordered[j, 1] - y, ordered[j, 2] - z
-                e = ex * ex + ey * ey + ez * ez
-                if e < b:
-                    b, bj = e, j
-            node[q], d2[q] = order[bj], b
-        key = cell_keys[v]
-        for axis in range(3):
-            f = (points[rows[q], axis] - center[axis] - origin[axis]) / cell
-            c = key % dims[0] if axis == 0 else (key // dims[0]) % dims[1] if axis == 1 else key // (dims[0] * dims[1])
-            below, above = (f - c) * cell, (c + 1 - f) * cell
-            gap[axis, 0], gap[axis, 1], gap[axis, 2] = below * below, 0.0, above * above
-        own = region[node[q]]
-        for a in range(27):
-            u = around[v, a]
-            if u >= 0 and u != v and label[u] != own and \
-                    gap[0, a % 3] + gap[1, (a // 3) % 3] + gap[2, a // 9] <= d2[q]:
-                out[q] = True
-                break
-    return out
+        for j in range(starts[u], starts[u + 1]):
+            ex, ey, ez = ordered[j, 0] - x, ordered[j, 1] - y, ordered[j, 2] - z
+            e = ex * ex + ey * ey + ez * ez
+            if e < b or (e == b and j < bj):
+                b, bj = e, j
+    return b, bj
 
 
 @numba.njit(**_JIT)
