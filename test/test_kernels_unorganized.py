@@ -81,10 +81,10 @@ def _uncertain_numpy(index, region: np.ndarray, queries: np.ndarray, node: np.nd
                      voxel: np.ndarray, near: np.ndarray, exact: np.ndarray) -> np.ndarray:
     """:func:`.kernels.uncertain_nodes` by brute force: a query not exact is uncertain when a point as near as its node
     may lie beyond the 27 voxels around its own; a near query whose own voxel holds several regions first takes the
-    nearest hashed point there as its node, and when one of the 26 voxels around, no farther than the node, holds a
-    hashed point of another region than the node's, it takes the nearest hashed point (its own voxel's when nearer
-    than any face of it, else the nearest of the 27 voxels, equal distances: the first in the hash's order) and is
-    exact (``node``, ``d2`` and ``exact`` updated)."""
+    nearest hashed point there as its node, and when one of the 26 voxels around, no farther than its voxel's nearest
+    hashed point, holds a hashed point of another region than the node's, it takes the nearest hashed point (its own
+    voxel's when nearer than any face of it, else the nearest of the 27 voxels, equal distances: the first in the
+    hash's order) and is exact (``node``, ``d2`` and ``exact`` updated)."""
     order, keys, starts, _ = index.grid
     dims, cell = index.dims, index.cell
     own = _voxels(index, index.ordered)[1]
@@ -101,18 +101,16 @@ def _uncertain_numpy(index, region: np.ndarray, queries: np.ndarray, node: np.nd
             out[q] = True
             continue
         lo, hi = starts[voxel[q]], starts[voxel[q] + 1]
+        e = index.ordered - queries[q]
+        e2 = e[:, 0] * e[:, 0] + e[:, 1] * e[:, 1] + e[:, 2] * e[:, 2]
         if len(np.unique(labels[lo:hi])) > 1:  # its voxel's nearest hashed point (the first of equals)
-            e = index.ordered[lo:hi] - queries[q]
-            e2 = e[:, 0] * e[:, 0] + e[:, 1] * e[:, 1] + e[:, 2] * e[:, 2]
-            node[q], d2[q] = order[lo + np.argmin(e2)], e2.min()
+            node[q], d2[q] = order[lo + np.argmin(e2[lo:hi])], e2[lo:hi].min()
         offset = coords - c  # of each hashed point's voxel
         gap = np.where(offset < 0, below, np.where(offset > 0, above, 0.0))
         block = (np.abs(offset) <= 1).all(axis=1)
-        within = block & (offset != 0).any(axis=1) & ((gap ** 2).sum(axis=1) <= d2[q])
+        within = block & (offset != 0).any(axis=1) & ((gap ** 2).sum(axis=1) <= e2[lo:hi].min())
         if not (labels[within] != region[node[q]]).any():
             continue
-        e = index.ordered - queries[q]
-        e2 = e[:, 0] * e[:, 0] + e[:, 1] * e[:, 1] + e[:, 2] * e[:, 2]
         margin = min(below.min(), above.min())
         if e2[lo:hi].min() <= margin * margin:  # nearer than any face: its own voxel's
             best = lo + int(np.argmin(e2[lo:hi]))

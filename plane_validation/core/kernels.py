@@ -3392,9 +3392,9 @@ def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel:
     hashed point may lie in another region than their node (``region`` (m,), by the hashed points' rows before
     hashing) and beyond the 27 voxels around their own: not ``exact`` (the node known to be the nearest) and not
     ``near``. A near query whose own voxel holds several regions first takes the nearest point there as its node; when
-    one of the 26 voxels around its own, no farther than the node, holds points of another region than the node's, it
-    takes the nearest hashed point (as :func:`voxel_nearest` finds it; near, that lies in those 27 voxels) and becomes
-    ``exact`` (``node``, ``d2`` and ``exact`` updated)."""
+    one of the 26 voxels around its own, no farther than its own voxel's nearest point, holds points of another region
+    than the node's, it takes the nearest hashed point (as :func:`voxel_nearest` finds it; near, that lies in those 27
+    voxels) and becomes ``exact`` (``node``, ``d2`` and ``exact`` updated)."""
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * order.shape[0])
     label, around, uniform = _voxel_regions(region, order, cell_keys, starts, table, dims, dense)
@@ -3417,11 +3417,11 @@ def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel:
         if label[v] == _MIXED:  # the node is one near point of its voxel: the nearest there instead
             node[q], d2[q] = order[bj], b
         margin = _query_gaps(points, rows[q], center, origin, cell, cell_keys[v], dims, gap)
-        own = region[node[q]]
+        own = region[node[q]]  # its own voxel's nearest point's: the nearest lies no farther
         for a in range(27):
             u = around[v, a]
             if u >= 0 and u != v and label[u] != own and \
-                    gap[0, a % 3] + gap[1, (a // 3) % 3] + gap[2, a // 9] <= d2[q]:
+                    gap[0, a % 3] + gap[1, (a // 3) % 3] + gap[2, a // 9] <= b:
                 b, bj = _nearest_around(ordered, starts, around[v], v, x, y, z, gap, margin, b, bj)
                 node[q], d2[q], exact[q] = order[bj], b, True
                 break
