@@ -19,7 +19,8 @@ import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'graph_components', 'graph_region', 'finite_mask',
-           'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'voxel_knn_points', 'principal_axes', 'patch_fits',
+           'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'voxel_knn_points', 'brute_knn', 'principal_axes',
+           'patch_fits',
            'pair_graph', 'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_line',
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
@@ -733,6 +734,30 @@ def voxel_knn_points(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarra
             for p in range(found, k):
                 dist[q, p], idx[q, p] = np.inf, -1
     return dist, idx, exact
+
+
+@numba.njit(**_JIT)
+def brute_knn(points: np.ndarray, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` nearest of ``points`` (m, 3) to each of ``queries`` (q, 3), by every distance: (distances (q, k)
+    meters, nearest first, equal ones by index; indices (q, k), m where fewer than k points exist, at inf), as a
+    kd-tree answers them. For a few queries the voxel rings do not settle (far from every point): a kd-tree built for
+    them costs about as much as the whole frame's kNN."""
+    m, nq = points.shape[0], queries.shape[0]
+    dist = np.empty((nq, k))
+    idx = np.empty((nq, k), np.int64)
+    d2 = np.empty(k)
+    best = np.empty(k, np.int64)
+    for q in range(nq):
+        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+        found = 0
+        for j in range(m):
+            ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+            found = _take(ex * ex + ey * ey + ez * ez, j, d2, best, found, k)
+        for p in range(found):
+            dist[q, p], idx[q, p] = np.sqrt(d2[p]), best[p]
+        for p in range(found, k):
+            dist[q, p], idx[q, p] = np.inf, m
+    return dist, idx
 
 
 @numba.njit(**_JIT)
@@ -2357,18 +2382,18 @@ def _by_voxel(queries: np.ndarray, cell_keys: np.ndarray, table: np.ndarray, ori
 def _occupied_around(cell_keys: np.ndarray, table: np.ndarray, dims: np.ndarray, dense: bool, vx: int, vy: int,
                      vz: int, around: np.ndarray, offset: np.ndarray) -> int:
     """How many of the 26 voxels next to (vx, vy, vz) are occupied; those voxels into ``around``, their offsets into
-    ``offset`` (0, 1, 2: below, level with, above it along each axis)."""
+    ``offset`` (0, 1, 2: below, level with, above it along each axis), in :data:`_BLOCK`'s order: those across a face
+    first, whose points most often bound a query's nearest distance so that the farther voxels are skipped."""
     m = 0
-    for dz in range(-1, 2):
-        for dy in range(-1, 2):
-            for dx in range(-1, 2):
-                ix, iy, iz = vx + dx, vy + dy, vz + dz
-                if (dx or dy or dz) and 0 <= ix < dims[0] and 0 <= iy < dims[1] and 0 <= iz < dims[2]:
-                    u = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
-                    if u >= 0:
-                        around[m] = u
-                        offset[m, 0], offset[m, 1], offset[m, 2] = dx + 1, dy + 1, dz + 1
-                        m += 1
+    for b in range(1, 27):
+        dx, dy, dz = _BLOCK[b, 0], _BLOCK[b, 1], _BLOCK[b, 2]
+        ix, iy, iz = vx + dx, vy + dy, vz + dz
+        if 0 <= ix < dims[0] and 0 <= iy < dims[1] and 0 <= iz < dims[2]:
+            u = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
+            if u >= 0:
+                around[m] = u
+                offset[m, 0], offset[m, 1], offset[m, 2] = dx + 1, dy + 1, dz + 1
+                m += 1
     return m
 
 
@@ -3484,7 +3509,8 @@ def _nearest_around(ordered: np.ndarray, starts: np.ndarray, around: np.ndarray,
     (squared distance, position in the hash). Exact when some point lies within one voxel plus ``margin``."""
     if b <= margin * margin:
         return b, bj
-    for a in range(27):
+    for t in range(1, 27):  # in _BLOCK's order, as _occupied_around
+        a = _BLOCK[t, 0] + 1 + 3 * (_BLOCK[t, 1] + 1) + 9 * (_BLOCK[t, 2] + 1)
         u = around[a]
         if u < 0 or u == v or gap[0, a % 3] + (gap[1, (a // 3) % 3] + gap[2, a // 9]) > b:
             continue
@@ -4577,6 +4603,7 @@ def _warm_voxel_knn() -> None:
     grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
     voxel_knn(pts, *grid, np.zeros(3), 1.0, dims, pts, 2, 1)
     voxel_knn_points(pts, *grid, np.zeros(3), 1.0, dims, 2, 1)
+    brute_knn(pts, pts, 2)
     principal_axes(pts, np.zeros((4, 3), np.int64))
 
 

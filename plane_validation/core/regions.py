@@ -83,6 +83,9 @@ VOXEL_POINTS = 4.0
 VOXEL_RINGS = 5
 #: A cloud spanning more voxels than this along an axis (a far-out coordinate) is searched by a kd-tree alone.
 VOXEL_SPAN = 1 << 20
+#: Queries the voxel rings leave (far from every point) are answered by every distance up to this many query-point
+#: pairs (about 4 ms), by a kd-tree beyond (its build costs about 10 ms for a frame's 32,768 searched points).
+BRUTE_PAIRS = 1 << 22
 
 
 _NO_POINTS = np.empty((0, 3))
@@ -239,10 +242,18 @@ class VoxelIndex:
         else:
             dist, idx, exact = kernels.voxel_knn(*grid, kernels.c_array(queries, np.float64), k, VOXEL_RINGS)
         rest = np.flatnonzero(~exact)
-        if len(rest):  # far from every point (or fewer than k of them): the kd-tree
-            d, i = self._tree.query(queries[rest], k=k)
+        if len(rest):  # far from every point (or fewer than k of them): every point, or the kd-tree for many
+            d, i = _far_nearest(self, kernels.c_array(queries[rest], np.float64), k)
             dist[rest], idx[rest] = d.reshape(len(rest), k), i.reshape(len(rest), k)
         return dist, idx
+
+
+def _far_nearest(index: VoxelIndex, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` nearest of ``index``'s points to each of ``queries`` (q, 3), as cKDTree.query gives them: by every
+    distance (:func:`.kernels.brute_knn`) for up to BRUTE_PAIRS query-point pairs, else by its kd-tree (built once)."""
+    if len(queries) * index.n <= BRUTE_PAIRS and '_tree' not in index.__dict__:
+        return kernels.brute_knn(index.points, queries, k)
+    return index._tree.query(queries, k=k)
 
 
 def voxel_index(points: np.ndarray, span: np.ndarray | tuple[np.ndarray, np.ndarray] | None = None
