@@ -81,15 +81,18 @@ def _uncertain_numpy(index, region: np.ndarray, queries: np.ndarray, node: np.nd
                      voxel: np.ndarray, near: np.ndarray, exact: np.ndarray) -> np.ndarray:
     """:func:`.kernels.uncertain_nodes` by brute force: a query not exact is uncertain when a point as near as its node
     may lie beyond the 27 voxels around its own; a near query whose own voxel holds several regions first takes the
-    nearest hashed point there as its node, and when one of the 26 voxels around, no farther than its voxel's nearest
-    hashed point, holds a hashed point of another region than the node's, it takes the nearest hashed point (its own
-    voxel's when nearer than any face of it, else the nearest of the 27 voxels, equal distances: the first in the
-    hash's order) and is exact (``node``, ``d2`` and ``exact`` updated)."""
+    nearest hashed point there as its node, and when a hashed point in one of the 26 voxels around whose points are of
+    another region than the node's (or of several) lies nearer than its voxel's nearest (as near: earlier in the hash's
+    order), it takes the nearest hashed point (its own voxel's when nearer than any face of it, else the nearest of the
+    27 voxels, equal distances: the first in the hash's order) and is exact (``node``, ``d2`` and ``exact``
+    updated)."""
     order, keys, starts, _ = index.grid
     dims, cell = index.dims, index.cell
     own = _voxels(index, index.ordered)[1]
     coords = np.stack([own % dims[0], own // dims[0] % dims[1], own // (dims[0] * dims[1])], axis=1)
     labels = region[order]
+    voxel_label = np.array([labels[lo] if len(np.unique(labels[lo:hi])) == 1 else -2
+                            for lo, hi in zip(starts[:-1], starts[1:])])[np.searchsorted(keys, own)]  # per point
     out = np.zeros(len(voxel), bool)
     for q in np.flatnonzero(~exact):
         key = keys[voxel[q]]
@@ -108,8 +111,11 @@ def _uncertain_numpy(index, region: np.ndarray, queries: np.ndarray, node: np.nd
         offset = coords - c  # of each hashed point's voxel
         gap = np.where(offset < 0, below, np.where(offset > 0, above, 0.0))
         block = (np.abs(offset) <= 1).all(axis=1)
-        within = block & (offset != 0).any(axis=1) & ((gap ** 2).sum(axis=1) <= e2[lo:hi].min())
-        if not (labels[within] != region[node[q]]).any():
+        b, bj = e2[lo:hi].min(), lo + int(np.argmin(e2[lo:hi]))
+        within = block & (offset != 0).any(axis=1) & ((gap ** 2).sum(axis=1) <= b)
+        other = within & (voxel_label != region[node[q]])  # of another region, or of several
+        nearer = (e2 < b) | ((e2 == b) & (np.arange(len(e2)) < bj))
+        if not (other & nearer).any():
             continue
         margin = min(below.min(), above.min())
         if e2[lo:hi].min() <= margin * margin:  # nearer than any face: its own voxel's

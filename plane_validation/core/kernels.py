@@ -3417,9 +3417,10 @@ def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel:
     hashed point may lie in another region than their node (``region`` (m,), by the hashed points' rows before
     hashing) and beyond the 27 voxels around their own: not ``exact`` (the node known to be the nearest) and not
     ``near``. A near query whose own voxel holds several regions first takes the nearest point there as its node; when
-    one of the 26 voxels around its own, no farther than its own voxel's nearest point, holds points of another region
-    than the node's, it takes the nearest hashed point (as :func:`voxel_nearest` finds it; near, that lies in those 27
-    voxels) and becomes ``exact`` (``node``, ``d2`` and ``exact`` updated)."""
+    one of the 26 voxels around its own holds points of another region than the node's (or of several) and one of them
+    lies nearer than its own voxel's nearest point (as near: earlier in the hash's order), it takes the nearest hashed
+    point (as :func:`voxel_nearest` finds it; near, that lies in those 27 voxels) and becomes ``exact`` (``node``,
+    ``d2`` and ``exact`` updated)."""
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * order.shape[0])
     label, around, uniform = _voxel_regions(region, order, cell_keys, starts, table, dims, dense)
@@ -3446,11 +3447,25 @@ def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel:
         for a in range(27):
             u = around[v, a]
             if u >= 0 and u != v and label[u] != own and \
-                    gap[0, a % 3] + gap[1, (a // 3) % 3] + gap[2, a // 9] <= b:
+                    gap[0, a % 3] + gap[1, (a // 3) % 3] + gap[2, a // 9] <= b and \
+                    _nearer_in(ordered, starts, u, x, y, z, b, bj):
                 b, bj = _nearest_around(ordered, starts, around[v], v, x, y, z, gap, margin, b, bj)
                 node[q], d2[q], exact[q] = order[bj], b, True
                 break
     return out
+
+
+@numba.njit(**_JIT)
+def _nearer_in(ordered: np.ndarray, starts: np.ndarray, u: int, x: float, y: float, z: float, b: float, bj: int
+               ) -> bool:
+    """Whether a point of the occupied voxel ``u`` (``ordered`` the hashed points voxel by voxel) lies nearer to (x, y,
+    z) meters than the squared distance ``b`` (as near: earlier in the hash's order than ``bj``)."""
+    for j in range(starts[u], starts[u + 1]):
+        ex, ey, ez = ordered[j, 0] - x, ordered[j, 1] - y, ordered[j, 2] - z
+        e = ex * ex + ey * ey + ez * ez
+        if e < b or (e == b and j < bj):
+            return True
+    return False
 
 
 @numba.njit(**_JIT)
