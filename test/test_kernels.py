@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from plane_validation.core import kernels
 from plane_validation.core.ransac import finite_rows
 from plane_validation.core.search.grid import spread_grid, spread_grid_numpy
+from plane_validation.core.search.neighbours import row_starts
 from plane_validation.core.search.neighbours_graph import GraphNeighbours
 from plane_validation.core.search.neighbours_grid import GridNeighbours
 
@@ -277,6 +278,49 @@ def test_voxel_knn_matches_the_kd_tree(seed, k):
                      ref_dist.reshape(len(pts), -1), ref_idx.reshape(len(pts), -1), next_dist)
 
 
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(1, 60))
+def test_brute_knn_matches_numpy_and_the_kd_tree(seed, k):
+    """Every distance, ranked (equal ones by index), as numpy's lexsort ranks them; as the kd-tree answers, ties
+    aside; fewer than k points: the rest at inf with index m."""
+    from scipy.spatial import cKDTree
+    rng = np.random.default_rng(seed)
+    pts = _cloud_case(seed)
+    queries = np.concatenate([pts[rng.integers(0, len(pts), 3)], rng.normal(size=(3, 3)) * 100.0])
+    dist, idx = kernels.brute_knn(pts, queries, k)
+    e = pts[None, :, :] - queries[:, None, :]
+    d2 = e[..., 0] * e[..., 0] + e[..., 1] * e[..., 1] + e[..., 2] * e[..., 2]
+    for q in range(len(queries)):
+        ranked = np.lexsort((np.arange(len(pts)), d2[q]))[:k]
+        np.testing.assert_array_equal(idx[q, :len(ranked)], ranked)
+        np.testing.assert_array_equal(dist[q, :len(ranked)], np.sqrt(d2[q, ranked]))
+        assert (idx[q, len(ranked):] == len(pts)).all() and np.isinf(dist[q, len(ranked):]).all()
+    ref_dist, ref_idx = cKDTree(pts).query(queries, k=k)
+    next_dist = cKDTree(pts).query(queries, k=k + 1)[0].reshape(len(queries), -1)[:, -1]
+    _same_neighbours(pts, queries, dist, idx, ref_dist.reshape(len(queries), -1), ref_idx.reshape(len(queries), -1),
+                     next_dist)
+
+
+def test_far_queries_are_answered_without_a_kd_tree():
+    """A query beyond the voxel rings (far from every point) gets the kd-tree's neighbours from every distance; the
+    tree is built only for many such queries."""
+    from scipy.spatial import cKDTree
+
+    from plane_validation.core.regions import BRUTE_PAIRS, voxel_index
+    rng = np.random.default_rng(1)
+    pts = rng.normal(size=(2000, 3))
+    far = np.array([[40.0, 0.0, 0.0], [0.0, -35.0, 3.0]])
+    index = voxel_index(pts, span=far)
+    dist, idx = index.query(far, 5)
+    ref_dist, ref_idx = cKDTree(pts).query(far, k=5)
+    np.testing.assert_allclose(dist, ref_dist, rtol=1e-12)
+    np.testing.assert_array_equal(idx, ref_idx)
+    assert '_tree' not in index.__dict__
+    many = np.tile(far, (BRUTE_PAIRS // (2 * len(pts)) + 1, 1))
+    np.testing.assert_array_equal(index.query(many, 5)[1], np.tile(ref_idx, (len(many) // 2, 1)))
+    assert '_tree' in index.__dict__
+
+
 def test_voxel_index_declines_far_out_coordinates():
     from plane_validation.core.regions import voxel_index
     pts = np.random.default_rng(0).normal(size=(1000, 3))
@@ -327,6 +371,8 @@ def test_pair_graph_matches_numpy(seed):
     np.testing.assert_array_equal(graph.edges, ref.edges)
     for part, ref_part in zip(graph.adjacency, ref.adjacency):
         np.testing.assert_array_equal(part, ref_part)
+    assert graph.edges.flags.c_contiguous  # as the kernels that take them read them: no copy
+    np.testing.assert_array_equal(graph.edge_rows, row_starts(ref.edges[:, 0], n))  # the kernel's, against numpy
 
 
 def _plane_patches_numpy(centred, axes, per_patch, min_count):

@@ -8,6 +8,7 @@ from hypothesis import strategies as st
 
 from plane_validation.core import kernels
 from plane_validation.core.regions import VOXEL_RINGS, voxel_index
+from plane_validation.core.search.neighbours import row_starts
 
 SETTINGS = settings(max_examples=60, deadline=None)
 
@@ -167,6 +168,8 @@ def test_pair_graph_joins_the_knn_pairs_as_numpy(seed):
     np.testing.assert_array_equal(graph.edges, ref.edges)
     for part, ref_part in zip(graph.adjacency, ref.adjacency):
         np.testing.assert_array_equal(part, ref_part)
+    assert graph.edges.flags.c_contiguous  # as the kernels that take them read them: no copy
+    np.testing.assert_array_equal(graph.edge_rows, row_starts(ref.edges[:, 0], n))  # the kernel's, against numpy
 
 
 @SETTINGS

@@ -149,6 +149,53 @@ def test_voxel_count_matches_the_grid(seed, size):
     assert count == len(np.unique(cells[:, 0] + dims[0] * (cells[:, 1] + dims[1] * cells[:, 2])))
 
 
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.floats(0.02, 2.0), st.booleans())
+def test_voxel_grid_matches_a_stable_sort_of_the_keys(seed, size, hashed):
+    """The points voxel by voxel as a stable sort of their keys orders them, the occupied keys ascending, where each
+    voxel starts, and the table of each key's voxel: direct (counted placement), or hashed for a sparse grid (dims
+    made large enough)."""
+    rng = np.random.default_rng(seed)
+    pts = _cloud(rng, 400)
+    pts[rng.random(len(pts)) < 0.1] = pts[0]  # several points in one voxel
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    cell = size * float(np.ptp(pts, axis=0).max(initial=0.0) or 1.0) / 4
+    dims = ((hi - lo) // cell).astype(np.int64) + 2
+    if hashed:
+        dims[2] = max(int(dims[2]), 2 * kernels.DENSE_VOXELS // int(dims[0] * dims[1]) + 1)
+    order, cell_keys, starts, table = kernels.voxel_grid(pts, lo, cell, dims)
+    cells = ((pts - lo) / cell).astype(np.int64)
+    keys = cells[:, 0] + dims[0] * (cells[:, 1] + dims[1] * cells[:, 2])
+    np.testing.assert_array_equal(order, np.argsort(keys, kind='stable'))
+    distinct, first = np.unique(keys, return_index=True)
+    np.testing.assert_array_equal(cell_keys, distinct)
+    np.testing.assert_array_equal(starts, np.append(np.searchsorted(keys[order], distinct), len(pts)))
+    total = int(np.prod(dims))
+    dense = total <= max(kernels.DENSE_VOXELS, 8 * len(pts))
+    assert not (hashed and dense)  # a grid made sparse: a hashed table
+    assert (len(table) == total) == dense
+    if dense:
+        expected = np.full(total, -1, np.int64)
+        expected[distinct] = np.arange(len(distinct))
+        np.testing.assert_array_equal(table, expected)
+    assert [kernels._voxel(cell_keys, table, int(key), dense) for key in distinct] == list(range(len(distinct)))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.integers(0, 200))
+def test_sensor_rays_match_numpy(seed, n):
+    """The rays, elevations and unit directions of the graph's lidar tests bit for bit as numpy's; a point at the
+    viewpoint keeps a zero direction."""
+    from plane_validation.core.regions import _sensor_rays, _sensor_rays_numpy
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(size=(n, 3)) * rng.uniform(0.1, 30.0)
+    viewpoint = rng.normal(size=3)
+    if n:
+        pts[rng.random(n) < 0.1] = viewpoint
+    for got, ref in zip(_sensor_rays(pts, viewpoint), _sensor_rays_numpy(pts, viewpoint)):
+        np.testing.assert_array_equal(got, ref)
+
+
 class _NumpyGraphRemaining(_GraphRemaining):
     """The graph's region rule by its numpy reference, run through the generic loops of Remaining (no compiled whole
     plane)."""

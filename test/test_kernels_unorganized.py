@@ -80,14 +80,19 @@ def test_voxel_nodes_match_numpy(seed, others):
 def _uncertain_numpy(index, region: np.ndarray, queries: np.ndarray, node: np.ndarray, d2: np.ndarray,
                      voxel: np.ndarray, near: np.ndarray, exact: np.ndarray) -> np.ndarray:
     """:func:`.kernels.uncertain_nodes` by brute force: a query not exact is uncertain when a point as near as its node
-    may lie beyond the 27 voxels around its own, or when one of the 26 voxels around, no farther than the node, holds a
-    hashed point of another region than the node's; a near query whose own voxel holds several regions first takes
-    the nearest hashed point there as its node (``node`` and ``d2`` updated)."""
+    may lie beyond the 27 voxels around its own; a near query whose own voxel holds several regions first takes the
+    nearest hashed point there as its node, and when a hashed point in one of the 26 voxels around whose points are of
+    another region than the node's (or of several) lies nearer than its voxel's nearest (as near: earlier in the hash's
+    order), it takes the nearest hashed point (its own voxel's when nearer than any face of it, else the nearest of the
+    27 voxels, equal distances: the first in the hash's order) and is exact (``node``, ``d2`` and ``exact``
+    updated)."""
     order, keys, starts, _ = index.grid
     dims, cell = index.dims, index.cell
     own = _voxels(index, index.ordered)[1]
     coords = np.stack([own % dims[0], own // dims[0] % dims[1], own // (dims[0] * dims[1])], axis=1)
     labels = region[order]
+    voxel_label = np.array([labels[lo] if len(np.unique(labels[lo:hi])) == 1 else -2
+                            for lo, hi in zip(starts[:-1], starts[1:])])[np.searchsorted(keys, own)]  # per point
     out = np.zeros(len(voxel), bool)
     for q in np.flatnonzero(~exact):
         key = keys[voxel[q]]
@@ -99,14 +104,25 @@ def _uncertain_numpy(index, region: np.ndarray, queries: np.ndarray, node: np.nd
             out[q] = True
             continue
         lo, hi = starts[voxel[q]], starts[voxel[q] + 1]
+        e = index.ordered - queries[q]
+        e2 = e[:, 0] * e[:, 0] + e[:, 1] * e[:, 1] + e[:, 2] * e[:, 2]
         if len(np.unique(labels[lo:hi])) > 1:  # its voxel's nearest hashed point (the first of equals)
-            e = index.ordered[lo:hi] - queries[q]
-            e2 = e[:, 0] * e[:, 0] + e[:, 1] * e[:, 1] + e[:, 2] * e[:, 2]
-            node[q], d2[q] = order[lo + np.argmin(e2)], e2.min()
+            node[q], d2[q] = order[lo + np.argmin(e2[lo:hi])], e2[lo:hi].min()
         offset = coords - c  # of each hashed point's voxel
         gap = np.where(offset < 0, below, np.where(offset > 0, above, 0.0))
-        within = (np.abs(offset) <= 1).all(axis=1) & (offset != 0).any(axis=1) & ((gap ** 2).sum(axis=1) <= d2[q])
-        out[q] = bool((labels[within] != region[node[q]]).any())
+        block = (np.abs(offset) <= 1).all(axis=1)
+        b, bj = e2[lo:hi].min(), lo + int(np.argmin(e2[lo:hi]))
+        within = block & (offset != 0).any(axis=1) & ((gap ** 2).sum(axis=1) <= b)
+        other = within & (voxel_label != region[node[q]])  # of another region, or of several
+        nearer = (e2 < b) | ((e2 == b) & (np.arange(len(e2)) < bj))
+        if not (other & nearer).any():
+            continue
+        margin = min(below.min(), above.min())
+        if e2[lo:hi].min() <= margin * margin:  # nearer than any face: its own voxel's
+            best = lo + int(np.argmin(e2[lo:hi]))
+        else:  # the first of the nearest in the 27 voxels
+            best = int(np.argmin(np.where(block, e2, np.inf)))
+        node[q], d2[q], exact[q] = order[best], e2[best], True
     return out
 
 
@@ -124,13 +140,18 @@ def test_uncertain_nodes_match_numpy(seed, others, regions):
         region = np.minimum((pts[:, 0] > np.median(pts[:, 0])).astype(np.int64), regions - 1)
     exact = (rng.random(len(queries)) < 0.2) | (voxel < 0)  # a query in no voxel has its nearest already
     rows = np.arange(len(queries))
-    got_node, got_d2 = node.copy(), d2.copy()
-    got = kernels.uncertain_nodes(region, got_node, got_d2, voxel, near, exact, queries, rows, np.zeros(3),
+    got_node, got_d2, got_exact = node.copy(), d2.copy(), exact.copy()
+    got = kernels.uncertain_nodes(region, got_node, got_d2, voxel, near, got_exact, queries, rows, np.zeros(3),
                                   index.ordered, *index.grid, index.origin, index.cell, index.dims)
+    given_exact = exact.copy()
     np.testing.assert_array_equal(got, _uncertain_numpy(index, region, queries, node, d2, voxel, near, exact))
     np.testing.assert_array_equal(got_node, node)  # the reference updated its copies as the kernel did
     np.testing.assert_array_equal(got_d2, d2)
-    assert not got[exact].any()
+    np.testing.assert_array_equal(got_exact, exact)
+    assert not got[got_exact].any() and not got[near].any()
+    settled = got_exact & ~given_exact  # those it settled: the voxel hash's nearest (ties by its order)
+    if settled.any():
+        np.testing.assert_array_equal(got_node[settled], index.query(queries[settled], 1)[1][:, 0])
 
 
 @SETTINGS

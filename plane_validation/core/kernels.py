@@ -19,7 +19,8 @@ import numpy as np
 
 __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid_components',
            'grid_region', 'graph_components', 'graph_region', 'finite_mask',
-           'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'voxel_knn_points', 'principal_axes', 'patch_fits',
+           'coordinate_bounds', 'voxel_grid', 'voxel_knn', 'voxel_knn_points', 'brute_knn', 'principal_axes',
+           'patch_fits',
            'pair_graph', 'widen_xyz', 'valid_rows', 'frame_pass', 'plane_patches', 'fold_line',
            'grid_sample', 'grid_edges', 'grid_usable', 'grid_normals', 'grid_chords', 'merge_test',
            'compete_distances', 'plane_bands', 'band_counts', 'triple_planes',
@@ -27,7 +28,8 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'region_scatter', 'region_extents', 'plane_silhouette_sum', 'marked_rows', 'near_count', 'beyond_counts',
            'beyond_rows',
            'distinct_rows', 'coordinate_extent', 'silhouettes', 'patch_eigenvalues', 'voxel_nearest',
-           'spread_nearest', 'spread_among', 'score_hypotheses', 'spread_test', 'fit_members', 'fit_mask',
+           'spread_nearest', 'spread_among', 'sensor_rays', 'score_hypotheses', 'spread_test', 'fit_members',
+           'fit_mask',
            'fit_regions', 'plane_samples', 'sorted_order', 'order_statistics',
            'finite_extent', 'grid_contacts', 'label_rows', 'grid_triples', 'read_rows', 'outside_polygon',
            'voxel_nodes',
@@ -422,16 +424,14 @@ def _graph_largest(ends: np.ndarray, edge_rows: np.ndarray, inside: np.ndarray, 
 @numba.njit(**_JIT)
 def coordinate_bounds(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The smallest and the largest coordinates (3,) each of ``points`` (n, 3), n >= 1."""
-    lo = points[0].copy()
-    hi = points[0].copy()
-    for i in range(1, points.shape[0]):
-        for a in range(3):
-            v = points[i, a]
-            if v < lo[a]:
-                lo[a] = v
-            elif v > hi[a]:
-                hi[a] = v
-    return lo, hi
+    lo0, lo1, lo2 = points[0, 0], points[0, 1], points[0, 2]
+    hi0, hi1, hi2 = lo0, lo1, lo2
+    for i in range(1, points.shape[0]):  # on scalars, without branches: about half the time of a loop over the axes
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        lo0, hi0 = x if x < lo0 else lo0, x if x > hi0 else hi0
+        lo1, hi1 = y if y < lo1 else lo1, y if y > hi1 else hi1
+        lo2, hi2 = z if z < lo2 else lo2, z if z > hi2 else hi2
+    return np.array([lo0, lo1, lo2]), np.array([hi0, hi1, hi2])
 
 
 @numba.njit(**_JIT)
@@ -456,6 +456,9 @@ def voxel_grid(points: np.ndarray, origin: np.ndarray, cell: float, dims: np.nda
         iy = int((points[i, 1] - origin[1]) / cell)
         iz = int((points[i, 2] - origin[2]) / cell)
         keys[i] = ix + dims[0] * (iy + dims[1] * iz)
+    total = dims[0] * dims[1] * dims[2]
+    if total <= max(DENSE_VOXELS, 8 * m):  # few enough voxels for a direct table: no hashing
+        return _counted_grid(keys, total)
     order = np.argsort(keys, kind='mergesort')
     c = 0
     for q in range(m):
@@ -471,12 +474,6 @@ def voxel_grid(points: np.ndarray, origin: np.ndarray, cell: float, dims: np.nda
             starts[c] = q
             c += 1
     starts[c] = m
-    total = dims[0] * dims[1] * dims[2]
-    if total <= max(DENSE_VOXELS, 8 * m):  # few enough voxels for a direct table: no hashing
-        table = np.full(total, -1, np.int64)
-        for j in range(c):
-            table[cell_keys[j]] = j
-        return order, cell_keys, starts, table
     size = 1
     while size < 2 * c + 2:
         size *= 2
@@ -487,6 +484,36 @@ def voxel_grid(points: np.ndarray, origin: np.ndarray, cell: float, dims: np.nda
             s = (s + 1) & (size - 1)
         table[s] = j
     return order, cell_keys, starts, table
+
+
+@numba.njit(**_JIT)
+def _counted_grid(keys: np.ndarray, total: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`voxel_grid`'s output with a direct table, from the points' voxel ``keys`` (m,), each below ``total``: the
+    points placed by a count per key (the table holds the counts first), in the order a stable sort of the keys gives,
+    in about half the time of that sort."""
+    m = keys.shape[0]
+    table = np.zeros(total, np.int64)
+    for i in range(m):
+        table[keys[i]] += 1
+    cell_keys = np.empty(m, np.int64)
+    starts = np.empty(m + 1, np.int64)
+    c = q = 0
+    for key in range(total):
+        n = table[key]
+        if n:
+            cell_keys[c], starts[c], table[key] = key, q, c
+            q += n
+            c += 1
+        else:
+            table[key] = -1
+    starts[c] = m
+    fill = starts[:c].copy()
+    order = np.empty(m, np.int64)
+    for i in range(m):
+        v = table[keys[i]]
+        order[fill[v]] = i
+        fill[v] += 1
+    return order, cell_keys[:c].copy(), starts[:c + 1].copy(), table
 
 
 @numba.njit(**_JIT)
@@ -668,8 +695,8 @@ def voxel_knn_points(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarra
     the 27 voxels around each are gathered once for all its queries, which mostly find their k nearest among them
     (the others go on ring by ring)."""
     m = points.shape[0]
-    dist = np.full((m, k), np.inf)
-    idx = np.full((m, k), -1, np.int64)
+    dist = np.empty((m, k))  # every row is written below: not filled first
+    idx = np.empty((m, k), np.int64)
     exact = np.zeros(m, np.bool_)
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * m)
@@ -704,7 +731,33 @@ def voxel_knn_points(points: np.ndarray, order: np.ndarray, cell_keys: np.ndarra
             for p in range(found):
                 dist[q, p] = np.sqrt(d2[p])
                 idx[q, p] = order[best[p]]
+            for p in range(found, k):
+                dist[q, p], idx[q, p] = np.inf, -1
     return dist, idx, exact
+
+
+@numba.njit(**_JIT)
+def brute_knn(points: np.ndarray, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` nearest of ``points`` (m, 3) to each of ``queries`` (q, 3), by every distance: (distances (q, k)
+    meters, nearest first, equal ones by index; indices (q, k), m where fewer than k points exist, at inf), as a
+    kd-tree answers them. For a few queries the voxel rings do not settle (far from every point): a kd-tree built for
+    them costs about as much as the whole frame's kNN."""
+    m, nq = points.shape[0], queries.shape[0]
+    dist = np.empty((nq, k))
+    idx = np.empty((nq, k), np.int64)
+    d2 = np.empty(k)
+    best = np.empty(k, np.int64)
+    for q in range(nq):
+        x, y, z = queries[q, 0], queries[q, 1], queries[q, 2]
+        found = 0
+        for j in range(m):
+            ex, ey, ez = points[j, 0] - x, points[j, 1] - y, points[j, 2] - z
+            found = _take(ex * ex + ey * ey + ez * ez, j, d2, best, found, k)
+        for p in range(found):
+            dist[q, p], idx[q, p] = np.sqrt(d2[p]), best[p]
+        for p in range(found, k):
+            dist[q, p], idx[q, p] = np.inf, m
+    return dist, idx
 
 
 @numba.njit(**_JIT)
@@ -999,12 +1052,13 @@ def _pair_rows(n: int, pairs: np.ndarray, dist: np.ndarray, idx: np.ndarray, rea
 
 @numba.njit(**_JIT)
 def pair_graph(n: int, pairs: np.ndarray, dist: np.ndarray, idx: np.ndarray, reach: np.ndarray, always: int
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The graph of n points joined by ``pairs`` (e, 2) (any order, repeats allowed) and each point i to its nearest
     neighbours ``idx[i, 1:]`` (``dist`` (n, k) meters, nearest first; the first column the point itself; (0, k): none)
-    that lie within ``reach[i]`` meters, or among its first ``always`` at a finite distance: (edges (2, u) each joined
-    pair once, smaller index first, sorted by it then by the other; indptr (n + 1,) and indices: each point's
-    neighbours, first the larger ones ascending, then the smaller ones ascending)."""
+    that lie within ``reach[i]`` meters, or among its first ``always`` at a finite distance: (edges (u, 2) each joined
+    pair once, smaller index first, sorted by it then by the other, C-ordered as the kernels that take them read them;
+    indptr (n + 1,) and indices: each point's neighbours, first the larger ones ascending, then the smaller ones
+    ascending; starts (n + 1,): where each point's edges to larger indices start in edges)."""
     count, larger = _pair_rows(n, pairs, dist, idx, reach, always)
     unique = 0
     degree = np.zeros(n, np.int64)
@@ -1031,7 +1085,7 @@ def pair_graph(n: int, pairs: np.ndarray, dist: np.ndarray, idx: np.ndarray, rea
                 degree[b] += 1
                 last = b
         count[i + 1] = unique  # now the bounds of the deduplicated rows
-    edges = np.empty((2, unique), np.int64)
+    edges = np.empty((unique, 2), np.int64)
     indptr = np.zeros(n + 1, np.int64)
     for i in range(n):
         indptr[i + 1] = indptr[i] + degree[i]
@@ -1040,7 +1094,7 @@ def pair_graph(n: int, pairs: np.ndarray, dist: np.ndarray, idx: np.ndarray, rea
     for i in range(n):
         for q in range(count[i], count[i + 1]):
             b = larger[q]
-            edges[0, q], edges[1, q] = i, b
+            edges[q, 0], edges[q, 1] = i, b
             indices[at[i]] = b
             at[i] += 1
     for i in range(n):
@@ -1048,7 +1102,7 @@ def pair_graph(n: int, pairs: np.ndarray, dist: np.ndarray, idx: np.ndarray, rea
             b = larger[q]
             indices[at[b]] = i
             at[b] += 1
-    return edges, indptr, indices
+    return edges, indptr, indices, count
 
 
 # --- frame pass ---
@@ -2328,18 +2382,18 @@ def _by_voxel(queries: np.ndarray, cell_keys: np.ndarray, table: np.ndarray, ori
 def _occupied_around(cell_keys: np.ndarray, table: np.ndarray, dims: np.ndarray, dense: bool, vx: int, vy: int,
                      vz: int, around: np.ndarray, offset: np.ndarray) -> int:
     """How many of the 26 voxels next to (vx, vy, vz) are occupied; those voxels into ``around``, their offsets into
-    ``offset`` (0, 1, 2: below, level with, above it along each axis)."""
+    ``offset`` (0, 1, 2: below, level with, above it along each axis), in :data:`_BLOCK`'s order: those across a face
+    first, whose points most often bound a query's nearest distance so that the farther voxels are skipped."""
     m = 0
-    for dz in range(-1, 2):
-        for dy in range(-1, 2):
-            for dx in range(-1, 2):
-                ix, iy, iz = vx + dx, vy + dy, vz + dz
-                if (dx or dy or dz) and 0 <= ix < dims[0] and 0 <= iy < dims[1] and 0 <= iz < dims[2]:
-                    u = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
-                    if u >= 0:
-                        around[m] = u
-                        offset[m, 0], offset[m, 1], offset[m, 2] = dx + 1, dy + 1, dz + 1
-                        m += 1
+    for b in range(1, 27):
+        dx, dy, dz = _BLOCK[b, 0], _BLOCK[b, 1], _BLOCK[b, 2]
+        ix, iy, iz = vx + dx, vy + dy, vz + dz
+        if 0 <= ix < dims[0] and 0 <= iy < dims[1] and 0 <= iz < dims[2]:
+            u = _voxel(cell_keys, table, ix + dims[0] * (iy + dims[1] * iz), dense)
+            if u >= 0:
+                around[m] = u
+                offset[m, 0], offset[m, 1], offset[m, 2] = dx + 1, dy + 1, dz + 1
+                m += 1
     return m
 
 
@@ -2502,6 +2556,25 @@ def spread_nearest(points: np.ndarray, rows: np.ndarray, center: np.ndarray, nea
             labels[i] = lab
             residual[i] = d
     return labels, residual
+
+
+@numba.njit(**_JIT)
+def sensor_rays(points: np.ndarray, viewpoint: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The rays from ``viewpoint`` (3,) to ``points`` (n, 3) meters, (n, 3), their elevations about the z axis (n,),
+    radians, and their directions (n, 3), unit (a zero ray as is), in one pass."""
+    n = points.shape[0]
+    rays = np.empty((n, 3))
+    elevation = np.empty(n)
+    unit = np.empty((n, 3))
+    for i in range(n):
+        x, y, z = points[i, 0] - viewpoint[0], points[i, 1] - viewpoint[1], points[i, 2] - viewpoint[2]
+        rays[i, 0], rays[i, 1], rays[i, 2] = x, y, z
+        elevation[i] = np.arctan2(z, np.hypot(x, y))
+        length = np.sqrt(x * x + y * y + z * z)
+        if not length > 0.0:
+            length = 1.0
+        unit[i, 0], unit[i, 1], unit[i, 2] = x / length, y / length, z / length
+    return rays, elevation, unit
 
 
 @numba.njit(**_JIT)
@@ -3342,13 +3415,67 @@ def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel:
     """(q,) bool: the queries of :func:`voxel_nodes` (its ``node``, ``d2``, ``voxel`` and ``near``; the rows ``rows``
     of ``points`` (N, 3) meters less ``center`` (3,); ``ordered`` its hashed points voxel by voxel) whose nearest
     hashed point may lie in another region than their node (``region`` (m,), by the hashed points' rows before
-    hashing): not ``exact`` (the node known to be the nearest), and not ``near``, or one of the 26 voxels around their
-    own, no farther than the node, holds points of another region than the node's. A near query whose own voxel holds
-    several regions first takes the nearest point there as its node (``node`` and ``d2`` updated)."""
-    nv = cell_keys.shape[0]
+    hashing) and beyond the 27 voxels around their own: not ``exact`` (the node known to be the nearest) and not
+    ``near``. A near query whose own voxel holds several regions first takes the nearest point there as its node; when
+    one of the 26 voxels around its own holds points of another region than the node's (or of several) and one of them
+    lies nearer than its own voxel's nearest point (as near: earlier in the hash's order), it takes the nearest hashed
+    point (as :func:`voxel_nearest` finds it; near, that lies in those 27 voxels) and becomes ``exact`` (``node``,
+    ``d2`` and ``exact`` updated)."""
     total = dims[0] * dims[1] * dims[2]
     dense = table.shape[0] == total and total <= max(DENSE_VOXELS, 8 * order.shape[0])
-    label = np.empty(nv, np.int64)  # the region of a voxel's points, _MIXED where they differ
+    label, around, uniform = _voxel_regions(region, order, cell_keys, starts, table, dims, dense)
+    out = np.zeros(voxel.shape[0], np.bool_)
+    gap = np.empty((3, 3))  # squared gaps to the voxels below, level with and above along each axis
+    for q in range(voxel.shape[0]):
+        v = voxel[q]
+        if exact[q] or (near[q] and uniform[v]):
+            continue
+        if not near[q]:
+            out[q] = True
+            continue
+        x, y, z = points[rows[q], 0] - center[0], points[rows[q], 1] - center[1], points[rows[q], 2] - center[2]
+        b, bj = np.inf, -1  # the nearest of its own voxel (the first of equals)
+        for j in range(starts[v], starts[v + 1]):
+            ex, ey, ez = ordered[j, 0] - x, ordered[j, 1] - y, ordered[j, 2] - z
+            e = ex * ex + ey * ey + ez * ez
+            if e < b:
+                b, bj = e, j
+        if label[v] == _MIXED:  # the node is one near point of its voxel: the nearest there instead
+            node[q], d2[q] = order[bj], b
+        margin = _query_gaps(points, rows[q], center, origin, cell, cell_keys[v], dims, gap)
+        own = region[node[q]]  # its own voxel's nearest point's: the nearest lies no farther
+        for a in range(27):
+            u = around[v, a]
+            if u >= 0 and u != v and label[u] != own and \
+                    gap[0, a % 3] + gap[1, (a // 3) % 3] + gap[2, a // 9] <= b and \
+                    _nearer_in(ordered, starts, u, x, y, z, b, bj):
+                b, bj = _nearest_around(ordered, starts, around[v], v, x, y, z, gap, margin, b, bj)
+                node[q], d2[q], exact[q] = order[bj], b, True
+                break
+    return out
+
+
+@numba.njit(**_JIT)
+def _nearer_in(ordered: np.ndarray, starts: np.ndarray, u: int, x: float, y: float, z: float, b: float, bj: int
+               ) -> bool:
+    """Whether a point of the occupied voxel ``u`` (``ordered`` the hashed points voxel by voxel) lies nearer to (x, y,
+    z) meters than the squared distance ``b`` (as near: earlier in the hash's order than ``bj``)."""
+    for j in range(starts[u], starts[u + 1]):
+        ex, ey, ez = ordered[j, 0] - x, ordered[j, 1] - y, ordered[j, 2] - z
+        e = ex * ex + ey * ey + ez * ez
+        if e < b or (e == b and j < bj):
+            return True
+    return False
+
+
+@numba.njit(**_JIT)
+def _voxel_regions(region: np.ndarray, order: np.ndarray, cell_keys: np.ndarray, starts: np.ndarray, table: np.ndarray,
+                   dims: np.ndarray, dense: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For :func:`uncertain_nodes`, per occupied voxel of :func:`voxel_grid`: (label (c,): the region (``region`` (m,),
+    by the hashed points' rows before hashing) of its points, _MIXED where they differ; around (c, 27): the occupied
+    voxels around it, by offset (dz, dy, dx) + 1 in base 3, -1 where none; uniform (c,): those 27 hold one region)."""
+    nv = cell_keys.shape[0]
+    label = np.empty(nv, np.int64)
     for v in range(nv):
         first = region[order[starts[v]]]
         for j in range(starts[v] + 1, starts[v + 1]):
@@ -3356,8 +3483,8 @@ def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel:
                 first = _MIXED
                 break
         label[v] = first
-    around = np.full((nv, 27), -1, np.int64)  # the occupied voxels around each, by offset (dz, dy, dx) + 1 in base 3
-    uniform = label != _MIXED  # those 27 voxels hold one region
+    around = np.full((nv, 27), -1, np.int64)
+    uniform = label != _MIXED
     for v in range(nv):
         key = cell_keys[v]
         vx, vy, vz = key % dims[0], (key // dims[0]) % dims[1], key // (dims[0] * dims[1])
@@ -3368,38 +3495,46 @@ def uncertain_nodes(region: np.ndarray, node: np.ndarray, d2: np.ndarray, voxel:
                 around[v, a] = u
                 if u >= 0 and label[u] != label[v]:
                     uniform[v] = False
-    out = np.zeros(voxel.shape[0], np.bool_)
-    gap = np.empty((3, 3))  # squared gaps to the voxels below, level with and above along each axis
-    for q in range(voxel.shape[0]):
-        v = voxel[q]
-        if exact[q] or (near[q] and uniform[v]):
+    return label, around, uniform
+
+
+@numba.njit(**_JIT)
+def _query_gaps(points: np.ndarray, r: int, center: np.ndarray, origin: np.ndarray, cell: float, key: int,
+                dims: np.ndarray, gap: np.ndarray) -> float:
+    """Into ``gap`` (3, 3): the squared gaps (m^2) from the row ``r`` of ``points`` less ``center`` to the voxels below,
+    level with (0) and above its voxel (of ``key``) along each axis, as :func:`_faces` gives them; returns how far
+    (meters) it lies inside its voxel."""
+    margin = np.inf
+    for axis in range(3):
+        f = (points[r, axis] - center[axis] - origin[axis]) / cell
+        c = key % dims[0] if axis == 0 else (key // dims[0]) % dims[1] if axis == 1 else key // (dims[0] * dims[1])
+        below, above = (f - c) * cell, (c + 1 - f) * cell
+        gap[axis, 0], gap[axis, 1], gap[axis, 2] = below * below, 0.0, above * above
+        margin = min(margin, f - c, c + 1 - f)
+    return margin * cell
+
+
+@numba.njit(**_JIT)
+def _nearest_around(ordered: np.ndarray, starts: np.ndarray, around: np.ndarray, v: int, x: float, y: float, z: float,
+                    gap: np.ndarray, margin: float, b: float, bj: int) -> tuple[float, int]:
+    """:func:`voxel_nearest`'s answer for a query at (x, y, z) meters in the occupied voxel ``v`` whose nearest point
+    there is ``bj`` at squared distance ``b`` (the first of equals), ``margin`` meters inside it, with the occupied
+    voxels ``around`` (27,) it (as :func:`_voxel_regions` gives them) at squared gaps ``gap`` (3, 3): that point when it
+    is nearer than any face, else the nearest of the 27 voxels (equal distances: the first in the hash's order), as
+    (squared distance, position in the hash). Exact when some point lies within one voxel plus ``margin``."""
+    if b <= margin * margin:
+        return b, bj
+    for t in range(1, 27):  # in _BLOCK's order, as _occupied_around
+        a = _BLOCK[t, 0] + 1 + 3 * (_BLOCK[t, 1] + 1) + 9 * (_BLOCK[t, 2] + 1)
+        u = around[a]
+        if u < 0 or u == v or gap[0, a % 3] + (gap[1, (a // 3) % 3] + gap[2, a // 9]) > b:
             continue
-        if not near[q]:
-            out[q] = True
-            continue
-        if label[v] == _MIXED:  # the node is one near point of its voxel: the nearest there instead
-            x, y, z = points[rows[q], 0] - center[0], points[rows[q], 1] - center[1], points[rows[q], 2] - center[2]
-            b, bj = np.inf, -1
-            for j in range(starts[v], starts[v + 1]):
-                ex, ey, ez = ordered[j, 0] - x, ordered[j, 1] - y, ordered[j, 2] - z
-                e = ex * ex + ey * ey + ez * ez
-                if e < b:
-                    b, bj = e, j
-            node[q], d2[q] = order[bj], b
-        key = cell_keys[v]
-        for axis in range(3):
-            f = (points[rows[q], axis] - center[axis] - origin[axis]) / cell
-            c = key % dims[0] if axis == 0 else (key // dims[0]) % dims[1] if axis == 1 else key // (dims[0] * dims[1])
-            below, above = (f - c) * cell, (c + 1 - f) * cell
-            gap[axis, 0], gap[axis, 1], gap[axis, 2] = below * below, 0.0, above * above
-        own = region[node[q]]
-        for a in range(27):
-            u = around[v, a]
-            if u >= 0 and u != v and label[u] != own and \
-                    gap[0, a % 3] + gap[1, (a // 3) % 3] + gap[2, a // 9] <= d2[q]:
-                out[q] = True
-                break
-    return out
+        for j in range(starts[u], starts[u + 1]):
+            ex, ey, ez = ordered[j, 0] - x, ordered[j, 1] - y, ordered[j, 2] - z
+            e = ex * ex + ey * ey + ez * ez
+            if e < b or (e == b and j < bj):
+                b, bj = e, j
+    return b, bj
 
 
 @numba.njit(**_JIT)
@@ -4483,6 +4618,7 @@ def _warm_voxel_knn() -> None:
     grid = voxel_grid(pts, np.zeros(3), 1.0, dims)
     voxel_knn(pts, *grid, np.zeros(3), 1.0, dims, pts, 2, 1)
     voxel_knn_points(pts, *grid, np.zeros(3), 1.0, dims, 2, 1)
+    brute_knn(pts, pts, 2)
     principal_axes(pts, np.zeros((4, 3), np.int64))
 
 
@@ -4492,6 +4628,7 @@ def _warm_voxel_nearest() -> None:
     voxel_nearest(pts, *grid, np.zeros(3), 1.0, dims, pts, 1)
     spread_nearest(pts, index, np.zeros(3), index, index, np.zeros((1, 4)), np.ones(1))
     spread_among(np.zeros(4), np.zeros((4, 2), np.int64))
+    sensor_rays(pts, np.zeros(3))
 
 
 def _warm_patches() -> None:

@@ -83,6 +83,9 @@ VOXEL_POINTS = 4.0
 VOXEL_RINGS = 5
 #: A cloud spanning more voxels than this along an axis (a far-out coordinate) is searched by a kd-tree alone.
 VOXEL_SPAN = 1 << 20
+#: Queries the voxel rings leave (far from every point) are answered by every distance up to this many query-point
+#: pairs (about 4 ms), by a kd-tree beyond (its build costs about 10 ms for a frame's 32,768 searched points).
+BRUTE_PAIRS = 1 << 22
 
 
 _NO_POINTS = np.empty((0, 3))
@@ -239,10 +242,18 @@ class VoxelIndex:
         else:
             dist, idx, exact = kernels.voxel_knn(*grid, kernels.c_array(queries, np.float64), k, VOXEL_RINGS)
         rest = np.flatnonzero(~exact)
-        if len(rest):  # far from every point (or fewer than k of them): the kd-tree
-            d, i = self._tree.query(queries[rest], k=k)
+        if len(rest):  # far from every point (or fewer than k of them): every point, or the kd-tree for many
+            d, i = _far_nearest(self, kernels.c_array(queries[rest], np.float64), k)
             dist[rest], idx[rest] = d.reshape(len(rest), k), i.reshape(len(rest), k)
         return dist, idx
+
+
+def _far_nearest(index: VoxelIndex, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` nearest of ``index``'s points to each of ``queries`` (q, 3), as cKDTree.query gives them: by every
+    distance (:func:`.kernels.brute_knn`) for up to BRUTE_PAIRS query-point pairs, else by its kd-tree (built once)."""
+    if len(queries) * index.n <= BRUTE_PAIRS and '_tree' not in index.__dict__:
+        return kernels.brute_knn(index.points, queries, k)
+    return index._tree.query(queries, k=k)
 
 
 def voxel_index(points: np.ndarray, span: np.ndarray | tuple[np.ndarray, np.ndarray] | None = None
@@ -327,10 +338,7 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
         normals = _normals(values, vectors)
         line = values[:, 1] < 0.05 * values[:, 2]  # neighbours along a line: no normal, a ring
         normals[line] = np.nan
-        rays = points - viewpoint
-        elevation = np.arctan2(rays[:, 2], np.hypot(rays[:, 0], rays[:, 1]))
-        length = np.linalg.norm(rays, axis=1, keepdims=True)
-        unit = rays / np.where(length > 0, length, 1.0)
+        rays, elevation, unit = _sensor_rays(points, viewpoint)
         one_ring = kernels.spread_among(elevation, idx) <= ONE_RING
         flat_rows = np.flatnonzero(one_ring)  # of those, the ones whose widest neighbour is a ring's spacing off
         widest = np.einsum('nkd,nd->nk', unit[idx[flat_rows]], unit[flat_rows]).min(axis=1)
@@ -359,6 +367,21 @@ def _graph(points: np.ndarray, merge_copies: bool, viewpoint: np.ndarray, index:
         rows_l, target = search(np.flatnonzero(line), vectors[:, :, 2], False, True)
         edges.append(np.column_stack([rows_l, target]))
     return _neighbours(n, np.concatenate(edges), normals, (dist, idx, reach))
+
+
+def _sensor_rays(points: np.ndarray, viewpoint: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The rays from ``viewpoint`` (3,) to ``points`` (n, 3), their elevations about the z axis and their unit
+    directions (a zero ray as is), in one compiled pass (:func:`.kernels.sensor_rays`; :func:`_sensor_rays_numpy` is
+    its reference)."""
+    return kernels.sensor_rays(kernels.c_array(points, np.float64), kernels.c_array(viewpoint, np.float64))
+
+
+def _sensor_rays_numpy(points: np.ndarray, viewpoint: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_sensor_rays` in numpy."""
+    rays = points - viewpoint
+    elevation = np.arctan2(rays[:, 2], np.hypot(rays[:, 0], rays[:, 1]))
+    length = np.linalg.norm(rays, axis=1, keepdims=True)
+    return rays, elevation, rays / np.where(length > 0, length, 1.0)
 
 
 def _knn_edges_numpy(dist: np.ndarray, idx: np.ndarray, reach: np.ndarray) -> np.ndarray:
@@ -431,10 +454,11 @@ def _neighbours(n: int, edges: np.ndarray, normals: np.ndarray | None,
     if len(idx) not in (0, n) or dist.shape != idx.shape or len(reach) != len(idx) or \
             (idx.size and not 0 <= int(idx.min()) <= int(idx.max()) < n):
         raise ValueError(f'the nearest-neighbour lists must hold a row per point (of {n}) with indices below it')
-    unique, indptr, indices = kernels.pair_graph(n, kernels.c_array(edges.reshape(-1, 2), np.int64),
-                                                 kernels.c_array(dist, np.float64), kernels.c_array(idx, np.int64),
-                                                 kernels.c_array(reach, np.float64), ALWAYS_JOINED)
-    return GraphNeighbours(n=n, edges=unique.T, normals=normals, adjacency=(indptr, indices))
+    unique, indptr, indices, starts = kernels.pair_graph(n, kernels.c_array(edges.reshape(-1, 2), np.int64),
+                                                         kernels.c_array(dist, np.float64),
+                                                         kernels.c_array(idx, np.int64),
+                                                         kernels.c_array(reach, np.float64), ALWAYS_JOINED)
+    return GraphNeighbours(n=n, edges=unique, normals=normals, adjacency=(indptr, indices), edge_starts=starts)
 
 
 def _neighbours_numpy(n: int, edges: np.ndarray, normals: np.ndarray | None) -> GraphNeighbours:
