@@ -5034,8 +5034,8 @@ def _run(step) -> bool:
 
 
 def _hold_signals() -> None:
-    """A warm-up worker leaves Ctrl-C and SIGTERM to the process that started it, which holds them until the
-    compile ends (numba's compiler swallows a KeyboardInterrupt) and then stops."""
+    """A warm-up worker leaves Ctrl-C, SIGTERM and SIGHUP to the process that started it, which stops at once and
+    kills its workers (:func:`.interrupts.stop_at_signals`)."""
     import signal
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, signal.SIG_IGN)
