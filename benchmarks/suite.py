@@ -493,7 +493,8 @@ def main(argv: list[str] | None = None) -> int:
     if open3d_ref.available():
         print(f'Open3D: {open3d_ref.params()}\n')
     else:
-        print('Open3D not installed: comparison skipped (pip install -r benchmarks/requirements.txt)\n')
+        print(f'Open3D {open3d_ref.version()}: comparison skipped (pip install -r benchmarks/requirements.txt; '
+              'open3d needs libusb-1.0 from the system)\n')
 
     steady = [steady_state(f, repeats) for f in frames]
     refs = [open3d_run(f, repeats) for f in frames]

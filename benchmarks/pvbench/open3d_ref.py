@@ -8,8 +8,10 @@ import numpy as np
 
 try:
     import open3d as o3d
-except ImportError:  # an optional benchmark extra
+    MISSING = ''
+except ImportError as exc:  # an optional benchmark extra; installed, it can still lack a system library (libusb-1.0)
     o3d = None
+    MISSING = 'not installed' if exc.name == 'open3d' else f'not importable ({exc})'
 
 ITERATIONS = 1000
 
@@ -19,7 +21,7 @@ def available() -> bool:
 
 
 def version() -> str:
-    return o3d.__version__ if o3d is not None else 'not installed'
+    return o3d.__version__ if o3d is not None else MISSING
 
 
 def params() -> str:
