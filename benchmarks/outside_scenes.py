@@ -25,16 +25,38 @@ from plane_validation.core.scoring import segmentation_quality  # noqa: E402
 FIXED = np.geomspace(0.001, 0.3, 12)
 
 
+def _camera_rays(size: tuple[int, int], hfov_deg: float) -> np.ndarray:
+    """(H * W, 3) a pinhole camera's rays of depth 1 in its optical frame (x right, y down, z ahead)."""
+    h, w = size
+    focal = (w / 2) / np.tan(np.radians(hfov_deg / 2))
+    u, v = np.meshgrid(np.arange(w) - (w - 1) / 2, np.arange(h) - (h - 1) / 2)
+    return np.stack([u / focal, v / focal, np.ones((h, w))], -1).reshape(-1, 3)
+
+
+def _plane_hits(eye: np.ndarray, d: np.ndarray, normal: np.ndarray, at: float, inside=None) -> np.ndarray:
+    """Distance (n,) along the rays ``d`` (n, 3) from ``eye`` to the plane normal . x = ``at`` (m), inf where they miss
+    it or where ``inside`` (the hit points (n, 3) -> (n,) bool) says the surface does not reach."""
+    with np.errstate(divide='ignore', invalid='ignore'):
+        dist = (at - eye @ normal) / (d @ normal)
+    dist = np.where(dist > 0, dist, np.inf)
+    if inside is not None:
+        dist = np.where(inside(eye + np.where(np.isfinite(dist), dist, 0.0)[:, None] * d), dist, np.inf)
+    return dist
+
+
+def _nearest_first(reach: np.ndarray, labels: np.ndarray, dist: np.ndarray, label) -> None:
+    """Where ``dist`` (n,) is nearer than ``reach`` (n,), the surface ``label`` (one, or (n,)) is what the ray sees."""
+    nearer = dist < reach
+    reach[nearer], labels[nearer] = dist[nearer], label[nearer] if np.ndim(label) else label
+
+
 def depth_room(seed: int, b: float, *, pitch_deg: float = 25.0, height: float = 1.3, size: tuple = (480, 640),
                hfov_deg: float = 58.0) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
     """(points (H * W, 3) in the camera's optical frame, NaN where a ray hits nothing; labels (floor 0, wall 1,
     table top 2, -1 none); (H, W)) of a camera ``height`` m above the floor pitched ``pitch_deg`` down, a wall 4 m
     ahead and a 1.6 x 1.0 m table top 0.75 m high 2.2 m ahead; depth noise b * z^2 (m) along the rays."""
     rng = np.random.default_rng(seed)
-    h, w = size
-    focal = (w / 2) / np.tan(np.radians(hfov_deg / 2))
-    u, v = np.meshgrid(np.arange(w) - (w - 1) / 2, np.arange(h) - (h - 1) / 2)
-    rays = np.stack([u / focal, v / focal, np.ones((h, w))], -1).reshape(-1, 3)  # x right, y down, z ahead
+    rays = _camera_rays(size, hfov_deg)
     p = np.radians(pitch_deg)
     ahead = np.array([0.0, np.cos(p), -np.sin(p)])
     to_world = np.column_stack([[1.0, 0.0, 0.0], [0.0, -np.sin(p), -np.cos(p)], ahead])  # world z up
@@ -42,18 +64,13 @@ def depth_room(seed: int, b: float, *, pitch_deg: float = 25.0, height: float = 
     eye = np.array([0.0, 0.0, height])
     reach = np.full(len(d), np.inf)
     labels = np.full(len(d), -1)
+
     def on_table(q: np.ndarray) -> np.ndarray:
         return (np.abs(q[:, 0] - 0.1) <= 0.8) & (np.abs(q[:, 1] - 2.2) <= 0.5)
-    surfaces = ((np.array([0.0, 0.0, 1.0]), 0.0, None), (np.array([0.0, 1.0, 0.0]), -4.0, None),
-                (np.array([0.0, 0.0, 1.0]), -0.75, on_table))
-    for label, (normal, offset, inside) in enumerate(surfaces):
-        with np.errstate(divide='ignore', invalid='ignore'):
-            s = -(eye @ normal + offset) / (d @ normal)
-        hit = (s > 0) & np.isfinite(s)
-        if inside is not None:
-            hit &= inside(eye + np.where(hit, s, 0.0)[:, None] * d)
-        nearer = hit & (s < reach)
-        reach[nearer], labels[nearer] = s[nearer], label
+    surfaces = ((np.array([0.0, 0.0, 1.0]), 0.0, None), (np.array([0.0, 1.0, 0.0]), 4.0, None),
+                (np.array([0.0, 0.0, 1.0]), 0.75, on_table))
+    for label, (normal, at, inside) in enumerate(surfaces):
+        _nearest_first(reach, labels, _plane_hits(eye, d, normal, at, inside), label)
     depth = reach * (d @ ahead)
     depth = depth + rng.normal(0.0, 1.0, len(depth)) * b * depth ** 2
     points = rays * depth[:, None]
@@ -88,10 +105,7 @@ def clutter_room(seed: int, *, size: tuple = (480, 640), hfov_deg: float = 58.0
     3 x a Kinect's, depth quantised in steps of 2.5 mm z^2, 2 % of the pixels lost. Each visible face is a plane;
     those under 0.1 % of the pixels (at least 20) are labelled none."""
     rng = np.random.default_rng(10_000 + seed)
-    h, w = size
-    focal = (w / 2) / np.tan(np.radians(hfov_deg / 2))
-    u, v = np.meshgrid(np.arange(w) - (w - 1) / 2, np.arange(h) - (h - 1) / 2)
-    rays = np.stack([u / focal, v / focal, np.ones((h, w))], -1).reshape(-1, 3)
+    rays = _camera_rays(size, hfov_deg)
     pitch, yaw = np.radians(rng.uniform(10, 30)), np.radians(rng.uniform(-20, 20))
     ahead = np.array([np.sin(yaw) * np.cos(pitch), np.cos(yaw) * np.cos(pitch), -np.sin(pitch)])
     right = np.array([np.cos(yaw), -np.sin(yaw), 0.0])
@@ -99,14 +113,8 @@ def clutter_room(seed: int, *, size: tuple = (480, 640), hfov_deg: float = 58.0
     eye = np.array([0.0, 0.0, rng.uniform(1.0, 1.6)])
     back, left, right_wall, ceiling = rng.uniform(3, 6), rng.uniform(1.5, 3), rng.uniform(1.5, 3), rng.uniform(2.4, 3)
     reach, labels = np.full(len(d), np.inf), np.full(len(d), -1)
-
-    def add(dist: np.ndarray, label: np.ndarray) -> None:
-        nearer = dist < reach
-        reach[nearer], labels[nearer] = dist[nearer], label[nearer] if np.ndim(label) else label
     for label, (axis, at) in enumerate(((2, 0.0), (2, ceiling), (1, back), (0, -left), (0, right_wall))):
-        with np.errstate(divide='ignore', invalid='ignore'):
-            dist = (at - eye[axis]) / d[:, axis]
-        add(np.where(dist > 0, dist, np.inf), label)
+        _nearest_first(reach, labels, _plane_hits(eye, d, np.eye(3)[axis], at), label)
     top = rng.uniform(0.7, 0.8)
     boxes = [(np.array([rng.uniform(-0.8, 0.8), rng.uniform(1.8, back - 1.0), top - 0.02]), rng.uniform(-0.5, 0.5),
               np.array([rng.uniform(0.5, 0.9), rng.uniform(0.35, 0.6), 0.02]))]
@@ -116,7 +124,7 @@ def clutter_room(seed: int, *, size: tuple = (480, 640), hfov_deg: float = 58.0
                       rng.uniform(0, np.pi), half))
     for j, (centre, turn, half) in enumerate(boxes):
         dist, face = _box_hits(eye, d, centre, turn, half)
-        add(dist, 5 + 6 * j + face)
+        _nearest_first(reach, labels, dist, 5 + 6 * j + face)
     depth = reach * (d @ ahead)
     lost = ~np.isfinite(depth) | (rng.random(len(depth)) < 0.02)
     b = rng.uniform(0.0015, 0.0045)
@@ -126,7 +134,7 @@ def clutter_room(seed: int, *, size: tuple = (480, 640), hfov_deg: float = 58.0
     depth = np.round(depth / step) * step
     points = rays * np.where(lost, np.nan, depth)[:, None]
     labels[lost] = -1
-    least = max(20, int(0.001 * h * w))
+    least = max(20, int(0.001 * len(d)))
     ids, counts = np.unique(labels[labels >= 0], return_counts=True)
     labels[np.isin(labels, ids[counts < least])] = -1
     return points, labels, size, least, b
@@ -148,13 +156,7 @@ def street_scan(seed: int, *, azimuths: int = 1800) -> tuple[np.ndarray, np.ndar
     planes: list = []
 
     def plane(normal: np.ndarray, at: float, inside) -> None:
-        with np.errstate(divide='ignore', invalid='ignore'):
-            dist = (at - eye @ normal) / (d @ normal)
-        dist = np.where(dist > 0, dist, np.inf)
-        q = eye + np.where(np.isfinite(dist), dist, 0.0)[:, None] * d
-        dist = np.where(inside(q), dist, np.inf)
-        nearer = dist < reach
-        reach[nearer], labels[nearer] = dist[nearer], len(planes)
+        _nearest_first(reach, labels, _plane_hits(eye, d, normal, at, inside), len(planes))
         planes.append(None)
     z_up, y_side = np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])
     plane(z_up, 0.0, lambda q: np.abs(q[:, 1]) <= road)
@@ -171,8 +173,7 @@ def street_scan(seed: int, *, azimuths: int = 1800) -> tuple[np.ndarray, np.ndar
         side = rng.choice([-1.0, 1.0])
         centre = np.array([rng.uniform(-25, 25), side * (road - rng.uniform(1.0, 1.4)), 0.75])
         dist, face = _box_hits(eye, d, centre, rng.uniform(-0.05, 0.05), np.array([2.25, 0.9, 0.75]))
-        nearer = dist < reach
-        reach[nearer], labels[nearer] = dist[nearer], len(planes) + face[nearer]
+        _nearest_first(reach, labels, dist, len(planes) + face)
         planes.extend([None] * 6)
     sigma = rng.uniform(0.01, 0.03)
     hit = (reach <= 80.0) & (rng.random(len(d)) >= 0.01)

@@ -48,8 +48,7 @@ def _terminate_cleanly() -> Iterator[None]:
         yield
         return
     from ..core.interrupts import unignored
-    previous = {sig: signal.signal(sig, _raise_terminated) for sig in (signal.SIGTERM, signal.SIGHUP)
-                if sig in unignored()}
+    previous = {sig: signal.signal(sig, _raise_terminated) for sig in unignored() if sig != signal.SIGINT}
     previous_hook = sys.unraisablehook
 
     def redeliver(unraisable) -> None:

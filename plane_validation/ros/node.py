@@ -181,7 +181,7 @@ def main(args: list[str] | None = None, node_class: type | None = None, prog: st
         # this handler runs in the main thread between two bytecodes, maybe inside Context.ok(), whose lock
         # try_shutdown() takes too: the node would wait for itself. Not under nohup: a SIGHUP it was started
         # ignoring stays ignored
-        if signal.getsignal(signal.SIGHUP) is not signal.SIG_IGN:
+        if signal.SIGHUP in unignored():
             signal.signal(signal.SIGHUP, lambda signum, frame: os.kill(os.getpid(), signal.SIGTERM))
     except KeyboardInterrupt:  # Ctrl-C while starting: as quiet as while spinning
         _shutdown()

@@ -93,7 +93,7 @@ def declare(node) -> tuple[PipelineConfig, NodeOptions]:
     options = NodeOptions(**{k: v for k, v in values.items() if k in NODE_PARAMETERS}).validate()
     unknown = unknown_overrides(node)
     if unknown:
-        node.get_logger().warning(f'ignoring {", ".join(unknown)}: not a parameter of this node (--help lists them)')
+        node.get_logger().warning(f'ignoring {_not_parameters(unknown)}')
     unused = unused_tolerance(node, config)
     if unused:
         node.get_logger().warning(unused)
@@ -184,8 +184,11 @@ def not_declared(node, params) -> SetParametersResult:
     none ('Invalid access to undeclared parameter(s): []', its list built from a generator already spent), so
     ``ros2 param set /plane_validation tolerence 0.01`` did not say which name was wrong."""
     unknown = sorted({param.name for param in params if not node.has_parameter(param.name)})
-    return SetParametersResult(successful=False,
-                               reason=f'{", ".join(unknown)}: not a parameter of this node (--help lists them)')
+    return SetParametersResult(successful=False, reason=_not_parameters(unknown))
+
+
+def _not_parameters(names: list[str]) -> str:
+    return f'{", ".join(names)}: not a parameter of this node (--help lists them)'
 
 
 def set_requests_whole(node) -> None:
