@@ -4,8 +4,10 @@ Per frame (PointCloud2 in -> the five output messages built, t = 1 cm, up to 5 p
 sample), the CPU medians of the whole frame, of the frame without ``detect_planes`` (target <= 20 ms), and of what
 is left once ``validity_indices`` and ``judge`` are taken out too (reading the message, the tracker, the one pass
 over the rows, outlines and messages), with the target of that rest (<= 12 ms); and two parts of that rest: reading
-the message into the frame's rows and valid points, and building the five messages (``frame_messages``). CPU time
-(process_time): other work on the machine slows it less than the wall clock.
+the message into the frame's rows and valid points, and building the five messages (``frame_messages``). Beside it,
+what the node builds when nobody subscribes to its two clouds (the planes' markers, poses, coefficients and the
+diagnostics) and when only /diagnostics is listened to. CPU time (process_time): other work on the machine slows it
+less than the wall clock.
 
 Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_frame_io.py [PCD ...] [--repeat 15]
 """
@@ -33,6 +35,7 @@ REST_MS = 12.0
 WITHOUT_SEARCH_MS = 20.0
 TAKEN_OUT = ('detect_planes', 'validity_indices', 'judge')
 READING = ('xyz_words', 'xyz_array', 'frame_rows')  # the message to the frame's rows and valid points
+NO_CLOUDS = ('planes', 'plane_poses', 'plane_coefficients', 'diagnostics')
 
 
 def main() -> None:
@@ -47,10 +50,10 @@ def main() -> None:
     for name in TAKEN_OUT + READING:  # CPU time inside each of them, per frame
         setattr(pipeline, name, _timed(getattr(pipeline, name), spent[name]))
     print('| frame | whole frame, CPU (ms) | without search (ms) | without search, indices, verdict (ms) '
-          '| reading the message (ms) | frame_messages (ms) |')
-    print('|---|--:|--:|--:|--:|--:|')
+          '| reading the message (ms) | frame_messages (ms) | without the clouds (ms) | diagnostics only (ms) |')
+    print('|---|--:|--:|--:|--:|--:|--:|--:|')
     for path, msg, frames in organized_frames(args.clouds):
-        whole, outside, rest, reading, messages = [], [], [], [], []
+        whole, outside, rest, reading, messages, planes, diagnostics = [], [], [], [], [], [], []
         for i in range(args.repeat + 1):
             msg.header.stamp.sec = i + 1
             for cell in spent.values():
@@ -60,6 +63,10 @@ def main() -> None:
             built = time.process_time()
             frame_messages(msg.header, result, 'pv')
             end = time.process_time()
+            frame_messages(msg.header, result, 'pv', keys=NO_CLOUDS)
+            no_clouds = time.process_time()
+            frame_messages(msg.header, result, 'pv', keys=('diagnostics',))
+            alone = time.process_time()
             took = end - start
             if i:  # the first is a warm-up
                 whole.append(1000 * took)
@@ -67,8 +74,11 @@ def main() -> None:
                 rest.append(1000 * (took - sum(spent[name][0] for name in TAKEN_OUT)))
                 reading.append(1000 * sum(spent[name][0] for name in READING))
                 messages.append(1000 * (end - built))
+                planes.append(1000 * (no_clouds - end))
+                diagnostics.append(1000 * (alone - no_clouds))
         print(f'| {Path(path).name} | {statistics.median(whole):.1f} | {statistics.median(outside):.1f} | '
-              f'{statistics.median(rest):.1f} | {statistics.median(reading):.1f} | {statistics.median(messages):.1f} |',
+              f'{statistics.median(rest):.1f} | {statistics.median(reading):.1f} | {statistics.median(messages):.1f} | '
+              f'{statistics.median(planes):.1f} | {statistics.median(diagnostics):.2f} |',
               flush=True)
     print(f'targets: without search <= {WITHOUT_SEARCH_MS:g} ms; without search, indices and verdict <= {REST_MS:g} ms')
 

@@ -3,9 +3,12 @@ process (``config/fastdds_large_clouds.xml``, t = 1 cm, up to 5 planes as the su
 least 90 % of the frames answered, and the node's processing_ms median at most 33 ms.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/node_rate.py [PCD] [--rate 30] [--seconds 10] [--runs 2]
+        [--outputs all|diagnostics]
 
 Prints per run the frames answered, dropped by the node's one-slot mailbox and lost, the medians of processing_ms
-and of the latency (publish to the frame's /diagnostics), and whether the run meets the target.
+and of the latency (publish to the frame's /diagnostics), and whether the run meets the target. The node builds
+only the outputs that have subscribers: with ``--outputs all`` (the default) this process subscribes to every one
+(the node's whole cost), with ``diagnostics`` only to /diagnostics (a robot that reads the status alone).
 """
 from __future__ import annotations
 
@@ -33,14 +36,18 @@ def main() -> int:
     parser.add_argument('--rate', type=float, default=30.0)
     parser.add_argument('--seconds', type=float, default=10.0)
     parser.add_argument('--runs', type=int, default=2)
+    parser.add_argument('--outputs', choices=('all', 'diagnostics'), default='all',
+                        help='the outputs this process subscribes to (the node builds only those)')
     args = parser.parse_args()
     points, shape = load_cloud(args.cloud)
     if shape is None:
         parser.error(f'{args.cloud} is not an organized frame')
     frames = round(args.rate * args.seconds)
-    print(f'{Path(args.cloud).name} at {args.rate:g} Hz, {frames} frames a run')
+    print(f'{Path(args.cloud).name} at {args.rate:g} Hz, {frames} frames a run, subscribed to '
+          f'{"every output" if args.outputs == "all" else "/diagnostics only"}')
     with tempfile.TemporaryDirectory() as logs:
-        bench = NodeBench([suite.cloud_message(points, *shape)], suite.TOLERANCE, suite.PLANES, Path(logs))
+        bench = NodeBench([suite.cloud_message(points, *shape)], suite.TOLERANCE, suite.PLANES, Path(logs),
+                          outputs=args.outputs == 'all')
         try:
             for k in range(args.runs):
                 run = bench.run(args.rate, frames, name=f'rate{k}')
@@ -52,6 +59,8 @@ def main() -> int:
                       f'lost {run.lost}; processing_ms median {processing:.1f}, latency median {latency:.1f} ms: '
                       f'{"met" if met else "not met"} (>= {MIN_ANSWERED:.0%} answered, <= {MAX_PROCESSING_MS:g} ms)',
                       flush=True)
+                if run.received:
+                    print('  received: ' + ', '.join(f'{t.rsplit("/", 1)[1]} {n}' for t, n in run.received.items()))
         finally:
             bench.close()
     return 0

@@ -44,7 +44,9 @@ def xyz_cloud(points: np.ndarray, stamp_ns: int) -> PointCloud2:
 class Harness:
     """Runs ``node`` and a probe on a background executor; collects outputs per stamp."""
 
-    def __init__(self, node, node_name: str = 'plane_validation') -> None:
+    def __init__(self, node, node_name: str = 'plane_validation', outputs=tuple(OUTPUTS)) -> None:
+        """outputs: the node's outputs the probe subscribes to (:meth:`listen` adds one later), besides
+        /diagnostics."""
         self.node = node
         self.probe = rclpy.create_node('probe')
         self.received: dict[str, dict[int, object]] = defaultdict(dict)
@@ -52,10 +54,11 @@ class Harness:
         self.lock = threading.Lock()
         self.pub = self.probe.create_publisher(PointCloud2, '/cloud',
                                                QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
-        reliable = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
-        for name, cls in OUTPUTS.items():
-            self.probe.create_subscription(cls, f'/{node_name}/{name}', self._recorder(name), reliable)
-        self.probe.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, reliable)
+        self.node_name = node_name
+        for name in outputs:
+            self.listen(name)
+        self.probe.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag,
+                                       QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE))
         # not MultiThreadedExecutor: its spinning starves the node's worker thread of the GIL
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(node)
@@ -64,6 +67,11 @@ class Harness:
         self.thread.start()
         self._wait(lambda: self.pub.get_subscription_count() > 0 and all(
             self.probe.count_publishers(f'/{node_name}/{n}') > 0 for n in OUTPUTS), 10, 'discovery')
+
+    def listen(self, name: str) -> None:
+        """Subscribe the probe to the node's output ``name``."""
+        reliable = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+        self.probe.create_subscription(OUTPUTS[name], f'/{self.node_name}/{name}', self._recorder(name), reliable)
 
     def _recorder(self, name):
         def record(msg) -> None:

@@ -116,6 +116,33 @@ def test_corner_frame_publishes_every_output_matching_the_core(harness):
     np.testing.assert_allclose(np.reshape(coeffs.data, (3, 4)), expected.segmentation.coefficients)
 
 
+def test_only_the_outputs_someone_subscribes_to_are_built_and_a_later_subscriber_gets_its_own(ros):
+    node = PlaneValidationNode(parameter_overrides=[Parameter(k, value=v) for k, v in FIXED.items()])
+    h = Harness(node, outputs=('planes',))
+    built: list[set[str]] = []
+    publish = node.worker.publish
+    node.worker.publish = lambda key, msg: (built[-1].add(key) if built and key != 'diagnostics' else None,
+                                            publish(key, msg))
+    try:
+        points = corner_points(0.002)
+        built.append(set())
+        out = h.send(xyz_cloud(points, 2_000_000_000_001), outputs=('diagnostics', 'planes'))
+        assert diag_values(out['diagnostics'])['planes'] == '3'
+        assert len(out['planes'].markers) == 1 + 3 * 3
+        assert built[-1] == {'planes'}
+
+        h.listen('segmented')
+        end = time.monotonic() + 10
+        while not node.worker.listened('segmented') and time.monotonic() < end:
+            time.sleep(0.02)
+        built.append(set())
+        out = h.send(xyz_cloud(points, 2_000_000_000_002), outputs=('diagnostics', 'planes', 'segmented'))
+        assert built[-1] == {'planes', 'segmented'}
+        assert set(np.unique(structured_array(out['segmented'])['plane_id'])) <= {-1, 0, 1, 2}
+    finally:
+        h.close()
+
+
 def _custom_cloud(points: np.ndarray, stamp: int, *, height: int = 1, dtype=np.float32, bigendian: bool = False,
                   pad: int = 0, row_pad: int = 0) -> PointCloud2:
     """Cloud with x, y, z of ``dtype``, an intensity field, ``pad`` bytes per point, ``row_pad`` per row."""

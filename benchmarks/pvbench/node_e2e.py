@@ -5,7 +5,9 @@ process per run, on this process's ROS_DOMAIN_ID with ROS_AUTOMATIC_DISCOVERY_RA
 the Fast DDS profile the caller put in FASTRTPS_DEFAULT_PROFILES_FILE (all set before rclpy
 starts). This process publishes organized frames in turn with fresh header stamps at a fixed
 rate (sensor-data QoS, as a camera driver does; stamps advance by 1/rate s, like a camera's) and
-listens to ``/diagnostics`` only.
+listens to ``/diagnostics``, and with ``outputs`` (the default) also to every other output of the node, as
+serialized messages (the node builds only the outputs that have subscribers; this process does not deserialize
+them).
 
 Per run: latency = arrival of a stamp's diagnostics - the moment just before ``publish()`` (both
 on this process's perf_counter); ``dropped`` = the node's own ``frames_dropped`` count (its
@@ -26,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 TOPIC = '/bench/points'
+NODE_NAME = 'plane_validation'  # the node's default name: its outputs are /plane_validation/<key>
 FIRST_STAMP = 10**12   # ns; anything older on /diagnostics is not ours
 ANSWER_TIMEOUT = 5.0   # s to wait for the last answers after the last frame
 
@@ -45,6 +48,7 @@ class NodeRun:
     rss_mb: list[tuple[int, float]] = field(default_factory=list)
     peak_mb: float = float('nan')
     startup_rss_mb: float = float('nan')
+    received: dict[str, int] = field(default_factory=dict)  # messages this process got per output topic
 
     @property
     def answered(self) -> int:
@@ -90,12 +94,14 @@ def cloud_message(points: np.ndarray, height: int, width: int):
 class NodeBench:
     """Publisher and /diagnostics listener in this process; :meth:`run` starts one node process."""
 
-    def __init__(self, clouds: list, tolerance: float, planes: int, log_dir: Path) -> None:
+    def __init__(self, clouds: list, tolerance: float, planes: int, log_dir: Path, outputs: bool = True) -> None:
         import rclpy
         import sensor_msgs.msg
         from diagnostic_msgs.msg import DiagnosticArray
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+
+        from plane_validation.ros.messages import OUTPUTS
 
         self.clouds, self.tolerance, self.planes, self.log_dir = clouds, tolerance, planes, log_dir
         rclpy.init()
@@ -106,10 +112,21 @@ class NodeBench:
         self._answers: dict[int, tuple[float, dict[str, str]]] = {}
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag,
                                       QoSProfile(depth=500, reliability=ReliabilityPolicy.RELIABLE))
+        self.received: dict[str, int] = {}
+        self.output_topics = [f'/{NODE_NAME}/{key}' for key in OUTPUTS if key != 'diagnostics'] if outputs else []
+        for topic in self.output_topics:
+            cls = OUTPUTS[topic.rsplit('/', 1)[1]]
+            self.received[topic] = 0
+            self.node.create_subscription(cls, topic, lambda _msg, topic=topic: self._count(topic),
+                                          QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE), raw=True)
         self._executor = SingleThreadedExecutor()
         self._executor.add_node(self.node)
         self._spinner = threading.Thread(target=self._executor.spin, daemon=True)
         self._spinner.start()
+
+    def _count(self, topic: str) -> None:
+        with self._lock:
+            self.received[topic] += 1
 
     def _on_diag(self, msg) -> None:
         now = time.perf_counter()
@@ -138,7 +155,8 @@ class NodeBench:
 
     def _wait_ready(self, proc: subprocess.Popen) -> None:
         end = time.monotonic() + 30
-        while self.pub.get_subscription_count() == 0 or self.node.count_publishers('/diagnostics') == 0:
+        while self.pub.get_subscription_count() == 0 or any(
+                self.node.count_publishers(t) == 0 for t in ('/diagnostics', *self.output_topics)):
             if proc.poll() is not None:
                 raise RuntimeError(f'node exited with {proc.returncode} (see {self.log_dir})')
             if time.monotonic() > end:
@@ -151,6 +169,7 @@ class NodeBench:
         """Start a node, send ``frames`` clouds at ``rate`` Hz, collect the answers, stop the node."""
         with self._lock:
             self._answers.clear()
+            self.received = dict.fromkeys(self.received, 0)
         proc = self._start(params or {}, name)
         run = NodeRun(rate=rate, sent=frames)
         sent: dict[int, float] = {}
@@ -182,6 +201,7 @@ class NodeBench:
             self._stop(proc)
         with self._lock:
             answers = dict(self._answers)
+            run.received = dict(self.received)
         for stamp in sorted(answers):
             if stamp in sent:
                 arrived, values = answers[stamp]

@@ -90,7 +90,7 @@ class PlaneValidationLifecycleNode(LifecycleNode):
         self.pipeline = FramePipeline(config)
         self._pubs = output_publishers(self.create_lifecycle_publisher)
         self.worker = FrameWorker(self, self.pipeline, self._publish, status_name(self.get_name()),
-                                  min_output_rate_hz=options.min_output_rate_hz)
+                                  min_output_rate_hz=options.min_output_rate_hz, listened=self._listened)
         return super().on_configure(state)
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -114,6 +114,10 @@ class PlaneValidationLifecycleNode(LifecycleNode):
         publisher = self._pubs.get(key)
         if publisher is not None and publisher.is_activated:  # a frame in flight while deactivating is not sent
             publisher.publish(msg)
+
+    def _listened(self, key: str) -> bool:
+        publisher = self._pubs.get(key)
+        return publisher is not None and publisher.get_subscription_count() > 0
 
     def _unsubscribe(self) -> None:
         if self._subscription is not None:

@@ -6,6 +6,7 @@ both publish the same messages for the same frame. Needs the ROS message package
 from __future__ import annotations
 
 import copy
+from collections.abc import Collection
 from dataclasses import dataclass
 
 import numpy as np
@@ -253,16 +254,26 @@ def diagnostic_from_status(status) -> Diagnostic:
     return Diagnostic(Level(level), str(status.message), tuple((str(kv.key), str(kv.value)) for kv in status.values))
 
 
-def frame_messages(header, result: FrameResult, name: str,
-                   extra: tuple[tuple[str, str], ...] = ()) -> dict[str, object]:
-    """Every output of one frame keyed by its topic suffix; ``extra`` key-values are added to
-    its diagnostics."""
-    frame = _frame_pass(header, result)  # the outlines shared by the markers and the poses
-    return {'segmented': frame.segmented, 'obstacles': frame.obstacles,
-            'planes': plane_markers(header, result, outlines=frame.outlines),
-            'plane_poses': plane_poses(header, result, frame.outlines),
-            'plane_coefficients': plane_coefficients(result),
-            'diagnostics': diagnostics(header, result.diagnostic.with_values(*extra), name)}
+def frame_messages(header, result: FrameResult, name: str, extra: tuple[tuple[str, str], ...] = (),
+                   keys: Collection[str] | None = None) -> dict[str, object]:
+    """The outputs of one frame keyed by their topic suffix, in OUTPUTS order: those in ``keys`` (None: every
+    output); ``extra`` key-values are added to its diagnostics."""
+    keys = OUTPUTS.keys() if keys is None else frozenset(keys)
+    unknown = set(keys) - OUTPUTS.keys()
+    if unknown:
+        raise ValueError(f'no output {", ".join(sorted(unknown))}; outputs: {", ".join(OUTPUTS)}')
+    frame = outlines = None
+    if 'segmented' in keys or 'obstacles' in keys:
+        frame = _frame_pass(header, result)  # one pass: both clouds and the outlines the markers and poses share
+        outlines = frame.outlines
+    elif 'planes' in keys or 'plane_poses' in keys:
+        outlines = _outlines(result)
+    build = {'segmented': lambda: frame.segmented, 'obstacles': lambda: frame.obstacles,
+             'planes': lambda: plane_markers(header, result, outlines=outlines),
+             'plane_poses': lambda: plane_poses(header, result, outlines),
+             'plane_coefficients': lambda: plane_coefficients(result),
+             'diagnostics': lambda: diagnostics(header, result.diagnostic.with_values(*extra), name)}
+    return {key: build[key]() for key in OUTPUTS if key in keys}
 
 
 def to_rclpy_cloud(msg):

@@ -5,7 +5,8 @@
 
 Data flow (:class:`~plane_validation.ros.worker.FrameWorker`, shared with the managed node in
 :mod:`.lifecycle_node`): the subscription hands each cloud to the worker's one-slot mailbox; its
-thread runs the shared pipeline and publishes every output; tolerance sweeps run in the background.
+thread runs the shared pipeline and publishes /diagnostics and each output that has a subscriber; tolerance
+sweeps run in the background.
 """
 from __future__ import annotations
 
@@ -51,7 +52,8 @@ class PlaneValidationNode(Node):
         set_requests_whole(self)
         pubs = output_publishers(self.create_publisher)
         self.worker = FrameWorker(self, self.pipeline, lambda key, msg: pubs[key].publish(msg),
-                                  status_name(self.get_name()), min_output_rate_hz=self.options.min_output_rate_hz)
+                                  status_name(self.get_name()), min_output_rate_hz=self.options.min_output_rate_hz,
+                                  listened=lambda key: pubs[key].get_subscription_count() > 0)
         subscribe(self, self.worker, self.options.reliability)
         # the kernels load once the subscription exists, while DDS discovers it (in its own threads) and the first
         # cloud travels: no frame is answered before the node spins

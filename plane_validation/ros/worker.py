@@ -83,16 +83,19 @@ def warm_kernels(logger, started: Warmup | None = None) -> Warmup:
 
 
 class FrameWorker:
-    """Processes the clouds ``node`` receives and hands each frame's messages to ``publish(key, msg)``.
+    """Processes the clouds ``node`` receives and hands each frame's messages to ``publish(key, msg)``: the
+    diagnostics, and each other output that ``listened(key)`` says has a subscriber (one nobody receives is not
+    built: a 640 x 480 frame's two clouds are 10 MB to build and send).
 
     node: the rclpy node (for its logger and context); min_output_rate_hz: below this output rate a
     frame is WARN (0 = off)."""
 
     def __init__(self, node, pipeline: FramePipeline, publish: Callable[[str, object], None], status_name: str,
-                 *, min_output_rate_hz: float = 0.0) -> None:
+                 *, min_output_rate_hz: float = 0.0, listened: Callable[[str], bool] = lambda key: True) -> None:
         self.node = node
         self.pipeline = pipeline
         self.publish = publish
+        self.listened = listened
         self.status_name = status_name
         self.min_output_rate_hz = min_output_rate_hz
         self.input_rate = RateMeter(RATE_WINDOW_S)
@@ -142,7 +145,7 @@ class FrameWorker:
 
     # -- one frame -------------------------------------------------------------------------------
     def process(self, msg, dropped: int) -> None:
-        """Convert, run the shared pipeline, publish every output stamped with the input header.
+        """Convert, run the shared pipeline, publish the outputs listened to, stamped with the input header.
         dropped: frames_dropped when this cloud was taken; the drops since the last frame are
         reported with it (those meanwhile are older than the next frame, not this one)."""
         result = self.pipeline.process_cloud(msg, tune_inline=False)
@@ -155,7 +158,9 @@ class FrameWorker:
         result = self._rated(result)
         extra = node_values(self.frames_processed, dropped, retune or self._tuning(), dropped_now) + (
             ('input_rate_hz', fmt(self.input_rate.rate())), ('output_rate_hz', fmt(self.output_rate.rate())))
-        for topic, out in frame_messages(msg.header, result, self.status_name, extra).items():
+        # a message no subscriber has matched reaches no one: not built (it would not be sent either)
+        keys = [key for key in OUTPUTS if key == 'diagnostics' or self.listened(key)]
+        for topic, out in frame_messages(msg.header, result, self.status_name, extra, keys).items():
             self.publish(topic, out)
         if retune:  # after publishing: the sweep competes for the GIL; frames go on with the current t
             self._start_retune(result, stamp_ns)
