@@ -1,13 +1,13 @@
 """The organized detect block 5 (core/kernels.py, ``# --- organized detect 5 ---``) against plain-numpy references, on
-random inputs: a RANSAC batch on a sub-grid drawn, fitted and scored in one call, every stride-th valid row, and rows
-gathered less a centre. (The full-resolution labelling and grouping, :func:`.kernels.grid_spread`, is checked in
-test_kernels.py against :func:`.grid.spread_grid_numpy`.)"""
+random inputs: a RANSAC batch on a sub-grid (and on a graph's points) drawn, fitted and scored in one call, every
+stride-th valid row, and rows gathered less a centre. (The full-resolution labelling and grouping,
+:func:`.kernels.grid_spread`, is checked in test_kernels.py against :func:`.grid.spread_grid_numpy`.)"""
 from __future__ import annotations
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_kernels_detect import _grid
+from test_kernels_detect import _graph_with_walks, _grid
 from test_kernels_search_loop import _planar_points, _scoring_case
 
 from plane_validation.core import kernels
@@ -18,12 +18,12 @@ SETTINGS = settings(max_examples=80, deadline=None)
 
 
 @SETTINGS
-@given(st.integers(0, 2**32 - 1), st.booleans(), st.booleans())
-def test_grid_batch_matches_numpy(seed, with_normals, per_point):
-    """Batches drawn from the generator (triples from all the points and near them on the sub-grid), their planes and
-    scores merged into the best so far in one call: the same draws, hypotheses, counts and order as the numpy triples,
-    planes and scoring in float64, batch after batch."""
-    neighbours, _, _ = _grid(seed)
+@given(st.integers(0, 2**32 - 1), st.booleans(), st.booleans(), st.sampled_from(['grid', 'graph']))
+def test_batches_match_numpy(seed, with_normals, per_point, form):
+    """Batches drawn from the generator (triples from all the points and near them on the sub-grid, or along the
+    graph's walks), their planes and scores merged into the best so far in one call: the same draws, hypotheses,
+    counts and order as the numpy triples, planes and scoring in float64, batch after batch."""
+    neighbours = _grid(seed)[0] if form == 'grid' else _graph_with_walks(seed)
     rng = np.random.default_rng(seed)
     rest_idx = np.flatnonzero(rng.random(neighbours.n) < rng.uniform(0.5, 1.0))
     m = len(rest_idx)

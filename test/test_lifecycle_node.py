@@ -15,6 +15,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from ros_harness import diag_values, stamp_key, xyz_cloud  # noqa: E402
 from sensor_msgs.msg import PointCloud2  # noqa: E402
+from std_msgs.msg import Float64MultiArray  # noqa: E402
 from test_node_logging import ROS, call_sites  # noqa: E402
 
 from plane_validation import scenes  # noqa: E402
@@ -145,6 +146,33 @@ def test_transitions_bring_the_node_up_and_down_and_deactivation_keeps_the_tuned
     assert any('[WARN]' in line and 'refused in state unconfigured' in line for line in err.splitlines()), err
     sites = {site[1:3] for site in call_sites(ROS / 'lifecycle_node.py')}
     assert sites == {('on_configure', 'ERROR'), ('refuse_out_of_order', 'WARN')}, sites
+
+
+def test_the_managed_node_builds_only_the_outputs_someone_subscribes_to(ros):
+    node = PlaneValidationLifecycleNode(parameter_overrides=[Parameter('auto_tune', value=False),
+                                                             Parameter('tolerance', value=0.01)])
+    m = Manager(node)
+    got: list = []
+    m.probe.create_subscription(Float64MultiArray, '/plane_validation/plane_coefficients', got.append,
+                                QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    try:
+        assert m.transition(Transition.TRANSITION_CONFIGURE) and m.transition(Transition.TRANSITION_ACTIVATE)
+        end = time.monotonic() + 10
+        while not (m.pub.get_subscription_count() and node.worker.listened('plane_coefficients')) \
+                and time.monotonic() < end:
+            time.sleep(0.02)
+        built: list[str] = []
+        publish = node.worker.publish
+        node.worker.publish = lambda key, msg: (built.append(key), publish(key, msg))
+        diag = m.send(xyz_cloud(scenes.corner(3000, 0.2, scale=0.01, seed=1).points, 21_000_000_000_000))
+        assert diag is not None and diag_values(diag)['planes'] == '3'
+        end = time.monotonic() + 10
+        while not got and time.monotonic() < end:
+            time.sleep(0.02)
+        assert len(got) == 1 and len(got[0].data) == 3 * 4
+        assert built == ['plane_coefficients', 'diagnostics']
+    finally:
+        m.close()
 
 
 def _set_over_dds(m: Manager, **params) -> list:

@@ -135,6 +135,7 @@ def test_only_the_outputs_someone_subscribes_to_are_built_and_a_later_subscriber
         end = time.monotonic() + 10
         while not node.worker.listened('segmented') and time.monotonic() < end:
             time.sleep(0.02)
+        assert node.worker.listened('segmented')
         built.append(set())
         out = h.send(xyz_cloud(points, 2_000_000_000_002), outputs=('diagnostics', 'planes', 'segmented'))
         assert built[-1] == {'planes', 'segmented'}

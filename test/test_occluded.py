@@ -100,3 +100,15 @@ def test_a_far_floor_between_a_lidars_rings_is_out_of_its_view():
     view = occluded._view(np.array([[5.0, 5.0], [0.0, 0.0], [0.0, -1.0]]), np.zeros(3))  # rays at 0 and -11.3 deg
     unseen = occluded._unseen(np.radians([0.0, -5.0, -11.3, -40.0]), np.radians([0.5, 0.5, 0.5, 0.5]), view)
     assert unseen.tolist() == [False, True, False, True]
+
+
+def test_the_median_test_is_numpys_on_any_values():
+    rng = np.random.default_rng(5)
+    cases = [np.array([]), np.array([0.0]), np.array([-1.0, 1.0]), np.array([-1.0, 2.0]), np.array([-2.0, 1.0]),
+             np.array([np.nan, -1.0, -2.0]), np.array([-0.0, 0.0]), np.array([-5e-324, 5e-324]),
+             np.array([5e-324, 5e-324, -5e-324, 0.0])]
+    cases += [rng.normal(size=int(rng.integers(1, 130))).round(int(rng.integers(0, 3))) for _ in range(500)]
+    for values in cases:
+        with np.errstate(invalid='ignore'):
+            want = bool(np.median(values) <= 0) if len(values) else False
+        assert occluded._median_at_most_zero(values) == want, values

@@ -5,9 +5,8 @@ process per run, on this process's ROS_DOMAIN_ID with ROS_AUTOMATIC_DISCOVERY_RA
 the Fast DDS profile the caller put in FASTRTPS_DEFAULT_PROFILES_FILE (all set before rclpy
 starts). This process publishes organized frames in turn with fresh header stamps at a fixed
 rate (sensor-data QoS, as a camera driver does; stamps advance by 1/rate s, like a camera's) and
-listens to ``/diagnostics``, and with ``outputs`` (the default) also to every other output of the node, as
-serialized messages (the node builds only the outputs that have subscribers; this process does not deserialize
-them).
+listens to ``/diagnostics`` and to the node's other ``outputs`` (by default every one) as serialized
+messages, which it does not deserialize (the node builds only the outputs that have subscribers).
 
 Per run: latency = arrival of a stamp's diagnostics - the moment just before ``publish()`` (both
 on this process's perf_counter); ``dropped`` = the node's own ``frames_dropped`` count (its
@@ -94,7 +93,10 @@ def cloud_message(points: np.ndarray, height: int, width: int):
 class NodeBench:
     """Publisher and /diagnostics listener in this process; :meth:`run` starts one node process."""
 
-    def __init__(self, clouds: list, tolerance: float, planes: int, log_dir: Path, outputs: bool = True) -> None:
+    def __init__(self, clouds: list, tolerance: float, planes: int, log_dir: Path,
+                 outputs: tuple[str, ...] | None = None) -> None:
+        """outputs: the node's outputs (keys of messages.OUTPUTS) this process subscribes to besides /diagnostics;
+        None: every one."""
         import rclpy
         import sensor_msgs.msg
         from diagnostic_msgs.msg import DiagnosticArray
@@ -113,7 +115,8 @@ class NodeBench:
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag,
                                       QoSProfile(depth=500, reliability=ReliabilityPolicy.RELIABLE))
         self.received: dict[str, int] = {}
-        self.output_topics = [f'/{NODE_NAME}/{key}' for key in OUTPUTS if key != 'diagnostics'] if outputs else []
+        wanted = [key for key in OUTPUTS if key != 'diagnostics' and (outputs is None or key in outputs)]
+        self.output_topics = [f'/{NODE_NAME}/{key}' for key in wanted]
         for topic in self.output_topics:
             cls = OUTPUTS[topic.rsplit('/', 1)[1]]
             self.received[topic] = 0

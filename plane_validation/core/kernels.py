@@ -35,8 +35,8 @@ __all__ = ['EIGHT', 'c_array', 'group_by_label', 'centroids_and_extremes', 'grid
            'voxel_nodes',
            'uncertain_nodes', 'first_across', 'grid_plane', 'grid_refit', 'grid_settle', 'merge_pair', 'relabel_rows',
            'labels_where', 'graph_triples',
-           'grid_spread', 'strided_rows', 'columns_at', 'rows_less', 'grid_batch', 'kept_edges', 'graph_contacts',
-           'graph_settle',
+           'grid_spread', 'strided_rows', 'columns_at', 'rows_less', 'grid_batch', 'graph_batch', 'kept_edges',
+           'graph_contacts', 'graph_settle',
            'graph_plane',
            'voxel_count', 'tent_fit', 'leftover_rows', 'leftover_best', 'seeded_draws', 'polygon_distances',
            'ring_steps', 'ring_turns', 'ring_scatter', 'warm',
@@ -4221,6 +4221,30 @@ def grid_batch(cols: np.ndarray, spread: np.ndarray, first: np.ndarray, scale_pi
     ``min_sine``), merged into the best so far (:func:`score_hypotheses`, the scoring arguments as it takes them).
     Returns how many of the best are held now (unchanged when every triple was degenerate)."""
     near = grid_triples(first, scale_pick, row_share, col_share, scales, rest, position, pixel, node, height, width)
+    return _scored_batch(cols, spread, near, min_sine, subset, tolerance, point_normals, head, min_cos, sigmas,
+                         best_normals, best_offsets, best_counts, n_best, ray)
+
+
+@numba.njit(**_JIT)
+def graph_batch(cols: np.ndarray, spread: np.ndarray, first: np.ndarray, scale_pick: np.ndarray, steps: np.ndarray,
+                scales: np.ndarray, rest: np.ndarray, position: np.ndarray, indptr: np.ndarray, indices: np.ndarray,
+                degrees: np.ndarray, min_sine: float, subset: np.ndarray, tolerance: np.ndarray,
+                point_normals: np.ndarray, head: int, min_cos: float, sigmas: float, best_normals: np.ndarray,
+                best_offsets: np.ndarray, best_counts: np.ndarray, n_best: int, ray: np.ndarray) -> int:
+    """:func:`grid_batch` on a graph's points: the triples near ``first`` are :func:`graph_triples`' walks (the
+    draws and the graph as it takes them)."""
+    near = graph_triples(first, scale_pick, steps, scales, rest, position, indptr, indices, degrees)
+    return _scored_batch(cols, spread, near, min_sine, subset, tolerance, point_normals, head, min_cos, sigmas,
+                         best_normals, best_offsets, best_counts, n_best, ray)
+
+
+@numba.njit(**_JIT)
+def _scored_batch(cols: np.ndarray, spread: np.ndarray, near: np.ndarray, min_sine: float, subset: np.ndarray,
+                  tolerance: np.ndarray, point_normals: np.ndarray, head: int, min_cos: float, sigmas: float,
+                  best_normals: np.ndarray, best_offsets: np.ndarray, best_counts: np.ndarray, n_best: int,
+                  ray: np.ndarray) -> int:
+    """The triples ``spread`` then ``near`` ((c, 3) each) without those holding a -1, their planes, scored into the
+    best so far: the rest of :func:`grid_batch` and :func:`graph_batch`."""
     idx = np.empty((spread.shape[0] + near.shape[0], 3), np.int64)
     g = 0
     for source in (spread, near):
@@ -5008,6 +5032,9 @@ def _warm_plain_graph() -> None:
     graph_settle(np.zeros((3, 4)), np.zeros(4, np.int64), np.zeros(5, np.int64), np.zeros(0, np.int64), 6)
     graph_triples(index[:2], index % 2, np.zeros((1, 4)), np.ones(2, np.int64), index, index, index, index, index)
     cols = np.zeros((3, 4))
+    graph_batch(cols, index.reshape(-1, 2)[:, :1].repeat(3, axis=1), index[:2], index % 2, np.zeros((1, 4)),
+                np.ones(2, np.int64), index, index, index, index, index, 1e-6, cols, np.ones(1), cols, 2, 0.5, 3.0,
+                np.zeros((2, 3)), np.zeros(2), np.zeros(2, np.int64), 0, NO_RAY)
     graph_plane(cols, np.ones(1), np.ones((2, 3)), np.zeros(2), 2.0, 0.5, cols, edges[:, 1].copy(),
                 np.zeros(5, np.int64), 0.5, np.ones(3), 3)
 

@@ -60,7 +60,8 @@ def subscribe(node, worker: FrameWorker, reliability: str):
     subscription = node.create_subscription(PointCloud2, 'cloud', worker.offer, input_qos(reliability))
     outputs = ', '.join(f'~/{key}' for key in list(OUTPUTS)[:-1])
     node.get_logger().info(f'listening for PointCloud2 on {subscription.topic_name} ({reliability}); publishing '
-                           f'{outputs} (~ = {node.get_fully_qualified_name()}) and /diagnostics')
+                           f'{outputs} (~ = {node.get_fully_qualified_name()}; each while it has a subscriber) and '
+                           '/diagnostics')
     return subscription
 
 

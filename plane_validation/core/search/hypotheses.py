@@ -10,6 +10,7 @@ import numpy as np
 from .. import kernels
 from .fit import MIN_SINE, allows_normal, fit_columns, plane_distances, tolerance_at, within_plane
 from .neighbours import NORMAL_MIN_COS, Remaining
+from .neighbours_graph import GraphSampler
 from .neighbours_grid import GridSampler
 from .types import Allows, Sampler, Tolerance
 
@@ -244,13 +245,14 @@ class _CompiledScores:
                                              self.best_offsets, self.best_counts, self.held, self.ray)
         return self.best_counts[:self.held]
 
-    def add_drawn(self, cols: np.ndarray, rng: np.random.Generator, count: int, sampler: GridSampler) -> np.ndarray:
+    def add_drawn(self, cols: np.ndarray, rng: np.random.Generator, count: int,
+                  sampler: GridSampler | GraphSampler) -> np.ndarray:
         """:func:`_hypotheses` of ``count`` triples of ``cols`` (3, n), C-ordered (the same draws), scored as
-        :meth:`add` scores them, in one compiled call (:func:`.kernels.grid_batch`)."""
+        :meth:`add` scores them, in one compiled call (the sampler's ``scored_batch``)."""
         spread, local = _spread(cols, rng, count)
-        self.held = kernels.grid_batch(cols, spread, *sampler.draws(rng, local), *sampler.grid, MIN_SINE, self.subset,
-                                       self.tolerance, self.normals, self.head, NORMAL_MIN_COS, PRESCORE_SIGMAS,
-                                       self.best_normals, self.best_offsets, self.best_counts, self.held, self.ray)
+        self.held = sampler.scored_batch(cols, spread, rng, local, MIN_SINE, self.subset, self.tolerance, self.normals,
+                                         self.head, NORMAL_MIN_COS, PRESCORE_SIGMAS, self.best_normals,
+                                         self.best_offsets, self.best_counts, self.held, self.ray)
         return self.best_counts[:self.held]
 
     def counts(self) -> np.ndarray:
@@ -284,7 +286,7 @@ def best_plane(cols: np.ndarray, tolerance: Tolerance, probability: float, max_i
     scorer = _NumpyScores(cols, tolerance, point_normals, pick, head) if region_of is None else \
         _CompiledScores(ordered, tolerance, point_normals, pick, head, getattr(region_of, 'ray', kernels.NO_RAY))
     best_counts = scorer.counts()
-    drawn = isinstance(scorer, _CompiledScores) and isinstance(sampler, GridSampler) and allows is None
+    drawn = isinstance(scorer, _CompiledScores) and isinstance(sampler, (GridSampler, GraphSampler)) and allows is None
     iterations = 0
     needed = float(max_iterations)
     while iterations < min(needed, max_iterations):

@@ -224,13 +224,23 @@ class GraphSampler:
 
     graph: tuple
 
-    def __call__(self, rng: np.random.Generator, count: int) -> np.ndarray:
-        """(count, 3) positions in rest, -1 where a walk ends on a point not among them. The draws are
-        :meth:`.neighbours.Neighbours.sampler`'s: the first points, each walk's scale, then one share a hop."""
+    def draws(self, rng: np.random.Generator, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The random draws of ``count`` triples, :meth:`.neighbours.Neighbours.sampler`'s: the first points (places
+        in rest), each of the 2 * count walks' scale (index into NEARBY_SCALES), then one share a hop."""
         first = rng.integers(0, len(self.graph[0]), count)
         scale_pick = rng.integers(0, len(NEARBY_SCALES), 2 * count)
         steps = rng.random((int(_SCALES[scale_pick].max(initial=0)), 2 * count))
-        return kernels.graph_triples(first, scale_pick, steps, _SCALES, *self.graph)
+        return first, scale_pick, steps
+
+    def __call__(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        """(count, 3) positions in rest, -1 where a walk ends on a point not among them."""
+        return kernels.graph_triples(*self.draws(rng, count), _SCALES, *self.graph)
+
+    def scored_batch(self, cols: np.ndarray, spread: np.ndarray, rng: np.random.Generator, count: int,
+                     *scoring) -> int:
+        """The triples ``spread`` and ``count`` drawn near each other, fitted and scored in one compiled call
+        (:func:`.kernels.graph_batch`; ``scoring`` as it takes it after the graph)."""
+        return kernels.graph_batch(cols, spread, *self.draws(rng, count), _SCALES, *self.graph, *scoring)
 
 
 @dataclass(frozen=True, eq=False)

@@ -179,6 +179,12 @@ class GridSampler:
         """(count, 3) positions in rest, -1 where a nearby point is not among them."""
         return kernels.grid_triples(*self.draws(rng, count), *self.grid)
 
+    def scored_batch(self, cols: np.ndarray, spread: np.ndarray, rng: np.random.Generator, count: int,
+                     *scoring) -> int:
+        """The triples ``spread`` and ``count`` drawn near each other, fitted and scored in one compiled call
+        (:func:`.kernels.grid_batch`; ``scoring`` as it takes it after the grid)."""
+        return kernels.grid_batch(cols, spread, *self.draws(rng, count), *self.grid, *scoring)
+
 
 @dataclass(frozen=True, eq=False)
 class _GridRemaining(Remaining):
