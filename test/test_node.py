@@ -89,7 +89,7 @@ def test_corner_frame_publishes_every_output_matching_the_core(harness):
     assert values['planes'] == '3'
     assert values['tolerance_source'] == 'fixed'
     for key in ('dunn', 'davies_bouldin', 'gs', 'gs_planes', 'silhouette', 'silhouette_se', 'noise_estimate',
-                'processing_ms', 'frames_dropped', 'valid_points', 'unassigned_points', 'plane_0_inliers',
+                'processing_ms', 'outputs_ms', 'frames_dropped', 'valid_points', 'unassigned_points', 'plane_0_inliers',
                 'plane_2_rms'):
         assert key in values, key
     for key in ('dunn', 'davies_bouldin', 'gs', 'gs_planes', 'silhouette'):
@@ -130,6 +130,7 @@ def test_only_the_outputs_someone_subscribes_to_are_built_and_a_later_subscriber
         assert diag_values(out['diagnostics'])['planes'] == '3'
         assert len(out['planes'].markers) == 1 + 3 * 3
         assert built[-1] == {'planes'}
+        assert float(diag_values(out['diagnostics'])['outputs_ms']) >= 0
 
         h.listen('segmented')
         end = time.monotonic() + 10

@@ -167,4 +167,4 @@ def test_the_start_names_the_topic_the_node_listens_on_and_where_it_publishes(ro
     node.destroy_node()
     said = [line for line in capfd.readouterr().err.splitlines() if '[INFO]' in line and 'listening' in line]
     assert len(said) == 1 and 'listening for PointCloud2 on /camera/depth/points (best_effort)' in said[0], said
-    assert '(~ = /front/plane_validation) and /diagnostics' in said[0], said
+    assert '(~ = /front/plane_validation; each while it has a subscriber) and /diagnostics' in said[0], said

@@ -15,6 +15,7 @@ import dataclasses
 import math
 import os
 import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
@@ -160,9 +161,14 @@ class FrameWorker:
         extra = node_values(self.frames_processed, dropped, retune or self._tuning(), dropped_now) + (
             ('input_rate_hz', fmt(self.input_rate.rate())), ('output_rate_hz', fmt(self.output_rate.rate())))
         # a message no subscriber has matched reaches no one: not built (it would not be sent either)
-        keys = [key for key in OUTPUTS if key == 'diagnostics' or self.listened(key)]
-        for topic, out in frame_messages(msg.header, result, self.status_name, extra, keys).items():
+        keys = [key for key in OUTPUTS if key != 'diagnostics' and self.listened(key)]
+        start = time.perf_counter()
+        for topic, out in frame_messages(msg.header, result, self.status_name, keys=keys).items():
             self.publish(topic, out)
+        # the diagnostics last, with what the other outputs cost (processing_ms leaves them out)
+        extra += (('outputs_ms', f'{1000 * (time.perf_counter() - start):.1f}'),)
+        self.publish('diagnostics', frame_messages(msg.header, result, self.status_name, extra,
+                                                   ('diagnostics',))['diagnostics'])
         if retune:  # after publishing: the sweep competes for the GIL; frames go on with the current t
             self._start_retune(result, stamp_ns)
 
