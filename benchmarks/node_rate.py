@@ -6,7 +6,8 @@ least 90 % of the frames answered, and the node's processing_ms median at most 3
         [--outputs all|planes|diagnostics]
 
 Prints per run the frames answered, dropped by the node's one-slot mailbox and lost, the medians of processing_ms
-and of the latency (publish to the frame's /diagnostics), and whether the run meets the target. The node builds
+and of the latency (publish to the frame's /diagnostics), the node's outputs_ms (building and publishing the
+outputs), and whether the run meets the target. The node builds
 only the outputs that have subscribers: with ``--outputs all`` (the default) this process subscribes to every one
 (the node's whole cost), with ``planes`` to the planes' markers, poses and coefficients (not the two clouds),
 with ``diagnostics`` to /diagnostics alone.
@@ -57,10 +58,12 @@ def main() -> int:
                 run = bench.run(args.rate, frames, name=f'rate{k}')
                 share = run.answered / frames
                 processing = statistics.median(run.processing_ms) if run.processing_ms else float('nan')
+                outputs = statistics.median(run.outputs_ms) if run.outputs_ms else float('nan')
                 latency = statistics.median(run.latencies_ms) if run.latencies_ms else float('nan')
                 met = share >= MIN_ANSWERED and processing <= MAX_PROCESSING_MS
                 print(f'run {k + 1}: answered {run.answered}/{frames} ({share:.0%}), dropped {run.dropped}, '
-                      f'lost {run.lost}; processing_ms median {processing:.1f}, latency median {latency:.1f} ms: '
+                      f'lost {run.lost}; processing_ms median {processing:.1f}, outputs_ms {outputs:.1f}, '
+                      f'latency median {latency:.1f} ms: '
                       f'{"met" if met else "not met"} (>= {MIN_ANSWERED:.0%} answered, <= {MAX_PROCESSING_MS:g} ms)',
                       flush=True)
                 if run.received:

@@ -34,7 +34,7 @@ ANSWER_TIMEOUT = 5.0   # s to wait for the last answers after the last frame
 
 @dataclass
 class NodeRun:
-    """One run. rate: input Hz; latencies_ms / processing_ms / retune_running: per answered frame
+    """One run. rate: input Hz; latencies_ms / processing_ms / outputs_ms / retune_running: per answered frame
     in stamp order; rss_mb: (frames sent, VmRSS MB) samples; peak_mb: VmHWM at the end."""
 
     rate: float
@@ -42,6 +42,7 @@ class NodeRun:
     dropped: int = 0
     latencies_ms: list[float] = field(default_factory=list)
     processing_ms: list[float] = field(default_factory=list)
+    outputs_ms: list[float] = field(default_factory=list)
     retune_running: list[bool] = field(default_factory=list)
     tolerance_sources: list[str] = field(default_factory=list)
     rss_mb: list[tuple[int, float]] = field(default_factory=list)
@@ -210,6 +211,7 @@ class NodeBench:
                 arrived, values = answers[stamp]
                 run.latencies_ms.append(1e3 * (arrived - sent[stamp]))
                 run.processing_ms.append(float(values.get('processing_ms', 'nan')))
+                run.outputs_ms.append(float(values.get('outputs_ms', 'nan')))
                 run.retune_running.append(values.get('retune_running', 'false') == 'true')
                 run.tolerance_sources.append(values.get('tolerance_source', ''))
                 run.dropped = max(run.dropped, int(values.get('frames_dropped', '0')))
