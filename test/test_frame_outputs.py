@@ -122,3 +122,24 @@ def test_an_output_the_node_does_not_have_is_refused_by_name():
     _, result = _results()[0]
     with pytest.raises(ValueError, match='no output plane_normals'):
         messages.frame_messages(std_msgs.Header(), result, 'pv', keys=('planes', 'plane_normals'))
+
+
+def test_a_serialized_cloud_reads_as_the_cloud_it_was_and_other_bytes_are_refused():
+    from rclpy.serialization import serialize_message
+
+    from plane_validation.formats.pointcloud2 import xyz_array, xyz_words
+
+    _, result = _results()[0]
+    sent = messages.frame_messages(std_msgs.Header(frame_id='camera'), result, 'pv', keys=('segmented',))['segmented']
+    sent.header.stamp.sec, sent.header.stamp.nanosec = 17, 42
+    cloud, header = messages.cloud_from_cdr(serialize_message(sent))
+    assert header == sent.header
+    assert (cloud.height, cloud.width, cloud.point_step, cloud.row_step, cloud.is_dense) == \
+        (sent.height, sent.width, sent.point_step, sent.row_step, sent.is_dense)
+    fields = [[(f.name, f.offset, f.datatype) for f in m.fields] for m in (cloud, sent)]
+    assert fields[0] == fields[1]
+    np.testing.assert_array_equal(xyz_array(cloud), xyz_array(sent))
+    assert xyz_words(cloud) is not None  # writable, aligned words: the compiled reader's, not the numpy fallback
+    for raw in (b'', bytes(range(7, 250)), serialize_message(sent)[:100]):
+        with pytest.raises(ValueError, match='not a serialized sensor_msgs/PointCloud2'):
+            messages.cloud_from_cdr(raw)

@@ -276,6 +276,24 @@ def test_bad_input_is_reported_and_the_next_frame_works(harness):
         assert diag_values(good['diagnostics'])['planes'] == '3', what
 
 
+def test_bytes_that_are_no_pointcloud2_are_an_error_with_a_reason_and_the_next_frame_works(harness):
+    """A publisher can send any bytes as a serialized PointCloud2 (the node reads them itself): the answer is ERROR,
+    stamped 0 (there is no header to copy)."""
+    out = harness.send(_Serialized(bytes(range(7, 250))))
+    status = out['diagnostics'].status[0]
+    assert status.level == b'\x02' and 'malformed PointCloud2: not a serialized sensor_msgs/PointCloud2' in \
+        status.message, status.message
+    good = harness.send(xyz_cloud(corner_points(), 3_100_000_000_000))
+    assert diag_values(good['diagnostics'])['planes'] == '3'
+
+
+class _Serialized(bytes):
+    """Bytes published as they are (rclpy sends a bytes message serialized), with the header ``Harness.send`` keys
+    the answer by: none, stamp 0."""
+
+    header = make_header(0)
+
+
 def test_parameter_change_applies_to_next_frame_and_invalid_is_rejected(harness):
     node = harness.node
     results = node.set_parameters([Parameter('tolerance', value=0.004)])
@@ -495,13 +513,13 @@ def test_a_starting_node_imports_what_its_frames_would_import_on_first_use():
     import sys
 
     from plane_validation.app.pipeline import FIRST_USE_MODULES
+    names = (*FIRST_USE_MODULES, 'rosbags.typesys')  # the serialized clouds' reader too
     code = ('import logging, sys; from plane_validation.ros.worker import warm_kernels; '
-            f'names = {FIRST_USE_MODULES!r}; before = [n in sys.modules for n in names]; '
+            f'names = {names!r}; before = [n in sys.modules for n in names]; '
             "warm_kernels(logging.getLogger('probe')); print(before, [n in sys.modules for n in names])")
     run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
-    assert run.stdout.split('\n')[-2] == f'{[False] * len(FIRST_USE_MODULES)} {[True] * len(FIRST_USE_MODULES)}', \
-        run.stdout
+    assert run.stdout.split('\n')[-2] == f'{[False] * len(names)} {[True] * len(names)}', run.stdout
 
 
 def test_a_node_started_as_ros2_run_starts_it_says_its_kernels_are_ready_before_its_first_answer(ros, tmp_path):

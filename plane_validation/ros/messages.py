@@ -6,6 +6,7 @@ both publish the same messages for the same frame. Needs the ROS message package
 from __future__ import annotations
 
 import copy
+import functools
 from collections.abc import Collection
 from dataclasses import dataclass
 
@@ -34,7 +35,7 @@ from ..formats.pointcloud2 import cloud_buffer, cloud_message, create_cloud, pac
 
 __all__ = ['OUTPUTS', 'msgtype', 'status_name', 'node_values', 'segmented_cloud', 'obstacle_cloud', 'plane_markers',
            'plane_poses', 'plane_coefficients', 'diagnostics', 'diagnostic_from_status', 'frame_messages',
-           'to_rclpy_cloud']
+           'cloud_from_cdr', 'to_rclpy_cloud']
 
 #: The node's outputs: key -> message class. All but the last are published under ~/<key>, the
 #: diagnostics on /diagnostics.
@@ -274,6 +275,27 @@ def frame_messages(header, result: FrameResult, name: str, extra: tuple[tuple[st
              'plane_coefficients': lambda: plane_coefficients(result),
              'diagnostics': lambda: diagnostics(header, result.diagnostic.with_values(*extra), name)}
     return {key: build[key]() for key in OUTPUTS if key in keys}
+
+
+@functools.cache
+def _jazzy_types():
+    from ..formats.bags import typestore
+    return typestore()
+
+
+def cloud_from_cdr(raw: bytes):
+    """(PointCloud2, rclpy Header) of a serialized sensor_msgs/PointCloud2 (a raw subscription's bytes): the cloud
+    as a rosbags message whose data is a view of one writable copy of ``raw`` (the compiled reader takes writable,
+    aligned words; rclpy's own deserialization costs four times as much), and its header for the outputs.
+    ValueError when the bytes are not such a message."""
+    from builtin_interfaces.msg import Time
+    from std_msgs.msg import Header
+    try:
+        msg = _jazzy_types().deserialize_cdr(bytearray(raw), 'sensor_msgs/msg/PointCloud2')
+    except Exception as exc:  # rosbags raises struct.error, IndexError, its own errors on truncated bytes
+        raise ValueError(f'not a serialized sensor_msgs/PointCloud2 ({len(raw)} bytes): {exc}') from exc
+    stamp = msg.header.stamp
+    return msg, Header(stamp=Time(sec=int(stamp.sec), nanosec=int(stamp.nanosec)), frame_id=str(msg.header.frame_id))
 
 
 def to_rclpy_cloud(msg):

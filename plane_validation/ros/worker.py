@@ -20,14 +20,16 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import Header
 
 from ..app.diagnostics import Level, fmt
 from ..app.frame_result import FrameResult
 from ..app.pipeline import FramePipeline, header_stamp_ns, import_first_use_modules
 from ..app.rates import RateMeter
 from ..core.kernels import Warmup, warm
-from .messages import OUTPUTS, frame_messages, node_values
+from .messages import OUTPUTS, cloud_from_cdr, frame_messages, node_values
 
 __all__ = ['FrameWorker', 'input_qos', 'output_publishers', 'subscribe', 'LOG_THROTTLE_S', 'SWEEP_STOP_S',
            'RATE_WINDOW_S']
@@ -58,7 +60,8 @@ def output_publishers(create) -> dict[str, object]:
 def subscribe(node, worker: FrameWorker, reliability: str):
     """``node``'s ``cloud`` subscription, handing each cloud to ``worker``, and a log line naming the topic it
     resolved to and where the outputs go: a node started without ``-r cloud:=...`` waited on /cloud without a word."""
-    subscription = node.create_subscription(PointCloud2, 'cloud', worker.offer, input_qos(reliability))
+    # serialized: a cloud the mailbox drops is never deserialized, and the worker reads the one it takes without a copy
+    subscription = node.create_subscription(PointCloud2, 'cloud', worker.offer, input_qos(reliability), raw=True)
     outputs = ', '.join(f'~/{key}' for key in list(OUTPUTS)[:-1])
     node.get_logger().info(f'listening for PointCloud2 on {subscription.topic_name} ({reliability}); publishing '
                            f'{outputs} (~ = {node.get_fully_qualified_name()}; each while it has a subscriber) and '
@@ -69,8 +72,8 @@ def subscribe(node, worker: FrameWorker, reliability: str):
 def warm_kernels(logger, started: Warmup | None = None) -> Warmup:
     """Compile or load the compiled kernels and say how long it took on ``logger`` (an rclpy logger), counting
     ``started``: what ``kernels.warm_probe()`` did before (when it compiled, the cache is cold: the others are
-    compiled on every core), then import the modules the frames import on first use. A node calls this before it
-    answers its first frame."""
+    compiled on every core), then import the modules the frames import on first use and read a cloud (rosbags
+    builds its PointCloud2 reader on first use: 0.3 s). A node calls this before it answers its first frame."""
     cold = started is not None and started.compiled
     # in a thread of its own: Ctrl-C raises KeyboardInterrupt in the main thread, which must not be inside numba's
     # loading (a KeyboardInterrupt in llvmlite's ctypes callback crashed the process with SIGSEGV); here it ends
@@ -78,6 +81,7 @@ def warm_kernels(logger, started: Warmup | None = None) -> Warmup:
     with ThreadPoolExecutor(1, thread_name_prefix='plane_validation_warmup') as pool:
         ready = pool.submit(warm, jobs=os.cpu_count() or 1, cold=cold).result()
         pool.submit(import_first_use_modules).result()
+        pool.submit(cloud_from_cdr, serialize_message(PointCloud2())).result()
     seconds = ready.seconds + (started.seconds if started is not None else 0.0)
     logger.info(f'compiled kernels ready in {seconds:.2f} s ' + (
         '(compiled now and cached: later starts load them)' if ready.compiled else '(loaded from the cache)'))
@@ -121,8 +125,9 @@ class FrameWorker:
         return self.node.get_logger()
 
     # -- input: single-slot handoff -------------------------------------------------------------
-    def offer(self, msg) -> None:
-        """The subscription callback: keep ``msg`` as the next cloud, dropping an unprocessed older one."""
+    def offer(self, msg: bytes) -> None:
+        """The subscription callback: keep ``msg`` (a serialized PointCloud2) as the next cloud, dropping an
+        unprocessed older one."""
         self.input_rate.tick()
         with self._wake:
             if self._slot is not None:
@@ -146,12 +151,18 @@ class FrameWorker:
                 self.logger.error(f'frame failed unexpectedly: {exc!r}', throttle_duration_sec=LOG_THROTTLE_S)
 
     # -- one frame -------------------------------------------------------------------------------
-    def process(self, msg, dropped: int) -> None:
-        """Convert, run the shared pipeline, publish the outputs listened to, stamped with the input header.
-        dropped: frames_dropped when this cloud was taken; the drops since the last frame are
+    def process(self, raw: bytes, dropped: int) -> None:
+        """Read the serialized cloud ``raw``, run the shared pipeline, publish the outputs listened to, stamped with
+        the input header. dropped: frames_dropped when this cloud was taken; the drops since the last frame are
         reported with it (those meanwhile are older than the next frame, not this one)."""
-        result = self.pipeline.process_cloud(msg, tune_inline=False)
-        stamp_ns = header_stamp_ns(msg.header)
+        try:
+            msg, header = cloud_from_cdr(raw)
+        except ValueError as exc:  # not a PointCloud2 at all: answered with a header of its own
+            header = Header()
+            result = self.pipeline.reject(f'malformed PointCloud2: {exc}', ERROR)
+        else:
+            result = self.pipeline.process_cloud(msg, tune_inline=False)
+        stamp_ns = header_stamp_ns(header)
         retune = result.segmentation is not None and self._reserve_sweep(result, stamp_ns)
         self.frames_processed += 1
         self.output_rate.tick()
@@ -163,11 +174,11 @@ class FrameWorker:
         # a message no subscriber has matched reaches no one: not built (it would not be sent either)
         keys = [key for key in OUTPUTS if key != 'diagnostics' and self.listened(key)]
         start = time.perf_counter()
-        for topic, out in frame_messages(msg.header, result, self.status_name, keys=keys).items():
+        for topic, out in frame_messages(header, result, self.status_name, keys=keys).items():
             self.publish(topic, out)
         # the diagnostics last, with what the other outputs cost (processing_ms leaves them out)
         extra += (('outputs_ms', f'{1000 * (time.perf_counter() - start):.1f}'),)
-        self.publish('diagnostics', frame_messages(msg.header, result, self.status_name, extra,
+        self.publish('diagnostics', frame_messages(header, result, self.status_name, extra,
                                                    ('diagnostics',))['diagnostics'])
         if retune:  # after publishing: the sweep competes for the GIL; frames go on with the current t
             self._start_retune(result, stamp_ns)
