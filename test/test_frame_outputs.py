@@ -143,3 +143,11 @@ def test_a_serialized_cloud_reads_as_the_cloud_it_was_and_other_bytes_are_refuse
     for raw in (b'', bytes(range(7, 250)), serialize_message(sent)[:100]):
         with pytest.raises(ValueError, match='not a serialized sensor_msgs/PointCloud2'):
             messages.cloud_from_cdr(raw)
+
+
+def test_the_clouds_reader_has_jazzys_fields_of_its_messages():
+    from plane_validation.formats.bags import typestore
+
+    jazzy = typestore()
+    for name in messages.CLOUD_DEFINITIONS:
+        assert messages.cloud_types().fielddefs[name][1] == jazzy.fielddefs[name][1], name  # constants aside

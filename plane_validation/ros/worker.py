@@ -73,7 +73,7 @@ def warm_kernels(logger, started: Warmup | None = None) -> Warmup:
     """Compile or load the compiled kernels and say how long it took on ``logger`` (an rclpy logger), counting
     ``started``: what ``kernels.warm_probe()`` did before (when it compiled, the cache is cold: the others are
     compiled on every core), then import the modules the frames import on first use and read a cloud (rosbags
-    builds its PointCloud2 reader on first use: 0.3 s). A node calls this before it answers its first frame."""
+    builds its PointCloud2 reader on first use: 0.1 s). A node calls this before it answers its first frame."""
     cold = started is not None and started.compiled
     # in a thread of its own: Ctrl-C raises KeyboardInterrupt in the main thread, which must not be inside numba's
     # loading (a KeyboardInterrupt in llvmlite's ctypes callback crashed the process with SIGSEGV); here it ends
