@@ -304,27 +304,28 @@ def cloud_from_cdr(raw: bytes):
     as a rosbags message whose data is a view of one writable copy of ``raw`` (the compiled reader takes writable,
     aligned words; rclpy's own deserialization costs four times as much), and its header for the outputs.
     ValueError when the bytes are not such a message."""
-    from builtin_interfaces.msg import Time
-    from std_msgs.msg import Header
     try:
         msg = cloud_types().deserialize_cdr(bytearray(raw), 'sensor_msgs/msg/PointCloud2')
     except Exception as exc:  # rosbags raises struct.error, IndexError, its own errors on truncated bytes
         raise ValueError(f'not a serialized sensor_msgs/PointCloud2 ({len(raw)} bytes): {exc}') from exc
-    stamp = msg.header.stamp
-    return msg, Header(stamp=Time(sec=int(stamp.sec), nanosec=int(stamp.nanosec)), frame_id=str(msg.header.frame_id))
+    return msg, _rclpy_header(msg.header)
+
+
+def _rclpy_header(header):
+    """The rclpy std_msgs/Header of a rosbags one (ROS 2 or ROS 1 layout)."""
+    from builtin_interfaces.msg import Time
+    from std_msgs.msg import Header
+    stamp = header.stamp
+    return Header(stamp=Time(sec=int(stamp.sec), nanosec=int(stamp.nanosec)), frame_id=str(header.frame_id))
 
 
 def to_rclpy_cloud(msg):
     """rosbags PointCloud2 (ROS 2 or ROS 1 layout) -> rclpy sensor_msgs/PointCloud2, data copied once."""
     import array
 
-    from builtin_interfaces.msg import Time
     from sensor_msgs.msg import PointCloud2, PointField
-    from std_msgs.msg import Header
 
-    stamp = msg.header.stamp
-    out = PointCloud2(header=Header(stamp=Time(sec=int(stamp.sec), nanosec=int(stamp.nanosec)),
-                                    frame_id=str(msg.header.frame_id)),
+    out = PointCloud2(header=_rclpy_header(msg.header),
                       height=int(msg.height), width=int(msg.width), is_bigendian=bool(msg.is_bigendian),
                       point_step=int(msg.point_step), row_step=int(msg.row_step), is_dense=bool(msg.is_dense),
                       fields=[PointField(name=str(f.name), offset=int(f.offset), datatype=int(f.datatype),

@@ -29,7 +29,7 @@ from ..app.frame_result import FrameResult
 from ..app.pipeline import FramePipeline, header_stamp_ns, import_first_use_modules
 from ..app.rates import RateMeter
 from ..core.kernels import Warmup, warm
-from .messages import OUTPUTS, cloud_from_cdr, frame_messages, node_values
+from .messages import OUTPUTS, cloud_from_cdr, diagnostics, frame_messages, node_values
 
 __all__ = ['FrameWorker', 'input_qos', 'output_publishers', 'subscribe', 'LOG_THROTTLE_S', 'SWEEP_STOP_S',
            'RATE_WINDOW_S']
@@ -178,8 +178,7 @@ class FrameWorker:
             self.publish(topic, out)
         # the diagnostics last, with what the other outputs cost (processing_ms leaves them out)
         extra += (('outputs_ms', f'{1000 * (time.perf_counter() - start):.1f}'),)
-        self.publish('diagnostics', frame_messages(header, result, self.status_name, extra,
-                                                   ('diagnostics',))['diagnostics'])
+        self.publish('diagnostics', diagnostics(header, result.diagnostic.with_values(*extra), self.status_name))
         if retune:  # after publishing: the sweep competes for the GIL; frames go on with the current t
             self._start_retune(result, stamp_ns)
 
